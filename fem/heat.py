@@ -1,0 +1,372 @@
+"""Transient heat conduction in the rod: assembly and two time integrators.
+
+The problem (θ = T − T_ref, T_ref = the rod's nominal ambient):
+
+    ρc ∂θ/∂t − ∇·(λ∇θ) = 0                         in the rod
+    λ ∂θ/∂n = q(t)                                  on ``heated`` (flux in)
+    λ ∂θ/∂n = −h(t) (θ − θ_amb(t))                  on ``lateral``
+    ∂θ/∂n = 0                                       on ``far``
+
+Semi-discretised: M θ' + (K + h B) θ = q f_q + h θ_amb f_b, with every input
+piecewise constant in time (a :class:`models.params.Schedule`).
+
+Two integrators:
+
+* :func:`solve_theta` -- the θ-method (Crank–Nicolson by default, backward Euler
+  with ``theta=1``); each distinct (step, h) system is factored once with
+  :func:`scipy.sparse.linalg.splu` and reused, as in scikit-fem's ex19.
+* :func:`solve_modal` -- exact in time for piecewise-constant inputs: the
+  generalised eigenproblem (K + hB) φ = μ M φ is solved once per distinct h and
+  each mode is advanced by its exponential. Arbitrary (uneven) output times,
+  no time-step error; the tool of choice for sweeps and measured data.
+
+Axial growth is reported as α∫θ dV / A, which for a free bar held axially at one
+end equals the face-averaged axial displacement of the far face (reciprocity;
+see :mod:`fem.elastic`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.linalg
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+from skfem import (Basis, BilinearForm, ElementHex1, ElementHex2, ElementHexS2,
+                   ElementQuad1, ElementQuad2, FacetBasis, LinearForm, Mesh)
+from skfem.helpers import dot, grad
+
+from models.params import InputError, Rod, Schedule
+
+__all__ = ["HeatFEM", "HeatResult", "solve_theta", "solve_modal", "build_axisymmetric",
+           "build_3d", "ELEMENTS"]
+
+#: Element families by name, as used in scenario files.
+ELEMENTS = {
+    ("axisymmetric", 1): ElementQuad1,
+    ("axisymmetric", 2): ElementQuad2,
+    ("3d", 1): ElementHex1,
+    ("3d", 2): ElementHexS2,      # 20-node serendipity brick, as in the paper
+    ("3d", "2-lagrange"): ElementHex2,
+}
+
+
+def _radial_weight(axisymmetric: bool) -> Callable:
+    if axisymmetric:
+        return lambda x: 2.0 * np.pi * x[0]
+    return lambda x: 1.0 + 0.0 * x[0]
+
+
+def heat_forms(axisymmetric: bool):
+    """Weak forms of the heat operator; axisymmetric ones carry the 2πr weight."""
+    wr = _radial_weight(axisymmetric)
+
+    @BilinearForm
+    def mass(u, v, w):
+        return u * v * wr(w.x)
+
+    @BilinearForm
+    def stiffness(u, v, w):
+        return dot(grad(u), grad(v)) * wr(w.x)
+
+    @LinearForm
+    def unit_load(v, w):
+        return v * wr(w.x)
+
+    return mass, stiffness, unit_load
+
+
+@dataclass(frozen=True)
+class HeatFEM:
+    """Assembled heat problem on one mesh and element (no state, no inputs).
+
+    Attributes
+    ----------
+    rod : Rod
+    basis : skfem.Basis
+    axisymmetric : bool
+    M : sparse, ρc-weighted mass [J/K per unit θ]
+    K : sparse, conductance λ∫∇u·∇v [W/K]
+    B : sparse, lateral-surface mass ∫uv dS [m²]
+    f_q : ndarray, heated-face load ∫v dS [m²]
+    f_b : ndarray, lateral-surface load ∫v dS [m²]
+    volume : ndarray, ∫v dV [m³]; ``volume @ θ`` = ∫θ dV
+    growth : ndarray, α ``volume`` / A [m/K]; ``growth @ θ`` = axial growth [m]
+    """
+
+    rod: Rod
+    basis: Basis
+    axisymmetric: bool
+    M: sp.csr_matrix
+    K: sp.csr_matrix
+    B: sp.csr_matrix
+    f_q: np.ndarray
+    f_b: np.ndarray
+    volume: np.ndarray
+    growth: np.ndarray = field(repr=False)
+
+    @classmethod
+    def build(cls, mesh: Mesh, element, rod: Rod, axisymmetric: bool,
+              intorder: int | None = None) -> "HeatFEM":
+        """Assemble M, K, B and the loads on ``mesh`` with ``element``."""
+        for tag in ("heated", "lateral"):
+            if mesh.boundaries is None or tag not in mesh.boundaries:
+                raise InputError(f"mesh has no boundary tagged {tag!r}", "mesh")
+        kw = {} if intorder is None else {"intorder": intorder}
+        basis = Basis(mesh, element, **kw)
+        fb_q = FacetBasis(mesh, element, facets=mesh.boundaries["heated"], **kw)
+        fb_l = FacetBasis(mesh, element, facets=mesh.boundaries["lateral"], **kw)
+        mass, stiffness, unit_load = heat_forms(axisymmetric)
+        rhoc = rod.density_kg_m3 * rod.specific_heat_J_kgK
+        M = (rhoc * mass.assemble(basis)).tocsr()
+        K = (rod.conductivity_W_mK * stiffness.assemble(basis)).tocsr()
+        B = mass.assemble(fb_l).tocsr()
+        volume = unit_load.assemble(basis)
+        return cls(rod=rod, basis=basis, axisymmetric=axisymmetric, M=M, K=K, B=B,
+                   f_q=unit_load.assemble(fb_q), f_b=unit_load.assemble(fb_l),
+                   volume=volume, growth=rod.expansion_1_K * volume / rod.area_m2)
+
+    @property
+    def ndofs(self) -> int:
+        return int(self.M.shape[0])
+
+    def operator(self, h_W_m2K: float) -> sp.csr_matrix:
+        """K + hB [W/K]."""
+        return (self.K + h_W_m2K * self.B).tocsr()
+
+    def load(self, q_W_m2: float, h_W_m2K: float, theta_amb_K: float) -> np.ndarray:
+        """q f_q + h θ_amb f_b [W]."""
+        return q_W_m2 * self.f_q + (h_W_m2K * theta_amb_K) * self.f_b
+
+    def heat_content(self, theta: np.ndarray) -> np.ndarray:
+        """ρc∫θ dV [J] of one state or a stack of states (last axis = dofs)."""
+        rhoc = self.rod.density_kg_m3 * self.rod.specific_heat_J_kgK
+        return rhoc * (np.asarray(theta) @ self.volume)
+
+    def lateral_loss(self, theta: np.ndarray, h_W_m2K: float, theta_amb_K: float) -> np.ndarray:
+        """Convective loss h∫(θ − θ_amb) dS [W] of one state or a stack of states."""
+        return h_W_m2K * (np.asarray(theta) @ self.f_b - theta_amb_K * self.f_b.sum())
+
+
+def build_axisymmetric(rod: Rod, order: int = 2, nr: int = 4, nz: int = 24,
+                       ratio_r: float = 3.0, ratio_z: float = 6.0) -> HeatFEM:
+    """Axisymmetric model on :func:`fem.mesh.axisymmetric_mesh` with Q1 or Q2 elements."""
+    from fem.mesh import axisymmetric_mesh
+    if order not in (1, 2):
+        raise InputError(f"must be 1 or 2, got {order!r}", "order")
+    mesh = axisymmetric_mesh(rod, nr=nr, nz=nz, ratio_r=ratio_r, ratio_z=ratio_z)
+    return HeatFEM.build(mesh, ELEMENTS[("axisymmetric", order)](), rod, axisymmetric=True)
+
+
+def build_3d(rod: Rod, order: int | str = 2, n_core: int = 2, n_ring: int = 2, nz: int = 16,
+             ratio_ring: float = 2.0, ratio_z: float = 6.0) -> HeatFEM:
+    """3D model on :func:`fem.mesh.cylinder_mesh` (order 2 = 20-node serendipity bricks)."""
+    from fem.mesh import cylinder_mesh
+    if ("3d", order) not in ELEMENTS:
+        raise InputError(f"must be 1, 2 or '2-lagrange', got {order!r}", "order")
+    mesh = cylinder_mesh(rod, n_core=n_core, n_ring=n_ring, nz=nz, ratio_ring=ratio_ring,
+                         ratio_z=ratio_z)
+    return HeatFEM.build(mesh, ELEMENTS[("3d", order)](), rod, axisymmetric=False,
+                         intorder=4)
+
+
+@dataclass(frozen=True)
+class HeatResult:
+    """Output of a transient heat solve.
+
+    Attributes
+    ----------
+    times_s : ndarray, output times [s] (starting with 0)
+    growth_m : ndarray, α∫θ dV / A at each output time [m]
+    fields : ndarray or None, θ [K] at each output time, shape (n_times, ndofs)
+    heat_J : ndarray, ρc∫θ dV at each output time [J]
+    """
+
+    times_s: np.ndarray
+    growth_m: np.ndarray
+    heat_J: np.ndarray
+    fields: np.ndarray | None = None
+
+    @property
+    def growth_um(self) -> np.ndarray:
+        return self.growth_m * 1e6
+
+
+def _inputs(model: HeatFEM, schedule: Schedule):
+    q = np.asarray(schedule.q_W_m2, float)
+    h = schedule.h_for(model.rod)
+    amb = schedule.ambient_for(model.rod) - model.rod.ambient_C
+    return q, h, amb
+
+
+def _initial(model: HeatFEM, theta0) -> np.ndarray:
+    if theta0 is None:
+        return np.zeros(model.ndofs)
+    th = np.asarray(theta0, float)
+    if th.ndim == 0:
+        th = np.full(model.ndofs, float(th))
+    if th.shape != (model.ndofs,) or not np.all(np.isfinite(th)):
+        raise InputError(f"needs {model.ndofs} finite values", "theta0")
+    return th.copy()
+
+
+def solve_theta(model: HeatFEM, schedule: Schedule, dt_s: float, theta: float = 0.5,
+                store_fields: bool = False, theta0=None,
+                source: Callable[[np.ndarray, int], np.ndarray] | None = None) -> HeatResult:
+    """θ-method time integration; outputs at t = 0 and at every step end.
+
+    Each segment of ``schedule`` is split into ``ceil(duration / dt_s)`` equal
+    steps. Each distinct (step, h) matrix M + θΔt(K + hB) is factored once.
+
+    Parameters
+    ----------
+    model : HeatFEM
+    schedule : Schedule
+    dt_s : float
+        Largest time step [s].
+    theta : float
+        0.5 = Crank–Nicolson (2nd order), 1 = backward Euler (1st order).
+    store_fields : bool
+        Keep θ at every output time.
+    theta0 : array_like or float, optional
+        Initial temperature rise [K]; default 0 (equilibrium with ambient).
+    source : callable, optional
+        ``source(theta_prev, segment_index) -> extra load [W]`` added explicitly
+        on each step (used for nonlinear boundary terms held at the previous state).
+    """
+    if not (0.5 <= theta <= 1.0):
+        raise InputError(f"must lie in [0.5, 1], got {theta!r}", "theta")
+    if not (np.isfinite(dt_s) and dt_s > 0):
+        raise InputError(f"must be > 0, got {dt_s!r}", "dt_s")
+    q, h, amb = _inputs(model, schedule)
+    x = _initial(model, theta0)
+    M = model.M
+    cache: dict = {}
+    times = [0.0]
+    out = [x.copy()] if store_fields else None
+    growth = [model.growth @ x]
+    heat = [model.volume @ x]
+    t = 0.0
+    for i, dur in enumerate(schedule.durations_s):
+        n = max(1, int(np.ceil(dur / dt_s - 1e-9)))
+        step = dur / n
+        key = (round(step, 9), h[i])
+        if key not in cache:
+            A = model.operator(h[i])
+            lhs = splu((M + theta * step * A).tocsc())
+            rhs = (M - (1.0 - theta) * step * A).tocsr()
+            cache[key] = (lhs, rhs)
+        lhs, rhs = cache[key]
+        f = step * model.load(q[i], h[i], amb[i])
+        for _ in range(n):
+            b = rhs @ x + f
+            if source is not None:
+                b += step * source(x, i)
+            x = lhs.solve(b)
+            t += step
+            times.append(t)
+            growth.append(model.growth @ x)
+            heat.append(model.volume @ x)
+            if store_fields:
+                out.append(x.copy())
+    rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
+    return HeatResult(np.asarray(times), np.asarray(growth), rhoc * np.asarray(heat),
+                      np.asarray(out) if store_fields else None)
+
+
+@dataclass(frozen=True)
+class _Modes:
+    mu: np.ndarray        # eigenvalues μ_i [1/s]
+    phi: np.ndarray       # M-orthonormal eigenvectors (ndofs, nmodes)
+    fq: np.ndarray        # Φᵀ f_q
+    fb: np.ndarray        # Φᵀ f_b
+    g: np.ndarray         # growthᵀ Φ
+    v: np.ndarray         # volumeᵀ Φ
+
+
+def modes(model: HeatFEM, h_W_m2K: float) -> _Modes:
+    """All modes of M θ' = −(K + hB)θ by a dense generalised eigensolve."""
+    A = model.operator(h_W_m2K).toarray()
+    mu, phi = scipy.linalg.eigh(A, model.M.toarray())
+    return _Modes(mu, phi, phi.T @ model.f_q, phi.T @ model.f_b, model.growth @ phi,
+                  model.volume @ phi)
+
+
+def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_fields=False,
+                theta0=None, mode_cache: dict | None = None) -> HeatResult:
+    """Exact-in-time solution for piecewise-constant inputs, by modal superposition.
+
+    Parameters
+    ----------
+    model : HeatFEM
+    schedule : Schedule
+    output_times_s : array_like, optional
+        Times [s] at which to report, within [0, schedule.total_s]; default:
+        t = 0 and every segment end.
+    store_fields : bool
+        Keep θ at every output time.
+    theta0 : array_like or float, optional
+        Initial temperature rise [K]; default 0.
+    mode_cache : dict, optional
+        ``{h: modes}`` reused across calls with the same model (sweeps, fits).
+
+    Notes
+    -----
+    Between breakpoints each modal amplitude obeys c' = −μ c + φᵀf, so
+    c(t + d) = c_ss + e^{−μ d}(c(t) − c_ss) with c_ss = φᵀf / μ, exactly.
+    Where h changes, the state is carried across in nodal form.
+    """
+    q, h, amb = _inputs(model, schedule)
+    edges = schedule.edges_s
+    if output_times_s is None:
+        out_t = edges
+    else:
+        out_t = np.asarray(output_times_s, float)
+        if out_t.ndim != 1 or np.any(~np.isfinite(out_t)) or np.any(np.diff(out_t) < 0):
+            raise InputError("must be finite and non-decreasing", "output_times_s")
+        if out_t.size and (out_t[0] < -1e-9 or out_t[-1] > edges[-1] * (1 + 1e-12) + 1e-9):
+            raise InputError(f"must lie within [0, {edges[-1]:g}] s", "output_times_s")
+    # all breakpoints: segment edges and output times
+    bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
+    seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
+    d = np.diff(bps)
+
+    cache = {} if mode_cache is None else mode_cache
+    x = _initial(model, theta0)
+    hs = h[seg]
+    states = np.empty((bps.size, model.ndofs)) if store_fields else None
+    growth = np.empty(bps.size)
+    heat = np.empty(bps.size)
+    growth[0], heat[0] = model.growth @ x, model.volume @ x
+    if store_fields:
+        states[0] = x
+    k = 0
+    while k < seg.size:
+        # run of intervals with the same h
+        j = k
+        while j + 1 < seg.size and hs[j + 1] == hs[k]:
+            j += 1
+        hk = float(hs[k])
+        if hk not in cache:
+            cache[hk] = modes(model, hk)
+        md = cache[hk]
+        c = md.phi.T @ (model.M @ x)
+        idx = np.arange(k, j + 1)
+        forcing = np.outer(q[seg[idx]], md.fq) + np.outer(hk * amb[seg[idx]], md.fb)
+        css = forcing / md.mu
+        decay = np.exp(-np.outer(d[idx], md.mu))
+        C = np.empty((idx.size, md.mu.size))
+        for n in range(idx.size):
+            c = css[n] + decay[n] * (c - css[n])
+            C[n] = c
+        growth[k + 1:j + 2] = C @ md.g
+        heat[k + 1:j + 2] = C @ md.v
+        if store_fields:
+            states[k + 1:j + 2] = C @ md.phi.T
+        x = md.phi @ c
+        k = j + 1
+    pick = np.searchsorted(bps, np.clip(out_t, 0.0, edges[-1]))
+    rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
+    return HeatResult(out_t.copy(), growth[pick], rhoc * heat[pick],
+                      states[pick] if store_fields else None)

@@ -1,0 +1,321 @@
+"""Validated physical inputs shared by the FEM and the closed-form models.
+
+Everything a solver or model needs is held in two small immutable objects:
+
+* :class:`Rod` -- geometry, material and the nominal boundary conditions of the
+  spindle rod of Du et al. (2021), Sec. 1. Defaults are the paper's values.
+* :class:`Schedule` -- piecewise-constant inputs in time: heat flux into the
+  heated end face, ambient air temperature and convection coefficient, each
+  constant on a segment.
+
+Both refuse non-physical values at construction, before any solve, by raising
+:class:`InputError` with a one-line message naming the offending field.
+
+References
+----------
+.. [1] Du L., et al., "First-order autoregressive modeling method for axial
+   thermal error of machine tool spindle", J. Harbin Inst. Technol. 53(7), 2021.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Iterable, Sequence
+
+import numpy as np
+
+__all__ = [
+    "InputError",
+    "Rod",
+    "Schedule",
+    "paper_cycle",
+    "PAPER_PHASES_S",
+]
+
+
+class InputError(ValueError):
+    """Bad user input. ``str(err)`` is one line naming where and what.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, e.g. ``"must be > 0, got -1"``.
+    where : str, optional
+        Where it is wrong: a file, a key path, a row (``"case.toml: rod.radius_m"``).
+    """
+
+    def __init__(self, message: str, where: str | None = None):
+        self.where = where
+        self.message = message
+        super().__init__(f"{where}: {message}" if where else message)
+
+    def at(self, where: str) -> "InputError":
+        """Return a copy located at ``where`` (prefixing any existing location)."""
+        loc = f"{where}: {self.where}" if self.where else where
+        return InputError(self.message, loc)
+
+
+def _check_positive(name: str, value, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"must be a number, got {value!r}", name) from None
+    if not math.isfinite(v):
+        raise InputError(f"must be finite, got {value!r}", name)
+    if v < 0 or (v == 0 and not allow_zero):
+        raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {value!r}", name)
+    return v
+
+
+def _check_finite(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"must be a number, got {value!r}", name) from None
+    if not math.isfinite(v):
+        raise InputError(f"must be finite, got {value!r}", name)
+    return v
+
+
+@dataclass(frozen=True)
+class Rod:
+    """Spindle rod: geometry, material and nominal boundary conditions.
+
+    Field names carry their SI unit; defaults are the seed paper's values [1]_.
+
+    Parameters
+    ----------
+    radius_m : float
+        Rod radius R [m].
+    length_m : float
+        Rod length L [m]. Heat enters the end face z = 0; z = L is adiabatic.
+    conductivity_W_mK : float
+        Thermal conductivity λ [W/(m·K)].
+    density_kg_m3 : float
+        Density ρ [kg/m³].
+    specific_heat_J_kgK : float
+        Specific heat capacity c [J/(kg·K)].
+    expansion_1_K : float
+        Linear thermal expansion coefficient α [1/K].
+    youngs_modulus_Pa : float
+        Young's modulus E [Pa].
+    poisson_ratio : float
+        Poisson's ratio ν [-], in (-1, 0.5).
+    convection_W_m2K : float
+        Convection coefficient h on the lateral surface [W/(m²·K)].
+    ambient_C : float
+        Nominal ambient air temperature [°C]; also the initial and the
+        stress-free reference temperature.
+
+    Examples
+    --------
+    >>> rod = Rod()
+    >>> round(rod.biot, 3)
+    0.11
+    >>> Rod(radius_m=-1)
+    Traceback (most recent call last):
+    ...
+    models.params.InputError: radius_m: must be > 0, got -1
+    """
+
+    radius_m: float = 0.1
+    length_m: float = 0.8
+    conductivity_W_mK: float = 50.0
+    density_kg_m3: float = 7850.0
+    specific_heat_J_kgK: float = 460.0
+    expansion_1_K: float = 12e-6
+    youngs_modulus_Pa: float = 206e9
+    poisson_ratio: float = 0.3
+    convection_W_m2K: float = 55.0
+    ambient_C: float = 20.0
+
+    def __post_init__(self):
+        for f in fields(self):
+            name = f.name
+            value = getattr(self, name)
+            if name == "poisson_ratio":
+                v = _check_finite(name, value)
+                if not -1.0 < v < 0.5:
+                    raise InputError(f"must lie in (-1, 0.5), got {value!r}", name)
+            elif name == "ambient_C":
+                v = _check_finite(name, value)
+                if v < -273.15:
+                    raise InputError(f"is below absolute zero, got {value!r}", name)
+            else:
+                v = _check_positive(name, value)
+            object.__setattr__(self, name, v)
+
+    # -- derived quantities of the 1D theory (paper eqs. 1-4) ------------------
+    @property
+    def diffusivity_m2_s(self) -> float:
+        """a = λ/(ρc) [m²/s]."""
+        return self.conductivity_W_mK / (self.density_kg_m3 * self.specific_heat_J_kgK)
+
+    @property
+    def fin_rate_1_s(self) -> float:
+        """b = 2h/(ρcR) [1/s], the lateral-loss rate of the 1D fin equation."""
+        return 2.0 * self.convection_W_m2K / (
+            self.density_kg_m3 * self.specific_heat_J_kgK * self.radius_m)
+
+    @property
+    def biot(self) -> float:
+        """Biot number hR/λ [-]."""
+        return self.convection_W_m2K * self.radius_m / self.conductivity_W_mK
+
+    @property
+    def area_m2(self) -> float:
+        """Cross-section area πR² [m²]."""
+        return math.pi * self.radius_m ** 2
+
+    def with_(self, **changes) -> "Rod":
+        """Return a copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Piecewise-constant inputs: one value per segment, segments back to back from t = 0.
+
+    Parameters
+    ----------
+    durations_s : array_like
+        Length of each segment [s], all > 0.
+    q_W_m2 : array_like
+        Heat flux into the heated end face on each segment [W/m²], >= 0.
+    ambient_C : array_like or None
+        Ambient air temperature on each segment [°C]. ``None``: the rod's nominal
+        ambient throughout.
+    h_W_m2K : array_like or None
+        Lateral convection coefficient on each segment [W/(m²·K)], > 0. ``None``:
+        the rod's nominal h throughout.
+
+    Examples
+    --------
+    >>> s = Schedule([3600, 1800], [2000, 0])
+    >>> s.edges_s.tolist()
+    [0.0, 3600.0, 5400.0]
+    >>> Schedule([3600, -1], [2000, 0])
+    Traceback (most recent call last):
+    ...
+    models.params.InputError: durations_s[1]: must be > 0, got -1.0
+    """
+
+    durations_s: np.ndarray
+    q_W_m2: np.ndarray
+    ambient_C: np.ndarray | None = None
+    h_W_m2K: np.ndarray | None = None
+
+    def __post_init__(self):
+        d = np.atleast_1d(np.asarray(self.durations_s, dtype=float))
+        if d.ndim != 1 or d.size == 0:
+            raise InputError("needs at least one segment", "durations_s")
+        n = d.size
+
+        def arr(name, value, positive, allow_zero):
+            a = np.atleast_1d(np.asarray(value, dtype=float))
+            if a.size == 1 and n > 1:
+                a = np.full(n, a.item())
+            if a.shape != (n,):
+                raise InputError(f"has {a.size} values for {n} segments", name)
+            for i, v in enumerate(a.tolist()):
+                if not math.isfinite(v):
+                    raise InputError(f"must be finite, got {v!r}", f"{name}[{i}]")
+                if positive and (v < 0 or (v == 0 and not allow_zero)):
+                    raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}",
+                                     f"{name}[{i}]")
+            a.setflags(write=False)
+            return a
+
+        object.__setattr__(self, "durations_s", arr("durations_s", d, True, False))
+        object.__setattr__(self, "q_W_m2", arr("q_W_m2", self.q_W_m2, True, True))
+        if self.ambient_C is not None:
+            object.__setattr__(self, "ambient_C", arr("ambient_C", self.ambient_C, False, False))
+        if self.h_W_m2K is not None:
+            object.__setattr__(self, "h_W_m2K", arr("h_W_m2K", self.h_W_m2K, True, False))
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.durations_s.size)
+
+    @property
+    def edges_s(self) -> np.ndarray:
+        """Segment boundaries [s], length ``n_segments + 1``, starting at 0."""
+        return np.concatenate([[0.0], np.cumsum(self.durations_s)])
+
+    @property
+    def total_s(self) -> float:
+        return float(self.durations_s.sum())
+
+    def ambient_for(self, rod: Rod) -> np.ndarray:
+        """Ambient per segment [°C], the rod's nominal value where not given."""
+        if self.ambient_C is None:
+            return np.full(self.n_segments, rod.ambient_C)
+        return np.asarray(self.ambient_C)
+
+    def h_for(self, rod: Rod) -> np.ndarray:
+        """Convection coefficient per segment [W/(m²·K)], the rod's nominal where not given."""
+        if self.h_W_m2K is None:
+            return np.full(self.n_segments, rod.convection_W_m2K)
+        return np.asarray(self.h_W_m2K)
+
+    def value_at(self, name: str, t_s, rod: Rod | None = None) -> np.ndarray:
+        """Value of input ``name`` holding on the segment that contains each time.
+
+        A time on a boundary belongs to the segment that *ends* there (the
+        zero-order-hold convention of the measured-data contract).
+        """
+        values = {
+            "q_W_m2": self.q_W_m2,
+            "ambient_C": self.ambient_for(rod) if rod else self.ambient_C,
+            "h_W_m2K": self.h_for(rod) if rod else self.h_W_m2K,
+        }[name]
+        idx = np.searchsorted(self.edges_s, np.asarray(t_s, dtype=float), side="left") - 1
+        idx = np.clip(idx, 0, self.n_segments - 1)
+        return np.asarray(values)[idx]
+
+    def subdivided(self, dt_s: float) -> "Schedule":
+        """Split every segment into pieces of exactly ``dt_s``.
+
+        Raises :class:`InputError` if ``dt_s`` does not divide a segment.
+        """
+        dt = _check_positive("dt_s", dt_s)
+        counts = []
+        for i, d in enumerate(self.durations_s):
+            k = d / dt
+            if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
+                raise InputError(
+                    f"{dt:g} s does not divide segment {i} of {d:g} s; choose a step that "
+                    f"divides every phase duration (e.g. a divisor of {_gcd_all(self.durations_s):g} s)",
+                    "dt_s")
+            counts.append(int(round(k)))
+        rep = np.repeat(np.arange(self.n_segments), counts)
+        pick = lambda a: None if a is None else np.asarray(a)[rep]
+        return Schedule(np.full(rep.size, dt), pick(self.q_W_m2), pick(self.ambient_C),
+                        pick(self.h_W_m2K))
+
+
+def _gcd_all(durations: Iterable[float]) -> float:
+    ints = [int(round(d)) for d in durations]
+    if all(abs(a - b) < 1e-9 for a, b in zip(ints, durations)):
+        g = 0
+        for i in ints:
+            g = math.gcd(g, i)
+        return float(g)
+    return float(min(durations))
+
+
+#: The paper's duty cycle: 4 h on, 1.5 h off, 4 h on, 14.5 h off [s] (Du et al. 2021, Sec. 2).
+PAPER_PHASES_S: tuple[tuple[float, bool], ...] = (
+    (4.0 * 3600, True), (1.5 * 3600, False), (4.0 * 3600, True), (14.5 * 3600, False))
+
+
+def paper_cycle(q_W_m2: float) -> Schedule:
+    """The seed paper's 24 h duty cycle at heat flux ``q_W_m2`` [W/m²].
+
+    Examples
+    --------
+    >>> s = paper_cycle(2000.0)
+    >>> s.total_s / 3600, s.q_W_m2.tolist()
+    (24.0, [2000.0, 0.0, 2000.0, 0.0])
+    """
+    return Schedule([d for d, _ in PAPER_PHASES_S], [q_W_m2 if on else 0.0 for _, on in PAPER_PHASES_S])

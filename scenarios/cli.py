@@ -1,0 +1,68 @@
+"""The ``arfem`` command.
+
+Subcommands (each lives in its own module and registers itself here):
+
+    arfem run SCENARIO --out DIR [--force]     one scenario: FEM vs AR(1), all outputs
+    arfem reproduce [--out DIR]                the paper's Fig. 2 and 3 into reports/paper/
+    arfem sweep SWEEP.toml --out DIR           parameter sweep (local processes or Dask)
+    arfem diagnose CASE.toml --out DIR         what a simulation gets wrong on measured data
+    arfem allocate SCENARIO --out DIR          precision allocation over a motion chain
+
+Bad input ends with one line ``arfem: error: <where>: <what>`` and exit status 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from models.params import InputError
+
+#: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
+COMMANDS = {
+    "run": "scenarios.run",
+    "reproduce": "scenarios.run",
+    "sweep": "scenarios.sweep",
+    "diagnose": "scenarios.diagnose",
+    "allocate": "scenarios.allocate",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="arfem",
+        description="FEM thermo-elastic simulation of a spindle rod against the AR(1) "
+                    "thermal-growth model (Du et al. 2021), with sweeps and diagnosis of "
+                    "measured data.")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    seen = set()
+    for name, modname in COMMANDS.items():
+        if modname in seen:
+            continue
+        seen.add(modname)
+        try:
+            mod = importlib.import_module(modname)
+        except ModuleNotFoundError as exc:  # a subcommand not built yet
+            if exc.name != modname:
+                raise
+            continue
+        mod.add_parser(sub)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        rc = args.func(args)
+    except InputError as exc:
+        print(f"arfem: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("arfem: interrupted", file=sys.stderr)
+        return 130
+    return int(rc or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
