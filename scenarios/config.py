@@ -1,0 +1,416 @@
+"""Scenario files: TOML → validated :class:`Scenario`.
+
+A scenario describes one FEM-vs-AR(1) comparison. Every key carries its unit::
+
+    [scenario]
+    name = "paper_fig2"
+    description = "Du et al. 2021, Fig. 2: q = 2000 W/m2"
+
+    [rod]                        # optional; each key defaults to the paper's value
+    radius_m = 0.1
+    convection_W_m2K = 55.0      # ... any field of models.params.Rod
+
+    [cycle]
+    total_h = 24.0               # optional: the phases must add up to this
+    phases = [
+      { duration_h = 4.0,  q_W_m2 = 2000.0 },   # duration_s | duration_min | duration_h
+      { duration_h = 1.5,  q_W_m2 = 0.0 },      # optional per phase: ambient_C, h_W_m2K
+    ]
+
+    [ar]
+    dtau_s = 30.0                # AR time step; must divide every phase
+
+    [fem]
+    model = "axisymmetric"       # or "3d"
+    order = 2                    # 1 or 2 (3d: 2 = 20-node serendipity brick)
+    solver = "modal"             # "modal" (exact in time), "crank-nicolson", "backward-euler"
+    dt_s = 30.0                  # θ-method step (defaults to dtau_s)
+    [fem.mesh]                   # axisymmetric: nr, nz, ratio_r, ratio_z
+    nr = 4                       # 3d: n_core, n_ring, nz, ratio_ring, ratio_z
+    nz = 24
+
+    [outputs]
+    fields = true                # XDMF time series of temperature and displacement
+    picture = true               # off-screen 3D PNG of the temperature
+    field_interval_s = 1800.0    # spacing of the field snapshots
+
+Unknown keys, wrong types, phases that do not add up, negative durations, a Δτ
+that does not divide the phases and values in units that cannot be right are
+refused with one line naming the file and the key.
+"""
+from __future__ import annotations
+
+import copy
+import difflib
+import math
+import sys
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from models.params import InputError, Rod, Schedule
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_toml", "load_scenario",
+           "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
+           "PAPER_SCENARIOS"]
+
+#: Built-in scenarios reproducing the paper's figures.
+PAPER_SCENARIOS = ("paper_fig2", "paper_fig3")
+
+#: Short names usable in sweeps and overrides.
+ALIASES = {"dtau_s": "ar.dtau_s", "h_W_m2K": "rod.convection_W_m2K", "q_W_m2": "cycle.q_W_m2"}
+
+# Plausible ranges: a value outside is almost certainly in the wrong unit.
+_PLAUSIBLE = {
+    "radius_m": (1e-4, 5.0, "metres (a radius in mm?)"),
+    "length_m": (1e-3, 50.0, "metres (a length in mm?)"),
+    "conductivity_W_mK": (1e-3, 2000.0, "W/(m·K)"),
+    "density_kg_m3": (10.0, 30000.0, "kg/m³ (a density in g/cm³?)"),
+    "specific_heat_J_kgK": (10.0, 20000.0, "J/(kg·K) (a value in kJ/(kg·K)?)"),
+    "expansion_1_K": (1e-8, 1e-3, "1/K (a value in µm/(m·K) or ppm/K?)"),
+    "youngs_modulus_Pa": (1e6, 2e12, "Pa (a modulus in GPa?)"),
+    "convection_W_m2K": (0.01, 1e5, "W/(m²·K)"),
+    "ambient_C": (-100.0, 500.0, "°C (a temperature in K?)"),
+    "q_W_m2": (0.0, 1e7, "W/m²"),
+    "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
+}
+
+_TOP = {"scenario", "rod", "cycle", "ar", "fem", "outputs"}
+_SCENARIO_KEYS = {"name", "description"}
+_CYCLE_KEYS = {"phases", "total_h", "total_s"}
+_PHASE_KEYS = {"duration_s", "duration_min", "duration_h", "q_W_m2", "ambient_C", "h_W_m2K",
+               "label"}
+_AR_KEYS = {"dtau_s"}
+_FEM_KEYS = {"model", "order", "solver", "dt_s", "mesh", "elastic"}
+_MESH_KEYS = {"axisymmetric": {"nr", "nz", "ratio_r", "ratio_z"},
+              "3d": {"n_core", "n_ring", "nz", "ratio_ring", "ratio_z"}}
+_OUT_KEYS = {"fields", "picture", "field_interval_s"}
+_SOLVERS = {"modal": None, "crank-nicolson": 0.5, "backward-euler": 1.0}
+
+
+@dataclass(frozen=True)
+class FemSettings:
+    """How the FEM is built and integrated."""
+
+    model: str = "axisymmetric"
+    order: int = 2
+    solver: str = "modal"
+    dt_s: float | None = None
+    elastic: bool = True
+    mesh: dict = field(default_factory=dict)
+
+    @property
+    def theta(self) -> float | None:
+        """θ of the θ-method, or None for the exact modal integrator."""
+        return _SOLVERS[self.solver]
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    fields: bool = True
+    picture: bool = True
+    field_interval_s: float = 1800.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario (see module docstring for the file format)."""
+
+    name: str
+    description: str
+    source: str
+    rod: Rod
+    schedule: Schedule
+    phase_labels: tuple
+    dtau_s: float
+    fem: FemSettings
+    outputs: OutputSettings
+    data: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def q_levels(self) -> list[float]:
+        """Distinct non-zero heat fluxes of the cycle [W/m²], ascending."""
+        return sorted({float(q) for q in self.schedule.q_W_m2 if q > 0})
+
+
+def builtin_scenario_path(name: str) -> Path:
+    """Path of a scenario file shipped with arfem (``paper_fig2`` …)."""
+    stem = name[:-5] if name.endswith(".toml") else name
+    p = resources.files("scenarios").joinpath(f"{stem}.toml")
+    if not p.is_file():
+        raise InputError("no such built-in scenario", name)
+    return Path(str(p))
+
+
+def load_toml(path) -> dict:
+    """Read a TOML file; a missing or malformed file is an :class:`InputError`."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError("no such file", str(p))
+    try:
+        with open(p, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"malformed TOML: {exc}", str(p)) from None
+    except UnicodeDecodeError:
+        raise InputError("is not UTF-8 text", str(p)) from None
+
+
+def load_scenario(path) -> Scenario:
+    """Load and validate a scenario file (or a built-in name such as ``paper_fig2``)."""
+    p = Path(path)
+    if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
+        p = builtin_scenario_path(p.name)
+    return scenario_from_dict(load_toml(p), str(p))
+
+
+# -- validation helpers ---------------------------------------------------------------
+
+def _unknown(keys, allowed, where: str):
+    for k in keys:
+        if k not in allowed:
+            close = difflib.get_close_matches(k, sorted(allowed), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else \
+                f" (allowed: {', '.join(sorted(allowed))})"
+            raise InputError(f"unknown key{hint}", f"{where}.{k}" if where else k)
+
+
+def _table(d: dict, key: str, where: str) -> dict:
+    v = d.get(key, {})
+    if not isinstance(v, dict):
+        raise InputError(f"must be a table, got {type(v).__name__}", _join(where, key))
+    return v
+
+
+def _join(a: str, b: str) -> str:
+    return f"{a}.{b}" if a else b
+
+
+def _number(v, where: str, *, positive=False, allow_zero=False, integer=False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(f"must be a number, got {type(v).__name__} {v!r}", where)
+    if integer and not isinstance(v, int):
+        raise InputError(f"must be a whole number, got {v!r}", where)
+    f = float(v)
+    if not math.isfinite(f):
+        raise InputError(f"must be finite, got {v!r}", where)
+    if positive and (f < 0 or (f == 0 and not allow_zero)):
+        raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}", where)
+    return f
+
+
+def _plausible(key: str, value: float, where: str):
+    if key in _PLAUSIBLE:
+        lo, hi, unit = _PLAUSIBLE[key]
+        if not lo <= value <= hi and not (key == "q_W_m2" and value == 0):
+            raise InputError(f"{value:g} is outside the plausible range [{lo:g}, {hi:g}] "
+                             f"for a value in {unit}", where)
+
+
+def _string(v, where: str, choices=None) -> str:
+    if not isinstance(v, str):
+        raise InputError(f"must be a string, got {type(v).__name__} {v!r}", where)
+    if choices is not None and v not in choices:
+        raise InputError(f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}",
+                         where)
+    return v
+
+
+def _bool(v, where: str) -> bool:
+    if not isinstance(v, bool):
+        raise InputError(f"must be true or false, got {v!r}", where)
+    return v
+
+
+def _fmt_divisors(g: float) -> str:
+    cands = [d for d in (1, 2, 5, 10, 15, 20, 30, 60, 90, 120, 180, 300, 600, 900, 1800, 3600)
+             if g > 0 and abs(g / d - round(g / d)) < 1e-9]
+    return ", ".join(f"{d:g}" for d in cands[-6:]) if cands else f"{g:g}"
+
+
+def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
+    """Validate a scenario given as a dict (as read from TOML).
+
+    Errors name ``source`` and the key path, e.g.
+    ``paper.toml: cycle.phases[2].duration_h: must be > 0, got -1``.
+    """
+    try:
+        return _from_dict(data, source)
+    except InputError as exc:
+        if exc.where and exc.where.startswith(source):
+            raise
+        raise exc.at(source) from None
+
+
+def _from_dict(data: dict, source: str) -> Scenario:
+    if not isinstance(data, dict):
+        raise InputError("a scenario must be a TOML document (a table)")
+    _unknown(data, _TOP, "")
+    sc = _table(data, "scenario", "")
+    _unknown(sc, _SCENARIO_KEYS, "scenario")
+    name = _string(sc.get("name", Path(source).stem), "scenario.name")
+    description = _string(sc.get("description", ""), "scenario.description")
+
+    # rod
+    rod_d = _table(data, "rod", "")
+    rod_fields = {f.name for f in fields(Rod)}
+    _unknown(rod_d, rod_fields, "rod")
+    rod_kw = {}
+    for k, v in rod_d.items():
+        where = f"rod.{k}"
+        f = _number(v, where)
+        _plausible(k, f, where)
+        rod_kw[k] = f
+    try:
+        rod = Rod(**rod_kw)
+    except InputError as exc:
+        raise exc.at("rod") from None
+
+    # cycle
+    cyc = _table(data, "cycle", "")
+    _unknown(cyc, _CYCLE_KEYS, "cycle")
+    phases = cyc.get("phases")
+    if not isinstance(phases, list) or not phases:
+        raise InputError("must be a non-empty list of phases "
+                         "({ duration_h = 4.0, q_W_m2 = 2000.0 }, ...)", "cycle.phases")
+    durations, qs, ambs, hs, labels = [], [], [], [], []
+    for i, ph in enumerate(phases):
+        where = f"cycle.phases[{i}]"
+        if not isinstance(ph, dict):
+            raise InputError(f"must be a table, got {type(ph).__name__}", where)
+        _unknown(ph, _PHASE_KEYS, where)
+        given = [k for k in ("duration_s", "duration_min", "duration_h") if k in ph]
+        if len(given) != 1:
+            raise InputError("needs exactly one of duration_s, duration_min, duration_h"
+                             + (f" (got {', '.join(given)})" if given else ""), where)
+        k = given[0]
+        d = _number(ph[k], f"{where}.{k}", positive=True)
+        durations.append(d * {"duration_s": 1.0, "duration_min": 60.0, "duration_h": 3600.0}[k])
+        if "q_W_m2" not in ph:
+            raise InputError("missing q_W_m2 (heat flux in W/m²; 0 for a pause)", where)
+        q = _number(ph["q_W_m2"], f"{where}.q_W_m2", positive=True, allow_zero=True)
+        _plausible("q_W_m2", q, f"{where}.q_W_m2")
+        qs.append(q)
+        a = _number(ph.get("ambient_C", rod.ambient_C), f"{where}.ambient_C")
+        _plausible("ambient_C", a, f"{where}.ambient_C")
+        ambs.append(a)
+        h = _number(ph.get("h_W_m2K", rod.convection_W_m2K), f"{where}.h_W_m2K", positive=True)
+        _plausible("h_W_m2K", h, f"{where}.h_W_m2K")
+        hs.append(h)
+        labels.append(_string(ph.get("label", "heating" if q > 0 else "cooling"),
+                              f"{where}.label"))
+    total = sum(durations)
+    for key, unit in (("total_h", 3600.0), ("total_s", 1.0)):
+        if key in cyc:
+            want = _number(cyc[key], f"cycle.{key}", positive=True) * unit
+            if abs(want - total) > 1e-9 * max(want, 1.0):
+                raise InputError(f"the phases add up to {total / unit:g}, not {want / unit:g}",
+                                 f"cycle.{key}")
+    any_amb = any("ambient_C" in ph for ph in phases)
+    any_h = any("h_W_m2K" in ph for ph in phases)
+    schedule = Schedule(durations, qs, ambs if any_amb else None, hs if any_h else None)
+
+    # ar
+    ar = _table(data, "ar", "")
+    _unknown(ar, _AR_KEYS, "ar")
+    dtau = _number(ar.get("dtau_s", 30.0), "ar.dtau_s", positive=True)
+    for i, d in enumerate(durations):
+        k = d / dtau
+        if abs(k - round(k)) > 1e-9 * max(k, 1.0):
+            from models.params import _gcd_all
+            g = _gcd_all(durations)
+            raise InputError(f"{dtau:g} s does not divide phase {i} ({d:g} s); choose a Δτ "
+                             f"that divides every phase, e.g. {_fmt_divisors(g)} s", "ar.dtau_s")
+
+    # fem
+    fem_d = _table(data, "fem", "")
+    _unknown(fem_d, _FEM_KEYS, "fem")
+    model = _string(fem_d.get("model", "axisymmetric"), "fem.model", ("axisymmetric", "3d"))
+    order = fem_d.get("order", 2)
+    if isinstance(order, bool) or order not in (1, 2):
+        raise InputError(f"must be 1 or 2, got {order!r}", "fem.order")
+    solver = _string(fem_d.get("solver", "modal"), "fem.solver", tuple(_SOLVERS))
+    dt = _number(fem_d.get("dt_s", dtau), "fem.dt_s", positive=True)
+    if abs(dtau / dt - round(dtau / dt)) > 1e-9 * max(dtau / dt, 1.0):
+        raise InputError(f"{dt:g} s must divide ar.dtau_s = {dtau:g} s so that FEM and AR "
+                         "share their sample times", "fem.dt_s")
+    elastic = _bool(fem_d.get("elastic", True), "fem.elastic")
+    mesh_d = _table(fem_d, "mesh", "fem")
+    _unknown(mesh_d, _MESH_KEYS[model], "fem.mesh")
+    mesh = {}
+    for k, v in mesh_d.items():
+        if k.startswith("ratio"):
+            r = _number(v, f"fem.mesh.{k}", positive=True)
+            if r < 1:
+                raise InputError(f"must be >= 1 (largest/smallest element), got {v!r}",
+                                 f"fem.mesh.{k}")
+            mesh[k] = r
+        else:
+            n = _number(v, f"fem.mesh.{k}", integer=True)
+            if n < 1:
+                raise InputError(f"a mesh needs at least 1 element, got {v!r}", f"fem.mesh.{k}")
+            mesh[k] = int(n)
+
+    out = _table(data, "outputs", "")
+    _unknown(out, _OUT_KEYS, "outputs")
+    outputs = OutputSettings(
+        fields=_bool(out.get("fields", True), "outputs.fields"),
+        picture=_bool(out.get("picture", True), "outputs.picture"),
+        field_interval_s=_number(out.get("field_interval_s", 1800.0), "outputs.field_interval_s",
+                                 positive=True))
+    return Scenario(name=name, description=description, source=source, rod=rod,
+                    schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
+                    fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
+                                    elastic=elastic, mesh=mesh),
+                    outputs=outputs, data=copy.deepcopy(data))
+
+
+def apply_override(data: dict, key: str, value: Any) -> dict:
+    """Return a deep copy of scenario ``data`` with ``key`` set to ``value``.
+
+    ``key`` is a dotted path (``rod.convection_W_m2K``, ``fem.mesh.nz``) or an alias
+    from :data:`ALIASES`; ``q_W_m2`` / ``cycle.q_W_m2`` sets the flux of every
+    heated phase. Unknown keys are refused.
+
+    Examples
+    --------
+    >>> d = apply_override({"cycle": {"phases": [{"duration_h": 1, "q_W_m2": 5.0},
+    ...                                          {"duration_h": 1, "q_W_m2": 0.0}]}}, "q_W_m2", 7.0)
+    >>> [p["q_W_m2"] for p in d["cycle"]["phases"]]
+    [7.0, 0.0]
+    """
+    path = ALIASES.get(key, key)
+    out = copy.deepcopy(data)
+    if path == "cycle.q_W_m2":
+        phases = out.get("cycle", {}).get("phases")
+        if not isinstance(phases, list) or not any(
+                isinstance(p, dict) and p.get("q_W_m2", 0) > 0 for p in phases):
+            raise InputError("the base scenario has no heated phase to set", key)
+        for p in phases:
+            if isinstance(p, dict) and p.get("q_W_m2", 0) > 0:
+                p["q_W_m2"] = value
+        return out
+    parts = path.split(".")
+    allowed = {
+        (): _TOP, ("scenario",): _SCENARIO_KEYS, ("rod",): {f.name for f in fields(Rod)},
+        ("cycle",): {"total_h", "total_s"}, ("ar",): _AR_KEYS, ("fem",): _FEM_KEYS - {"mesh"},
+        ("fem", "mesh"): _MESH_KEYS["axisymmetric"] | _MESH_KEYS["3d"], ("outputs",): _OUT_KEYS,
+    }
+    parent = tuple(parts[:-1])
+    if parent not in allowed or parts[-1] not in allowed[parent]:
+        raise InputError("is not a scenario key that can be set (use a dotted path such as "
+                         "rod.convection_W_m2K, ar.dtau_s, fem.mesh.nz, or dtau_s, h_W_m2K, "
+                         "q_W_m2)", key)
+    node = out
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+        if not isinstance(node, dict):
+            raise InputError("cannot be set: its parent is not a table", key)
+    node[parts[-1]] = value
+    return out
