@@ -1,0 +1,549 @@
+"""Read a measured dataset (``NAME.toml`` + ``NAME.csv``) exactly per the measured-data contract.
+
+The contract (``measured-data.md``) fixes the form of every measured dataset: a CSV of
+samples with the columns ``time_s``, ``growth_um``, ``q_W_m2`` or ``speed_rpm``,
+optionally ``ambient_C`` and ``T_<name>_C``, and a TOML beside it with the tables
+``[dataset]``, ``[rod]``, ``[columns]`` and ``[sensors.*]``. :func:`load_dataset`
+turns the pair into a validated, immutable :class:`Dataset` or refuses it with one
+:class:`models.params.InputError` whose message names the file, the CSV line or the
+column/key, and what is wrong.
+
+Data flow: file -> :class:`Dataset` (this module) -> models. Nothing here fits or
+simulates; the only processing is what the contract prescribes (drop <= 5 % rows with
+an empty ``time_s``/``growth_um``, fill short ``ambient_C`` gaps) plus robust flags
+that the models may use (growth outliers, sampling gaps), each reported in ``notes``.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from models.params import InputError, Rod, Schedule
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+__all__ = ["Dataset", "load_dataset", "hampel_outliers", "sampling_gaps",
+           "ROD_KEYS", "MAX_MISSING_FRACTION"]
+
+#: ``[rod]`` keys of the contract (a subset of :class:`models.params.Rod`'s fields).
+ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
+            "specific_heat_J_kgK", "expansion_1_K", "convection_W_m2K", "ambient_C")
+#: Rows with an empty ``time_s``/``growth_um`` are dropped up to this fraction, refused above.
+MAX_MISSING_FRACTION = 0.05
+#: A sampling interval longer than this multiple of the median interval is a gap.
+GAP_FACTOR = 3.0
+
+_TOP_TABLES = ("dataset", "rod", "columns", "sensors")
+_DATASET_KEYS = ("name", "csv", "initial")
+_INITIAL_VALUES = ("equilibrium", "unknown")
+_SENSOR_KEYS = ("description",)
+_BASE_COLUMNS = ("time_s", "growth_um", "q_W_m2", "speed_rpm", "ambient_C")
+_TEMP_RE = re.compile(r"^T_.+_C$")
+_NUMBER_RE = re.compile(r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$")
+_NONFINITE_RE = re.compile(r"^[+-]?(?:nan|inf|infinity)$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """One measured record, validated; every array is over the kept rows.
+
+    Attributes
+    ----------
+    name : str
+        ``[dataset] name`` (the TOML stem if absent).
+    source : Path
+        The TOML file.
+    time_s : ndarray
+        Sample times [s], strictly increasing, >= 0.
+    growth_um : ndarray
+        Measured axial growth [µm], finite everywhere.
+    q_W_m2 : ndarray or None
+        Heat flux [W/m²] over (t_{i-1}, t_i] (zero-order hold; from 0 for the first row).
+    speed_rpm : ndarray or None
+        Spindle speed [1/min] over (t_{i-1}, t_i].
+    ambient_C : ndarray or None
+        Measured ambient air temperature [°C], finite (short gaps filled, see ``notes``).
+    temperatures : dict of str to ndarray
+        Every ``T_<name>_C`` column [°C] (NaN where a cell was empty).
+    rod : Rod
+        ``[rod]`` values, the seed paper's where not given.
+    initial_known : bool
+        False when ``[dataset] initial = "unknown"`` (record not started at equilibrium).
+    outliers : ndarray of bool
+        Growth samples flagged as outliers by :func:`hampel_outliers` (kept, not removed).
+    gaps : list of (float, float)
+        (start_s, end_s) of sampling intervals longer than 3x the median interval.
+    notes : list of str
+        What was done to the data and what was noticed, human-readable.
+    sensors : dict of str to str
+        ``[sensors.<column>] description``.
+    csv_path : Path
+        The CSV file.
+    line_numbers : ndarray of int
+        CSV line (1-based, header = line 1) of each kept row.
+    """
+
+    name: str
+    source: Path
+    time_s: np.ndarray
+    growth_um: np.ndarray
+    q_W_m2: np.ndarray | None
+    speed_rpm: np.ndarray | None
+    ambient_C: np.ndarray | None
+    temperatures: dict[str, np.ndarray]
+    rod: Rod
+    initial_known: bool
+    outliers: np.ndarray
+    gaps: list[tuple[float, float]]
+    notes: list[str]
+    sensors: dict[str, str]
+    csv_path: Path | None = None
+    line_numbers: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def input_kind(self) -> str:
+        """``"q_W_m2"`` when the heat flux is recorded (preferred), else ``"speed_rpm"``."""
+        return "q_W_m2" if self.q_W_m2 is not None else "speed_rpm"
+
+    @property
+    def n_rows(self) -> int:
+        return int(self.time_s.size)
+
+    def schedule(self, ambient: bool = False) -> Schedule:
+        """The recorded inputs as a piecewise-constant :class:`Schedule` from t = 0.
+
+        Segment i is (t_{i-1}, t_i] with t_{-1} = 0 (a first row at t = 0 adds no
+        segment). ``ambient=True`` also carries ``ambient_C`` (each row's value held
+        over the interval that ends at it). Only for datasets with ``q_W_m2``.
+        """
+        if self.q_W_m2 is None:
+            raise InputError("has no q_W_m2 column; a schedule needs the heat flux",
+                             str(self.source))
+        t = np.concatenate([[0.0], self.time_s])
+        d = np.diff(t)
+        keep = d > 0
+        amb = None
+        if ambient and self.ambient_C is not None:
+            amb = self.ambient_C[keep]
+        return Schedule(d[keep], self.q_W_m2[keep], amb)
+
+
+# -- robust flags -------------------------------------------------------------------
+
+def hampel_outliers(values, half_window: int = 5, n_sigma: float = 6.0,
+                    floor: float = 0.0) -> np.ndarray:
+    """Hampel-type outlier flags: residual from the median of the neighbours beyond ``n_sigma`` robust σ.
+
+    The reference for each sample is the median of its ``2 * half_window`` neighbours
+    (itself excluded). σ is 1.4826 × the median absolute deviation of the residuals
+    over the whole record (σ for Gaussian noise), so a slow trend does not inflate it; ``floor`` is a lower bound on σ
+    in the unit of ``values`` (e.g. the quantisation step).
+
+    Parameters
+    ----------
+    values : array_like
+        Samples, e.g. growth [µm], finite.
+    half_window : int
+        Neighbours on each side used for the reference median [-].
+    n_sigma : float
+        Threshold in robust standard deviations [-].
+    floor : float
+        Smallest σ used, in the unit of ``values``.
+
+    Returns
+    -------
+    ndarray of bool
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> x = 10 * np.sin(np.linspace(0, 3, 500)) + rng.normal(0, 0.1, 500)
+    >>> x[[50, 300]] += [3.0, -2.0]
+    >>> np.flatnonzero(hampel_outliers(x)).tolist()
+    [50, 300]
+    """
+    x = np.asarray(values, dtype=float)
+    k = int(half_window)
+    if x.size < 2 * k + 1 or k < 1:
+        return np.zeros(x.shape, dtype=bool)
+    # median of the 2k neighbours, the sample itself excluded: on a smooth record this
+    # is ~ the sample's value (residual = noise + curvature), and a spike cannot mask itself
+    pad = np.pad(x, k, mode="reflect", reflect_type="odd")   # keeps a linear trend
+    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * k + 1)
+    neigh = np.delete(win, k, axis=1)
+    r = x - np.median(neigh, axis=1)
+    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), float(floor))
+    if sigma == 0.0:
+        return np.zeros(x.shape, dtype=bool)
+    return np.abs(r) > n_sigma * sigma
+
+
+def sampling_gaps(time_s, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
+    """Intervals whose length exceeds ``factor`` × the median sampling interval.
+
+    Parameters
+    ----------
+    time_s : array_like
+        Strictly increasing sample times [s].
+    factor : float
+        Multiple of the median interval beyond which an interval is a gap [-].
+
+    Returns
+    -------
+    list of (start_s, end_s)
+
+    Examples
+    --------
+    >>> sampling_gaps([0, 30, 60, 90, 400, 430])
+    [(90.0, 400.0)]
+    """
+    t = np.asarray(time_s, dtype=float)
+    if t.size < 3:
+        return []
+    d = np.diff(t)
+    med = float(np.median(d))
+    idx = np.flatnonzero(d > factor * med)
+    return [(float(t[i]), float(t[i + 1])) for i in idx]
+
+
+# -- reading ------------------------------------------------------------------------
+
+def _fail(message: str, where: str):
+    raise InputError(message, where)
+
+
+def _read_toml(path: Path) -> dict:
+    if not path.is_file():
+        _fail("file not found" if not path.exists() else "is not a file", str(path))
+    try:
+        raw = path.read_bytes()
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        _fail(f"is not UTF-8 (byte {e.start})", str(path))
+    except OSError as e:
+        _fail(f"cannot be read ({e.strerror})", str(path))
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        _fail(f"malformed TOML: {str(e).splitlines()[0]}", str(path))
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _parse_meta(path: Path, doc: dict):
+    """Validate the TOML tables; return (name, csv_path, initial_known, rod, columns, sensors)."""
+    where = str(path)
+    for key in doc:
+        if key not in _TOP_TABLES:
+            _fail(f"unknown top-level table or key {key!r}; allowed: {', '.join(_TOP_TABLES)}",
+                  where)
+        if not isinstance(doc[key], dict):
+            _fail(f"must be a table, got {type(doc[key]).__name__}", f"{where}: {key}")
+
+    ds = doc.get("dataset", {})
+    for key in ds:
+        if key not in _DATASET_KEYS:
+            _fail(f"unknown key; allowed: {', '.join(_DATASET_KEYS)}", f"{where}: dataset.{key}")
+    name = ds.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        _fail(f"must be a non-empty string, got {name!r}", f"{where}: dataset.name")
+    csv_name = ds.get("csv", path.stem + ".csv")
+    if not isinstance(csv_name, str) or not csv_name.strip():
+        _fail(f"must be a non-empty string, got {csv_name!r}", f"{where}: dataset.csv")
+    initial = ds.get("initial", "equilibrium")
+    if initial not in _INITIAL_VALUES:
+        _fail(f"must be one of {', '.join(repr(v) for v in _INITIAL_VALUES)}, got {initial!r}",
+              f"{where}: dataset.initial")
+
+    rod_doc = doc.get("rod", {})
+    for key, value in rod_doc.items():
+        if key not in ROD_KEYS:
+            _fail(f"unknown key; allowed: {', '.join(ROD_KEYS)}", f"{where}: rod.{key}")
+        if not _is_number(value):
+            _fail(f"must be a number, got {value!r}", f"{where}: rod.{key}")
+    try:
+        rod = Rod(**rod_doc)
+    except InputError as e:
+        raise e.at(f"{where}: rod") from None
+
+    columns = doc.get("columns", {})
+    seen: dict[str, str] = {}
+    for key, value in columns.items():
+        if key not in _BASE_COLUMNS and not _TEMP_RE.match(key):
+            _fail("is not a contract column name (time_s, growth_um, q_W_m2, speed_rpm, "
+                  "ambient_C, T_<name>_C)", f"{where}: columns.{key}")
+        if not isinstance(value, str) or not value:
+            _fail(f"must be a column name (string), got {value!r}", f"{where}: columns.{key}")
+        if value in seen:
+            _fail(f"maps to {value!r}, which columns.{seen[value]} already maps to",
+                  f"{where}: columns.{key}")
+        seen[value] = key
+
+    sensors: dict[str, str] = {}
+    for key, table in doc.get("sensors", {}).items():
+        if not isinstance(table, dict):
+            _fail("must be a table [sensors.<column>]", f"{where}: sensors.{key}")
+        for k, v in table.items():
+            if k not in _SENSOR_KEYS:
+                _fail(f"unknown key; allowed: {', '.join(_SENSOR_KEYS)}",
+                      f"{where}: sensors.{key}.{k}")
+            if not isinstance(v, str):
+                _fail(f"must be a string, got {v!r}", f"{where}: sensors.{key}.{k}")
+        sensors[key] = table.get("description", "")
+    return name, path.parent / csv_name, initial == "unknown", rod, dict(columns), sensors
+
+
+def _read_csv(path: Path, toml_path: Path):
+    """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
+    if not path.is_file():
+        _fail(f"CSV file not found (named by {toml_path})" if not path.exists()
+              else "is not a file", str(path))
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        _fail(f"is not UTF-8 (byte {e.start})", str(path))
+    except OSError as e:
+        _fail(f"cannot be read ({e.strerror})", str(path))
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    rows, lines = [], []
+    header = None
+    try:
+        for row in reader:
+            if not row or (len(row) == 1 and not row[0].strip()):
+                continue          # blank line
+            if header is None:
+                header = [c.strip() for c in row]
+                header_line = reader.line_num
+                continue
+            if len(row) != len(header):
+                _fail(f"has {len(row)} fields, the header has {len(header)}",
+                      f"{path}: line {reader.line_num}")
+            rows.append(row)
+            lines.append(reader.line_num)
+    except csv.Error as e:
+        _fail(f"broken CSV: {e}", f"{path}: line {reader.line_num}")
+    if header is None:
+        _fail("is empty (no header row)", str(path))
+    for i, name in enumerate(header):
+        if not name:
+            _fail(f"header field {i + 1} is empty", f"{path}: line {header_line}")
+        if header.index(name) != i:
+            _fail(f"column {name!r} appears twice in the header", f"{path}: line {header_line}")
+    if not rows:
+        _fail("has a header but no data rows", str(path))
+    return header, rows, np.asarray(lines, dtype=int)
+
+
+def _parse_column(csv_path: Path, rows, lines, j: int, label: str) -> np.ndarray:
+    """Numbers of column ``j``; empty cells -> NaN; text/NaN/inf -> InputError."""
+    out = np.empty(len(rows))
+    for i, row in enumerate(rows):
+        cell = row[j].strip()
+        if not cell:
+            out[i] = np.nan
+        elif _NUMBER_RE.match(cell):
+            out[i] = float(cell)
+        elif _NONFINITE_RE.match(cell):
+            _fail(f"{cell!r} is not a finite number (NaN/inf are refused; leave the cell "
+                  f"empty for a missing value)", f"{csv_path}: line {lines[i]}, column {label}")
+        else:
+            _fail(f"{cell!r} is not a number", f"{csv_path}: line {lines[i]}, column {label}")
+    if not np.all(np.isfinite(out[~np.isnan(out)])):      # e.g. 1e999
+        i = int(np.flatnonzero(np.isinf(out))[0])
+        _fail(f"{rows[i][j].strip()!r} overflows to infinity",
+              f"{csv_path}: line {lines[i]}, column {label}")
+    return out
+
+
+def _fill_short_gaps(t, y):
+    """Linear interpolation in time over NaN runs (nearest value at the ends)."""
+    bad = np.isnan(y)
+    y = y.copy()
+    y[bad] = np.interp(t[bad], t[~bad], y[~bad])
+    return y
+
+
+def load_dataset(toml_path) -> Dataset:
+    """Load and validate a measured dataset per the measured-data contract.
+
+    Parameters
+    ----------
+    toml_path : str or path-like
+        The dataset's TOML file; its ``[dataset] csv`` (default ``<stem>.csv``) is
+        read relative to it.
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    models.params.InputError
+        One line naming the file, the key/line/column and what is wrong.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "c.csv").write_text("time_s,growth_um,q_W_m2\\n0,0,0\\n30,0.2,2000\\n60,0.4,2000\\n")
+    >>> _ = (d / "c.toml").write_text('[dataset]\\nname = "c"\\ncsv = "c.csv"\\n')
+    >>> ds = load_dataset(d / "c.toml")
+    >>> ds.input_kind, ds.growth_um.tolist(), ds.rod.convection_W_m2K
+    ('q_W_m2', [0.0, 0.2, 0.4], 55.0)
+    """
+    toml_path = Path(toml_path)
+    doc = _read_toml(toml_path)
+    name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc)
+    header, rows, lines = _read_csv(csv_path, toml_path)
+    notes: list[str] = []
+
+    # resolve contract name -> header index
+    for key, foreign in mapping.items():
+        if foreign not in header:
+            _fail(f"maps to column {foreign!r}, which is not in the header of {csv_path}",
+                  f"{toml_path}: columns.{key}")
+    col: dict[str, int] = {}
+    mapped_foreign = set(mapping.values())
+    for key, foreign in mapping.items():
+        col[key] = header.index(foreign)
+    for j, h in enumerate(header):
+        if h in mapped_foreign or h in col:
+            continue
+        if h in _BASE_COLUMNS or _TEMP_RE.match(h):
+            col[h] = j
+    used = set(col.values())
+    extra = [h for j, h in enumerate(header) if j not in used]
+    for req in ("time_s", "growth_um"):
+        if req not in col:
+            _fail(f"required column {req!r} is missing"
+                  + (f" (map a column onto it under [columns] in {toml_path})" if mapping else ""),
+                  str(csv_path))
+    if "q_W_m2" not in col and "speed_rpm" not in col:
+        _fail("needs a q_W_m2 or a speed_rpm column; it has neither", str(csv_path))
+
+    def label(key):
+        foreign = header[col[key]]
+        return f"{key!r}" if foreign == key else f"{key!r} ({foreign!r})"
+
+    values = {key: _parse_column(csv_path, rows, lines, j, label(key)) for key, j in col.items()}
+    n_all = len(rows)
+
+    # rows with an empty time or growth: drop up to 5 %, else refuse
+    missing = np.isnan(values["time_s"]) | np.isnan(values["growth_um"])
+    n_missing = int(missing.sum())
+    if n_missing > MAX_MISSING_FRACTION * n_all:
+        _fail(f"{n_missing} of {n_all} rows ({100 * n_missing / n_all:.1f} %) have an empty "
+              f"time_s or growth_um; at most {100 * MAX_MISSING_FRACTION:g} % may be dropped "
+              f"(first at line {lines[missing][0]})", str(csv_path))
+    if n_missing:
+        shown = ", ".join(str(x) for x in lines[missing][:10])
+        notes.append(f"dropped {n_missing} of {n_all} rows ({100 * n_missing / n_all:.2f} %) "
+                     f"with an empty time_s or growth_um: CSV lines {shown}"
+                     + (" ..." if n_missing > 10 else ""))
+    keep = ~missing
+    lines = lines[keep]
+    values = {k: v[keep] for k, v in values.items()}
+    if lines.size == 0:
+        _fail("no row has both time_s and growth_um", str(csv_path))
+    t = values["time_s"]
+
+    # time: >= 0 and strictly increasing
+    if t[0] < 0:
+        _fail(f"time_s = {t[0]:g} is negative; time counts from the start of the record",
+              f"{csv_path}: line {lines[0]}, column {label('time_s')}")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.flatnonzero(dt <= 0)[0]) + 1
+        _fail(f"time_s = {t[i]:g} does not increase (previous row, line {lines[i - 1]}, "
+              f"has {t[i - 1]:g})", f"{csv_path}: line {lines[i]}, column {label('time_s')}")
+
+    # inputs: complete and non-negative
+    for key in ("q_W_m2", "speed_rpm"):
+        if key not in values:
+            continue
+        v = values[key]
+        if np.any(np.isnan(v)):
+            i = int(np.flatnonzero(np.isnan(v))[0])
+            _fail("is empty; the input must be given on every row with a growth value",
+                  f"{csv_path}: line {lines[i]}, column {label(key)}")
+        if np.any(v < 0):
+            i = int(np.flatnonzero(v < 0)[0])
+            _fail(f"{v[i]:g} is negative; it must be >= 0",
+                  f"{csv_path}: line {lines[i]}, column {label(key)}")
+    if "q_W_m2" in values and "speed_rpm" in values:
+        notes.append("both q_W_m2 and speed_rpm are given; the heat flux q_W_m2 is the input, "
+                     "speed_rpm is carried along")
+
+    # ambient: fill short gaps
+    amb = values.get("ambient_C")
+    if amb is not None:
+        nan = np.isnan(amb)
+        if nan.sum() > MAX_MISSING_FRACTION * amb.size:
+            i = int(np.flatnonzero(nan)[0])
+            _fail(f"{int(nan.sum())} of {amb.size} cells are empty; at most "
+                  f"{100 * MAX_MISSING_FRACTION:g} % may be filled",
+                  f"{csv_path}: line {lines[i]}, column {label('ambient_C')}")
+        if nan.any():
+            amb = _fill_short_gaps(t, amb)
+            notes.append(f"filled {int(nan.sum())} empty ambient_C cells by linear "
+                         f"interpolation in time")
+
+    temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
+    for k, v in temps.items():
+        if np.isnan(v).any():
+            notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
+
+    g = values["growth_um"]
+    # floor on σ: the quantisation step where the sensor is quantised
+    steps = np.abs(np.diff(g))
+    steps = steps[steps > 1e-9]
+    floor = float(steps.min()) if steps.size else 0.0
+    outliers = hampel_outliers(g, floor=floor)
+    if outliers.any():
+        shown = ", ".join(str(x) for x in lines[outliers][:10])
+        notes.append(f"flagged {int(outliers.sum())} growth outliers (Hampel, 6 robust σ from a "
+                     f"median of the 10 neighbouring samples): CSV lines {shown}"
+                     + (" ..." if outliers.sum() > 10 else ""))
+    gaps = sampling_gaps(t)
+    if dt.size:
+        notes.append(f"{t.size} rows over {t[-1] - t[0]:g} s; sampling interval median "
+                     f"{np.median(dt):g} s, min {dt.min():g} s, max {dt.max():g} s")
+    if gaps:
+        total = sum(b - a for a, b in gaps)
+        notes.append(f"{len(gaps)} sampling gaps longer than {GAP_FACTOR:g}x the median interval, "
+                     f"{total:g} s in all, the longest {max(b - a for a, b in gaps):g} s "
+                     f"from {max(gaps, key=lambda ab: ab[1] - ab[0])[0]:g} s")
+    if extra:
+        notes.append(f"extra columns carried and ignored: {', '.join(extra)}")
+    for key in sensors:
+        if key not in col:
+            notes.append(f"[sensors.{key}] describes a column that is not in the CSV")
+    if initial_unknown:
+        notes.append('initial = "unknown": the record does not start at equilibrium')
+
+    def frozen(a):
+        a = np.ascontiguousarray(a, dtype=float)
+        a.setflags(write=False)
+        return a
+
+    outliers.setflags(write=False)
+    lines.setflags(write=False)
+    return Dataset(
+        name=name, source=toml_path, time_s=frozen(t), growth_um=frozen(g),
+        q_W_m2=frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
+        speed_rpm=frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
+        ambient_C=frozen(amb) if amb is not None else None,
+        temperatures={k: frozen(v) for k, v in temps.items()}, rod=rod,
+        initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
+        sensors=sensors, csv_path=csv_path, line_numbers=lines)
