@@ -1,0 +1,291 @@
+"""The diagnosis: what the nominal simulation gets wrong on a measured record, which cause
+explains it, and how much the model extended by that cause gains on a hold-out.
+
+Data flow: :class:`models.diagnosis.loader.Dataset` → :func:`diagnose` → :class:`Diagnosis`
+(the contract's ``diagnosis.json`` content plus the series for figures) → writers in
+:mod:`models.diagnosis.report`.
+
+Selection rule (documented in every report):
+
+1. every applicable cause is fitted on the rows before the hold-out that the loader
+   did not flag as outliers (:mod:`models.diagnosis.candidates`);
+2. each is scored by BIC on *effective* samples, N_eff ln(RSS/N) + k ln N_eff, with
+   N_eff = N(1 − ρ1)/(1 + ρ1) from the lag-1 autocorrelation ρ1 of the best candidate's
+   residual (one N_eff for all, so the scores are comparable);
+3. the best-scoring cause is named only if it beats the baseline in a nested F test
+   on N_eff samples at p < ``ALPHA`` (Bonferroni over the candidates) *and* cuts the
+   fit-window RMSE by at least ``MIN_GAIN`` -- otherwise the cause is ``none``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from models.diagnosis import stats as st
+from models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
+                                         fit_candidate)
+from models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
+                                    speed_to_heat_map)
+from models.params import InputError
+
+__all__ = ["Diagnosis", "diagnose", "diagnose_file", "ALPHA", "MIN_GAIN"]
+
+#: family-wise significance level of the test against the baseline
+ALPHA = 1e-3
+#: minimum relative cut of the fit-window RMSE for a cause to be named
+MIN_GAIN = 0.05
+
+
+@dataclass
+class Diagnosis:
+    """Result: ``summary`` is the JSON document; ``series`` the arrays for figures/CSV."""
+
+    summary: dict
+    series: dict
+    text: list = field(default_factory=list)
+
+
+def _phases(t, running, tau_s):
+    """'heating' while the input is on; 'cooling' within 3τ after it stops; else 'standing'."""
+    lab = np.where(running, "heating", "standing").astype(object)
+    last_on = -np.inf
+    for i in range(t.size):
+        if running[i]:
+            last_on = t[i]
+        elif t[i] - last_on < 3.0 * tau_s:
+            lab[i] = "cooling"
+    return lab
+
+
+def _metrics(y, pred, mask):
+    r = (y - pred)[mask]
+    return {"rmse_um": st.rmse(r), "max_abs_um": float(np.max(np.abs(r))) if r.size else None,
+            "fit_pct": st.fit_percent(y[mask], pred[mask])}
+
+
+def _holdout_start(t, holdout_start_s, where):
+    if holdout_start_s is None:
+        hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
+        how = "not given: the last third of the record (from 2/3 of its duration)"
+    else:
+        hs = float(holdout_start_s)
+        how = "given by --holdout-start"
+        if not np.isfinite(hs):
+            raise InputError(f"must be finite, got {holdout_start_s!r}", "--holdout-start")
+    n_before = int(np.sum(t < hs))
+    n_after = int(np.sum(t >= hs))
+    if n_before < 20 or n_after < 5:
+        raise InputError(f"{hs:g} s leaves {n_before} samples to fit and {n_after} to score "
+                         f"(record {t[0]:g}..{t[-1]:g} s); need >= 20 and >= 5",
+                         "--holdout-start")
+    return float(t[np.searchsorted(t, hs)]), how
+
+
+def _select(fits: dict, base: CandidateFit, n_tests: int):
+    """Scores, the named cause and the runner-up (see module docstring)."""
+    valid = {c: f for c, f in fits.items() if f is not None}
+    best_rss = min(f.rss for f in valid.values())
+    best_fit = min(valid.values(), key=lambda f: f.rss)
+    r_best = best_fit.extra.get("_res")
+    n = base.n
+    rho = st.lag1(r_best) if r_best is not None else 0.0
+    n_eff = st.effective_n(n, rho)
+    scores = {c: st.bic(f.rss, n, n_eff, f.k) for c, f in valid.items()}
+    order = sorted(scores, key=scores.get)
+    named = [c for c in order if c != "none"]
+    top = named[0] if named else "none"
+    tests = {}
+    for c in named:
+        f = valid[c]
+        p = st.f_test_p(base.rss, f.rss, f.k, n_eff)
+        cut = 1.0 - np.sqrt(f.rss / base.rss) if base.rss > 0 else 0.0
+        tests[c] = {"p_value": p, "rmse_cut_pct": 100 * cut,
+                    "significant": bool(p < ALPHA / max(n_tests, 1) and cut >= MIN_GAIN)}
+    cause = top if top != "none" and tests[top]["significant"] else "none"
+    runner = None
+    for c in order:
+        if c != cause:
+            runner = c
+            break
+    return cause, runner, scores, tests, {"n": n, "rho1": rho, "n_eff": n_eff}
+
+
+def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
+    r = (y - pred)
+    rm = r[mask]
+    n = int(mask.sum())
+    rho = st.lag1(rm)
+    n_eff = st.effective_n(n, rho)
+    out = _metrics(y, pred, mask)
+    out["ljung_box_p"] = st.ljung_box_p(rm)
+    out["lag1_autocorrelation"] = rho
+    ph = _phases(t, running, tau_s)
+    out["per_phase"] = {p: ({"rmse_um": st.rmse(r[mask & (ph == p)]),
+                             "n": int(np.sum(mask & (ph == p)))}
+                            if np.any(mask & (ph == p)) else None)
+                        for p in ("heating", "cooling", "standing")}
+    xc = {}
+    for name, x in {**signals, "time_s": t}.items():
+        x = np.asarray(x, float)
+        ok = mask & np.isfinite(x)
+        if ok.sum() < 5 or np.std(x[ok]) == 0:
+            continue
+        xc[name] = st.xcorr(r[ok], x[ok])
+    out["cross_correlation"] = xc
+    out["cross_correlation_bound_white"] = 1.96 / np.sqrt(n)
+    out["cross_correlation_bound_neff"] = 1.96 / np.sqrt(n_eff)
+    return out
+
+
+def diagnose(ds, holdout_start_s=None) -> Diagnosis:
+    """Diagnose a loaded :class:`~models.diagnosis.loader.Dataset`.
+
+    Parameters
+    ----------
+    ds : Dataset
+        The record (``q_W_m2`` → FEM baseline; ``speed_rpm`` → calibrated AR(1) baseline).
+    holdout_start_s : float, optional
+        Start of the hold-out [s]; default the last third of the record.
+    """
+    t = np.asarray(ds.time_s, float)
+    y = np.asarray(ds.growth_um, float)
+    good = ~np.asarray(ds.outliers, bool)
+    hs, how = _holdout_start(t, holdout_start_s, str(ds.source))
+    rows = good & (t < hs)
+    hold = good & (t >= hs)
+    rod = ds.rod
+    amb_K = None if ds.ambient_C is None else np.asarray(ds.ambient_C, float) - rod.ambient_C
+    temps = {k: np.asarray(v, float) for k, v in ds.temperatures.items()}
+    signals = {}
+    if ds.input_kind == "q_W_m2":
+        signals["q_W_m2"] = np.asarray(ds.q_W_m2, float)
+    else:
+        signals["speed_rpm"] = np.asarray(ds.speed_rpm, float)
+    if ds.ambient_C is not None:
+        signals["ambient_C"] = np.asarray(ds.ambient_C, float)
+    signals.update(temps)
+    text = []
+    extra_models = {}
+
+    if ds.input_kind == "q_W_m2":
+        q = np.asarray(ds.q_W_m2, float)
+        running = q > 0
+        fem = FemPhysics(rod)
+        tau_s = 1.0 / fem.slowest_rate()
+        frame = temps.get("T_frame_C")
+        fits = {}
+        for c in CAUSES:
+            f = fit_candidate(c, fem, t, q, y, rows, ds.initial_known, amb_K, frame)
+            if f is not None:
+                f.extra["_res"] = (y - f.prediction)[rows]
+            fits[c] = f
+        base = fits["none"]
+        cause, runner, scores, tests, neff = _select(fits, base, sum(f is not None for f in fits.values()) - 1)
+        ext = fits[cause]
+        ar = ArPhysics(rod)
+        ar_base = fit_candidate("none", ar, t, q, y, rows, ds.initial_known, amb_K, frame)
+        ar_ext = ar_base if cause == "none" else fit_candidate(cause, ar, t, q, y, rows,
+                                                               ds.initial_known, amb_K, frame)
+        base_model = "fem"
+        ar_label = "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"
+        extra_models["ar"] = {"baseline": ar_base, "extended": ar_ext}
+    else:
+        sp = np.asarray(ds.speed_rpm, float)
+        running = sp > 0
+        levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
+        rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
+        paper_pred, paper_info = paper_ar(t, y, sp, rows, W, seen)
+        base_paper = CandidateFit("none", "ar", {}, paper_pred, 0)
+        fits = {}
+        for c in SPEED_CAUSES:
+            f = fit_speed_candidate(c, t, y, sp, rows, seen, W, amb_K, rho_c_R)
+            if f is not None:
+                f.extra["_res"] = (y - f.prediction)[rows]
+            fits[c] = f
+        for c in CAUSES:
+            fits.setdefault(c, None)
+        base = fits["none"]   # output-error AR: the reference the candidates are tested against
+        cause, runner, scores, tests, neff = _select(fits, base, sum(f is not None for f in fits.values()) - 1)
+        ext = fits[cause] if cause != "none" else base_paper
+        tau_s = base.extra.get("time_constant_h", 1.0) * 3600.0
+        base = base_paper
+        base_model = "ar"
+        ar_label = "paper AR(1) calibrated by eq. 17 before the hold-out"
+        extra_models["ar_output_error"] = {"baseline": fits["none"], "extended": ext}
+        text.append(f"speed-to-heat mapping: {map_info}")
+        text.append(f"paper AR(1) calibration: {paper_info}")
+
+    bres = _residual_analysis(t, y, base.prediction, good, signals, running, tau_s)
+    eres = _residual_analysis(t, y, ext.prediction, good, signals, running, tau_s)
+    b_hold = st.rmse((y - base.prediction)[hold])
+    e_hold = st.rmse((y - ext.prediction)[hold])
+    gain = 100.0 * (1.0 - e_hold / b_hold) if b_hold > 0 else 0.0
+
+    summary = {
+        "dataset": ds.name,
+        "cause": cause,
+        "baseline": {"model": base_model, "rmse_um": bres["rmse_um"],
+                     "max_abs_um": bres["max_abs_um"], "ljung_box_p": bres["ljung_box_p"],
+                     "fit_pct": bres["fit_pct"], "per_phase": bres["per_phase"],
+                     "lag1_autocorrelation": bres["lag1_autocorrelation"],
+                     "cross_correlation": bres["cross_correlation"],
+                     "cross_correlation_bound_white": bres["cross_correlation_bound_white"],
+                     "cross_correlation_bound_neff": bres["cross_correlation_bound_neff"]},
+        "extended": {"model": ext.model if cause != "none" else base_model,
+                     "rmse_um": eres["rmse_um"], "max_abs_um": eres["max_abs_um"],
+                     "ljung_box_p": eres["ljung_box_p"], "fit_pct": eres["fit_pct"],
+                     "per_phase": eres["per_phase"]},
+        "holdout": {"start_s": hs, "how_chosen": how, "baseline_rmse_um": b_hold,
+                    "extended_rmse_um": e_hold, "gain_pct": gain,
+                    "n_samples": int(hold.sum())},
+        "parameters": {k: v for k, v in ext.parameters.items()} if cause != "none" else {},
+        "candidates": [{"cause": c, "score": scores[c], **({k: v for k, v in tests[c].items()}
+                                                          if c in tests else {}),
+                        "parameters": fits[c].parameters,
+                        "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
+                       for c in sorted(scores, key=scores.get)],
+        "runner_up": None,
+        "selection": {"rule": f"BIC on N_eff samples; named only if nested F test p < "
+                              f"{ALPHA:g}/candidates and fit-window RMSE cut >= {100 * MIN_GAIN:g} %",
+                      **neff},
+        "not_applicable": [c for c in CAUSES if fits.get(c) is None],
+        "input_kind": ds.input_kind,
+        "data_notes": list(ds.notes),
+    }
+    if runner is not None and fits.get(runner) is not None:
+        why = (f"BIC {scores[runner]:.1f} vs {scores.get(cause, float('nan')):.1f}"
+               + (f"; F-test p = {tests[runner]['p_value']:.3g}, fit-RMSE cut "
+                  f"{tests[runner]['rmse_cut_pct']:.1f} %" if runner in tests else ""))
+        summary["runner_up"] = {"cause": runner, "score": scores[runner],
+                                "parameters": fits[runner].parameters, "why_lost": why}
+    # AR-form results
+    ar_out = {}
+    for key, d in extra_models.items():
+        bb, ee = d["baseline"], d["extended"]
+        if bb is None or ee is None:
+            continue
+        bh = st.rmse((y - bb.prediction)[hold])
+        eh = st.rmse((y - ee.prediction)[hold])
+        ar_out[key] = {"baseline_model": bb.model, "extended_model": ee.model,
+                       "baseline_holdout_rmse_um": bh, "extended_holdout_rmse_um": eh,
+                       "gain_pct": 100.0 * (1.0 - eh / bh) if bh > 0 else 0.0,
+                       "parameters": ee.parameters}
+    summary["ar_form"] = ar_out
+    summary["ar_form_description"] = ar_label
+    series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
+              "extended_um": ext.prediction, "outlier": (~good).astype(float)}
+    if temps:
+        pm, names = mlr(y, temps, rows)
+        if pm is not None:
+            summary["mlr"] = {"sensors": names, "holdout_rmse_um": st.rmse((y - pm)[hold]),
+                              "note": "growth = β0 + Σ β_i T_i fitted before the hold-out "
+                                      "(paper eq. 18)"}
+            series["mlr_um"] = pm
+    return Diagnosis(summary, series, text)
+
+
+def diagnose_file(toml_path, holdout_start_s=None) -> Diagnosis:
+    """Load a contract dataset (TOML + CSV) and diagnose it."""
+    from models.diagnosis.loader import load_dataset
+    return diagnose(load_dataset(toml_path), holdout_start_s)

@@ -1,0 +1,241 @@
+"""The AR(1) side for records that give only the spindle speed (no heat flux, no geometry).
+
+* :func:`paper_ar` -- the seed paper's AR(1) calibrated by least squares on one-step
+  prediction (paper eq. 17): ΔL_n = C1 ΔL_{n−1} + C2(speed_n), one C2 per speed seen
+  before the hold-out; C2 of a speed not seen is mapped from the ratio of early
+  temperature rises (paper eqs. 20-21, :func:`speed_to_heat_map`).
+* :func:`fit_speed_candidate` -- the same AR(1) extended by one cause, fitted by
+  output error (free-run simulation) on the rows before the hold-out.
+* :func:`mlr` -- multiple linear regression of growth on the temperatures (paper eq. 18).
+
+Speed-to-heat mapping (what is done, eqs. 20-21): the heat input of a speed is judged
+from how fast the temperatures rise just after the spindle steps to it. The sensor used
+is the temperature whose 5-min increments correlate best with the speed before the
+hold-out; the early rise r(s) is its mean increase over the first 10 min after every
+step into speed s. For a speed s not seen before the hold-out the steady gain is
+K(s) = K(0) + (K(s_ref) − K(0))·r(s)/r(s_ref), with s_ref the nearest seen non-zero
+speed. Without temperatures, r(s) ∝ s is assumed (heat proportional to speed).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+
+from models.diagnosis.candidates import CandidateFit, project
+from models.diagnosis.forward import ar_first_order, first_order_lag, intervals
+
+__all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
+
+#: causes identifiable for a calibrated AR(1) (h and heat scale are absorbed by C1, C2)
+SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_expansion",
+                "sensor_drift")
+
+
+def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.0):
+    """Early-rise mapping (paper eqs. 20-21): weights W with K(unseen) = Σ_s W[u][s] K(s).
+
+    Returns (levels, seen, W, info) where ``W[u]`` is a dict {seen level: weight}.
+    """
+    t = np.asarray(t, float)
+    speed = np.asarray(speed, float)
+    levels = np.unique(speed)
+    seen = np.unique(speed[rows])
+    unseen = [u for u in levels if u not in seen]
+    info: dict = {"unseen_rpm": [float(u) for u in unseen]}
+    # the speed-following sensor
+    best, best_c = None, 0.0
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    lag = max(1, int(round(300.0 / dt)))
+    for name, T in temperatures.items():
+        T = np.asarray(T, float)
+        if not np.all(np.isfinite(T[rows])):
+            continue
+        inc = T[lag:] - T[:-lag]
+        sp = speed[lag:]
+        ok = rows[lag:]
+        if ok.sum() < 10 or np.std(sp[ok]) == 0:
+            continue
+        c = abs(np.corrcoef(inc[ok], sp[ok])[0, 1])
+        if np.isfinite(c) and c > best_c:
+            best, best_c = name, c
+    rise = {}
+    if best is not None:
+        T = np.asarray(temperatures[best], float)
+        steps = np.flatnonzero(np.diff(speed) != 0) + 1
+        for lv in levels:
+            vals = []
+            for i in steps:
+                if speed[i] != lv:
+                    continue
+                j = np.searchsorted(t, t[i - 1] + window_s)
+                if j < t.size and np.all(speed[i:j + 1] == lv):
+                    vals.append(T[j] - T[i - 1])
+            if vals:
+                rise[float(lv)] = float(np.mean(vals))
+        info.update(sensor=best, sensor_corr=best_c, early_rise_K=rise)
+    W = {}
+    for u in unseen:
+        nz = [s for s in seen if s != 0]
+        if not nz:
+            W[float(u)] = {float(s): 1.0 / len(seen) for s in seen}
+            continue
+        ref = min(nz, key=lambda s: abs(s - u))
+        r_u, r_ref = rise.get(float(u)), rise.get(float(ref))
+        if r_u is not None and r_ref not in (None, 0.0):
+            ratio, how = r_u / r_ref, "early temperature rise"
+        else:
+            ratio, how = u / ref, "speed ratio (no usable temperature rise)"
+        w = {float(ref): ratio}
+        if 0.0 in seen:
+            w[0.0] = 1.0 - ratio
+        W[float(u)] = w
+        info.setdefault("mapping", {})[str(float(u))] = {"ref_rpm": float(ref), "ratio": ratio,
+                                                          "how": how}
+    return levels, seen, W, info
+
+
+def _level_inputs(speed, seen, W):
+    """Unit inputs per seen level, with unseen levels folded in by the mapping weights."""
+    speed = np.asarray(speed, float)
+    cols = {}
+    for s in seen:
+        u = (speed == s).astype(float)
+        for lv, w in W.items():
+            if s in w:
+                u = u + w[s] * (speed == lv)
+        cols[float(s)] = u
+    return cols
+
+
+def paper_ar(t, y, speed, rows, W, seen):
+    """Paper eq. 17 calibration on one-step pairs before the hold-out, then free run.
+
+    Returns (prediction over the record, {"C1", "C2_um": {rpm: C2}, "dtau_s"}).
+    """
+    t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
+    d = intervals(t)
+    dtau = float(np.median(d[1:])) if t.size > 1 else 1.0
+    pair = np.zeros(t.size, bool)
+    pair[1:] = rows[1:] & rows[:-1] & np.isclose(d[1:], dtau)
+    X = np.column_stack([y[:-1]] + [(speed[1:] == s).astype(float) for s in seen])
+    coef, *_ = np.linalg.lstsq(X[pair[1:]], y[1:][pair[1:]], rcond=None)
+    c1 = float(np.clip(coef[0], 1e-6, 1 - 1e-9))
+    c2 = {float(s): float(c) for s, c in zip(seen, coef[1:])}
+    b = -np.log(c1) / dtau
+    K = {s: c / (1 - c1) for s, c in c2.items()}
+    for lv, w in W.items():
+        K[lv] = sum(wt * K[s] for s, wt in w.items())
+    u = np.array([K[float(s)] for s in speed])
+    pred = ar_first_order(t, u, b, 1.0, x0=y[0])
+    return pred, {"C1": c1, "C2_um": c2, "dtau_s": dtau,
+                  "C2_mapped_um": {lv: K[lv] * (1 - c1) for lv in W}}
+
+
+def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
+                        rho_c_R=None) -> CandidateFit | None:
+    """AR(1) extended by ``cause``, output-error least squares on ``rows``.
+
+    Gains per seen speed enter linearly; b (and the cause's own nonlinear parameters)
+    are searched. ``rho_c_R`` [J/(m²K)] turns rates b into an equivalent h = bρcR/2.
+    """
+    t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
+    units = _level_inputs(speed, seen, W)
+    running = speed > 0
+    tag = "ar" if cause == "none" else f"ar+{cause}"
+
+    def columns(b):
+        b_arr = np.broadcast_to(b, t.shape)
+        cols = [ar_first_order(t, u / b_arr, b_arr, 1.0) for u in units.values()]
+        cols.append(np.exp(-np.cumsum(b_arr * intervals(t))))   # unknown initial state
+        return cols
+
+    def solve(cols):
+        coef, pred = project(cols, y, rows)
+        r = (y - pred)[rows]
+        return float(r @ r), coef, pred
+
+    def search1(fun, lo, hi):
+        grid = np.linspace(lo, hi, 13)
+        vals = [fun(g) for g in grid]
+        i = int(np.argmin(vals))
+        res = minimize_scalar(fun, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
+                              method="bounded", options={"xatol": 1e-4})
+        return res.x
+
+    lb = (np.log(1 / (200 * 3600.0)), np.log(1 / 60.0))   # time constants 1 min .. 200 h
+    extra_cols = []
+    if cause == "sensor_drift":
+        extra_cols = [t / 3600.0]
+    elif cause == "ambient_drift":
+        if ambient_K is None:
+            return None
+    if cause in ("none", "sensor_drift"):
+        xb = search1(lambda x: solve(columns(np.exp(x)) + extra_cols)[0], *lb)
+        rss, coef, pred = solve(columns(np.exp(xb)) + extra_cols)
+        params = {} if cause == "none" else {"drift_um_per_h": float(coef[-1])}
+        return CandidateFit(cause, tag, params, pred, len(extra_cols), rss, int(rows.sum()),
+                            {"time_constant_h": float(np.exp(-xb) / 3600)})
+    if cause == "ambient_drift":
+        def cols_amb(b):
+            return columns(b) + [ar_first_order(t, ambient_K, b, 1.0)]
+        xb = search1(lambda x: solve(cols_amb(np.exp(x)))[0], *lb)
+        rss, coef, pred = solve(cols_amb(np.exp(xb)))
+        return CandidateFit(cause, tag, {"ambient_gain_um_per_K": float(coef[-1])}, pred, 1,
+                            rss, int(rows.sum()), {"time_constant_h": float(np.exp(-xb) / 3600)})
+    if cause == "speed_dependent_convection":
+        if running.all() or not running.any():
+            return None
+        x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
+
+        def f(x):
+            x = np.clip(x, *lb)
+            return solve(columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))[0]
+        res = minimize(f, np.array([x0, x0]), method="Nelder-Mead",
+                       options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 300})
+        x = np.clip(res.x, *lb)
+        rss, coef, pred = solve(columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))
+        params = {"b_running_1_s": float(np.exp(x[0])), "b_stopped_1_s": float(np.exp(x[1]))}
+        if rho_c_R:
+            params = {"h_running_W_m2K": float(np.exp(x[0]) * rho_c_R / 2),
+                      "h_stopped_W_m2K": float(np.exp(x[1]) * rho_c_R / 2), **params}
+        return CandidateFit(cause, tag, params, pred, 1, rss, int(rows.sum()),
+                            {"note": "h from b = 2h/(ρcR) with the [rod] values"})
+    if cause == "frame_expansion":
+        x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
+
+        def build(x):
+            b, tau_s, G = np.exp(x[0]), np.exp(x[1]) * 3600.0, x[2]
+            base = columns(b)
+            cols = [c + G * first_order_lag(t, u, tau_s) for c, u in zip(base[:-1], units.values())]
+            return cols + [base[-1]]
+
+        best = None
+        for tau0 in (3.0, 10.0, 30.0):
+            for G0 in (-1.0, 1.0):
+                def f(x):
+                    x = np.array([np.clip(x[0], *lb), np.clip(x[1], np.log(2), np.log(200)), x[2]])
+                    return solve(build(x))[0]
+                r = minimize(f, np.array([x0, np.log(tau0), G0]), method="Nelder-Mead",
+                             options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 400})
+                if best is None or r.fun < best.fun:
+                    best = r
+        x = np.array([np.clip(best.x[0], *lb), np.clip(best.x[1], np.log(2), np.log(200)),
+                      best.x[2]])
+        rss, coef, pred = solve(build(x))
+        return CandidateFit(cause, tag, {"frame_time_constant_h": float(np.exp(x[1])),
+                                         "frame_gain": float(x[2])}, pred, 2, rss,
+                            int(rows.sum()), {"time_constant_h": float(np.exp(-x[0]) / 3600)})
+    return None
+
+
+def mlr(y, temperatures: dict, rows):
+    """Multiple linear regression of growth on every complete temperature (paper eq. 18).
+
+    Returns (prediction over the record, list of sensor names used).
+    """
+    names = [k for k, v in temperatures.items() if np.all(np.isfinite(np.asarray(v, float)))]
+    if not names:
+        return None, []
+    X = [np.ones_like(y)] + [np.asarray(temperatures[k], float) for k in names]
+    coef, pred = project(X, np.asarray(y, float), rows)
+    return pred, names
