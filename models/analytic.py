@@ -49,7 +49,7 @@ from models.params import InputError, Rod, Schedule
 
 __all__ = ["fin_parameter_1_m", "steady_profile_1d", "series_rates_1d", "temperature_1d",
            "growth_1d_step", "growth_1d", "radial_eigenvalues", "radial_mode_weights",
-           "growth_3d_modes", "growth_3d_step", "growth_3d"]
+           "steady_growth_3d_m", "growth_3d_modes", "growth_3d_step", "growth_3d"]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -403,6 +403,38 @@ def radial_mode_weights(biot: float, n_modes: int) -> np.ndarray:
     mu = radial_eigenvalues(biot, n_modes)
     bi = float(biot)
     return 4.0 * bi * bi / (mu * mu * (mu * mu + bi * bi))
+
+
+def steady_growth_3d_m(rod: Rod, q_W_m2: float) -> float:
+    """Exact steady growth of the 3D rod, (1 + Bi/4) q α R / (2h) [m].
+
+    Parameters
+    ----------
+    rod : Rod
+        Cylinder with uniform lateral h, flux on z = 0, adiabatic z = L.
+    q_W_m2 : float
+        Constant end flux [W/m²].
+
+    Returns
+    -------
+    float
+        α ∫θ dV / A at t → ∞ [m].
+
+    Notes
+    -----
+    Integrating the steady heat equation over z leaves λ ∇²_r Θ + q = 0 for
+    Θ(r) = ∫θ dz, with −λΘ'(R) = hΘ(R); so Θ = qR/(2h) + q(R² − r²)/(4λ), whose
+    area mean is (qR/(2h))(1 + Bi/4). The 1D value of paper eq. 8 is the Bi → 0
+    limit (:func:`models.ar1.steady_growth_m`); the sum of the modal gains of
+    :func:`growth_3d_modes` converges to this.
+
+    Examples
+    --------
+    >>> round(steady_growth_3d_m(Rod(), 2000.0) * 1e6, 4)
+    22.4182
+    """
+    q = float(_finite_array("q_W_m2", q_W_m2, ndim_max=0))
+    return (1.0 + rod.biot / 4.0) * steady_growth_m(rod, q)
 
 
 def growth_3d_modes(rod: Rod, n_modes: int = 40) -> tuple[np.ndarray, np.ndarray]:
