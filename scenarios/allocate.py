@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, TWIST_INDEX, allocate,
-                                       evaluate)
+                                       evaluate, unit_twists)
 from models.allocation.scenario import build_chain, load_scenario
 from scenarios.io import prepare_out_dir, staged_out_dir, write_csv, write_json
 
@@ -69,8 +69,6 @@ def _allocation_json(run) -> dict:
     sc, chain, res = run["scenario"], run["chain"], run["result"]
     ev, k, st = res.front, res.chosen, res.settings
     X = res.front_X[k:k + 1]
-    xis = None
-    from models.allocation.problem import unit_twists
     xis = unit_twists(chain, X)[0]
     errors = {}
     for i, u in enumerate(chain.units):
