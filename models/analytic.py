@@ -25,7 +25,12 @@ Bi = hR/λ. The growth step response is
     w_m = (∫φ_m dA)² / (A ∫φ_m² dA) = 4 Bi² / (μ_m² (μ_m² + Bi²)),  Σ_m w_m = 1,
 
 of which :func:`models.ar1.corrected_coefficients` keeps m = 1. The modes
-m ≥ 2 carry 1 − w_1 = O(Bi²) of the weight (see :func:`radial_mode_weights`).
+m ≥ 2 carry 1 − w_1 ≈ Bi²/48 of the weight (see :func:`radial_mode_weights`)
+and, being fast, only ~3e-6 of the steady growth at the paper's Bi = 0.11. The
+steady 3D growth is exactly (1 + Bi/4) times the 1D one
+(:func:`steady_growth_3d_m`), and the slowest rate is b (1 − Bi/4 + O(Bi²)):
+both O(Bi) departures from the paper's eqs. 13-14, which is the paper AR's
+2.6 % miss against the FEM on the paper cycle.
 
 All functions are small and pure; units are SI and stated in brackets.
 
