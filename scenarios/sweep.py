@@ -247,7 +247,7 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")
     grid, paths = {}, {}
-    for key, values in grid_d.items():
+    for key, values in _flatten(grid_d).items():
         where = f"sweep.grid.{key}"
         if not isinstance(values, list):
             raise InputError(f"must be a list of values, got {type(values).__name__} "
@@ -262,6 +262,10 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         dup = [v for i, v in enumerate(norm) if v in norm[:i]]
         if dup:
             raise InputError(f"lists the value {dup[0]!r} twice", where)
+        try:
+            apply_override(base_data, key, values[0])
+        except InputError as exc:            # unknown key
+            raise InputError(exc.message, where) from None
         for i, v in enumerate(values):        # each value alone on the base: names the culprit
             try:
                 scenario_from_dict(apply_override(base_data, key, v), base_source)
@@ -283,6 +287,18 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         points.append(Point(i, inputs, d, point_key(d)))
     return Sweep(name=name, description=description, source=source, base=base_name,
                  grid=grid, paths=paths, points=tuple(points))
+
+
+def _flatten(d: dict, prefix: str = "") -> dict:
+    """``{"fem": {"mesh": {"nz": [..]}}}`` → ``{"fem.mesh.nz": [..]}`` (unquoted dotted TOML keys)."""
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
 
 
 # -- evaluating one point (runs in a worker) ----------------------------------------------
@@ -437,6 +453,60 @@ class _DirLock:
 #: Same single-threaded BLAS as a Dask nanny worker, so local and Dask runs agree bit for bit.
 _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 
+_OPENBLAS_SET = ("scipy_openblas_set_num_threads64_", "scipy_openblas_set_num_threads",
+                 "openblas_set_num_threads64_", "openblas_set_num_threads")
+_OPENBLAS_GET = ("scipy_openblas_get_num_threads64_", "scipy_openblas_get_num_threads",
+                 "openblas_get_num_threads64_", "openblas_get_num_threads")
+
+
+def _openblas_libs() -> list:
+    """(set, get) thread-count functions of every OpenBLAS loaded in this process."""
+    import ctypes
+    try:
+        with open("/proc/self/maps") as fh:
+            paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower()
+                            and ln.split()[-1].startswith("/")})
+    except OSError:                                             # pragma: no cover - not Linux
+        return []
+    out = []
+    for p in paths:
+        try:
+            lib = ctypes.CDLL(p)
+        except OSError:                                         # pragma: no cover
+            continue
+        set_ = next((getattr(lib, n) for n in _OPENBLAS_SET if hasattr(lib, n)), None)
+        get_ = next((getattr(lib, n) for n in _OPENBLAS_GET if hasattr(lib, n)), None)
+        if set_ is not None and get_ is not None:
+            out.append((set_, get_))
+    return out
+
+
+class _BlasThreads:
+    """Set the OpenBLAS thread count of this process for a while (restored on exit).
+
+    Small dense eigen-decompositions are much faster on one thread, and far
+    slower on several when the machine is loaded; workers run single-threaded.
+    """
+
+    def __init__(self, n: int = 1):
+        self.n = n
+        self.saved = []
+
+    def __enter__(self):
+        for set_, get_ in _openblas_libs():
+            self.saved.append((set_, int(get_())))
+            set_(self.n)
+        return self
+
+    def __exit__(self, *exc):
+        for set_, old in self.saved:
+            set_(old)
+
+
+def _worker_init(ppid: int) -> None:        # pragma: no cover - runs in worker processes
+    _BlasThreads(1).__enter__()
+    _watch_parent(ppid)
+
 
 def _watch_parent(ppid: int) -> None:       # pragma: no cover - runs in worker processes
     def loop():
@@ -461,7 +531,7 @@ class _LocalExecutor:
         os.environ.update(_WORKER_ENV)
         try:
             self.pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                            initializer=_watch_parent, initargs=(os.getpid(),))
+                                            initializer=_worker_init, initargs=(os.getpid(),))
             # start the workers now, while the environment is set
             list(self.pool.map(abs, range(self.workers)))
         finally:
@@ -488,6 +558,16 @@ class _LocalExecutor:
             self.pool.shutdown(wait=False, cancel_futures=True)
             for p in list(getattr(self.pool, "_processes", {}).values()):
                 p.terminate()
+
+
+_LIMITED = []
+
+
+def _single_threaded_call(fn, *args):
+    """Run ``fn`` with single-threaded BLAS (set once per process: Dask workers)."""
+    if not _LIMITED:
+        _LIMITED.append(_BlasThreads(1).__enter__())
+    return fn(*args)
 
 
 class _DaskExecutor:
@@ -520,11 +600,11 @@ class _DaskExecutor:
         return self
 
     def submit(self, fn, *args):
-        return self.client.submit(fn, *args, pure=False)
+        return self.client.submit(_single_threaded_call, fn, *args, pure=False)
 
     def as_completed(self, futures):
         from dask.distributed import as_completed
-        yield from as_completed(futures)
+        yield from as_completed(futures, loop=self.client.loop)
 
     def __exit__(self, exc_type, *exc):
         if exc_type is not None:
@@ -640,15 +720,8 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):
 
     try:
         if executor is None:
-            for p in points:
-                try:
-                    res = point_fn(p.data, f"{sweep.source} point {p.index}")
-                except Exception as exc:
-                    failed(p, exc)
-                else:
-                    store.put(record(p, res))
-                    rep.n_computed += 1
-                bar.update(1)
+            with _BlasThreads(1):
+                _serial(sweep, points, store, point_fn, record, failed, rep, bar)
             return
         with executor:
             futs = {executor.submit(point_fn, p.data, f"{sweep.source} point {p.index}"): p
@@ -665,6 +738,18 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):
                 bar.update(1)
     finally:
         bar.close()
+
+
+def _serial(sweep, points, store, point_fn, record, failed, rep, bar):
+    for p in points:
+        try:
+            res = point_fn(p.data, f"{sweep.source} point {p.index}")
+        except Exception as exc:
+            failed(p, exc)
+        else:
+            store.put(record(p, res))
+            rep.n_computed += 1
+        bar.update(1)
 
 
 def _append_run_log(out: Path, rep: RunReport) -> None:

@@ -1,0 +1,372 @@
+"""``arfem sweep``: grid expansion, the tidy table, bad input, resume after kill -9, Dask.
+
+Sweeps here run on a coarse axisymmetric mesh (Q1, 2 x 6 elements) or the default
+one with large Δτ so that the whole file stays well under a minute on 2 cores.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from models.params import InputError
+from scenarios.cli import main
+from scenarios.config import scenario_from_dict
+from scenarios.run import evaluate
+from scenarios.sweep import (PointStore, TIMING_COLUMNS, biot_threshold, load_sweep,
+                             point_key, run_sweep)
+
+REPO = Path(__file__).resolve().parents[1]
+
+PAPER_PHASES = """\
+[cycle]
+phases = [
+  { duration_h = 4.0,  q_W_m2 = 2000.0 },
+  { duration_h = 1.5,  q_W_m2 = 0.0 },
+  { duration_h = 4.0,  q_W_m2 = 2000.0 },
+  { duration_h = 14.5, q_W_m2 = 0.0 },
+]
+"""
+
+
+def write_base(d: Path, mesh: str = "order = 1\n[fem.mesh]\nnr = 2\nnz = 6\n") -> Path:
+    p = d / "base.toml"
+    p.write_text('[scenario]\nname = "coarse"\n' + PAPER_PHASES +
+                 "[ar]\ndtau_s = 600.0\n[fem]\nmodel = \"axisymmetric\"\n" + mesh)
+    return p
+
+
+def write_sweep(d: Path, grid: str, name: str = "small", base: str = "base.toml") -> Path:
+    p = d / f"{name}.toml"
+    p.write_text(f'[sweep]\nname = "{name}"\nbase = "{base}"\n[sweep.grid]\n{grid}')
+    return p
+
+
+SMALL_GRID = "dtau_s = [300, 600]\nh_W_m2K = [20, 55, 150]\nq_W_m2 = [2000, 3000]\n"
+
+
+def cli(*argv) -> int:
+    return main(["sweep", *map(str, argv), "--no-progress"])
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def snapshot(d: Path) -> dict:
+    """Every file under ``d`` (relative path -> sha256 of its bytes)."""
+    return {str(p.relative_to(d)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(d.rglob("*")) if p.is_file() and p.name != ".lock"}
+
+
+@pytest.fixture(scope="module")
+def small_store(tmp_path_factory):
+    """A finished 12-point coarse sweep, computed in-process (workers=1)."""
+    d = tmp_path_factory.mktemp("small")
+    write_base(d)
+    sw = write_sweep(d, SMALL_GRID)
+    out = d / "out"
+    assert cli(sw, "--out", out, "--workers", 1) == 0
+    return sw, out
+
+
+def test_point_key_is_canonical():
+    """The store key depends on the resolved inputs only: not on key order or 30 vs 30.0
+    (so a resumed sweep finds its points), but on every value (so nothing is mixed up)."""
+    a = {"rod": {"convection_W_m2K": 55, "radius_m": 0.1}, "ar": {"dtau_s": 30}}
+    b = {"ar": {"dtau_s": 30.0}, "rod": {"radius_m": 0.1, "convection_W_m2K": 55.0}}
+    c = {"ar": {"dtau_s": 30.0}, "rod": {"radius_m": 0.1, "convection_W_m2K": 55.000001}}
+    assert point_key(a) == point_key(b)
+    assert point_key(a) != point_key(c)
+
+
+def test_table_has_one_row_per_point_with_inputs_and_outputs(small_store):
+    """results.csv is tidy: one row per grid point (full Cartesian product, 2 x 3 x 2),
+    inputs under their unit-carrying names, closed-form C1 = exp(-bΔτ) (paper eq. 13,
+    compared to 1e-12 relative: it is the same formula) and the % errors consistent
+    with the µm errors and the FEM peak (1e-9: only rounding)."""
+    sw, out = small_store
+    rows = read_csv(out / "results.csv")
+    assert len(rows) == 12
+    combos = {(float(r["dtau_s"]), float(r["h_W_m2K"]), float(r["q_W_m2"])) for r in rows}
+    assert combos == {(d, h, q) for d in (300, 600) for h in (20, 55, 150) for q in (2000, 3000)}
+    for col in ("biot", "C1", "C2_um", "C1_fitted", "C2_fitted_um", "fem_peak_um",
+                "max_abs_diff_um", "max_abs_diff_pct_of_peak", "rmse_um", "rmse_pct_of_peak",
+                "corrected_max_abs_diff_um", "corrected_max_abs_diff_pct_of_peak",
+                "corrected_rmse_um", "corrected_rmse_pct_of_peak", "run_time_s"):
+        assert col in rows[0], col
+    for r in rows:
+        h, dtau = float(r["h_W_m2K"]), float(r["dtau_s"])
+        b = 2 * h / (7850.0 * 460.0 * 0.1)
+        assert math.isclose(float(r["C1"]), math.exp(-b * dtau), rel_tol=1e-12)
+        assert math.isclose(float(r["biot"]), h * 0.1 / 50.0, rel_tol=1e-12)
+        peak = float(r["fem_peak_um"])
+        assert math.isclose(float(r["max_abs_diff_pct_of_peak"]),
+                            100 * float(r["max_abs_diff_um"]) / peak, rel_tol=1e-9)
+        assert math.isclose(float(r["rmse_pct_of_peak"]), 100 * float(r["rmse_um"]) / peak,
+                            rel_tol=1e-9)
+        assert float(r["run_time_s"]) > 0
+    for name in ("error_vs_biot.png", "c1_vs_dtau.png", "error_heatmap_q2000.png",
+                 "error_heatmap_q3000.png", "README.md", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_row_equals_a_direct_evaluation(small_store):
+    """A stored point is exactly what `evaluate` gives for that scenario (same code path,
+    same machine: compared to 1e-9 relative, which only allows BLAS threading noise)."""
+    sw, out = small_store
+    sweep = load_sweep(sw)
+    p = sweep.points[7]
+    rec = PointStore(out).get(p.key)
+    ev = evaluate(scenario_from_dict(p.data, "direct"))
+    for k in ("fem_peak_um", "C1_fitted", "max_abs_diff_um", "corrected_rmse_um"):
+        assert math.isclose(rec["metrics"][k], ev.metrics[k], rel_tol=1e-9), k
+    assert ev.metrics["h_W_m2K"] == p.inputs["h_W_m2K"]
+    assert ev.metrics["q_W_m2"] == p.inputs["q_W_m2"]
+
+
+def test_other_keys_are_sweepable_under_their_dotted_names(tmp_path):
+    """Any scenario key can be swept by its dotted path and appears as that column; the
+    FEM really changes with it (dofs grow with fem.mesh.nz)."""
+    write_base(tmp_path)
+    sw = write_sweep(tmp_path, 'dtau_s = [600]\n"fem.mesh.nz" = [4, 8]\n', name="mesh")
+    assert cli(sw, "--out", tmp_path / "o", "--workers", 1) == 0
+    rows = read_csv(tmp_path / "o" / "results.csv")
+    assert [r["fem.mesh.nz"] for r in rows] == ["4", "8"]
+    assert int(rows[1]["fem_dofs"]) > int(rows[0]["fem_dofs"])
+    assert rows[0]["h_W_m2K"] == rows[1]["h_W_m2K"] == "55.0"       # unswept core inputs too
+
+
+def test_same_sweep_resumes_and_computes_nothing(small_store, tmp_path):
+    """Re-running a finished sweep into its own --out is a resume (not refused): it computes
+    no point, keeps every stored point file byte for byte, and rewrites the same table."""
+    import shutil
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    before = snapshot(out2 / "points")
+    table = (out2 / "results.csv").read_text()
+    assert cli(sw, "--out", out2, "--workers", 1) == 0
+    s = json.loads((out2 / "summary.json").read_text())
+    assert (s["n_computed"], s["n_stored_before"], s["n_rows"]) == (0, 12, 12)
+    assert snapshot(out2 / "points") == before
+    strip = lambda t: [{k: v for k, v in r.items() if k not in TIMING_COLUMNS}
+                       for r in csv.DictReader(t.splitlines())]
+    assert strip((out2 / "results.csv").read_text()) == strip(table)
+
+
+def test_different_sweep_is_refused_without_force(small_store, tmp_path, capsys):
+    """A non-empty --out holding another sweep is refused (exit 2, one line, nothing
+    touched); with --force it runs, and points with identical inputs are reused."""
+    import shutil
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    before = snapshot(out2)
+    other = write_sweep(sw.parent, "dtau_s = [600]\nh_W_m2K = [55, 77]\nq_W_m2 = [2000]\n",
+                        name="other")
+    capsys.readouterr()
+    assert cli(other, "--out", out2, "--workers", 1) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("arfem: error:") and "different sweep" in err and "\n" not in err
+    assert snapshot(out2) == before
+    assert cli(other, "--out", out2, "--workers", 1, "--force") == 0
+    s = json.loads((out2 / "summary.json").read_text())
+    assert (s["n_points"], s["n_stored_before"], s["n_computed"]) == (2, 1, 1)
+
+
+@pytest.mark.parametrize("grid, needle", [
+    ("dtau_s = []\nh_W_m2K = [55]\n", "sweep.grid.dtau_s: is empty"),
+    ("dtau_s = [300, 7]\n", "sweep.grid.dtau_s[1]: 7 is refused"),
+    ("dtau_s = [300]\nrod.colour = [1]\n", "sweep.grid.rod.colour: is not a scenario key"),
+    ("dtau_s = [300]\n\"rod.colour\" = [1]\n", "sweep.grid.rod.colour: is not a scenario key"),
+    ("dtau_s = [300]\nh_W_m2K = [55, -4]\n", "sweep.grid.h_W_m2K[1]"),
+])
+def test_bad_sweep_file_is_one_line_exit_2_and_store_intact(small_store, tmp_path, capsys,
+                                                             grid, needle):
+    """Bad input (empty grid, Δτ not dividing the phases, unknown key, non-physical h):
+    one `arfem: error:` line naming the file and key, exit 2, and the existing store in
+    --out unchanged byte for byte."""
+    import shutil
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    before = snapshot(out2)
+    write_base(tmp_path)
+    bad = write_sweep(tmp_path, grid, name="bad")
+    capsys.readouterr()
+    assert cli(bad, "--out", out2) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("arfem: error:"), err
+    assert "bad.toml" in err and needle in err, err
+    if "7 is refused" in needle:
+        assert "does not divide" in err
+    assert snapshot(out2) == before
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_unreachable_scheduler_is_one_line_exit_2_and_store_intact(small_store, tmp_path,
+                                                                  capsys):
+    """--scheduler at an address where nothing listens: one line, exit 2, within the
+    connect timeout (+ slack for Dask's own retry loop), the store untouched even though
+    the same sweep would otherwise be resumed."""
+    import shutil
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    before = snapshot(out2)
+    capsys.readouterr()
+    t0 = time.perf_counter()
+    rc = cli(sw, "--out", out2, "--scheduler", f"tcp://127.0.0.1:{_free_port()}",
+             "--connect-timeout", 1.5)
+    assert rc == 2
+    assert time.perf_counter() - t0 < 20
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--scheduler" in err and "cannot reach" in err, err
+    assert snapshot(out2) == before
+
+
+def test_biot_threshold_interpolates_and_reports_unreached():
+    """The threshold is the first crossing, linearly interpolated between grid points;
+    nan when the level is never reached (so the report can say so)."""
+    assert biot_threshold([0.4, 0.1, 0.2], [6.0, 1.0, 2.0], 3.0) == pytest.approx(0.25)
+    assert biot_threshold([0.1, 0.2], [4.0, 5.0], 3.0) == 0.1
+    assert math.isnan(biot_threshold([0.1, 0.2], [1.0, 2.0], 3.0))
+
+
+def _flaky_point(data, source):
+    """Stand-in for evaluate_point: fails for h = 55, else returns h as its 'metric'."""
+    h = data["rod"]["convection_W_m2K"]
+    if h == 55:
+        raise RuntimeError("solver blew up")
+    return {"metrics": {"h_W_m2K": h, "fem_peak_um": 2.0 * h}, "run_time_s": 0.0}
+
+
+def test_failed_points_are_not_stored_and_are_retried(tmp_path):
+    """A point whose evaluation raises is reported (exit status 1 from the CLI path,
+    n_failed here), not stored; the others are stored; the next run computes only it."""
+    write_base(tmp_path)
+    sweep = load_sweep(write_sweep(tmp_path, "h_W_m2K = [20, 55, 150]\n"))
+    out = tmp_path / "o"
+    rep = run_sweep(sweep, out, workers=1, progress=False, point_fn=_flaky_point)
+    assert (rep.n_computed, rep.n_failed) == (2, 1)
+    assert "solver blew up" in rep.failures[0]["error"]
+    assert len(PointStore(out).keys()) == 2
+    rep2 = run_sweep(sweep, out, workers=1, progress=False, point_fn=_flaky_point)
+    assert (rep2.n_stored_before, rep2.n_computed, rep2.n_failed) == (2, 0, 1)
+
+
+def _children(pid: int) -> list[int]:
+    kids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                kids.append(int(d.name))
+    return kids
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def test_kill_9_then_resume_loses_nothing_and_recomputes_nothing(tmp_path):
+    """Kill -9 a running sweep (2 worker processes) once some points are stored, run it
+    again: every point is in results.csv exactly once, the points stored before the kill
+    are kept byte for byte, and the second run computed exactly the missing ones (its
+    summary and runs.jsonl say so). The orphaned workers exit by themselves."""
+    write_base(tmp_path, mesh="[fem.mesh]\nnr = 3\nnz = 10\n")      # Q2, 147 dofs
+    sw = write_sweep(tmp_path, "dtau_s = [60, 120, 300]\n"
+                               "h_W_m2K = [5, 10, 20, 35, 55, 100, 150, 250]\n"
+                               "q_W_m2 = [2000, 3000]\n", name="long")
+    n = 48
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-c", "import sys; from scenarios.cli import main; "
+           "sys.exit(main(sys.argv[1:]))", "sweep", str(sw), "--out", str(out),
+           "--workers", "2", "--no-progress"]
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        store = PointStore(out)
+        deadline = time.time() + 60
+        workers = set()
+        while len(store.keys()) < 4 and time.time() < deadline and proc.poll() is None:
+            workers.update(_children(proc.pid))
+            time.sleep(0.02)
+        workers.update(_children(proc.pid))
+        os.kill(proc.pid, signal.SIGKILL)              # the sweep process only, like kill -9
+        proc.wait(10)
+        t_end = time.time() + 10
+        while any(_alive(w) for w in workers) and time.time() < t_end:
+            time.sleep(0.1)
+        orphans = [w for w in workers if _alive(w)]
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)        # our own session, in case of failure
+        except ProcessLookupError:
+            pass
+    assert not orphans, "worker processes outlived the killed sweep"
+    stored = {k: (store.path(k).read_bytes()) for k in store.keys()}
+    assert 4 <= len(stored) < n, len(stored)
+
+    assert cli(sw, "--out", out, "--workers", 1) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["n_stored_before"] == len(stored)
+    assert s["n_computed"] == n - len(stored)
+    log = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
+    assert [r["n_computed"] for r in log] == [n - len(stored)]   # the killed run logged nothing
+    rows = read_csv(out / "results.csv")
+    keys = [r["point_key"] for r in rows]
+    assert len(keys) == n and len(set(keys)) == n
+    assert set(keys) == {p.key for p in load_sweep(sw).points}
+    for k, data in stored.items():
+        assert store.path(k).read_bytes() == data
+    assert sorted(p.name for p in store.dir.iterdir()) == sorted(f"{k}.json" for k in keys)
+
+
+def test_dask_cluster_gives_the_same_table_as_local_processes(small_store, tmp_path):
+    """The same sweep on a Dask LocalCluster (2 worker processes) and by the local
+    executor gives identical rows: every non-timing column equal as text (floats are
+    written with repr, so this is bit-for-bit; both run single-threaded BLAS)."""
+    from dask.distributed import LocalCluster
+    sw, local = small_store                          # computed by the local executor
+    t0 = time.perf_counter()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        t1 = time.perf_counter()
+        assert cli(sw, "--out", tmp_path / "dask", "--scheduler", cluster.scheduler_address) == 0
+        t2 = time.perf_counter()
+    print(f"cluster start {t1 - t0:.1f} s, sweep {t2 - t1:.1f} s, close {time.perf_counter() - t2:.1f} s")
+    a = read_csv(local / "results.csv")
+    b = read_csv(tmp_path / "dask" / "results.csv")
+    assert len(a) == len(b) == 12
+    s = json.loads((tmp_path / "dask" / "summary.json").read_text())
+    assert s["executor"].startswith("dask") and s["n_computed"] == 12
+    for ra, rb in zip(a, b):
+        for col in ra:
+            if col not in TIMING_COLUMNS:
+                assert ra[col] == rb[col], (col, ra[col], rb[col])
