@@ -92,7 +92,8 @@ class HeatFEM:
     f_q : ndarray, heated-face load ∫v dS [m²]
     f_b : ndarray, lateral-surface load ∫v dS [m²]
     volume : ndarray, ∫v dV [m³]; ``volume @ θ`` = ∫θ dV
-    growth : ndarray, α ``volume`` / A [m/K]; ``growth @ θ`` = axial growth [m]
+    growth : ndarray, α ``volume`` / A_h [m/K]; ``growth @ θ`` = axial growth [m], A_h the
+        discrete heated-face area ``f_q.sum()`` (πR² on the axisymmetric mesh)
     """
 
     rod: Rod
@@ -123,9 +124,14 @@ class HeatFEM:
         K = (rod.conductivity_W_mK * stiffness.assemble(basis)).tocsr()
         B = mass.assemble(fb_l).tocsr()
         volume = unit_load.assemble(basis)
+        f_q = unit_load.assemble(fb_q)
+        # growth = α∫θ dV / A_h with A_h the discrete face area (= πR² to round-off
+        # on the axisymmetric mesh); on the curved 3D mesh this keeps the growth equal
+        # to the face-averaged far-end u_z (fem.elastic) instead of carrying the
+        # O(h⁴) cross-section area error of the polygonal section.
         return cls(rod=rod, basis=basis, axisymmetric=axisymmetric, M=M, K=K, B=B,
-                   f_q=unit_load.assemble(fb_q), f_b=unit_load.assemble(fb_l),
-                   volume=volume, growth=rod.expansion_1_K * volume / rod.area_m2)
+                   f_q=f_q, f_b=unit_load.assemble(fb_l),
+                   volume=volume, growth=rod.expansion_1_K * volume / float(f_q.sum()))
 
     @property
     def ndofs(self) -> int:
