@@ -144,9 +144,12 @@ def hampel_outliers(values, half_window: int = 5, n_sigma: float = 6.0,
     """Hampel-type outlier flags: residual from the median of the neighbours beyond ``n_sigma`` robust σ.
 
     The reference for each sample is the median of its ``2 * half_window`` neighbours
-    (itself excluded). σ is 1.4826 × the median absolute deviation of the residuals
-    over the whole record (σ for Gaussian noise), so a slow trend does not inflate it; ``floor`` is a lower bound on σ
-    in the unit of ``values`` (e.g. the quantisation step).
+    (itself excluded); a flagged sample must also differ by the threshold, in the same
+    direction, from both nearest unflagged samples (an isolated spike, not the peak or
+    kink of a smooth record). σ is 1.4826 × the median absolute deviation of the
+    residuals over the whole record (σ for Gaussian noise), so a slow trend does not
+    inflate it; ``floor`` is a lower bound on σ in the unit of ``values`` (e.g. the
+    quantisation step).
 
     Parameters
     ----------
@@ -184,7 +187,24 @@ def hampel_outliers(values, half_window: int = 5, n_sigma: float = 6.0,
     sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), float(floor))
     if sigma == 0.0:
         return np.zeros(x.shape, dtype=bool)
-    return np.abs(r) > n_sigma * sigma
+    thr = n_sigma * sigma
+    cand = np.abs(r) > thr
+    if not cand.any():
+        return cand
+    # a spike also stands out by the threshold from BOTH nearest unflagged samples, in the
+    # same direction; the peak or kink of a smooth record (the growth rate jumps where the
+    # heat input switches) does not, so it is not flagged
+    idx = np.arange(x.size)
+    ok = np.where(~cand, idx, -1)
+    prev = np.concatenate([[-1], np.maximum.accumulate(ok)[:-1]])
+    ok = np.where(~cand, idx, x.size)
+    nxt = np.concatenate([np.minimum.accumulate(ok[::-1])[::-1][1:], [x.size]])
+    out = np.zeros(x.size, dtype=bool)
+    for i in np.flatnonzero(cand):
+        sides = [x[i] - x[j] for j in (prev[i], nxt[i]) if 0 <= j < x.size]
+        out[i] = bool(sides) and all(np.sign(d) == np.sign(r[i]) and abs(d) > thr
+                                     for d in sides)
+    return out
 
 
 def sampling_gaps(time_s, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
