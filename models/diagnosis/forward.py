@@ -59,28 +59,45 @@ def intervals(time_s) -> np.ndarray:
 
 
 def _linear_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    """x_n = a_n x_{n-1} + b_n for every column (mode); returns x_0..x_{N-1} (after each step).
+    """x_n = a_n x_{n-1} + b_n for every column (mode); returns x after each step.
 
-    Runs of equal ``a`` rows use :func:`scipy.signal.lfilter`.
+    Vectorised and exact for varying a_n in (0, 1]: within a chunk where the
+    accumulated decay −Σ ln a stays below e^±500, x_n = P_n (x_s + Σ_k b_k / P_k) with
+    P_n = Π a_j; every term P_n b_k / P_k = b_k Π_{j>k} a_j is bounded by |b_k|, so the
+    rounding error stays at machine precision of max|b|. Columns whose every step
+    decays by more than e^-36 keep two terms, x_n = b_n + a_n b_{n-1} (the rest is
+    below double precision).
     """
     n, m = b.shape
     out = np.empty((n, m))
     if n == 0:
         return out
-    # split into runs where a is constant (row-wise)
-    change = np.flatnonzero(np.any(a[1:] != a[:-1], axis=1)) + 1
-    starts = np.concatenate([[0], change])
-    ends = np.concatenate([change, [n]])
-    x = np.array(x0, float)
-    for s, e in zip(starts, ends):
-        if e - s == 1:
-            x = a[s] * x + b[s]
-            out[s] = x
+    with np.errstate(divide="ignore"):
+        la = np.log(np.maximum(a, 1e-300))
+    for k in range(m):
+        lk = la[:, k]
+        bk = b[:, k]
+        if np.all(lk < -36.0):
+            x = bk.copy()
+            x[0] += a[0, k] * x0[k]
+            x[1:] += a[1:, k] * bk[:-1]
+            out[:, k] = x
             continue
-        for k in range(m):
-            y, _ = lfilter([1.0], [1.0, -a[s, k]], b[s:e, k], zi=[a[s, k] * x[k]])
-            out[s:e, k] = y
-        x = out[e - 1].copy()
+        step = -lk
+        cum = np.cumsum(np.minimum(step, 36.0))
+        cuts = set(np.searchsorted(cum, np.arange(400.0, cum[-1], 400.0), side="right").tolist())
+        cuts |= set((np.flatnonzero(step > 36.0)).tolist())
+        bounds = sorted({0, n} | {c for c in cuts if 0 < c < n})
+        x_prev = float(x0[k])
+        for s, e in zip(bounds[:-1], bounds[1:]):
+            xs = a[s, k] * x_prev + bk[s]          # first step directly (may decay a lot)
+            out[s, k] = xs
+            if e - s > 1:
+                c = np.cumsum(step[s + 1:e])       # −ln P within the chunk, <= ~440
+                P = np.exp(-c)
+                S = np.cumsum(bk[s + 1:e] * np.exp(c))
+                out[s + 1:e, k] = P * (xs + S)
+            x_prev = float(out[e - 1, k])
     return out
 
 
@@ -142,7 +159,7 @@ def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
     >>> rod = Rod()
     >>> g = ar_first_order([30.0, 60.0], [2000.0, 2000.0], rod.fin_rate_1_s,
     ...                    steady_growth_m(rod, 1.0) * 1e6)
-    >>> round(g[0], 4) == round(c2_paper(rod, 30.0, 2000.0) * 1e6, 4)
+    >>> bool(abs(g[0] - c2_paper(rod, 30.0, 2000.0) * 1e6) < 1e-12)
     True
     """
     d = intervals(time_s)
@@ -178,8 +195,8 @@ class RodModel:
     >>> m = RodModel(Rod())
     >>> t = np.arange(1, 2881) * 30.0          # 24 h every 30 s
     >>> g = m.simulate(t, np.full(t.size, 2000.0))
-    >>> round(float(g[-1]), 2)                 # near steady state q α R/(2h) ≈ 21.8 µm
-    21.77
+    >>> round(float(g[-1]), 2)                 # steady 3D growth (1D fin theory: 21.8 µm)
+    22.42
     """
 
     def __init__(self, rod: Rod, order: int = 2, nr: int = 4, nz: int = 24):
@@ -271,7 +288,8 @@ class RodModel:
         return growth
 
     def simulate_nonlinear(self, time_s, q_W_m2, exponent: float, dT_ref_K: float,
-                           ambient_K=None, h_floor_frac: float = 0.05):
+                           ambient_K=None, h_floor_frac: float = 0.05,
+                           h_ref_W_m2K: float | None = None):
         """Growth [µm] with natural convection h = h0 (ΔT_s/ΔT_ref)^exponent.
 
         Semi-implicit: on each interval h is evaluated from the lateral-surface mean
@@ -286,6 +304,8 @@ class RodModel:
             Surface-to-air temperature difference at which h equals h0 [K].
         h_floor_frac : float
             Lower bound of h as a fraction of h0 (ΔT → 0 would give h → 0).
+        h_ref_W_m2K : float, optional
+            h at ΔT = ΔT_ref [W/(m²·K)]; default h0.
         """
         t = np.asarray(time_s, float)
         d = intervals(t)
@@ -295,13 +315,14 @@ class RodModel:
         out = np.empty(t.size)
         n = float(exponent)
         lo = np.log(h_floor_frac)
+        l0 = 0.0 if h_ref_W_m2K is None else float(np.log(h_ref_W_m2K / self.h0))
         inv_step = 1.0 / _H_STEP
         s_vec, g_vec = self.s, self.g
         log = np.log
         for i in range(t.size):
             dts = abs(float(s_vec @ c) - amb[i])
-            lr = n * (log(max(dts / dT_ref_K, 1e-12))) if n != 0 else 0.0
-            k = int(round(max(lr, lo) * inv_step))
+            lr = l0 + (n * (log(max(dts / dT_ref_K, 1e-12))) if n != 0 else 0.0)
+            k = int(round(min(max(lr, lo), 2.5) * inv_step))
             P, Pq, Pb = self._propagator(k, float(d[i]))
             c = P @ c + q[i] * Pq + amb[i] * Pb
             out[i] = g_vec @ c
