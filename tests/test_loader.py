@@ -59,6 +59,7 @@ def test_real_fl_thermal_ch1_loads():
     assert ds.speed_rpm.max() == 5000
     # the other four displacement channels are carried and noted
     assert any("ch2(um)" in n and "ignored" in n for n in ds.notes)
+    assert ds.extra_columns["ch2(um)"][1] == "0.446569"      # carried verbatim
     assert np.all(np.isfinite(ds.growth_um))
     # flagged outliers are a small minority (a real, low-noise record)
     assert ds.outliers.mean() < 0.02
@@ -104,6 +105,7 @@ def test_ambient_gap_filled_and_extra_columns_noted(tmp_path):
     assert ds.ambient_C[10] == pytest.approx(21.0)
     assert any("filled 1 empty ambient_C" in n for n in ds.notes)
     assert any("comment" in n and "ignored" in n for n in ds.notes)
+    assert ds.extra_columns["comment"].tolist() == ["x"] * 40
     assert ds.sensors == {"T_frame_C": "bed"} and "T_frame_C" in ds.temperatures
 
 

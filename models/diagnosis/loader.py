@@ -12,6 +12,9 @@ Data flow: file -> :class:`Dataset` (this module) -> models. Nothing here fits o
 simulates; the only processing is what the contract prescribes (drop <= 5 % rows with
 an empty ``time_s``/``growth_um``, fill short ``ambient_C`` gaps) plus robust flags
 that the models may use (growth outliers, sampling gaps), each reported in ``notes``.
+
+``[dataset] initial`` may be ``"equilibrium"`` (the default: at t = 0 the rod is in
+equilibrium with the nominal ambient) or ``"unknown"``.
 """
 from __future__ import annotations
 
@@ -90,6 +93,9 @@ class Dataset:
         The CSV file.
     line_numbers : ndarray of int
         CSV line (1-based, header = line 1) of each kept row.
+    extra_columns : dict of str to ndarray
+        Columns the contract does not know, carried as text over the kept rows (ignored
+        by the models).
     """
 
     name: str
@@ -108,6 +114,7 @@ class Dataset:
     sensors: dict[str, str]
     csv_path: Path | None = None
     line_numbers: np.ndarray | None = field(default=None, repr=False)
+    extra_columns: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def input_kind(self) -> str:
@@ -557,6 +564,12 @@ def load_dataset(toml_path) -> Dataset:
         a.setflags(write=False)
         return a
 
+    extra_cols = {}
+    for h in extra:
+        j = header.index(h)
+        a = np.array([row[j] for row in rows], dtype=object)[keep]
+        a.setflags(write=False)
+        extra_cols[h] = a
     outliers.setflags(write=False)
     lines.setflags(write=False)
     return Dataset(
@@ -566,4 +579,4 @@ def load_dataset(toml_path) -> Dataset:
         ambient_C=frozen(amb) if amb is not None else None,
         temperatures={k: frozen(v) for k, v in temps.items()}, rod=rod,
         initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
-        sensors=sensors, csv_path=csv_path, line_numbers=lines)
+        sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols)

@@ -1,0 +1,50 @@
+"""Wall time and peak memory of synthetic-dataset generation (models.diagnosis.synth).
+
+Prints, per cause, the time to generate one 72 h case (cold = first call, building the
+FEM and its modes; warm = median of 3 further seeds, as in a batch) and the time to write
+and re-load it. Run:  python benchmarks/bench_synth.py
+(BLAS threads matter: on a loaded 2-core machine a 175x175 eigh took 1.2 s with the
+default OpenBLAS threads and 7 ms with OPENBLAS_NUM_THREADS=1.)
+"""
+from __future__ import annotations
+
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from models.diagnosis.loader import load_dataset
+from models.diagnosis.synth import CAUSES, generate, write_case
+
+
+def main():
+    print(f"{'cause':28s} {'rows':>6s} {'cold_s':>7s} {'warm_s':>7s} {'write+load_s':>12s}")
+    warm_all = {}
+    for cause in CAUSES:
+        t0 = time.perf_counter()
+        case = generate(cause, 100, duration_h=72)
+        cold = time.perf_counter() - t0
+        warm = []
+        for seed in (101, 102, 103):
+            t0 = time.perf_counter()
+            generate(cause, seed, duration_h=72)
+            warm.append(time.perf_counter() - t0)
+        with tempfile.TemporaryDirectory() as d:
+            t0 = time.perf_counter()
+            load_dataset(write_case(case, d))
+            io_s = time.perf_counter() - t0
+        warm_all[cause] = float(np.median(warm))
+        print(f"{cause:28s} {case.time_s.size:6d} {cold:7.2f} {warm_all[cause]:7.2f} {io_s:12.2f}")
+    lin = np.median([v for k, v in warm_all.items() if k != "nonlinear_convection"])
+    print(f"nonlinear / median linear warm time: {warm_all['nonlinear_convection'] / lin:.1f}x")
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak RSS: {peak_mb:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()
