@@ -145,6 +145,11 @@ def test_reproduce_writes_both_figures_and_refuses_foreign_dir(tmp_path, capsys)
         assert (out / name / "figure.png").stat().st_size > 10_000
         s = json.loads((out / name / "summary.json").read_text())
         assert s["C1"] == pytest.approx(0.9909, abs=5e-5)
+        assert (out / name / "temperature_3d.png").stat().st_size > 10_000
+        assert (out / name / "fields" / "fields.xdmf").is_file()
+        # the elastic growth at the peak equals the volume measure (reciprocity theorem)
+        assert s["reciprocity_rel_diff"] < 1e-6
+        assert s["elastic_growth_face_um_at_peak"] == pytest.approx(s["fem_peak_um"], rel=1e-6)
     readme = (out / "README.md").read_text()
     assert "0.1985" in readme and "0.2977" in readme
     assert main(["reproduce", "--out", str(out)]) == 0       # own output: replaced

@@ -1,0 +1,11 @@
+"""Root pytest configuration, loaded before any test or doctest module is imported.
+
+The FEM problems in the suite are small (hundreds to a few thousand dofs). A
+multithreaded BLAS gains nothing on them and, on a 2-core CI machine, threads
+contending with the other test process can make a 441×441 eigensolve 100× slower.
+One BLAS thread per process keeps the suite's run time predictable.
+"""
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
