@@ -127,8 +127,12 @@ class ThermoElastic:
         Coupling: thermal load [N] = ``T @ θ`` (θ in K).
     far_weight : ndarray
         ``far_weight @ u`` = ∫_far u_z dA / A_far, the face-averaged u_z [m].
-    axis_dof : int or None
-        Dof of u_z on the axis at the far end (None if no node lies there).
+    axis_weight : ndarray
+        ``axis_weight @ u`` = u_z at the point on the axis at the far end [m]
+        (FE interpolation; equals a nodal value when a node lies there).
+    growth_face, growth_axis : ndarray
+        Adjoint vectors over the θ dofs: ``growth_face @ θ`` and ``growth_axis @ θ``
+        are the two growths [m] (one solve each at build time).
     """
 
     heat: HeatFEM
@@ -137,9 +141,9 @@ class ThermoElastic:
     free: np.ndarray = field(repr=False)
     far_weight: np.ndarray = field(repr=False)
     far_area_m2: float
-    axis_dof: int | None
+    axis_weight: np.ndarray = field(repr=False)
     growth_face: np.ndarray = field(repr=False)
-    growth_axis: np.ndarray | None = field(repr=False)
+    growth_axis: np.ndarray = field(repr=False)
     _lu: object = field(repr=False)
 
     @classmethod
@@ -217,11 +221,10 @@ class ThermoElastic:
         # (u_z dofs carry a partition of unity, so summing the weights gives the area)
         far_weight = fw / area
 
-        target = np.zeros(dim)
-        target[zc] = rod.length_m
-        dz = np.linalg.norm(pv - target[:, None], axis=0)
-        k = int(np.argmin(dz))
-        axis_dof = int(vb.nodal_dofs[zc, k]) if dz[k] < tol else None
+        # u_z on the axis at the far end, interpolated (no node needs to lie there)
+        target = np.zeros((dim, 1))
+        target[zc, 0] = rod.length_m
+        axis_weight = np.asarray(vb.probes(target).toarray()[zc]).ravel()
 
         def adjoint(weight):
             # growth = weightᵀ K⁻¹ T θ = (Tᵀ K⁻¹ weight)ᵀ θ  (K symmetric): one solve
@@ -230,12 +233,9 @@ class ThermoElastic:
             y[free] = lu.solve(np.ascontiguousarray(weight[free]))
             return np.asarray(T.T @ y).ravel()
 
-        unit = np.zeros(vb.N)
-        if axis_dof is not None:
-            unit[axis_dof] = 1.0
         return cls(heat=heat, basis=vb, T=T, free=free, far_weight=far_weight,
-                   far_area_m2=area, axis_dof=axis_dof, growth_face=adjoint(far_weight),
-                   growth_axis=adjoint(unit) if axis_dof is not None else None, _lu=lu)
+                   far_area_m2=area, axis_weight=axis_weight, growth_face=adjoint(far_weight),
+                   growth_axis=adjoint(axis_weight), _lu=lu)
 
     @property
     def ndofs(self) -> int:
@@ -260,8 +260,7 @@ class ThermoElastic:
     def growth(self, theta: np.ndarray) -> tuple:
         """Axial growth of the far end [m]: (face-averaged u_z, u_z on the axis).
 
-        For a stack of fields (n, ndofs_heat) returns two arrays. The axis value is
-        NaN when no mesh node lies on the axis at the far end. Computed with the
+        For a stack of fields (n, ndofs_heat) returns two arrays. Computed with the
         adjoint vectors :attr:`growth_face` / :attr:`growth_axis` (one solve at
         build time), so it costs a dot product per field; identical to reading
         the same quantities off :meth:`displacement` up to round-off.
@@ -270,8 +269,7 @@ class ThermoElastic:
         if th.shape[-1] != self.heat.ndofs or not np.all(np.isfinite(th)):
             raise InputError(f"needs {self.heat.ndofs} finite values per field", "theta")
         face = th @ self.growth_face
-        axis = th @ self.growth_axis if self.growth_axis is not None else np.full_like(face, np.nan)
-        return face, axis
+        return face, th @ self.growth_axis
 
     def component_values(self, u: np.ndarray) -> np.ndarray:
         """Displacement at the mesh vertices, shape (n_vertices, dim) [m]."""
