@@ -462,6 +462,7 @@ _OPENBLAS_GET = ("scipy_openblas_get_num_threads64_", "scipy_openblas_get_num_th
 def _openblas_libs() -> list:
     """(set, get) thread-count functions of every OpenBLAS loaded in this process."""
     import ctypes
+    import scipy.linalg  # noqa: F401  (loads SciPy's own OpenBLAS, used by eigh)
     try:
         with open("/proc/self/maps") as fh:
             paths = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower()
@@ -1003,7 +1004,9 @@ def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
           "Files: `results.csv` (one row per point; inputs then outputs, units in the "
           "column names, `pct` = % of the FEM peak growth), `summary.json`, "
           "`error_vs_biot.png`, `c1_vs_dtau.png`, `error_heatmap_q*.png`; the per-point "
-          "store is `points/` (re-running the same command resumes it).", ""]
+          "store is `points/` (re-running the same command resumes it).", "",
+          f"Reproduce: `arfem sweep {sweep.source} --out DIR` (add `--scheduler ADDRESS` "
+          "for a Dask cluster; an interrupted run resumes where it stopped).", ""]
     th = summary.get("thresholds") or []
     if th and len({r["biot"] for r in rows}) > 1:
         sel, fixed = _slice_rows(sweep, rows)
@@ -1024,7 +1027,28 @@ def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
                      f"{_fmt(t['corrected_biot_at_3pct'])} | {_fmt(t['corrected_biot_at_5pct'])} |")
         s = summary["conclusion"]
         L += ["", "**From the data:** " + s["text"], ""]
+        L += _by_h_table(sel)
     return "\n".join(L) + "\n"
+
+
+def _by_h_table(sel: list[dict]) -> list[str]:
+    """Per h: errors (max over Δτ, and their spread over Δτ) and the fitted decay rate."""
+    dts = sorted({r["dtau_s"] for r in sel})
+    L = ["Per h (same slice; \"spread\" = max − min over the Δτ values, showing how little "
+         "the error depends on Δτ; the last column compares the FEM's fitted per-step decay "
+         "1 − C1_fitted with the paper's 1 − C1 = 1 − exp(−bΔτ) at the smallest Δτ):", "",
+         "| h [W/(m²·K)] | Bi [-] | paper AR max error [%] | spread over Δτ [% points] | "
+         "corrected AR max error [%] | (1 − C1_fitted)/(1 − C1) at "
+         f"Δτ = {dts[0]:g} s |", "|---|---|---|---|---|---|"]
+    for h in sorted({r["h_W_m2K"] for r in sel}):
+        rs = [r for r in sel if r["h_W_m2K"] == h]
+        e = [r["max_abs_diff_pct_of_peak"] for r in rs]
+        ec = [r["corrected_max_abs_diff_pct_of_peak"] for r in rs]
+        r0 = min(rs, key=lambda r: r["dtau_s"])
+        ratio = (1 - r0["C1_fitted"]) / (1 - r0["C1"])
+        L.append(f"| {h:g} | {r0['biot']:.3g} | {max(e):.3g} | {max(e) - min(e):.2g} | "
+                 f"{max(ec):.2g} | {ratio:.4f} |")
+    return L + [""]
 
 
 def _conclusion(th: list[dict]) -> dict:

@@ -82,6 +82,20 @@ def small_store(tmp_path_factory):
     return sw, out
 
 
+def test_shipped_sweep_is_valid_and_large_enough():
+    """scenarios/sweep_dtau_h.toml loads (so every Δτ divides all phases of the paper's
+    cycle, which load_sweep checks per point) and spans the promised grid: >= 6 Δτ from
+    10 to 600 s, >= 8 h from 5 to 400 W/(m²K), q in {2000, 3000}, >= 96 points."""
+    sweep = load_sweep(REPO / "scenarios" / "sweep_dtau_h.toml")
+    g = sweep.grid
+    assert len(g["dtau_s"]) >= 6 and (min(g["dtau_s"]), max(g["dtau_s"])) == (10, 600)
+    assert len(g["h_W_m2K"]) >= 8 and (min(g["h_W_m2K"]), max(g["h_W_m2K"])) == (5, 400)
+    assert sorted(g["q_W_m2"]) == [2000, 3000]
+    assert len(sweep.points) >= 96 and len({p.key for p in sweep.points}) == len(sweep.points)
+    for d in g["dtau_s"]:
+        assert all(ph % d == 0 for ph in (14400, 5400, 52200)), d
+
+
 def test_point_key_is_canonical():
     """The store key depends on the resolved inputs only: not on key order or 30 vs 30.0
     (so a resumed sweep finds its points), but on every value (so nothing is mixed up)."""
