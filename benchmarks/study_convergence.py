@@ -19,7 +19,6 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import numpy as np  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 from fem.heat import build_3d, build_axisymmetric, solve_theta  # noqa: E402

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
-from skfem import (Basis, BilinearForm, ElementVector, FacetBasis, LinearForm, condense)
+from skfem import Basis, BilinearForm, ElementVector, FacetBasis, LinearForm
 
 from fem.heat import HeatFEM
 from models.params import InputError, Rod
@@ -176,7 +176,7 @@ class ThermoElastic:
             raise InputError("mesh has no boundary tagged 'far'", "mesh")
         axi = heat.axisymmetric
         dim = mesh.dim()
-        sb = heat.basis if intorder is None else Basis(mesh, heat.basis.elem, intorder=intorder or 6)
+        sb = heat.basis if intorder is None else Basis(mesh, heat.basis.elem, intorder=intorder)
         vb = sb.with_element(ElementVector(heat.basis.elem))
         lam, mu = lame_parameters(rod.youngs_modulus_Pa, rod.poisson_ratio)
         stiffness, coupling = elastic_forms(axi, lam, mu, rod.expansion_1_K)
