@@ -505,6 +505,8 @@ class _BlasThreads:
 
 
 def _worker_init(ppid: int) -> None:        # pragma: no cover - runs in worker processes
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's to handle
     _BlasThreads(1).__enter__()
     _watch_parent(ppid)
 
@@ -556,8 +558,9 @@ class _LocalExecutor:
         if exc_type is None:
             self.pool.shutdown(wait=True)
         else:   # interrupted: drop queued work, do not wait for points in flight
+            procs = list((getattr(self.pool, "_processes", None) or {}).values())
             self.pool.shutdown(wait=False, cancel_futures=True)
-            for p in list(getattr(self.pool, "_processes", {}).values()):
+            for p in procs:
                 p.terminate()
 
 
@@ -682,6 +685,10 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
                 if p.key not in seen:
                     seen.add(p.key)
                     unique.append(p)
+            # points that share everything but Δτ and q share the FEM model and its
+            # eigen-decomposition: submit them together so worker caches hit
+            unique.sort(key=lambda p: _canonical({k: v for k, v in p.inputs.items()
+                                                  if k not in ("dtau_s", "q_W_m2")}))
             rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
             if unique:
                 if executor is None:

@@ -308,51 +308,69 @@ def _alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-def test_kill_9_then_resume_loses_nothing_and_recomputes_nothing(tmp_path):
-    """Kill -9 a running sweep (2 worker processes) once some points are stored, run it
-    again: every point is in results.csv exactly once, the points stored before the kill
-    are kept byte for byte, and the second run computed exactly the missing ones (its
-    summary and runs.jsonl say so). The orphaned workers exit by themselves."""
+def _launch_and_interrupt(cmd, store: PointStore, at_least: int, sig, whole_group: bool):
+    """Start the sweep in its own session, send ``sig`` once ``at_least`` points are
+    stored; return (exit status, stderr, pids of the workers seen)."""
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    workers = set()
+    try:
+        deadline = time.time() + 60
+        while len(store.keys()) < at_least and time.time() < deadline and proc.poll() is None:
+            workers.update(_children(proc.pid))
+            time.sleep(0.02)
+        workers.update(_children(proc.pid))
+        if whole_group:
+            os.killpg(proc.pid, sig)                   # Ctrl-C in a terminal hits the group
+        else:
+            os.kill(proc.pid, sig)                     # kill -9 <pid of the sweep>
+        _, err = proc.communicate(timeout=30)
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)        # our own session, in case of failure
+        except ProcessLookupError:
+            pass
+    return proc.returncode, err.decode(), workers
+
+
+def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp_path):
+    """Ctrl-C (SIGINT to the process group) a running sweep with 2 worker processes, run it
+    again and kill -9 it, run it a third time: every point is in results.csv exactly once,
+    the points stored by the interrupted runs are kept byte for byte, and the last run
+    computed exactly the missing ones (its summary and runs.jsonl say so). Ctrl-C exits
+    130 with one line; the workers orphaned by kill -9 exit by themselves."""
     write_base(tmp_path, mesh="[fem.mesh]\nnr = 3\nnz = 10\n")      # Q2, 147 dofs
     sw = write_sweep(tmp_path, "dtau_s = [60, 120, 300]\n"
                                "h_W_m2K = [5, 10, 20, 35, 55, 100, 150, 250]\n"
                                "q_W_m2 = [2000, 3000]\n", name="long")
     n = 48
     out = tmp_path / "out"
+    store = PointStore(out)
     cmd = [sys.executable, "-c", "import sys; from scenarios.cli import main; "
            "sys.exit(main(sys.argv[1:]))", "sweep", str(sw), "--out", str(out),
            "--workers", "2", "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True)
-    try:
-        store = PointStore(out)
-        deadline = time.time() + 60
-        workers = set()
-        while len(store.keys()) < 4 and time.time() < deadline and proc.poll() is None:
-            workers.update(_children(proc.pid))
-            time.sleep(0.02)
-        workers.update(_children(proc.pid))
-        os.kill(proc.pid, signal.SIGKILL)              # the sweep process only, like kill -9
-        proc.wait(10)
-        t_end = time.time() + 10
-        while any(_alive(w) for w in workers) and time.time() < t_end:
-            time.sleep(0.1)
-        orphans = [w for w in workers if _alive(w)]
-    finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)        # our own session, in case of failure
-        except ProcessLookupError:
-            pass
-    assert not orphans, "worker processes outlived the killed sweep"
-    stored = {k: (store.path(k).read_bytes()) for k in store.keys()}
-    assert 4 <= len(stored) < n, len(stored)
+
+    rc, err, _ = _launch_and_interrupt(cmd, store, 4, signal.SIGINT, whole_group=True)
+    assert rc == 130 and err.strip().splitlines()[-1] == "arfem: interrupted", err
+    k1 = len(store.keys())
+    assert 4 <= k1 < n, k1
+
+    rc, _, workers = _launch_and_interrupt(cmd, store, k1 + 4, signal.SIGKILL,
+                                           whole_group=False)
+    assert rc == -signal.SIGKILL
+    t_end = time.time() + 10
+    while any(_alive(w) for w in workers) and time.time() < t_end:
+        time.sleep(0.1)
+    assert workers and not [w for w in workers if _alive(w)], "workers outlived kill -9"
+    stored = {k: store.path(k).read_bytes() for k in store.keys()}
+    assert k1 + 4 <= len(stored) < n, len(stored)
 
     assert cli(sw, "--out", out, "--workers", 1) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["n_stored_before"] == len(stored)
     assert s["n_computed"] == n - len(stored)
     log = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
-    assert [r["n_computed"] for r in log] == [n - len(stored)]   # the killed run logged nothing
+    assert [r["n_computed"] for r in log] == [n - len(stored)]   # interrupted runs log nothing
     rows = read_csv(out / "results.csv")
     keys = [r["point_key"] for r in rows]
     assert len(keys) == n and len(set(keys)) == n
