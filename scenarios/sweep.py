@@ -19,7 +19,8 @@ point stored at once in ``DIR/points/<key>.json`` (atomic write, fsync) →
 ``results.csv``, plots, ``summary.json`` and ``README.md`` written from the store.
 
 The key of a point is the SHA-256 of the canonical JSON of its fully resolved
-scenario dict (plus a store-format version), so a sweep that was interrupted
+inputs (validated rod, cycle segments, Δτ, FEM settings; plus a store-format
+version), so a sweep that was interrupted
 (Ctrl-C, kill -9) and started again with the same ``--out`` computes only the
 points that are missing: none lost, none computed twice.
 """
@@ -51,6 +52,7 @@ from scenarios.config import (ALIASES, apply_override, builtin_scenario_path, lo
 from scenarios.io import atomic_write_text, staged_out_dir, write_json
 
 __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "point_key",
+           "resolved_inputs",
            "evaluate_point", "run_sweep", "results_rows", "biot_threshold",
            "add_parser", "main", "STORE_VERSION", "METRIC_COLUMNS"]
 
@@ -128,7 +130,7 @@ def _sha256(obj) -> str:
 
 
 def point_key(data: dict) -> str:
-    """Key of a point: SHA-256 of its fully resolved scenario dict, canonical JSON.
+    """Key of a point: SHA-256 of its fully resolved inputs, canonical JSON.
 
     Numbers are normalised (``30`` and ``30.0`` give the same key) and the
     store format version is part of the hash.
@@ -136,7 +138,7 @@ def point_key(data: dict) -> str:
     Parameters
     ----------
     data : dict
-        Resolved scenario dict (as read from TOML, overrides applied).
+        Resolved inputs (:func:`resolved_inputs`), or any JSON-like dict.
 
     Returns
     -------
@@ -151,6 +153,34 @@ def point_key(data: dict) -> str:
     False
     """
     return _sha256({"store_version": STORE_VERSION, "scenario": _normalise(data)})
+
+
+def resolved_inputs(scenario) -> dict:
+    """Everything a point's results depend on, with defaults filled in.
+
+    The validated rod (every field), the cycle as segments (durations, q, ambient,
+    h), Δτ and the FEM settings. Names, descriptions and output options are left
+    out: they do not change a number in ``results.csv``.
+
+    Examples
+    --------
+    >>> from scenarios.config import scenario_from_dict
+    >>> cyc = {"phases": [{"duration_h": 1.0, "q_W_m2": 2000.0}]}
+    >>> a = scenario_from_dict({"cycle": cyc, "scenario": {"name": "a"}})
+    >>> b = scenario_from_dict({"cycle": cyc, "rod": {"radius_m": 0.1}, "ar": {"dtau_s": 30}})
+    >>> point_key(resolved_inputs(a)) == point_key(resolved_inputs(b))
+    True
+    """
+    from dataclasses import asdict, fields as dc_fields
+    sch = scenario.schedule
+    arr = lambda a: None if a is None else [float(x) for x in np.asarray(a)]
+    return {
+        "rod": {f.name: getattr(scenario.rod, f.name) for f in dc_fields(scenario.rod)},
+        "schedule": {"durations_s": arr(sch.durations_s), "q_W_m2": arr(sch.q_W_m2),
+                     "ambient_C": arr(sch.ambient_C), "h_W_m2K": arr(sch.h_W_m2K)},
+        "dtau_s": scenario.dtau_s,
+        "fem": asdict(scenario.fem),
+    }
 
 
 def _normalise(o):
@@ -281,10 +311,10 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
             d = apply_override(d, paths[c], v)
         inputs = dict(zip(cols, combo))
         try:
-            scenario_from_dict(d, base_source)
+            sc = scenario_from_dict(d, base_source)
         except InputError as exc:
             raise InputError(f"point {inputs} is refused: {exc}", "sweep.grid") from None
-        points.append(Point(i, inputs, d, point_key(d)))
+        points.append(Point(i, inputs, d, point_key(resolved_inputs(sc))))
     return Sweep(name=name, description=description, source=source, base=base_name,
                  grid=grid, paths=paths, points=tuple(points))
 
@@ -581,6 +611,7 @@ class _DaskExecutor:
         self.address = address
         self.timeout_s = timeout_s
         self.client = None
+        self.submitted = []
         self.label = f"dask scheduler {address}"
 
     def connect(self):
@@ -604,7 +635,9 @@ class _DaskExecutor:
         return self
 
     def submit(self, fn, *args):
-        return self.client.submit(_single_threaded_call, fn, *args, pure=False)
+        fut = self.client.submit(_single_threaded_call, fn, *args, pure=False)
+        self.submitted.append(fut)
+        return fut
 
     def as_completed(self, futures):
         from dask.distributed import as_completed
@@ -613,9 +646,8 @@ class _DaskExecutor:
     def __exit__(self, exc_type, *exc):
         if exc_type is not None:
             try:
-                self.client.cancel(list(self.client.futures.values()) if hasattr(
-                    self.client, "futures") else [])
-            except Exception:
+                self.client.cancel(self.submitted)
+            except Exception:                                   # pragma: no cover
                 pass
         self.client.close()
 

@@ -257,6 +257,32 @@ def test_unreachable_scheduler_is_one_line_exit_2_and_store_intact(small_store, 
     assert snapshot(out2) == before
 
 
+def test_bad_worker_count_is_exit_2(small_store, tmp_path, capsys):
+    """--workers 0 is bad input: one line naming --workers, exit 2, nothing written."""
+    sw, _ = small_store
+    capsys.readouterr()
+    assert cli(sw, "--out", tmp_path / "o", "--workers", 0) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--workers" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_key_ignores_names_and_stated_defaults_but_not_physics(tmp_path):
+    """Points are keyed by their resolved physical inputs: a base that differs only in
+    its name, its output options or by stating a default explicitly gives the same keys
+    (so such a sweep reuses the store), a different rod radius gives new keys."""
+    write_base(tmp_path)
+    ref = {p.key for p in load_sweep(write_sweep(tmp_path, SMALL_GRID)).points}
+    text = (tmp_path / "base.toml").read_text()
+    (tmp_path / "b2.toml").write_text(text.replace('name = "coarse"', 'name = "other"') +
+                                      "[rod]\nradius_m = 0.1\n[outputs]\npicture = false\n")
+    same = load_sweep(write_sweep(tmp_path, SMALL_GRID, name="s2", base="b2.toml"))
+    assert {p.key for p in same.points} == ref
+    (tmp_path / "b3.toml").write_text(text + "[rod]\nradius_m = 0.11\n")
+    other = load_sweep(write_sweep(tmp_path, SMALL_GRID, name="s3", base="b3.toml"))
+    assert not ({p.key for p in other.points} & ref)
+
+
 def test_biot_threshold_interpolates_and_reports_unreached():
     """The threshold is the first crossing, linearly interpolated between grid points;
     nan when the level is never reached (so the report can say so)."""
