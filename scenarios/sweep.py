@@ -18,6 +18,11 @@ by :func:`evaluate_point` (worker processes, or a Dask cluster) → each finishe
 point stored at once in ``DIR/points/<key>.json`` (atomic write, fsync) →
 ``results.csv``, plots, ``summary.json`` and ``README.md`` written from the store.
 
+On a Dask cluster (``--scheduler tcp://host:8786``) every worker must be able to
+import arfem (``pip install -e .`` on each worker machine, or workers started in
+the repository with it on ``PYTHONPATH``); the results are identical to a local
+run (both use single-threaded BLAS, floats are stored with ``repr``).
+
 The key of a point is the SHA-256 of the canonical JSON of its fully resolved
 inputs (validated rod, cycle segments, Δτ, FEM settings; plus a store-format
 version), so a sweep that was interrupted
@@ -597,6 +602,39 @@ class _LocalExecutor:
 _LIMITED = []
 
 
+def _probe_scheduler(address: str, timeout_s: float) -> None:
+    """Raise unless a Dask scheduler answers an ``identity`` request at ``address``."""
+    import asyncio
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address
+    from distributed.comm.registry import get_backend
+
+    scheme, loc = parse_address(address)
+    get_backend(scheme)                              # ValueError: unknown scheme
+    if scheme == "inproc":
+        return
+
+    async def probe():
+        comm = await connect(address, timeout=timeout_s)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            reply = await comm.read()
+        finally:
+            comm.abort()
+        if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+            raise ConnectionError(f"not a Dask scheduler (identity: {str(reply)[:60]})")
+
+    async def bounded():
+        return await asyncio.wait_for(probe(), timeout_s)
+
+    try:
+        asyncio.run(bounded())
+    except asyncio.TimeoutError:
+        raise TimeoutError(f"no answer after {timeout_s:g} s") from None
+    except MemoryError:
+        raise ConnectionError("something answered, but not in the Dask protocol") from None
+
+
 def _single_threaded_call(fn, *args):
     """Run ``fn`` with single-threaded BLAS (set once per process: Dask workers)."""
     if not _LIMITED:
@@ -619,12 +657,19 @@ class _DaskExecutor:
             from dask.distributed import Client
         except ImportError:                                     # pragma: no cover
             raise InputError("dask.distributed is not installed", "--scheduler") from None
+        def fail(exc):
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            return InputError(f"cannot reach the Dask scheduler at {self.address!r} within "
+                              f"{self.timeout_s:g} s ({msg})", "--scheduler")
+
+        try:        # a bare probe first: a failed Client() leaves a noisy half-made object
+            _probe_scheduler(self.address, self.timeout_s)
+        except Exception as exc:      # OSError, TimeoutError, ValueError for a bad address
+            raise fail(exc) from None
         try:
             self.client = Client(self.address, timeout=self.timeout_s, set_as_default=False)
-        except Exception as exc:      # OSError, TimeoutError, ValueError for a bad address
-            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise InputError(f"cannot reach the Dask scheduler at {self.address!r} within "
-                             f"{self.timeout_s:g} s ({msg})", "--scheduler") from None
+        except Exception as exc:                                # pragma: no cover - races
+            raise fail(exc) from None
         n = len(self.client.scheduler_info().get("workers", {}))
         self.label = f"dask scheduler {self.address} ({n} workers)"
         return self
