@@ -801,7 +801,11 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):
 
     def failed(p: Point, exc: BaseException):
         rep.n_failed += 1
-        rep.failures.append({"inputs": p.inputs, "error": f"{type(exc).__name__}: {exc}"})
+        msg = " ".join(str(exc).split())
+        if "deserializ" in msg:
+            msg += (" [the Dask scheduler and every worker must be able to import arfem: "
+                    "pip install -e <repo> there, or start them with PYTHONPATH=<repo>]")
+        rep.failures.append({"inputs": p.inputs, "error": f"{type(exc).__name__}: {msg}"})
 
     try:
         if executor is None:
@@ -1222,6 +1226,9 @@ def main(args) -> int:
     print(f"sweep {sweep.name!r}: {rep.n_points} points ({rep.n_stored_before} already "
           f"stored, {rep.n_computed} computed, {rep.n_failed} failed) in {rep.wall_s:.1f} s "
           f"[{rep.executor}] -> {Path(args.out) / 'results.csv'}")
-    for f in rep.failures[:5]:
-        print(f"arfem: point {f['inputs']} failed: {f['error']}", file=sys.stderr)
+    errors: dict = {}
+    for f in rep.failures:
+        errors.setdefault(f["error"], []).append(f["inputs"])
+    for err, inputs in list(errors.items())[:5]:
+        print(f"arfem: {len(inputs)} point(s) failed, e.g. {inputs[0]}: {err}", file=sys.stderr)
     return 1 if rep.n_failed else 0
