@@ -1127,10 +1127,10 @@ def _q_note(sweep: Sweep, rows: list[dict]) -> str:
     for r in rows:
         k = _canonical({c: r[c] for c in sweep.grid if c != "q_W_m2"})
         groups.setdefault(k, []).append(r)
-    d = max((max(r[c] for r in g) - min(r[c] for r in g))
-            for g in groups.values() if len(g) > 1
-            for c in ("max_abs_diff_pct_of_peak", "corrected_max_abs_diff_pct_of_peak"))
-            if any(len(g) > 1 for g in groups.values()) else float("nan")
+    d = max(((max(r[c] for r in g) - min(r[c] for r in g))
+             for g in groups.values() if len(g) > 1
+             for c in ("max_abs_diff_pct_of_peak", "corrected_max_abs_diff_pct_of_peak")),
+            default=float("nan"))
     if not math.isfinite(d):
         return ""
     return (f"; the other q levels give the same % errors to within {d:.1g} percentage points, "
