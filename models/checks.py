@@ -8,11 +8,10 @@ than raising, so a scenario runner can collect and report them.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
-from models.params import InputError
+from models.params import InputError, check_finite
 
 __all__ = ["check_ar_tracks_fem", "MAX_DEV_OF_PEAK", "C1_TOL"]
 
@@ -94,11 +93,4 @@ def _series(name: str, values) -> np.ndarray:
     return a
 
 
-def _scalar(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"must be a number, got {value!r}", name) from None
-    if not math.isfinite(v):
-        raise InputError(f"must be finite, got {value!r}", name)
-    return v
+_scalar = check_finite

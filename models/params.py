@@ -55,26 +55,26 @@ class InputError(ValueError):
         return InputError(self.message, loc)
 
 
-def _check_positive(name: str, value, allow_zero: bool = False) -> float:
+def check_finite(name: str, value) -> float:
+    """``float(value)``, or an :class:`InputError` at ``name`` if it is not a finite number."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise InputError(f"must be a number, got {value!r}", name) from None
     if not math.isfinite(v):
         raise InputError(f"must be finite, got {value!r}", name)
+    return v
+
+
+def check_positive(name: str, value, allow_zero: bool = False) -> float:
+    """Like :func:`check_finite`, and > 0 (or >= 0 with ``allow_zero``)."""
+    v = check_finite(name, value)
     if v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {value!r}", name)
     return v
 
 
-def _check_finite(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"must be a number, got {value!r}", name) from None
-    if not math.isfinite(v):
-        raise InputError(f"must be finite, got {value!r}", name)
-    return v
+_check_finite, _check_positive = check_finite, check_positive
 
 
 @dataclass(frozen=True)
