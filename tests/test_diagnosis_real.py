@@ -13,8 +13,9 @@ DATA = REPO.parent / "shared" / "data" / "fl_thermal"
 
 @pytest.mark.skipif(not (DATA / "fl_thermal_ch2.toml").exists(), reason="no ../shared data")
 def test_committed_table_matches_fresh_run_ch2():
-    """ch2's row (cause, paper-AR, MLR and extended hold-out RMSE) is what the code gives now;
-    tolerance 0.01 µm = the table's rounding."""
+    """ch2's row (cause, paper-AR, MLR and extended hold-out RMSE, the CV-selected frame
+    structure and the verdict) is what the code gives now; tolerance 0.01 µm = the
+    table's rounding."""
     row = next(l for l in (REPO / "reports/fl_thermal/README.md").read_text().splitlines()
                if l.startswith("| ch2 |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
@@ -25,4 +26,6 @@ def test_committed_table_matches_fresh_run_ch2():
     assert abs(float(cells[5]) - s["holdout"]["extended_rmse_um"]) <= 0.01
     beats = s["holdout"]["extended_rmse_um"] < min(s["holdout"]["baseline_rmse_um"],
                                                    s["mlr"]["holdout_rmse_um"])
-    assert (cells[6] == "yes") == beats
+    assert (cells[7] == "yes") == beats
+    fs = s["selection"]["frame_structure"]
+    assert cells[6] == f"{fs['components']}, {fs['sensor_lag_h']:g} h"

@@ -101,14 +101,35 @@ def _markdown(diag) -> str:
           "| signal | xcorr | beyond N_eff bound |", "|---|---|---|"]
     for k, v in b["cross_correlation"].items():
         L.append(f"| {k} | {v:+.3f} | {'yes' if abs(v) > b['cross_correlation_bound_neff'] else 'no'} |")
-    L += ["", "## Naming the cause", "", f"Rule: {j['selection']['rule']}. "
-          f"N = {j['selection']['n']}, lag-1 autocorrelation {j['selection']['rho1']:.3f}, "
-          f"N_eff = {j['selection']['n_eff']:.1f}.", "",
-          "| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |", "|---|---|---|---|---|"]
-    for c in j["candidates"]:
-        L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
-                 f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
-                     f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    sel = j["selection"]
+    L += ["", "## Naming the cause", "", f"Rule: {sel['rule']}. "
+          f"N = {sel['n']}, lag-1 autocorrelation {sel['rho1']:.3f}, "
+          f"N_eff = {sel['n_eff']:.1f}.", ""]
+    if j["input_kind"] == "q_W_m2":
+        L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
+              "|---|---|---|---|---|"]
+        for c in j["candidates"]:
+            L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
+                     f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
+                         f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    else:
+        blocks = ", ".join(f"{a / 3600:.2f}-{b / 3600:.2f} h" for a, b in sel["validation_blocks_s"])
+        L += [f"Validation blocks (each fitted on everything before it): {blocks}. Baseline "
+              f"(AR(1) output error) validation RMSE per block: "
+              + ", ".join(_fmt(v) for v in sel["baseline_cv_per_block_um"]) + " µm.", ""]
+        if "frame_structure" in sel:
+            fs = sel["frame_structure"]
+            L += [f"Thermometer frame structure chosen by the same validation: "
+                  f"{fs['components']} principal components, sensor lag {fs['sensor_lag_h']:g} h "
+                  "(validation RMSE of every structure tried, µm: " + ", ".join(
+                      f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").", ""]
+        L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
+              "|---|---|---|---|---|---|"]
+        for c in j["candidates"]:
+            per = ", ".join(_fmt(v) for v in c.get("cv_per_block_um", []))
+            L.append(f"| {c['cause']} | {_fmt(c['score'])} | {per} | {_fmt(c.get('rmse_cut_pct'))} | "
+                     f"{c.get('blocks_won', '')} | " + ", ".join(
+                         f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
     if j["not_applicable"]:
         L.append("")
         L.append("Not applicable to this record: " + ", ".join(j["not_applicable"]) +

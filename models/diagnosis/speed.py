@@ -9,12 +9,17 @@
 * :func:`mlr` -- multiple linear regression of growth on the temperatures (paper eq. 18).
 
 Speed-to-heat mapping (what is done, eqs. 20-21): the heat input of a speed is judged
-from how fast the temperatures rise just after the spindle steps to it. The sensor used
-is the temperature whose 5-min increments correlate best with the speed before the
-hold-out; the early rise r(s) is its mean increase over the first 10 min after every
-step into speed s. For a speed s not seen before the hold-out the steady gain is
-K(s) = K(0) + (K(s_ref) − K(0))·r(s)/r(s_ref), with s_ref the nearest seen non-zero
-speed. Without temperatures, r(s) ∝ s is assumed (heat proportional to speed).
+from how fast the temperatures rise just after the spindle steps to it; the early rise
+r(s) of a sensor is its mean increase over the first 10 min after every step into speed
+s. A sensor is usable only if r(s) is positive and strictly increasing over the non-zero
+speeds seen before the hold-out (the premise of eqs. 20-21); among usable sensors the one
+with the largest corr(s, r)·min r is taken. For a speed s not seen before the hold-out
+the steady gain is K(s) = K(0) + (K(s_ref) − K(0))·r(s)/r(s_ref), s_ref the nearest seen
+non-zero speed. Without a usable sensor, r(s) ∝ s (heat proportional to speed).
+
+Speed-only records with thermometers also get :func:`fit_frame_thermometers` as their
+``frame_expansion`` candidate, its structure chosen by forward-chaining validation
+(:func:`forward_folds`, :func:`select_frame_structure`).
 """
 from __future__ import annotations
 
@@ -42,26 +47,13 @@ def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.
     seen = np.unique(speed[rows])
     unseen = [u for u in levels if u not in seen]
     info: dict = {"unseen_rpm": [float(u) for u in unseen]}
-    # the speed-following sensor
-    best, best_c = None, 0.0
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
-    lag = max(1, int(round(300.0 / dt)))
-    for name, T in temperatures.items():
-        T = np.asarray(T, float)
-        if not np.all(np.isfinite(T[rows])):
-            continue
-        inc = T[lag:] - T[:-lag]
-        sp = speed[lag:]
-        ok = rows[lag:]
-        if ok.sum() < 10 or np.std(sp[ok]) == 0:
-            continue
-        c = abs(np.corrcoef(inc[ok], sp[ok])[0, 1])
-        if np.isfinite(c) and c > best_c:
-            best, best_c = name, c
-    rise = {}
-    if best is not None:
-        T = np.asarray(temperatures[best], float)
-        steps = np.flatnonzero(np.diff(speed) != 0) + 1
+    # the speed-following sensor: eq. 20-21 assume the early rise grows with the heat,
+    # so a sensor is usable only if its early rise is positive and strictly increasing
+    # with speed over the non-zero speeds seen before the hold-out (checked on fit rows)
+    steps = np.flatnonzero(np.diff(speed) != 0) + 1
+
+    def early_rise(T):
+        out = {}
         for lv in levels:
             vals = []
             for i in steps:
@@ -71,8 +63,27 @@ def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.
                 if j < t.size and np.all(speed[i:j + 1] == lv):
                     vals.append(T[j] - T[i - 1])
             if vals:
-                rise[float(lv)] = float(np.mean(vals))
-        info.update(sensor=best, sensor_corr=best_c, early_rise_K=rise)
+                out[float(lv)] = float(np.mean(vals))
+        return out
+
+    best, best_c, rise = None, 0.0, {}
+    rejected = {}
+    nz_seen = sorted(float(s) for s in seen if s != 0)
+    for name, T in temperatures.items():
+        T = np.asarray(T, float)
+        if not np.all(np.isfinite(T[rows])):
+            continue
+        r = early_rise(T)
+        rs = [r.get(s) for s in nz_seen]
+        if len(nz_seen) < 2 or any(v is None for v in rs):
+            continue
+        if not (rs[0] > 0 and np.all(np.diff(rs) > 0)):
+            rejected[name] = "early rise not positive and increasing with speed"
+            continue
+        c = abs(np.corrcoef(nz_seen, rs)[0, 1]) * min(rs)
+        if np.isfinite(c) and c > best_c:
+            best, best_c, rise = name, float(c), r
+    info.update(sensor=best, early_rise_K=rise, sensors_rejected=sorted(rejected))
     W = {}
     for u in unseen:
         nz = [s for s in seen if s != 0]
@@ -239,3 +250,197 @@ def mlr(y, temperatures: dict, rows):
     X = [np.ones_like(y)] + [np.asarray(temperatures[k], float) for k in names]
     coef, pred = project(X, np.asarray(y, float), rows)
     return pred, names
+
+
+#: structures tried for the thermometer-observed frame: number of principal components
+#: of the temperature changes, and the extra first-order lag [h] between them and the frame
+FRAME_COMPONENTS = (1, 2, 3, 4, 6, 8)
+FRAME_LAGS_H = (0.0, 0.5, 2.0)
+
+
+def forward_folds(t, speed, rows, min_train_frac: float = 0.25, max_folds: int = 4):
+    """Forward-chaining validation blocks inside the fit window (``rows``).
+
+    Each block starts at a speed step (so it usually opens with a speed the training
+    part has not seen -- the situation of the hold-out) once at least ``min_train_frac``
+    of the fit window lies before it, and ends at the next start or at the end of the
+    fit window. Without such steps: the last half of the fit window in three blocks.
+
+    Returns a list of (train rows, validation rows) boolean pairs.
+
+    Examples
+    --------
+    >>> t = np.arange(1, 1201) * 60.0            # 20 h
+    >>> sp = np.where((t // 14400) % 2 == 0, 1000.0, 0.0)
+    >>> f = forward_folds(t, sp, np.ones(t.size, bool))
+    >>> [(round(t[v][0] / 3600), round(t[v][-1] / 3600)) for _, v in f]
+    [(8, 12), (12, 16), (16, 20)]
+    """
+    t = np.asarray(t, float)
+    speed = np.asarray(speed, float)
+    tf = t[rows]
+    t0, t1 = float(tf[0]), float(tf[-1])
+    steps = t[np.flatnonzero(np.diff(speed) != 0) + 1]
+    starts = [s for s in steps if t0 + min_train_frac * (t1 - t0) <= s < t1 - 0.05 * (t1 - t0)]
+    if len(starts) < 2:
+        starts = list(t0 + (t1 - t0) * np.array([0.5, 2 / 3, 5 / 6]))
+    starts = starts[-max_folds:]
+    ends = starts[1:] + [np.inf]
+    return [(rows & (t < a), rows & (t >= a) & (t < b)) for a, b in zip(starts, ends)]
+
+
+def _temperature_matrix(temperatures: dict):
+    names = [k for k, v in temperatures.items() if np.all(np.isfinite(np.asarray(v, float)))]
+    if not names:
+        return [], None
+    return names, np.column_stack([np.asarray(temperatures[k], float) for k in names])
+
+
+def frame_components(t, T, rows, k: int, lag_h: float):
+    """Leading principal components of the standardised temperature changes, lagged.
+
+    The components (and the standardisation) come from ``rows`` only; each is then passed
+    through the first-order lag τ P' = pc − P with τ = ``lag_h`` (none for 0).
+
+    Parameters
+    ----------
+    t : ndarray
+        Sample times [s].
+    T : ndarray, shape (n, m)
+        Temperatures [°C].
+    rows : ndarray of bool
+        Rows that define the components.
+    k : int
+        Number of components [-].
+    lag_h : float
+        Extra lag of the frame behind the thermometers [h].
+
+    Returns
+    -------
+    list of ndarray
+        k series [-] (unit variance on ``rows`` before the lag).
+
+    Examples
+    --------
+    >>> t = np.arange(1, 101) * 60.0
+    >>> T = np.column_stack([np.sin(t / 900), 2 * np.sin(t / 900)])
+    >>> p = frame_components(t, T, np.ones(100, bool), 1, 0.0)
+    >>> round(float(abs(np.corrcoef(p[0], T[:, 0])[0, 1])), 6)
+    1.0
+    """
+    mu = T[rows].mean(0)
+    sd = T[rows].std(0)
+    sd[sd == 0] = 1.0
+    Z = (T - mu) / sd
+    _, S, Vt = np.linalg.svd(Z[rows], full_matrices=False)
+    k = int(min(k, Vt.shape[0]))
+    pcs = [Z @ Vt[j] / max(S[j] / np.sqrt(rows.sum()), 1e-12) for j in range(k)]
+    if lag_h > 0:
+        pcs = [first_order_lag(t, p, lag_h * 3600.0, p[0]) for p in pcs]
+    return pcs
+
+
+def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict, k: int,
+                           lag_h: float) -> CandidateFit | None:
+    """AR(1) of the heat input plus a frame observed by the thermometers, on ``rows``.
+
+    Reading = rod + frame: the rod is the calibrated AR(1) of the speed (one steady gain
+    per seen speed, unseen speeds by the eqs. 20-21 mapping ``W``, rate b searched), the
+    frame growth is Σ_j γ_j P_j, P_j the ``k`` leading principal components of the
+    temperature changes lagged by ``lag_h`` (:func:`frame_components`). Gains, γ and an
+    offset with the rod's initial-state decay are linear (output-error least squares).
+    The frame is summarised physically by fitting it, on ``rows``, as a first-order lag
+    of the rod's steady growth target: ``frame_gain`` (frame growth per unit of rod
+    growth at steady state) and ``frame_time_constant_h``.
+    """
+    names, T = _temperature_matrix(temperatures)
+    if T is None:
+        return None
+    t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
+    units = _level_inputs(speed, seen, W)
+    pcs = frame_components(t, T, rows, k, lag_h)
+    one = np.ones_like(t)
+
+    def cols(b):
+        return [ar_first_order(t, u, b, 1.0) for u in units.values()] + \
+               [np.exp(-b * t), one] + pcs
+
+    def rss(x):
+        coef, pred = project(cols(np.exp(x)), y, rows)
+        r = (y - pred)[rows]
+        return float(r @ r)
+
+    lb = (np.log(1 / (50 * 3600.0)), np.log(1 / 300.0))
+    grid = np.linspace(*lb, 13)
+    vals = [rss(g) for g in grid]
+    i = int(np.argmin(vals))
+    res = minimize_scalar(rss, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
+                          method="bounded", options={"xatol": 1e-3})
+    b = float(np.exp(res.x))
+    C = cols(b)
+    coef, pred = project(C, y, rows)
+    r = (y - pred)[rows]
+    nl = len(units)
+    gains = coef[:nl]
+    target = sum(g * u for g, u in zip(gains, units.values()))
+    frame = np.column_stack(pcs) @ coef[nl + 2:]
+
+    def summ(x):
+        c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
+        rr = (frame - f)[rows]
+        return float(rr @ rr)
+    rs = minimize_scalar(summ, bounds=(np.log(0.1), np.log(200.0)), method="bounded",
+                         options={"xatol": 1e-3})
+    cg, _ = project([first_order_lag(t, target, np.exp(rs.x) * 3600.0), one], frame, rows)
+    params = {"frame_time_constant_h": float(np.exp(rs.x)), "frame_gain": float(cg[0]),
+              "frame_components": int(len(pcs)), "frame_sensor_lag_h": float(lag_h),
+              "rod_time_constant_h": float(1 / b / 3600.0)}
+    return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers)", params, pred,
+                        len(pcs), float(r @ r), int(rows.sum()),
+                        {"time_constant_h": float(1 / b / 3600.0), "sensors": names,
+                         "frame_um": frame, "coefficients": coef.tolist()})
+
+
+def cv_rmse(fitter, y, folds) -> tuple[float, list[float]]:
+    """Forward-chaining validation RMSE [µm]: pooled over the blocks, and per block.
+
+    ``fitter(train_rows) -> prediction over the record`` (or None: not applicable).
+    """
+    errs, per = [], []
+    for tr, va in folds:
+        p = fitter(tr)
+        if p is None:
+            return float("nan"), []
+        r = (y - p)[va]
+        errs.append(r)
+        per.append(float(np.sqrt(np.mean(r * r))))
+    e = np.concatenate(errs) if errs else np.zeros(0)
+    return (float(np.sqrt(np.mean(e * e))) if e.size else float("nan")), per
+
+
+def select_frame_structure(t, y, speed, temperatures, rows, folds, map_fn):
+    """(k, lag_h) of the thermometer frame with the least forward-chaining validation RMSE.
+
+    ``map_fn(train_rows) -> (seen, W)`` rebuilds the speed mapping from each training part.
+    Returns ((k, lag_h), table {"k=..,lag=..h": pooled validation RMSE [µm]}).
+    """
+    names, T = _temperature_matrix(temperatures)
+    if T is None:
+        return None, {}
+    maps = [map_fn(tr) for tr, _ in folds]
+    table, best = {}, None
+    for k in FRAME_COMPONENTS:
+        if k > len(names):
+            continue
+        for lag in FRAME_LAGS_H:
+            it = iter(maps)
+
+            def fitter(tr):
+                seen, W = next(it)
+                f = fit_frame_thermometers(t, y, speed, tr, seen, W, temperatures, k, lag)
+                return None if f is None else f.prediction
+            score, _ = cv_rmse(fitter, y, folds)
+            table[f"k={k},lag={lag:g}h"] = score
+            if best is None or score < best[0]:
+                best = (score, (k, lag))
+    return best[1], table
