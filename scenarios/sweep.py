@@ -807,38 +807,34 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):
                     "pip install -e <repo> there, or start them with PYTHONPATH=<repo>]")
         rep.failures.append({"inputs": p.inputs, "error": f"{type(exc).__name__}: {msg}"})
 
-    try:
-        if executor is None:
-            with _BlasThreads(1):
-                _serial(sweep, points, store, point_fn, record, failed, rep, bar)
-            return
-        with executor:
-            futs = {executor.submit(point_fn, p.data, f"{sweep.source} point {p.index}"): p
-                    for p in points}
-            for fut in executor.as_completed(list(futs)):
-                p = futs[fut]
-                try:
-                    res = fut.result()
-                except Exception as exc:
-                    failed(p, exc)
-                else:
-                    store.put(record(p, res))
-                    rep.n_computed += 1
-                bar.update(1)
-    finally:
-        bar.close()
-
-
-def _serial(sweep, points, store, point_fn, record, failed, rep, bar):
-    for p in points:
+    def settle(p: Point, get_result) -> None:
+        """Store one finished point as soon as it completes, or record its failure."""
         try:
-            res = point_fn(p.data, f"{sweep.source} point {p.index}")
+            res = get_result()
         except Exception as exc:
             failed(p, exc)
         else:
             store.put(record(p, res))
             rep.n_computed += 1
         bar.update(1)
+
+    try:
+        if executor is None:
+            with _BlasThreads(1):
+                _serial(sweep, points, point_fn, settle)
+            return
+        with executor:
+            futs = {executor.submit(point_fn, p.data, f"{sweep.source} point {p.index}"): p
+                    for p in points}
+            for fut in executor.as_completed(list(futs)):
+                settle(futs[fut], fut.result)
+    finally:
+        bar.close()
+
+
+def _serial(sweep, points, point_fn, settle):
+    for p in points:
+        settle(p, lambda p=p: point_fn(p.data, f"{sweep.source} point {p.index}"))
 
 
 def _append_run_log(out: Path, rep: RunReport) -> None:
