@@ -74,7 +74,6 @@ def check_positive(name: str, value, allow_zero: bool = False) -> float:
     return v
 
 
-_check_finite, _check_positive = check_finite, check_positive
 
 
 @dataclass(frozen=True)
@@ -134,15 +133,15 @@ class Rod:
             name = f.name
             value = getattr(self, name)
             if name == "poisson_ratio":
-                v = _check_finite(name, value)
+                v = check_finite(name, value)
                 if not -1.0 < v < 0.5:
                     raise InputError(f"must lie in (-1, 0.5), got {value!r}", name)
             elif name == "ambient_C":
-                v = _check_finite(name, value)
+                v = check_finite(name, value)
                 if v < -273.15:
                     raise InputError(f"is below absolute zero, got {value!r}", name)
             else:
-                v = _check_positive(name, value)
+                v = check_positive(name, value)
             object.__setattr__(self, name, v)
 
     # -- derived quantities of the 1D theory (paper eqs. 1-4) ------------------
@@ -278,16 +277,8 @@ class Schedule:
 
         Raises :class:`InputError` if ``dt_s`` does not divide a segment.
         """
-        dt = _check_positive("dt_s", dt_s)
-        counts = []
-        for i, d in enumerate(self.durations_s):
-            k = d / dt
-            if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
-                raise InputError(
-                    f"{dt:g} s does not divide segment {i} of {d:g} s; choose a step that "
-                    f"divides every phase duration (e.g. a divisor of {_gcd_all(self.durations_s):g} s)",
-                    "dt_s")
-            counts.append(int(round(k)))
+        dt = check_positive("dt_s", dt_s)
+        counts = steps_per_segment(self.durations_s, dt)
         rep = np.repeat(np.arange(self.n_segments), counts)
         pick = lambda a: None if a is None else np.asarray(a)[rep]
         return Schedule(np.full(rep.size, dt), pick(self.q_W_m2), pick(self.ambient_C),
@@ -302,6 +293,48 @@ def _gcd_all(durations: Iterable[float]) -> float:
             g = math.gcd(g, i)
         return float(g)
     return float(min(durations))
+
+
+def _divisor_examples(g: float) -> str:
+    cands = [d for d in (1, 2, 5, 10, 15, 20, 30, 60, 90, 120, 180, 300, 600, 900, 1800, 3600)
+             if g > 0 and abs(g / d - round(g / d)) < 1e-9]
+    return ", ".join(f"{d:g}" for d in cands[-6:]) if cands else f"{g:g}"
+
+
+def steps_per_segment(durations_s, step_s, where: str = "dt_s", what: str = "segment") -> list[int]:
+    """How many steps of ``step_s`` fit each duration; every one must divide exactly.
+
+    Parameters
+    ----------
+    durations_s : array_like
+        Segment (phase) durations [s].
+    step_s : float
+        Time step [s], > 0.
+    where : str
+        Location named in the error (e.g. ``"ar.dtau_s"``).
+    what : str
+        What a duration is called in the error (``"segment"``, ``"phase"``).
+
+    Examples
+    --------
+    >>> steps_per_segment([14400, 5400], 1800)
+    [8, 3]
+    >>> steps_per_segment([14400, 5400], 7, where="ar.dtau_s", what="phase")
+    Traceback (most recent call last):
+    ...
+    models.params.InputError: ar.dtau_s: 7 s does not divide phase 0 (14400 s); choose a step that divides every phase, e.g. 120, 180, 300, 600, 900, 1800 s
+    """
+    step = check_positive(where, step_s)
+    durations = [float(d) for d in np.atleast_1d(durations_s)]
+    counts = []
+    for i, d in enumerate(durations):
+        k = d / step
+        if abs(k - round(k)) > 1e-9 * max(1.0, k) or round(k) < 1:
+            raise InputError(f"{step:g} s does not divide {what} {i} ({d:g} s); choose a step "
+                             f"that divides every {what}, e.g. "
+                             f"{_divisor_examples(_gcd_all(durations))} s", where)
+        counts.append(int(round(k)))
+    return counts
 
 
 #: The paper's duty cycle: 4 h on, 1.5 h off, 4 h on, 14.5 h off [s] (Du et al. 2021, Sec. 2).

@@ -49,7 +49,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from models.params import InputError, Rod, Schedule
+from models.params import InputError, Rod, Schedule, steps_per_segment
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -228,12 +228,6 @@ def _bool(v, where: str) -> bool:
     return v
 
 
-def _fmt_divisors(g: float) -> str:
-    cands = [d for d in (1, 2, 5, 10, 15, 20, 30, 60, 90, 120, 180, 300, 600, 900, 1800, 3600)
-             if g > 0 and abs(g / d - round(g / d)) < 1e-9]
-    return ", ".join(f"{d:g}" for d in cands[-6:]) if cands else f"{g:g}"
-
-
 def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     """Validate a scenario given as a dict (as read from TOML).
 
@@ -320,13 +314,7 @@ def _from_dict(data: dict, source: str) -> Scenario:
     ar = _table(data, "ar", "")
     _unknown(ar, _AR_KEYS, "ar")
     dtau = _number(ar.get("dtau_s", 30.0), "ar.dtau_s", positive=True)
-    for i, d in enumerate(durations):
-        k = d / dtau
-        if abs(k - round(k)) > 1e-9 * max(k, 1.0):
-            from models.params import _gcd_all
-            g = _gcd_all(durations)
-            raise InputError(f"{dtau:g} s does not divide phase {i} ({d:g} s); choose a Δτ "
-                             f"that divides every phase, e.g. {_fmt_divisors(g)} s", "ar.dtau_s")
+    steps_per_segment(durations, dtau, where="ar.dtau_s", what="phase")
 
     # fem
     fem_d = _table(data, "fem", "")

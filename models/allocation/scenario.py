@@ -33,7 +33,7 @@ import numpy as np
 
 from models.allocation import screw
 from models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
-from models.params import InputError
+from models.params import PAPER_PHASES_S, InputError, steps_per_segment
 
 __all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "load_scenario", "parse_scenario",
            "build_chain"]
@@ -286,9 +286,10 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
             raise rd.err("spindle.compensated", "needs model 'ar' or 'ar_corrected' (the FEM "
                                                 "is the reference the residual is taken against)")
         dtau = rd.number(sp, "dtau_s", "spindle.dtau_s", default=30.0, low=0.0, low_open=True)
-        if abs(1800.0 / dtau - round(1800.0 / dtau)) > 1e-9:
-            raise rd.err("spindle.dtau_s", f"must divide the paper cycle's phases (a divisor "
-                                           f"of 1800 s), got {dtau:g}")
+        try:
+            steps_per_segment([d for d, _ in PAPER_PHASES_S], dtau, what="paper-cycle phase")
+        except InputError as exc:
+            raise rd.err("spindle.dtau_s", exc.message) from None
         after = rd.string(sp, "after", "spindle.after", default=units[-1].name)
         if after not in {u.name for u in units}:
             raise rd.err("spindle.after", f"names no unit, got {after!r}")
