@@ -25,11 +25,16 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
 
 from models.allocation import screw
 from models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
