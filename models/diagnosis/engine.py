@@ -25,8 +25,8 @@ import numpy as np
 from models.diagnosis import stats as st
 from models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
                                          fit_candidate)
-from models.diagnosis.speed import (FRAME_COMPONENTS, FRAME_LAGS_H, SPEED_CAUSES,
-                                    cv_rmse, fit_frame_thermometers, fit_speed_candidate,
+from models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
+                                    fit_speed_candidate,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
 from models.params import InputError
@@ -237,13 +237,12 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
         fold_maps = [speed_to_heat_map(t, sp, temps, tr)[1:3] for tr, _ in folds]
         frame_struct, frame_table = None, {}
         if temps:
-            it_maps = iter(fold_maps * (len(FRAME_COMPONENTS) * len(FRAME_LAGS_H)))
-            frame_struct, frame_table = select_frame_structure(
-                t, y, sp, temps, rows, folds, lambda tr: next(it_maps))
+            frame_struct, frame_table = select_frame_structure(t, y, sp, temps, rows, folds,
+                                                               fold_maps)
 
         def fit_c(c, tr, seen_, W_):
             if c == "frame_expansion" and frame_struct is not None:
-                return fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, *frame_struct)
+                return fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, frame_struct)
             return fit_speed_candidate(c, t, y, sp, tr, seen_, W_, amb_K, rho_c_R)
 
         fits, cvs = {}, {}
@@ -264,8 +263,11 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
         base = fits["none"]   # output-error AR: the reference the candidates are tested against
         cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t)
         if frame_struct is not None:
-            neff["frame_structure"] = {"components": frame_struct[0],
-                                       "sensor_lag_h": frame_struct[1],
+            neff["frame_structure"] = {"components": frame_struct.components,
+                                       "sensor_lag_h": frame_struct.sensor_lag_h,
+                                       "heat_exponent": frame_struct.heat_exponent,
+                                       "slow_response": frame_struct.slow_lag,
+                                       "label": frame_struct.label,
                                        "validation_rmse_um": frame_table}
         ext = fits[cause] if cause != "none" else base_paper
         tau_s = base.extra.get("time_constant_h", 1.0) * 3600.0

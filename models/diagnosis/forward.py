@@ -33,7 +33,7 @@ from models.params import Rod
 #: quantisation step of ln h in the semi-implicit natural-convection model
 _H_STEP = float(np.log1p(0.0025))
 
-__all__ = ["RodModel", "intervals", "first_order_lag", "ar_first_order"]
+__all__ = ["RodModel", "intervals", "first_order_lag", "ar_first_order", "ar_columns"]
 
 
 def intervals(time_s) -> np.ndarray:
@@ -166,7 +166,51 @@ def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
     bb = np.broadcast_to(np.asarray(b_1_s, float), d.shape)
     a = np.exp(-bb * d)[:, None]
     c2 = (float(gain) * np.asarray(u, float) * (1.0 - a[:, 0]))[:, None]
+    if d.size > 2 and np.ndim(b_1_s) == 0 and np.all(d[2:] == d[1]) and 0 < a[1, 0] < 1:
+        # even steps after the first: the same recursion as one IIR filter (C loop)
+        x = np.empty(d.size)
+        x[0] = a[0, 0] * x0 + c2[0, 0]
+        x[1:], _ = lfilter([1.0], [1.0, -a[1, 0]], c2[1:, 0], zi=[a[1, 0] * x[0]])
+        return x
     return _linear_recursion(a, c2, np.array([x0]))[:, 0]
+
+
+def ar_columns(time_s, U, b_1_s: float) -> np.ndarray:
+    """Unit-gain AR(1) responses (:func:`ar_first_order`, x0 = 0) of several inputs at one
+    rate, in one call -- the columns a least-squares fit of the steady gains needs.
+
+    Parameters
+    ----------
+    time_s : array_like
+        Sample times [s].
+    U : array_like, shape (n, m)
+        m inputs held over the interval ending at each sample.
+    b_1_s : float
+        Rate b [1/s], > 0.
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+
+    Examples
+    --------
+    >>> t = np.arange(1, 6) * 60.0
+    >>> U = np.column_stack([np.ones(5), np.arange(5.0)])
+    >>> X = ar_columns(t, U, 1e-3)
+    >>> bool(np.allclose(X[:, 1], ar_first_order(t, U[:, 1], 1e-3, 1.0), atol=1e-15))
+    True
+    """
+    d = intervals(time_s)
+    U = np.asarray(U, float)
+    a = np.exp(-float(b_1_s) * d)
+    C = U * (1.0 - a)[:, None]
+    if d.size > 2 and np.all(d[2:] == d[1]) and 0 < a[1] < 1:
+        X = np.empty_like(C)
+        X[0] = C[0]
+        X[1:], _ = lfilter([1.0], [1.0, -a[1]], C[1:], axis=0, zi=a[1] * X[:1])
+        return X
+    return _linear_recursion(np.repeat(a[:, None], U.shape[1], axis=1), C,
+                             np.zeros(U.shape[1]))
 
 
 @dataclass(frozen=True)

@@ -19,17 +19,24 @@ non-zero speed. Without a usable sensor, r(s) ∝ s (heat proportional to speed)
 
 Speed-only records with thermometers also get :func:`fit_frame_thermometers` as their
 ``frame_expansion`` candidate, its structure chosen by forward-chaining validation
-(:func:`forward_folds`, :func:`select_frame_structure`).
+(:func:`forward_folds`, :func:`select_frame_structure`) among :func:`frame_structures`:
+thermometer components and their lag, the speed-to-heat law (per-speed gains with the
+eqs. 20-21 mapping, or heat ∝ n^p, zero at rest, p in :data:`HEAT_EXPONENTS`) and a
+frame that also follows the spindle heat with its own slow time constant.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from models.diagnosis.candidates import CandidateFit, project
-from models.diagnosis.forward import ar_first_order, first_order_lag, intervals
+from models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag, intervals
 
-__all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
+__all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES",
+           "FrameStructure", "frame_structures", "heat_law", "fit_frame_thermometers",
+           "select_frame_structure", "forward_folds", "cv_rmse"]
 
 #: causes identifiable for a calibrated AR(1) (h and heat scale are absorbed by C1, C2)
 SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_expansion",
@@ -252,10 +259,91 @@ def mlr(y, temperatures: dict, rows):
     return pred, names
 
 
-#: structures tried for the thermometer-observed frame: number of principal components
-#: of the temperature changes, and the extra first-order lag [h] between them and the frame
-FRAME_COMPONENTS = (1, 2, 3, 4, 6, 8)
+#: structures tried for the frame: number of principal components of the temperature
+#: changes (0: none), the extra first-order lag [h] between them and the frame, the
+#: speed-to-heat law (None: one gain per seen speed, unseen speeds by eqs. 20-21; p: heat
+#: ∝ (n/n_ref)^p, zero at rest) and whether the frame also responds to the spindle heat
+#: with its own slower time constant (>= 2 h, the contract's frame_expansion)
+FRAME_COMPONENTS = (0, 1, 2, 3, 4, 6, 8)
 FRAME_LAGS_H = (0.0, 0.5, 2.0)
+HEAT_EXPONENTS = (None, 1.0, 4.0 / 3.0, 5.0 / 3.0, 2.0)
+SLOW_TAU_H = (2.0, 200.0)
+
+
+@dataclass(frozen=True)
+class FrameStructure:
+    """One structure of the frame model (see :func:`fit_frame_thermometers`).
+
+    Attributes
+    ----------
+    components : int
+        Principal components of the standardised temperatures [-] (0: no thermometers).
+    sensor_lag_h : float
+        First-order lag of the frame behind the thermometers [h].
+    heat_exponent : float or None
+        p of the heat law (n/n_ref)^p [-]; None: one steady gain per seen speed.
+    slow_lag : bool
+        The frame also follows the spindle heat with its own time constant (>= 2 h).
+    """
+    components: int
+    sensor_lag_h: float = 0.0
+    heat_exponent: float | None = None
+    slow_lag: bool = False
+
+    @property
+    def label(self) -> str:
+        heat = "per-speed gains" if self.heat_exponent is None else f"n^{self.heat_exponent:.3g}"
+        return (f"k={self.components},lag={self.sensor_lag_h:g}h,heat={heat},"
+                f"slow={'yes' if self.slow_lag else 'no'}")
+
+
+def frame_structures(n_sensors: int) -> list[FrameStructure]:
+    """Every structure the forward-chaining selection compares.
+
+    Examples
+    --------
+    >>> len(frame_structures(16)), len(frame_structures(0))
+    (185, 5)
+    """
+    out = []
+    for p in HEAT_EXPONENTS:
+        for slow in (False, True):
+            for k in FRAME_COMPONENTS:
+                if k > n_sensors or (k == 0 and not slow):
+                    continue
+                for lag in (FRAME_LAGS_H if k else (0.0,)):
+                    out.append(FrameStructure(k, lag, p, slow))
+    return out
+
+
+def heat_law(speed_rpm, exponent: float, ref_rpm: float) -> np.ndarray:
+    """Relative heat input of a spindle speed: (n/n_ref)^p, zero at rest.
+
+    Bearing friction heat grows as n^(5/3) for its viscous part and as n for its load
+    part (Palmgren), motor iron losses as n^1.5..2; p is not known for a machine, so
+    it is chosen by validation among :data:`HEAT_EXPONENTS`.
+
+    Parameters
+    ----------
+    speed_rpm : array_like
+        Spindle speed [1/min], >= 0.
+    exponent : float
+        p [-].
+    ref_rpm : float
+        Reference speed n_ref [1/min], > 0 (input 1 there).
+
+    Returns
+    -------
+    ndarray
+        Heat input relative to that at n_ref [-].
+
+    Examples
+    --------
+    >>> heat_law([0.0, 1000.0, 2000.0], 2.0, 1000.0).tolist()
+    [0.0, 1.0, 4.0]
+    """
+    n = np.clip(np.asarray(speed_rpm, float), 0.0, None)
+    return (n / float(ref_rpm)) ** float(exponent)
 
 
 def forward_folds(t, speed, rows, min_train_frac: float = 0.25, max_folds: int = 4):
@@ -332,73 +420,158 @@ def frame_components(t, T, rows, k: int, lag_h: float):
     sd = T[rows].std(0)
     sd[sd == 0] = 1.0
     Z = (T - mu) / sd
-    _, S, Vt = np.linalg.svd(Z[rows], full_matrices=False)
-    k = int(min(k, Vt.shape[0]))
-    pcs = [Z @ Vt[j] / max(S[j] / np.sqrt(rows.sum()), 1e-12) for j in range(k)]
+    lam, V = np.linalg.eigh(Z[rows].T @ Z[rows])    # = right singular vectors of Z[rows]
+    lam, V = lam[::-1], V[:, ::-1]
+    k = int(min(k, V.shape[1]))
+    pcs = [Z @ V[:, j] / max(np.sqrt(max(lam[j], 0.0) / rows.sum()), 1e-12) for j in range(k)]
     if lag_h > 0:
         pcs = [first_order_lag(t, p, lag_h * 3600.0, p[0]) for p in pcs]
     return pcs
 
 
-def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict, k: int,
-                           lag_h: float) -> CandidateFit | None:
-    """AR(1) of the heat input plus a frame observed by the thermometers, on ``rows``.
+class _Projection:
+    """Residual sum of squares of ``y`` on fixed columns plus varying ones, over ``rows``.
 
-    Reading = rod + frame: the rod is the calibrated AR(1) of the speed (one steady gain
-    per seen speed, unseen speeds by the eqs. 20-21 mapping ``W``, rate b searched), the
-    frame growth is Σ_j γ_j P_j, P_j the ``k`` leading principal components of the
-    temperature changes lagged by ``lag_h`` (:func:`frame_components`). Gains, γ and an
-    offset with the rod's initial-state decay are linear (output-error least squares).
-    The frame is summarised physically by fitting it, on ``rows``, as a first-order lag
-    of the rod's steady growth target: ``frame_gain`` (frame growth per unit of rod
-    growth at steady state) and ``frame_time_constant_h``.
+    The fixed columns (thermometer components, offset) are projected out once by a QR
+    factorisation; each call then solves only the small normal equations of the varying
+    columns (eigen-decomposition, directions below 1e-12 of the largest dropped), which
+    is what makes the structure search affordable. Used for the search only; the final
+    coefficients come from :func:`~models.diagnosis.candidates.project`.
+    """
+
+    def __init__(self, fixed: list, y, rows):
+        self.rows = rows
+        yr = np.asarray(y, float)[rows]
+        if fixed:
+            F = np.column_stack(fixed)[rows]
+            F = F / np.where(np.linalg.norm(F, axis=0) > 0, np.linalg.norm(F, axis=0), 1.0)
+            self.Q, _ = np.linalg.qr(F)
+            yr = yr - self.Q @ (self.Q.T @ yr)
+        else:
+            self.Q = None
+        self.y = yr
+
+    def rss(self, varying: list) -> float:
+        X = np.hstack(varying)[self.rows]
+        if self.Q is not None:
+            X = X - self.Q @ (self.Q.T @ X)
+        nrm = np.linalg.norm(X, axis=0)
+        X = X / np.where(nrm > 0, nrm, 1.0)
+        lam, V = np.linalg.eigh(X.T @ X)
+        keep = lam > 1e-12 * max(lam[-1], 1e-300)
+        c = V[:, keep].T @ (X.T @ self.y)
+        return float(self.y @ self.y - np.sum(c * c / lam[keep]))
+
+
+def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
+                           structure: FrameStructure) -> CandidateFit | None:
+    """AR(1) of the heat input plus a frame, output error on ``rows``.
+
+    Reading = rod + frame + c. The rod is the AR(1) of the heat input at rate b: one
+    steady gain per seen speed (unseen speeds by the eqs. 20-21 mapping ``W``) or, with
+    ``structure.heat_exponent`` p, one gain on (n/n_ref)^p, n_ref the fastest speed seen
+    in ``rows``. The frame is (a) with ``slow_lag`` a second first-order response to the
+    same heat input at its own rate b_f (τ_f = 1/b_f in [2, 200] h), and (b) Σ_j γ_j P_j,
+    P_j the ``components`` leading principal components of the temperatures lagged by
+    ``sensor_lag_h`` (:func:`frame_components`). Gains, γ, c and the initial-state decays
+    are linear (least squares); b and b_f are searched.
+
+    ``frame_gain`` and ``frame_time_constant_h``: with ``slow_lag``, the slow response's
+    steady gain per unit of the rod's and τ_f; otherwise the frame part fitted, on
+    ``rows``, as a first-order lag of the rod's steady growth target.
     """
     names, T = _temperature_matrix(temperatures)
-    if T is None:
+    k = structure.components
+    if k and T is None:
         return None
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
-    units = _level_inputs(speed, seen, W)
-    pcs = frame_components(t, T, rows, k, lag_h)
+    p = structure.heat_exponent
+    if p is None:
+        units = list(_level_inputs(speed, seen, W).values())
+    else:
+        ref = float(np.max(speed[rows], initial=0.0))
+        if ref <= 0:
+            return None
+        units = [heat_law(speed, p, ref)]
+    pcs = frame_components(t, T, rows, k, structure.sensor_lag_h) if k else []
     one = np.ones_like(t)
+    nl = len(units)
 
-    def cols(b):
-        return [ar_first_order(t, u, b, 1.0) for u in units.values()] + \
-               [np.exp(-b * t), one] + pcs
+    def cols(b, bf):
+        c = [ar_first_order(t, u, b, 1.0) for u in units] + [np.exp(-b * t), one]
+        if bf is not None:
+            c += [ar_first_order(t, u, bf, 1.0) for u in units] + [np.exp(-bf * t)]
+        return c + pcs
 
-    def rss(x):
-        coef, pred = project(cols(np.exp(x)), y, rows)
-        r = (y - pred)[rows]
-        return float(r @ r)
+    proj = _Projection([one] + pcs, y, rows)
+
+    U = np.column_stack(units)
+
+    def rss(b, bf=None):
+        c = [ar_columns(t, U, b), np.exp(-b * t)[:, None]]
+        if bf is not None:
+            c += [ar_columns(t, U, bf), np.exp(-bf * t)[:, None]]
+        return proj.rss(c)
 
     lb = (np.log(1 / (50 * 3600.0)), np.log(1 / 300.0))
-    grid = np.linspace(*lb, 13)
-    vals = [rss(g) for g in grid]
-    i = int(np.argmin(vals))
-    res = minimize_scalar(rss, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
-                          method="bounded", options={"xatol": 1e-3})
-    b = float(np.exp(res.x))
-    C = cols(b)
+    lf = (np.log(1 / (SLOW_TAU_H[1] * 3600.0)), np.log(1 / (SLOW_TAU_H[0] * 3600.0)))
+    if structure.slow_lag:
+        gb, gf = np.linspace(*lb, 7), np.linspace(*lf, 5)
+        vals = np.array([[rss(np.exp(a), np.exp(c)) for c in gf] for a in gb])
+        i, j = np.unravel_index(int(np.argmin(vals)), vals.shape)
+
+        def f(x):
+            return rss(np.exp(np.clip(x[0], *lb)), np.exp(np.clip(x[1], *lf)))
+        res = minimize(f, np.array([gb[i], gf[j]]), method="Nelder-Mead",
+                       options={"xatol": 1e-3, "fatol": 1e-10, "maxiter": 120,
+                                "initial_simplex": np.array([[gb[i], gf[j]],
+                                                             [gb[i] + 0.3, gf[j]],
+                                                             [gb[i], gf[j] + 0.3]])})
+        b, bf = float(np.exp(np.clip(res.x[0], *lb))), float(np.exp(np.clip(res.x[1], *lf)))
+    else:
+        grid = np.linspace(*lb, 13)
+        vals = [rss(np.exp(g)) for g in grid]
+        i = int(np.argmin(vals))
+        res = minimize_scalar(lambda x: rss(np.exp(x)),
+                              bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
+                              method="bounded", options={"xatol": 1e-3})
+        b, bf = float(np.exp(res.x)), None
+    C = cols(b, bf)
     coef, pred = project(C, y, rows)
     r = (y - pred)[rows]
-    nl = len(units)
     gains = coef[:nl]
-    target = sum(g * u for g, u in zip(gains, units.values()))
-    frame = np.column_stack(pcs) @ coef[nl + 2:]
+    params = {}
+    if bf is not None:
+        slow = coef[nl + 2:2 * nl + 2]
+        nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
+        g1 = np.array([gains[j] for j in nz])
+        g2 = np.array([slow[j] for j in nz])
+        fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
+        params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
+        frame = sum(g * ar_first_order(t, u, bf, 1.0) for g, u in zip(slow, units))
+        frame = frame + (np.column_stack(pcs) @ coef[2 * nl + 3:] if pcs else 0.0)
+    else:
+        target = sum(g * u for g, u in zip(gains, units))
+        frame = np.column_stack(pcs) @ coef[nl + 2:]
 
-    def summ(x):
-        c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
-        rr = (frame - f)[rows]
-        return float(rr @ rr)
-    rs = minimize_scalar(summ, bounds=(np.log(0.1), np.log(200.0)), method="bounded",
-                         options={"xatol": 1e-3})
-    cg, _ = project([first_order_lag(t, target, np.exp(rs.x) * 3600.0), one], frame, rows)
-    params = {"frame_time_constant_h": float(np.exp(rs.x)), "frame_gain": float(cg[0]),
-              "frame_components": int(len(pcs)), "frame_sensor_lag_h": float(lag_h),
-              "rod_time_constant_h": float(1 / b / 3600.0)}
+        def summ(x):
+            c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
+            rr = (frame - f)[rows]
+            return float(rr @ rr)
+        rs = minimize_scalar(summ, bounds=(np.log(0.1), np.log(200.0)), method="bounded",
+                             options={"xatol": 1e-3})
+        cg, _ = project([first_order_lag(t, target, np.exp(rs.x) * 3600.0), one], frame, rows)
+        params = {"frame_time_constant_h": float(np.exp(rs.x)), "frame_gain": float(cg[0])}
+    params.update({"frame_components": int(k), "frame_sensor_lag_h": float(structure.sensor_lag_h),
+                   "heat_exponent": None if p is None else float(p),
+                   "frame_slow_response": bool(structure.slow_lag),
+                   "rod_time_constant_h": float(1 / b / 3600.0)})
     return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers)", params, pred,
-                        len(pcs), float(r @ r), int(rows.sum()),
+                        len(pcs) + (nl + 2 if bf is not None else 0), float(r @ r),
+                        int(rows.sum()),
                         {"time_constant_h": float(1 / b / 3600.0), "sensors": names,
-                         "frame_um": frame, "coefficients": coef.tolist()})
+                         "frame_um": frame, "coefficients": coef.tolist(),
+                         "structure": structure.label})
 
 
 def cv_rmse(fitter, y, folds) -> tuple[float, list[float]]:
@@ -418,29 +591,27 @@ def cv_rmse(fitter, y, folds) -> tuple[float, list[float]]:
     return (float(np.sqrt(np.mean(e * e))) if e.size else float("nan")), per
 
 
-def select_frame_structure(t, y, speed, temperatures, rows, folds, map_fn):
-    """(k, lag_h) of the thermometer frame with the least forward-chaining validation RMSE.
+def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps):
+    """The frame structure with the least forward-chaining validation RMSE.
 
-    ``map_fn(train_rows) -> (seen, W)`` rebuilds the speed mapping from each training part.
-    Returns ((k, lag_h), table {"k=..,lag=..h": pooled validation RMSE [µm]}).
+    ``fold_maps[i] = (seen, W)``: the speed mapping rebuilt from fold i's training rows
+    (used by the per-speed-gain structures). Every structure of
+    :func:`frame_structures` is scored on the same blocks; ties keep the simpler (the
+    earlier in that list).
+
+    Returns (FrameStructure, table {label: pooled validation RMSE [µm]}).
     """
-    names, T = _temperature_matrix(temperatures)
-    if T is None:
-        return None, {}
-    maps = [map_fn(tr) for tr, _ in folds]
+    names, _ = _temperature_matrix(temperatures)
     table, best = {}, None
-    for k in FRAME_COMPONENTS:
-        if k > len(names):
-            continue
-        for lag in FRAME_LAGS_H:
-            it = iter(maps)
+    for st in frame_structures(len(names)):
+        it = iter(fold_maps)
 
-            def fitter(tr):
-                seen, W = next(it)
-                f = fit_frame_thermometers(t, y, speed, tr, seen, W, temperatures, k, lag)
-                return None if f is None else f.prediction
-            score, _ = cv_rmse(fitter, y, folds)
-            table[f"k={k},lag={lag:g}h"] = score
-            if best is None or score < best[0]:
-                best = (score, (k, lag))
-    return best[1], table
+        def fitter(tr, st=st, it=it):
+            seen, W = next(it)
+            f = fit_frame_thermometers(t, y, speed, tr, seen, W, temperatures, st)
+            return None if f is None else f.prediction
+        score, _ = cv_rmse(fitter, y, folds)
+        table[st.label] = score
+        if np.isfinite(score) and (best is None or score < best[0]):
+            best = (score, st)
+    return (None if best is None else best[1]), table
