@@ -20,24 +20,28 @@ def add_parser(subparsers):
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--holdout-start", type=float, default=None, metavar="SECONDS",
                    help="start of the hold-out [s]; default: the last third of the record")
+    p.add_argument("--frame-search", choices=("narrow", "wide"), default="narrow",
+                   help="speed-only records: frame structures compared by validation -- "
+                        "thermometer components only (narrow, default) or also speed-to-heat "
+                        "laws n^p and a slow frame response (wide, ~10x slower)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
     return p
 
 
-def run_diagnosis(case, out, holdout_start_s=None, force=False):
+def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow"):
     """Diagnose ``case`` (TOML path) and write every output into ``out``; returns the summary."""
     from models.diagnosis.engine import diagnose_file
     from models.diagnosis.report import write_all
     prepare_out_dir(out, force)           # refuse early, before any work
-    diag = diagnose_file(case, holdout_start_s)
+    diag = diagnose_file(case, holdout_start_s, frame_search)
     with staged_out_dir(out, force) as stage:
         write_all(diag, stage)
     return diag.summary
 
 
 def main(args) -> int:
-    s = run_diagnosis(args.case, args.out, args.holdout_start, args.force)
+    s = run_diagnosis(args.case, args.out, args.holdout_start, args.force, args.frame_search)
     h = s["holdout"]
     print(f"{s['dataset']}: cause = {s['cause']}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
           f"{h['extended_rmse_um']:.3g} µm (gain {h['gain_pct']:.1f} %); wrote {args.out}")

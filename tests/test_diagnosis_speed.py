@@ -82,8 +82,8 @@ def test_forward_chaining_selects_true_heat_law_and_slow_frame():
     rows = t < HOLDOUT_S
     folds = forward_folds(t, speed, rows)
     maps = [(np.unique(speed[tr]), {}) for tr, _ in folds]   # per-speed gains: no mapping
-    st, table = select_frame_structure(t, y, speed, temps, rows, folds, maps)
-    assert len(table) == len(frame_structures(2))
+    st, table = select_frame_structure(t, y, speed, temps, rows, folds, maps, "wide")
+    assert len(table) == len(frame_structures(2, "wide"))
     assert st.heat_exponent == pytest.approx(P_TRUE) and st.slow_lag
     assert st.components >= 1           # the room swing is in the reading
 
@@ -106,7 +106,7 @@ def test_diagnose_names_frame_and_gains_on_unseen_speed(tmp_path):
     t, speed, y, temps = _record()
     toml = _write(tmp_path, t, speed, y, temps)
     rc = cli(["diagnose", str(toml), "--out", str(tmp_path / "out"),
-              "--holdout-start", str(HOLDOUT_S)])
+              "--holdout-start", str(HOLDOUT_S), "--frame-search", "wide"])
     assert rc == 0
     s = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
     assert s["cause"] == "frame_expansion"

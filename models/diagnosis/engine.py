@@ -174,7 +174,7 @@ def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
     return out
 
 
-def diagnose(ds, holdout_start_s=None) -> Diagnosis:
+def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
     """Diagnose a loaded :class:`~models.diagnosis.loader.Dataset`.
 
     Parameters
@@ -183,6 +183,9 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
         The record (``q_W_m2`` → FEM baseline; ``speed_rpm`` → calibrated AR(1) baseline).
     holdout_start_s : float, optional
         Start of the hold-out [s]; default the last third of the record.
+    frame_search : {"narrow", "wide"}
+        Speed-only records: the frame structures compared by forward-chaining
+        validation (:func:`models.diagnosis.speed.frame_structures`).
     """
     t = np.asarray(ds.time_s, float)
     y = np.asarray(ds.growth_um, float)
@@ -238,7 +241,7 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
         frame_struct, frame_table = None, {}
         if temps:
             frame_struct, frame_table = select_frame_structure(t, y, sp, temps, rows, folds,
-                                                               fold_maps)
+                                                               fold_maps, frame_search)
 
         def fit_c(c, tr, seen_, W_):
             if c == "frame_expansion" and frame_struct is not None:
@@ -268,6 +271,7 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
                                        "heat_exponent": frame_struct.heat_exponent,
                                        "slow_response": frame_struct.slow_lag,
                                        "label": frame_struct.label,
+                                       "search": frame_search,
                                        "validation_rmse_um": frame_table}
         ext = fits[cause] if cause != "none" else base_paper
         tau_s = base.extra.get("time_constant_h", 1.0) * 3600.0
@@ -358,7 +362,7 @@ def diagnose(ds, holdout_start_s=None) -> Diagnosis:
     return Diagnosis(summary, series, text)
 
 
-def diagnose_file(toml_path, holdout_start_s=None) -> Diagnosis:
+def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
     """Load a contract dataset (TOML + CSV) and diagnose it."""
     from models.diagnosis.loader import load_dataset
-    return diagnose(load_dataset(toml_path), holdout_start_s)
+    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search)

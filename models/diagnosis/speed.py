@@ -297,17 +297,26 @@ class FrameStructure:
                 f"slow={'yes' if self.slow_lag else 'no'}")
 
 
-def frame_structures(n_sensors: int) -> list[FrameStructure]:
+#: structure searches: "narrow" -- thermometer components and their lag only, per-speed
+#: gains, no slow response (the procedure fixed before the real record's hold-out was
+#: first scored); "wide" -- also the heat laws and the slow frame response
+FRAME_SEARCHES = ("narrow", "wide")
+
+
+def frame_structures(n_sensors: int, search: str = "narrow") -> list[FrameStructure]:
     """Every structure the forward-chaining selection compares.
 
     Examples
     --------
-    >>> len(frame_structures(16)), len(frame_structures(0))
-    (185, 5)
+    >>> len(frame_structures(16)), len(frame_structures(16, "wide")), len(frame_structures(0, "wide"))
+    (18, 185, 5)
     """
+    if search not in FRAME_SEARCHES:
+        raise ValueError(f"frame search must be one of {FRAME_SEARCHES}, not {search!r}")
+    narrow = search == "narrow"
     out = []
-    for p in HEAT_EXPONENTS:
-        for slow in (False, True):
+    for p in ((None,) if narrow else HEAT_EXPONENTS):
+        for slow in ((False,) if narrow else (False, True)):
             for k in FRAME_COMPONENTS:
                 if k > n_sensors or (k == 0 and not slow):
                     continue
@@ -591,19 +600,20 @@ def cv_rmse(fitter, y, folds) -> tuple[float, list[float]]:
     return (float(np.sqrt(np.mean(e * e))) if e.size else float("nan")), per
 
 
-def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps):
+def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps,
+                           search: str = "narrow"):
     """The frame structure with the least forward-chaining validation RMSE.
 
     ``fold_maps[i] = (seen, W)``: the speed mapping rebuilt from fold i's training rows
     (used by the per-speed-gain structures). Every structure of
-    :func:`frame_structures` is scored on the same blocks; ties keep the simpler (the
+    :func:`frame_structures` (``search``) is scored on the same blocks; ties keep the simpler (the
     earlier in that list).
 
     Returns (FrameStructure, table {label: pooled validation RMSE [µm]}).
     """
     names, _ = _temperature_matrix(temperatures)
     table, best = {}, None
-    for st in frame_structures(len(names)):
+    for st in frame_structures(len(names), search):
         it = iter(fold_maps)
 
         def fitter(tr, st=st, it=it):
