@@ -162,22 +162,20 @@ def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
     >>> bool(abs(g[0] - c2_paper(rod, 30.0, 2000.0) * 1e6) < 1e-12)
     True
     """
+    if np.ndim(b_1_s) == 0:
+        return ar_columns(time_s, float(gain) * np.asarray(u, float)[:, None], float(b_1_s),
+                          [x0])[:, 0]
     d = intervals(time_s)
-    bb = np.broadcast_to(np.asarray(b_1_s, float), d.shape)
-    a = np.exp(-bb * d)[:, None]
+    a = np.exp(-np.asarray(b_1_s, float) * d)[:, None]
     c2 = (float(gain) * np.asarray(u, float) * (1.0 - a[:, 0]))[:, None]
-    if d.size > 2 and np.ndim(b_1_s) == 0 and np.all(d[2:] == d[1]) and 0 < a[1, 0] < 1:
-        # even steps after the first: the same recursion as one IIR filter (C loop)
-        x = np.empty(d.size)
-        x[0] = a[0, 0] * x0 + c2[0, 0]
-        x[1:], _ = lfilter([1.0], [1.0, -a[1, 0]], c2[1:, 0], zi=[a[1, 0] * x[0]])
-        return x
     return _linear_recursion(a, c2, np.array([x0]))[:, 0]
 
 
-def ar_columns(time_s, U, b_1_s: float) -> np.ndarray:
-    """Unit-gain AR(1) responses (:func:`ar_first_order`, x0 = 0) of several inputs at one
-    rate, in one call -- the columns a least-squares fit of the steady gains needs.
+def ar_columns(time_s, U, b_1_s: float, x0=None) -> np.ndarray:
+    """Unit-gain AR(1) responses (:func:`ar_first_order`) of several inputs at one rate, in
+    one call -- the columns a least-squares fit of the steady gains needs. With even steps
+    (after the first) the recursion runs as one IIR filter; otherwise exactly as
+    :func:`_linear_recursion`.
 
     Parameters
     ----------
@@ -187,6 +185,8 @@ def ar_columns(time_s, U, b_1_s: float) -> np.ndarray:
         m inputs held over the interval ending at each sample.
     b_1_s : float
         Rate b [1/s], > 0.
+    x0 : array_like, shape (m,), optional
+        Responses at t = 0 (default 0).
 
     Returns
     -------
@@ -202,15 +202,15 @@ def ar_columns(time_s, U, b_1_s: float) -> np.ndarray:
     """
     d = intervals(time_s)
     U = np.asarray(U, float)
+    x0 = np.zeros(U.shape[1]) if x0 is None else np.asarray(x0, float)
     a = np.exp(-float(b_1_s) * d)
     C = U * (1.0 - a)[:, None]
     if d.size > 2 and np.all(d[2:] == d[1]) and 0 < a[1] < 1:
         X = np.empty_like(C)
-        X[0] = C[0]
+        X[0] = a[0] * x0 + C[0]
         X[1:], _ = lfilter([1.0], [1.0, -a[1]], C[1:], axis=0, zi=a[1] * X[:1])
         return X
-    return _linear_recursion(np.repeat(a[:, None], U.shape[1], axis=1), C,
-                             np.zeros(U.shape[1]))
+    return _linear_recursion(np.repeat(a[:, None], U.shape[1], axis=1), C, x0)
 
 
 @dataclass(frozen=True)

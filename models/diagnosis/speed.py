@@ -506,21 +506,21 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     one = np.ones_like(t)
     nl = len(units)
 
-    def cols(b, bf):
-        c = [ar_first_order(t, u, b, 1.0) for u in units] + [np.exp(-b * t), one]
-        if bf is not None:
-            c += [ar_first_order(t, u, bf, 1.0) for u in units] + [np.exp(-bf * t)]
-        return c + pcs
-
-    proj = _Projection([one] + pcs, y, rows)
-
     U = np.column_stack(units)
 
-    def rss(b, bf=None):
+    def varying(b, bf=None):
+        """Columns that depend on the rates: rod responses and initial-state decay, then
+        (slow frame) the same at rate bf."""
         c = [ar_columns(t, U, b), np.exp(-b * t)[:, None]]
         if bf is not None:
             c += [ar_columns(t, U, bf), np.exp(-bf * t)[:, None]]
-        return proj.rss(c)
+        return c
+
+    fixed = [one] + pcs
+    proj = _Projection(fixed, y, rows)
+
+    def rss(b, bf=None):
+        return proj.rss(varying(b, bf))
 
     lb = (np.log(1 / (50 * 3600.0)), np.log(1 / 300.0))
     lf = (np.log(1 / (SLOW_TAU_H[1] * 3600.0)), np.log(1 / (SLOW_TAU_H[0] * 3600.0)))
@@ -545,23 +545,23 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
                               bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
                               method="bounded", options={"xatol": 1e-3})
         b, bf = float(np.exp(res.x)), None
-    C = cols(b, bf)
-    coef, pred = project(C, y, rows)
+    V = np.hstack(varying(b, bf))
+    coef, pred = project(list(V.T) + fixed, y, rows)
     r = (y - pred)[rows]
     gains = coef[:nl]
+    gamma = coef[V.shape[1] + 1:]            # thermometer components, after the offset
     params = {}
     if bf is not None:
-        slow = coef[nl + 2:2 * nl + 2]
+        slow = coef[nl + 1:2 * nl + 1]
         nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
         g1 = np.array([gains[j] for j in nz])
         g2 = np.array([slow[j] for j in nz])
         fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
         params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
-        frame = sum(g * ar_first_order(t, u, bf, 1.0) for g, u in zip(slow, units))
-        frame = frame + (np.column_stack(pcs) @ coef[2 * nl + 3:] if pcs else 0.0)
+        frame = V[:, nl + 1:2 * nl + 1] @ slow + (np.column_stack(pcs) @ gamma if pcs else 0.0)
     else:
         target = sum(g * u for g, u in zip(gains, units))
-        frame = np.column_stack(pcs) @ coef[nl + 2:]
+        frame = np.column_stack(pcs) @ gamma
 
         def summ(x):
             c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
