@@ -453,7 +453,8 @@ class _Projection:
         yr = np.asarray(y, float)[rows]
         if fixed:
             F = np.column_stack(fixed)[rows]
-            F = F / np.where(np.linalg.norm(F, axis=0) > 0, np.linalg.norm(F, axis=0), 1.0)
+            nrm = np.linalg.norm(F, axis=0)
+            F = F / np.where(nrm > 0, nrm, 1.0)
             self.Q, _ = np.linalg.qr(F)
             yr = yr - self.Q @ (self.Q.T @ yr)
         else:
@@ -606,8 +607,8 @@ def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps,
 
     ``fold_maps[i] = (seen, W)``: the speed mapping rebuilt from fold i's training rows
     (used by the per-speed-gain structures). Every structure of
-    :func:`frame_structures` (``search``) is scored on the same blocks; ties keep the simpler (the
-    earlier in that list).
+    :func:`frame_structures` (``search``) is scored on the same blocks; a tie keeps the
+    structure earlier in that list.
 
     Returns (FrameStructure, table {label: pooled validation RMSE [µm]}).
     """

@@ -14,13 +14,13 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 sys.path.insert(0, str(REPO))
 
+from models.diagnosis.engine import diagnose_file  # noqa: E402
 from scenarios.diagnose import run_diagnosis  # noqa: E402
 from scenarios.io import atomic_write_text  # noqa: E402
 
@@ -33,9 +33,8 @@ HOLDOUT2_S = 58065.0
 def _one(job):
     data, ch, hs, search, out = job
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
-    if out is None:                       # experiments: numbers only, outputs discarded
-        with tempfile.TemporaryDirectory() as d:
-            return job[1:4], run_diagnosis(toml, Path(d) / "o", hs, False, search)
+    if out is None:                       # experiments: numbers only, nothing written
+        return job[1:4], diagnose_file(toml, hs, search).summary
     return job[1:4], run_diagnosis(toml, out, hs, True, search)
 
 
