@@ -90,6 +90,26 @@ def elastic_forms(axisymmetric: bool, lam: float, mu: float, alpha: float):
 
     ``coupling`` is a mixed form with the scalar temperature as trial function and
     the displacement as test function. Axisymmetric forms carry the 2πr weight.
+
+    Parameters
+    ----------
+    axisymmetric : bool
+        True: (r, z) coordinates [m] with hoop strain u_r / r and weight 2πr;
+        False: 3D (x, y, z) [m].
+    lam : float
+        Lamé's first parameter λ_L [Pa] (see :func:`lame_parameters`).
+    mu : float
+        Shear modulus μ [Pa].
+    alpha : float
+        Linear thermal expansion coefficient α [1/K].
+
+    Returns
+    -------
+    stiffness : skfem.BilinearForm
+        Assembles K [N/m]: ``K @ u`` is the elastic force [N] of displacement dofs u [m].
+    coupling : skfem.BilinearForm
+        Assembles T [N/K] (temperature basis → vector basis): ``T @ θ`` is the
+        thermal load [N] of a temperature rise θ [K].
     """
     wr = (lambda x: 2.0 * np.pi * x[0]) if axisymmetric else (lambda x: 1.0 + 0.0 * x[0])
 
@@ -244,8 +264,21 @@ class ThermoElastic:
     def displacement(self, theta: np.ndarray) -> np.ndarray:
         """Displacement dofs [m] for one θ (ndofs_heat,) or a stack (n, ndofs_heat) [K].
 
-        Returns an array of shape (ndofs,) or (n, ndofs) in the basis ordering of
-        :attr:`basis` (component dofs interleaved, as skfem's ``ElementVector``).
+        Parameters
+        ----------
+        theta : ndarray, shape (ndofs_heat,) or (n, ndofs_heat)
+            Temperature rise θ = T − T_ref on the dofs of :attr:`heat` [K], finite.
+
+        Returns
+        -------
+        ndarray, shape (ndofs,) or (n, ndofs)
+            Displacement dofs [m] in the basis ordering of :attr:`basis` (component
+            dofs interleaved, as skfem's ``ElementVector``).
+
+        Raises
+        ------
+        InputError
+            If a field has the wrong length or a non-finite value.
         """
         th = np.asarray(theta, float)
         one = th.ndim == 1
@@ -264,6 +297,23 @@ class ThermoElastic:
         adjoint vectors :attr:`growth_face` / :attr:`growth_axis` (one solve at
         build time), so it costs a dot product per field; identical to reading
         the same quantities off :meth:`displacement` up to round-off.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (ndofs_heat,) or (n, ndofs_heat)
+            Temperature rise θ = T − T_ref on the dofs of :attr:`heat` [K], finite.
+
+        Returns
+        -------
+        face : float or ndarray, shape (n,)
+            Face-averaged axial displacement of the far face, ∫_far u_z dA / A_far [m].
+        axis : float or ndarray, shape (n,)
+            Axial displacement on the axis at the far end [m].
+
+        Raises
+        ------
+        InputError
+            If a field has the wrong length or a non-finite value.
         """
         th = np.asarray(theta, float)
         if th.shape[-1] != self.heat.ndofs or not np.all(np.isfinite(th)):
@@ -272,7 +322,19 @@ class ThermoElastic:
         return face, th @ self.growth_axis
 
     def component_values(self, u: np.ndarray) -> np.ndarray:
-        """Displacement at the mesh vertices, shape (n_vertices, dim) [m]."""
+        """Displacement at the mesh vertices, shape (n_vertices, dim) [m].
+
+        Parameters
+        ----------
+        u : ndarray, shape (ndofs,)
+            Displacement dofs [m] of one field, as from :meth:`displacement`.
+
+        Returns
+        -------
+        ndarray, shape (n_vertices, dim)
+            Nodal displacement components [m]: (u_r, u_z) axisymmetric,
+            (u_x, u_y, u_z) in 3D.
+        """
         u = np.asarray(u, float)
         return np.stack([u[self.basis.nodal_dofs[c]] for c in range(self.basis.mesh.dim())],
                         axis=-1)

@@ -110,7 +110,32 @@ class HeatFEM:
     @classmethod
     def build(cls, mesh: Mesh, element, rod: Rod, axisymmetric: bool,
               intorder: int | None = None) -> "HeatFEM":
-        """Assemble M, K, B and the loads on ``mesh`` with ``element``."""
+        """Assemble M, K, B and the loads on ``mesh`` with ``element``.
+
+        Parameters
+        ----------
+        mesh : skfem.Mesh
+            Coordinates [m] ((r, z) if ``axisymmetric``), with boundaries tagged
+            ``heated`` and ``lateral`` (and ``far`` for :mod:`fem.elastic`).
+        element : skfem.Element
+            Scalar element family (see :data:`ELEMENTS`).
+        rod : Rod
+            Supplies ρ [kg/m³], c [J/(kg·K)], λ [W/(m·K)] and α [1/K].
+        axisymmetric : bool
+            Weight every integral by 2πr, so that they are over the whole rod.
+        intorder : int, optional
+            Quadrature order; default: skfem's for ``element``.
+
+        Returns
+        -------
+        HeatFEM
+            M [J/K], K [W/K], B [m²], f_q, f_b [m²], volume [m³], growth [m/K].
+
+        Raises
+        ------
+        InputError
+            If ``mesh`` lacks the ``heated`` or ``lateral`` boundary.
+        """
         for tag in ("heated", "lateral"):
             if mesh.boundaries is None or tag not in mesh.boundaries:
                 raise InputError(f"mesh has no boundary tagged {tag!r}", "mesh")
@@ -138,20 +163,72 @@ class HeatFEM:
         return int(self.M.shape[0])
 
     def operator(self, h_W_m2K: float) -> sp.csr_matrix:
-        """K + hB [W/K]."""
+        """K + hB [W/K].
+
+        Parameters
+        ----------
+        h_W_m2K : float
+            Lateral convection coefficient h [W/(m²·K)].
+
+        Returns
+        -------
+        scipy.sparse.csr_matrix
+            Conductance plus lateral convection K + hB [W/K].
+        """
         return (self.K + h_W_m2K * self.B).tocsr()
 
     def load(self, q_W_m2: float, h_W_m2K: float, theta_amb_K: float) -> np.ndarray:
-        """q f_q + h θ_amb f_b [W]."""
+        """q f_q + h θ_amb f_b [W].
+
+        Parameters
+        ----------
+        q_W_m2 : float
+            Heat flux into the heated end face [W/m²].
+        h_W_m2K : float
+            Lateral convection coefficient h [W/(m²·K)].
+        theta_amb_K : float
+            Ambient air temperature minus the rod's nominal ambient, θ_amb [K].
+
+        Returns
+        -------
+        ndarray, shape (ndofs,)
+            Nodal heat input [W].
+        """
         return q_W_m2 * self.f_q + (h_W_m2K * theta_amb_K) * self.f_b
 
     def heat_content(self, theta: np.ndarray) -> np.ndarray:
-        """ρc∫θ dV [J] of one state or a stack of states (last axis = dofs)."""
+        """ρc∫θ dV [J] of one state or a stack of states (last axis = dofs).
+
+        Parameters
+        ----------
+        theta : ndarray, shape (..., ndofs)
+            Temperature rise θ = T − T_ref [K].
+
+        Returns
+        -------
+        float or ndarray, shape (...)
+            Heat stored relative to the reference state θ = 0 [J].
+        """
         rhoc = self.rod.density_kg_m3 * self.rod.specific_heat_J_kgK
         return rhoc * (np.asarray(theta) @ self.volume)
 
     def lateral_loss(self, theta: np.ndarray, h_W_m2K: float, theta_amb_K: float) -> np.ndarray:
-        """Convective loss h∫(θ − θ_amb) dS [W] of one state or a stack of states."""
+        """Convective loss h∫(θ − θ_amb) dS [W] of one state or a stack of states.
+
+        Parameters
+        ----------
+        theta : ndarray, shape (..., ndofs)
+            Temperature rise θ = T − T_ref [K].
+        h_W_m2K : float
+            Lateral convection coefficient h [W/(m²·K)].
+        theta_amb_K : float
+            Ambient air temperature minus the rod's nominal ambient, θ_amb [K].
+
+        Returns
+        -------
+        float or ndarray, shape (...)
+            Heat flow from the lateral surface to the air [W] (> 0 = loss).
+        """
         return h_W_m2K * (np.asarray(theta) @ self.f_b - theta_amb_K * self.f_b.sum())
 
 
@@ -161,6 +238,29 @@ def build_axisymmetric(rod: Rod, order: int = 2, nr: int = 4, nz: int = 24,
 
     The default mesh (Q2, nr=4, nz=24) has a paper-cycle peak-growth error below
     1e-4 µm (Richardson over Q1 refinements; ``benchmarks/study_convergence.py``).
+
+    Parameters
+    ----------
+    rod : Rod
+        Geometry [m], material and nominal boundary conditions.
+    order : {1, 2}
+        Element order: Q1 or Q2 (9-node Lagrange) quadrilaterals.
+    nr, nz : int
+        Elements across the radius and along the length.
+    ratio_r : float
+        Largest/smallest radial element; small ones at the lateral surface [-].
+    ratio_z : float
+        Largest/smallest axial element; small ones at the heated end [-].
+
+    Returns
+    -------
+    HeatFEM
+        Axisymmetric model; integrals are over the whole rod (2πr weight).
+
+    Raises
+    ------
+    InputError
+        If ``order`` is not 1 or 2, or a mesh count is invalid.
     """
     from fem.mesh import axisymmetric_mesh
     if order not in (1, 2):
@@ -176,6 +276,32 @@ def build_3d(rod: Rod, order: int | str = 2, n_core: int = 3, n_ring: int = 2, n
     The default mesh (n_core=3: 12 elements around the circumference) has a
     paper-cycle peak-growth error of ~0.002 µm by Richardson extrapolation over
     n_core = 2, 3, 4 (n_core=2: ~0.009 µm); see ``benchmarks/study_convergence.py``.
+
+    Parameters
+    ----------
+    rod : Rod
+        Geometry [m], material and nominal boundary conditions.
+    order : {1, 2, "2-lagrange"}
+        Element: 8-node, 20-node serendipity or 27-node Lagrange hexahedra.
+    n_core : int
+        Elements along each side of the square core (``4 * n_core`` around the
+        circumference).
+    n_ring : int
+        Element layers from the core to the circle.
+    nz : int
+        Elements along the axis.
+    ratio_ring, ratio_z : float
+        Grading ratios toward the lateral surface and the heated end [-].
+
+    Returns
+    -------
+    HeatFEM
+        3D model, assembled with quadrature order 4.
+
+    Raises
+    ------
+    InputError
+        If ``order`` is not one of the above, or a mesh count is invalid.
     """
     from fem.mesh import cylinder_mesh
     if ("3d", order) not in ELEMENTS:
@@ -301,7 +427,23 @@ class _Modes:
 
 
 def modes(model: HeatFEM, h_W_m2K: float) -> _Modes:
-    """All modes of M θ' = −(K + hB)θ by a dense generalised eigensolve."""
+    """All modes of M θ' = −(K + hB)θ by a dense generalised eigensolve.
+
+    Parameters
+    ----------
+    model : HeatFEM
+    h_W_m2K : float
+        Lateral convection coefficient h [W/(m²·K)].
+
+    Returns
+    -------
+    _Modes
+        ``mu``: decay rates μ_i [1/s], ascending; ``phi``: M-orthonormal modes
+        (ndofs, nmodes), φᵀMφ = I with M in [J/K]; ``fq``, ``fb``: Φᵀf_q, Φᵀf_b
+        (modal loads per unit q [W/m²] and per unit h θ_amb [W/m²]); ``g``: growthᵀΦ
+        (growth [m] per unit modal amplitude); ``v``: volumeᵀΦ (∫θ dV [K·m³] per unit
+        modal amplitude).
+    """
     A = model.operator(h_W_m2K).toarray()
     mu, phi = scipy.linalg.eigh(A, model.M.toarray())
     return _Modes(mu, phi, phi.T @ model.f_q, phi.T @ model.f_b, model.growth @ phi,

@@ -246,13 +246,35 @@ class Schedule:
         return float(self.durations_s.sum())
 
     def ambient_for(self, rod: Rod) -> np.ndarray:
-        """Ambient per segment [°C], the rod's nominal value where not given."""
+        """Ambient per segment [°C], the rod's nominal value where not given.
+
+        Parameters
+        ----------
+        rod : Rod
+            Supplies the nominal ambient ``ambient_C`` [°C].
+
+        Returns
+        -------
+        ndarray, shape (n_segments,)
+            Ambient air temperature on each segment [°C].
+        """
         if self.ambient_C is None:
             return np.full(self.n_segments, rod.ambient_C)
         return np.asarray(self.ambient_C)
 
     def h_for(self, rod: Rod) -> np.ndarray:
-        """Convection coefficient per segment [W/(m²·K)], the rod's nominal where not given."""
+        """Convection coefficient per segment [W/(m²·K)], the rod's nominal where not given.
+
+        Parameters
+        ----------
+        rod : Rod
+            Supplies the nominal h ``convection_W_m2K`` [W/(m²·K)].
+
+        Returns
+        -------
+        ndarray, shape (n_segments,)
+            Lateral convection coefficient on each segment [W/(m²·K)].
+        """
         if self.h_W_m2K is None:
             return np.full(self.n_segments, rod.convection_W_m2K)
         return np.asarray(self.h_W_m2K)
@@ -262,6 +284,22 @@ class Schedule:
 
         A time on a boundary belongs to the segment that *ends* there (the
         zero-order-hold convention of the measured-data contract).
+
+        Parameters
+        ----------
+        name : {"q_W_m2", "ambient_C", "h_W_m2K"}
+            Which input.
+        t_s : float or array_like
+            Time(s) [s]; times before 0 or after the end take the first or last segment.
+        rod : Rod, optional
+            Supplies the nominal ambient and h where the schedule gives none
+            (required then).
+
+        Returns
+        -------
+        ndarray
+            The input at each time, in the unit its name carries: heat flux [W/m²],
+            ambient [°C] or convection coefficient [W/(m²·K)].
         """
         values = {
             "q_W_m2": self.q_W_m2,
@@ -276,6 +314,17 @@ class Schedule:
         """Split every segment into pieces of exactly ``dt_s``.
 
         Raises :class:`InputError` if ``dt_s`` does not divide a segment.
+
+        Parameters
+        ----------
+        dt_s : float
+            Piece length [s], > 0; must divide every segment duration.
+
+        Returns
+        -------
+        Schedule
+            Same inputs (flux [W/m²], ambient [°C], h [W/(m²·K)]) on segments of
+            ``dt_s`` [s] each.
         """
         dt = check_positive("dt_s", dt_s)
         counts = steps_per_segment(self.durations_s, dt)
@@ -344,6 +393,22 @@ PAPER_PHASES_S: tuple[tuple[float, bool], ...] = (
 
 def paper_cycle(q_W_m2: float) -> Schedule:
     """The seed paper's 24 h duty cycle at heat flux ``q_W_m2`` [W/m²].
+
+    4 h on, 1.5 h off, 4 h on, 14.5 h off (:data:`PAPER_PHASES_S`).
+
+    Parameters
+    ----------
+    q_W_m2 : float
+        Heat flux into the heated end during the on-phases [W/m²], >= 0.
+
+    Returns
+    -------
+    Schedule
+        Four segments [s] with flux ``q_W_m2`` or 0 [W/m²]; nominal ambient and h.
+
+    References
+    ----------
+    Du et al., J. Harbin Inst. Technol. 53(7), 2021, Sec. 2.
 
     Examples
     --------

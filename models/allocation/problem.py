@@ -143,7 +143,7 @@ def unit_twists(chain: Chain, X) -> np.ndarray:
     ----------
     chain : Chain
     X : array_like, shape (n_candidates, n_variables)
-        Free components in scenario units (mm, mrad).
+        Free components in scenario units: translations [mm], rotations [mrad].
 
     Returns
     -------
@@ -181,7 +181,7 @@ def evaluate(chain: Chain, X, settings: Settings, formula: str | None = None) ->
     ----------
     chain : Chain
     X : array_like, shape (n, n_variables)
-        Free components in scenario units (mm, mrad).
+        Free components in scenario units: translations [mm], rotations [mrad].
     settings : Settings
     formula : {"screw", "paper"}, optional
         Overrides ``settings.formula``. ``"screw"``: ξ_E = Σ Ad_{H_i⁻¹} ξ_i;

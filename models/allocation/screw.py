@@ -66,6 +66,16 @@ def vee3(m) -> np.ndarray:
 def hat(xi) -> np.ndarray:
     """4×4 twist matrix ξ^ = [[ω̂, v], [0, 0]] of ξ = [ω; v] ([rad], [mm]).
 
+    Parameters
+    ----------
+    xi : array_like, shape (6,)
+        Twist [ω; v]: small rotations [rad], then small translations [mm].
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        ξ^: rotation block ω̂ [rad], translation column v [mm].
+
     Examples
     --------
     >>> hat([0, 0, 0, 1, 2, 3])[:3, 3].tolist()
@@ -129,6 +139,16 @@ def pose(offset_mm=(0.0, 0.0, 0.0), rpy_deg=(0.0, 0.0, 0.0)) -> np.ndarray:
 
 def inverse(g) -> np.ndarray:
     """Inverse of a rigid transform, [[Rᵀ, −Rᵀp], [0, 1]].
+
+    Parameters
+    ----------
+    g : array_like, shape (4, 4)
+        Rigid transform, p in [mm].
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        g⁻¹, translation −Rᵀp [mm].
 
     Examples
     --------
@@ -201,6 +221,19 @@ def error_twist(dx_mm=0.0, dy_mm=0.0, dz_mm=0.0, dalpha_rad=0.0, dbeta_rad=0.0,
 def error_transform(xi) -> np.ndarray:
     """Exact rigid error transform e^{ξ^} of a twist [rad, mm] (matrix exponential).
 
+    The exact counterpart of the first-order pair error matrix of paper eq. 5
+    (:func:`paper_error_matrix`, = I + ξ^).
+
+    Parameters
+    ----------
+    xi : array_like, shape (6,)
+        Error twist [ω; v] ([rad], [mm]).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        Rigid transform, translation p [mm].
+
     Examples
     --------
     >>> g = error_transform([0, 0, np.pi / 2, 0, 0, 0])
@@ -218,7 +251,8 @@ def chain_adjoints(poses, tool=None) -> np.ndarray:
     poses : sequence of (4, 4) arrays
         Nominal pose G_i of unit i in the frame of unit i−1 [mm].
     tool : (4, 4) array, optional
-        Pose of the functional point in the frame of the last unit (default identity).
+        Pose of the functional point in the frame of the last unit, translation
+        [mm] (default identity).
 
     Returns
     -------
@@ -251,6 +285,8 @@ def compose_adjoint(xis, poses, tool=None) -> np.ndarray:
     poses : sequence of n (4, 4) arrays
         Nominal poses (see :func:`chain_adjoints`).
     tool : (4, 4) array, optional
+        Pose of the functional point in the frame of the last unit, translation
+        [mm] (default identity).
 
     Returns
     -------
@@ -307,6 +343,20 @@ def paper_error_matrix(xi) -> np.ndarray:
 
     [[1, −Δγ, Δβ, Δx], [Δγ, 1, −Δα, Δy], [−Δβ, Δα, 1, Δz], [0, 0, 0, 1]] for
     ξ = [Δα, Δβ, Δγ, Δx, Δy, Δz] ([rad], [mm]); not orthonormal beyond first order.
+
+    Parameters
+    ----------
+    xi : array_like, shape (6,)
+        Error twist [Δα, Δβ, Δγ, Δx, Δy, Δz] ([rad], [mm]).
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        I + ξ^: rotation block [-] to first order, translation column [mm].
+
+    References
+    ----------
+    Zhou et al., J. Harbin Inst. Technol. 52(1), 2020, eq. 5.
 
     Examples
     --------
@@ -393,6 +443,21 @@ def pitch(xi) -> np.ndarray:
 def screw_magnitude(xi) -> np.ndarray:
     """Screw-theory magnitude M: |ω| [rad] if ω ≠ 0, else |v| [mm] (paper eq. 11).
 
+    Parameters
+    ----------
+    xi : array_like, shape (..., 6)
+        Twist [ω; v] ([rad], [mm]).
+
+    Returns
+    -------
+    ndarray or float
+        M: |ω| [rad], or |v| [mm] for a pure translation (ω = 0).
+
+    References
+    ----------
+    Zhou et al., J. Harbin Inst. Technol. 52(1), 2020, eq. 11; Murray, Li, Sastry
+    (1994), ch. 2.
+
     Examples
     --------
     >>> float(screw_magnitude([0, 0, 3e-6, 0, 4e-3, 0]))
@@ -440,8 +505,20 @@ def point_displacement_bound(xi, radius_mm: float = 0.0) -> np.ndarray:
 
 
 def axial_translation(xi) -> np.ndarray:
-    """|ω·v| / |ω| [mm]: translation along the screw axis (= |h|·|ω|), the least
-    displacement of any point; |v| for a pure translation.
+    """Translation along the screw axis, |ω·v| / |ω| [mm].
+
+    Equals |h|·|ω| (h the pitch, :func:`pitch`): the least displacement of any
+    point; |v| for a pure translation.
+
+    Parameters
+    ----------
+    xi : array_like, shape (..., 6)
+        Twist [ω; v] ([rad], [mm]).
+
+    Returns
+    -------
+    ndarray or float
+        Axial translation [mm], >= 0.
 
     Examples
     --------

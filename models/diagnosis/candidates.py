@@ -88,15 +88,67 @@ class FemPhysics:
         self.m = model or RodModel(rod)
 
     def response(self, t, q, h=None, ambient_K=None):
-        """Growth [µm] for flux q [W/m²], convection h [W/(m²K)], ambient rise [K]."""
+        """Growth [µm] for flux q [W/m²], convection h [W/(m²K)], ambient rise [K].
+
+        Parameters
+        ----------
+        t : array_like
+            Sample times [s] (the first interval starts at t = 0).
+        q : array_like
+            Heat flux into the heated end on the interval ending at each sample [W/m²].
+        h : float or array_like, optional
+            Lateral convection coefficient, scalar or per interval [W/(m²·K)];
+            default the rod's nominal.
+        ambient_K : array_like, optional
+            Ambient minus the nominal ambient on each interval [K]; default 0.
+
+        Returns
+        -------
+        ndarray
+            Axial growth at each sample [µm], from equilibrium at t = 0.
+        """
         return self.m.simulate(t, q, ambient_K=ambient_K, h_W_m2K=h)
 
     def nonlinear(self, t, q, exponent, h_ref, ambient_K=None):
-        """Growth [µm] with h = h_ref (ΔT_s/DT_REF_K)^exponent (semi-implicit)."""
+        """Growth [µm] with h = h_ref (ΔT_s/DT_REF_K)^exponent (semi-implicit).
+
+        ΔT_s is the lateral-surface mean temperature minus the ambient [K]; see
+        :meth:`models.diagnosis.forward.RodModel.simulate_nonlinear`.
+
+        Parameters
+        ----------
+        t : array_like
+            Sample times [s] (the first interval starts at t = 0).
+        q : array_like
+            Heat flux into the heated end on the interval ending at each sample [W/m²].
+        exponent : float
+            n in h ∝ ΔT^n [-].
+        h_ref : float
+            h at ΔT = DT_REF_K = 10 K [W/(m²·K)].
+        ambient_K : array_like, optional
+            Ambient minus the nominal ambient on each interval [K]; default 0.
+
+        Returns
+        -------
+        ndarray
+            Axial growth at each sample [µm], from equilibrium at t = 0.
+        """
         return self.m.simulate_nonlinear(t, q, exponent, DT_REF_K, ambient_K=ambient_K,
                                          h_ref_W_m2K=h_ref)
 
     def slowest_rate(self, h=None) -> float:
+        """Decay rate of the FEM rod's slowest growth mode [1/s].
+
+        Parameters
+        ----------
+        h : float, optional
+            Lateral convection coefficient [W/(m²·K)]; default the rod's nominal.
+
+        Returns
+        -------
+        float
+            μ_1 [1/s] (1/time constant).
+        """
         return self.m.slowest_rate_1_s(h)
 
     def steady_gain_um_per_W_m2(self) -> float:
@@ -121,7 +173,32 @@ class ArPhysics:
         return 2.0 * np.asarray(h, float) / self.rhocR
 
     def response(self, t, q, h=None, ambient_K=None):
-        """1D fin growth G' = −b G + b (αR/(2h) q + αL θ_amb) [µm], exact per interval."""
+        """1D fin growth G' = −b G + b (αR/(2h) q + αL θ_amb) [µm], exact per interval.
+
+        The AR(1) of paper eqs. 12-14 for uneven steps: C1 = e^{−bΔτ} with
+        b = 2h/(ρcR), steady gain αR/(2h) per unit q (= αa/(λb)).
+
+        Parameters
+        ----------
+        t : array_like
+            Sample times [s] (the first interval starts at t = 0).
+        q : array_like
+            Heat flux into the heated end on the interval ending at each sample [W/m²].
+        h : float or array_like, optional
+            Lateral convection coefficient, scalar or per interval [W/(m²·K)];
+            default the rod's nominal.
+        ambient_K : array_like, optional
+            Ambient minus the nominal ambient on each interval [K]; default 0.
+
+        Returns
+        -------
+        ndarray
+            Axial growth at each sample [µm], from equilibrium at t = 0.
+
+        References
+        ----------
+        Du et al., J. Harbin Inst. Technol. 53(7), 2021, eqs. 12-14.
+        """
         rod = self.rod
         h = rod.convection_W_m2K if h is None else h
         hh = np.broadcast_to(np.asarray(h, float), np.shape(t))
@@ -131,7 +208,29 @@ class ArPhysics:
         return ar_first_order(t, u, self._b(hh), 1.0)
 
     def nonlinear(self, t, q, exponent, h_ref, ambient_K=None):
-        """AR(1) whose b follows h = h_ref (ΔT/DT_REF_K)^n, ΔT = mean rise G/(αL)."""
+        """AR(1) whose b follows h = h_ref (ΔT/DT_REF_K)^n, ΔT = mean rise G/(αL).
+
+        ΔT = |G/(αL) − θ_amb| [K] at the start of each interval, held over it; h is
+        floored at 5 % of the rod's nominal h. Paper eqs. 12-14 with a varying b.
+
+        Parameters
+        ----------
+        t : array_like
+            Sample times [s] (the first interval starts at t = 0).
+        q : array_like
+            Heat flux into the heated end on the interval ending at each sample [W/m²].
+        exponent : float
+            n in h ∝ ΔT^n [-].
+        h_ref : float
+            h at ΔT = DT_REF_K = 10 K [W/(m²·K)].
+        ambient_K : array_like, optional
+            Ambient minus the nominal ambient on each interval [K]; default 0.
+
+        Returns
+        -------
+        ndarray
+            Axial growth at each sample [µm], from equilibrium at t = 0.
+        """
         rod = self.rod
         t = np.asarray(t, float)
         d = intervals(t)
@@ -152,6 +251,22 @@ class ArPhysics:
         return out
 
     def slowest_rate(self, h=None) -> float:
+        """Fin rate b = 2h/(ρcR) [1/s] of C1 = e^{−bΔτ} (paper eq. 13).
+
+        Parameters
+        ----------
+        h : float, optional
+            Lateral convection coefficient [W/(m²·K)]; default the rod's nominal.
+
+        Returns
+        -------
+        float
+            b [1/s].
+
+        References
+        ----------
+        Du et al., J. Harbin Inst. Technol. 53(7), 2021, eq. 13.
+        """
         return float(self._b(self.rod.convection_W_m2K if h is None else h))
 
     def steady_gain_um_per_W_m2(self) -> float:

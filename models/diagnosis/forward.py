@@ -265,7 +265,23 @@ class RodModel:
         self._prop: dict = {}
 
     def eig(self, h_W_m2K: float) -> _Eig:
-        """Eigen-decomposition of the reduced operator at convection h [W/(m²·K)] (cached)."""
+        """Eigen-decomposition of the reduced operator at convection h [W/(m²·K)] (cached).
+
+        The reduced operator is diag(μ0) + (h − h0) ΦᵀBΦ in the nominal growth modes.
+
+        Parameters
+        ----------
+        h_W_m2K : float
+            Lateral convection coefficient h [W/(m²·K)].
+
+        Returns
+        -------
+        _Eig
+            ``lam``: decay rates [1/s], ascending; ``V``: eigenvectors in the reduced
+            basis; ``fq``: modal load per unit q [W per W/m²]; ``fb``: modal lateral
+            load per unit h·θ_amb [W per W/m²]; ``g``: growth per unit coordinate
+            [µm]; ``s``: lateral-surface mean temperature rise per unit coordinate [K].
+        """
         h = float(h_W_m2K)
         e = self._cache.get(h)
         if e is None:
@@ -278,12 +294,36 @@ class RodModel:
         return e
 
     def steady_growth_um(self, q_W_m2: float = 1.0, h_W_m2K: float | None = None) -> float:
-        """Steady growth [µm] under constant flux q [W/m²] at convection h."""
+        """Steady growth [µm] under constant flux q [W/m²] at convection h.
+
+        Parameters
+        ----------
+        q_W_m2 : float
+            Heat flux into the heated end [W/m²]; default 1 (the steady gain).
+        h_W_m2K : float, optional
+            Lateral convection coefficient [W/(m²·K)]; default the rod's nominal.
+
+        Returns
+        -------
+        float
+            Steady axial growth at the nominal ambient [µm].
+        """
         e = self.eig(self.h0 if h_W_m2K is None else h_W_m2K)
         return float(e.g @ (q_W_m2 * e.fq / e.lam))
 
     def slowest_rate_1_s(self, h_W_m2K: float | None = None) -> float:
-        """Decay rate of the slowest growth mode [1/s] (1/time constant)."""
+        """Decay rate of the slowest growth mode [1/s] (1/time constant).
+
+        Parameters
+        ----------
+        h_W_m2K : float, optional
+            Lateral convection coefficient [W/(m²·K)]; default the rod's nominal.
+
+        Returns
+        -------
+        float
+            Smallest eigenvalue of the reduced operator [1/s].
+        """
         return float(self.eig(self.h0 if h_W_m2K is None else h_W_m2K).lam[0])
 
     def simulate(self, time_s, q_W_m2, ambient_K=None, h_W_m2K=None, c0=None,
@@ -342,14 +382,26 @@ class RodModel:
 
         Parameters
         ----------
+        time_s : array_like
+            Sample times [s] (the first interval starts at t = 0).
+        q_W_m2 : array_like
+            Heat flux on each interval [W/m²].
         exponent : float
             n in h ∝ ΔT^n [-] (1/4 laminar, 1/3 turbulent natural convection).
         dT_ref_K : float
-            Surface-to-air temperature difference at which h equals h0 [K].
+            Surface-to-air temperature difference at which h equals ``h_ref_W_m2K``
+            (default h0) [K].
+        ambient_K : array_like, optional
+            Ambient minus the nominal ambient on each interval [K]; default 0.
         h_floor_frac : float
-            Lower bound of h as a fraction of h0 (ΔT → 0 would give h → 0).
+            Lower bound of h as a fraction of h0 [-] (ΔT → 0 would give h → 0).
         h_ref_W_m2K : float, optional
             h at ΔT = ΔT_ref [W/(m²·K)]; default h0.
+
+        Returns
+        -------
+        ndarray
+            Axial growth at each sample [µm], from equilibrium at t = 0.
         """
         t = np.asarray(time_s, float)
         d = intervals(t)

@@ -46,7 +46,35 @@ SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_ex
 def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.0):
     """Early-rise mapping (paper eqs. 20-21): weights W with K(unseen) = Σ_s W[u][s] K(s).
 
-    Returns (levels, seen, W, info) where ``W[u]`` is a dict {seen level: weight}.
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    temperatures : dict
+        Sensor name -> temperature series [°C].
+    rows : ndarray of bool
+        Fit rows (before the hold-out); define the seen speeds and usable sensors.
+    window_s : float
+        Early-rise window after a speed step [s].
+
+    Returns
+    -------
+    levels : ndarray
+        Every speed in the record [1/min].
+    seen : ndarray
+        Speeds present in ``rows`` [1/min].
+    W : dict
+        Unseen speed [1/min] -> {seen speed [1/min]: weight [-]}.
+    info : dict
+        ``unseen_rpm``, ``sensor`` (chosen sensor or None), ``early_rise_K``
+        ({speed [1/min]: early rise [K]}), ``sensors_rejected`` and ``mapping``
+        (reference speed, ratio and how, per unseen speed).
+
+    References
+    ----------
+    Du et al., J. Harbin Inst. Technol. 53(7), 2021, eqs. 20-21.
     """
     t = np.asarray(t, float)
     speed = np.asarray(speed, float)
@@ -128,7 +156,32 @@ def _level_inputs(speed, seen, W):
 def paper_ar(t, y, speed, rows, W, seen):
     """Paper eq. 17 calibration on one-step pairs before the hold-out, then free run.
 
-    Returns (prediction over the record, {"C1", "C2_um": {rpm: C2}, "dtau_s"}).
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s]; Δτ is the median step, and only pairs one Δτ apart are fitted.
+    y : array_like
+        Measured growth [µm].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    rows : ndarray of bool
+        Fit rows (before the hold-out, not outliers).
+    W : dict
+        Unseen-speed mapping of :func:`speed_to_heat_map`.
+    seen : array_like
+        Speeds seen in ``rows`` [1/min]; one C2 each.
+
+    Returns
+    -------
+    prediction : ndarray
+        Free-run growth over the whole record from y[0] [µm].
+    coefficients : dict
+        ``C1`` [-], ``C2_um`` ({speed [1/min]: C2 [µm]}), ``dtau_s`` [s] and
+        ``C2_mapped_um`` (C2 of the unseen speeds by eqs. 20-21 [µm]).
+
+    References
+    ----------
+    Du et al., J. Harbin Inst. Technol. 53(7), 2021, eqs. 12, 17, 20-21.
     """
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
     d = intervals(t)
@@ -155,6 +208,37 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
 
     Gains per seen speed enter linearly; b (and the cause's own nonlinear parameters)
     are searched. ``rho_c_R`` [J/(m²K)] turns rates b into an equivalent h = bρcR/2.
+
+    Parameters
+    ----------
+    cause : str
+        One of :data:`SPEED_CAUSES`.
+    t : array_like
+        Sample times [s].
+    y : array_like
+        Measured growth [µm].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    rows : ndarray of bool
+        Fit rows (before the hold-out, not outliers).
+    seen : array_like
+        Speeds seen in ``rows`` [1/min]; one steady gain each.
+    W : dict
+        Unseen-speed mapping of :func:`speed_to_heat_map`.
+    ambient_K : array_like, optional
+        Recorded ambient minus the nominal ambient [K] (``ambient_drift`` needs it).
+    rho_c_R : float, optional
+        ρcR [J/(m²·K)] of the rod, to report h [W/(m²·K)] for
+        ``speed_dependent_convection``.
+
+    Returns
+    -------
+    CandidateFit or None
+        Prediction [µm] over the record; parameters in the units their names carry
+        (``drift_um_per_h`` [µm/h], ``ambient_gain_um_per_K`` [µm/K], ``b_*_1_s``
+        [1/s], ``h_*_W_m2K`` [W/(m²·K)], ``frame_time_constant_h`` [h],
+        ``frame_gain`` [-]); ``extra["time_constant_h"]`` = 1/b [h]. None if the
+        cause does not apply to this record.
     """
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
     units = _level_inputs(speed, seen, W)
@@ -249,7 +333,26 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
 def mlr(y, temperatures: dict, rows):
     """Multiple linear regression of growth on every complete temperature (paper eq. 18).
 
-    Returns (prediction over the record, list of sensor names used).
+    Parameters
+    ----------
+    y : array_like
+        Measured growth [µm].
+    temperatures : dict
+        Sensor name -> temperature series [°C]; series with a non-finite value are skipped.
+    rows : ndarray of bool
+        Fit rows.
+
+    Returns
+    -------
+    prediction : ndarray or None
+        Offset + Σ coefficient [µm/K] × temperature [°C] over the record [µm];
+        None without a complete sensor.
+    names : list of str
+        Sensors used.
+
+    References
+    ----------
+    Du et al., J. Harbin Inst. Technol. 53(7), 2021, eq. 18.
     """
     names = [k for k, v in temperatures.items() if np.all(np.isfinite(np.asarray(v, float)))]
     if not names:
@@ -363,7 +466,23 @@ def forward_folds(t, speed, rows, min_train_frac: float = 0.25, max_folds: int =
     of the fit window lies before it, and ends at the next start or at the end of the
     fit window. Without such steps: the last half of the fit window in three blocks.
 
-    Returns a list of (train rows, validation rows) boolean pairs.
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    rows : ndarray of bool
+        Fit window.
+    min_train_frac : float
+        Least fraction of the fit window's time span before the first block [-].
+    max_folds : int
+        Most blocks kept (the last ones).
+
+    Returns
+    -------
+    list of (ndarray of bool, ndarray of bool)
+        (train rows, validation rows) per block; training rows precede the block.
 
     Examples
     --------
@@ -489,6 +608,34 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     ``frame_gain`` and ``frame_time_constant_h``: with ``slow_lag``, the slow response's
     steady gain per unit of the rod's and τ_f; otherwise the frame part fitted, on
     ``rows``, as a first-order lag of the rod's steady growth target.
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s].
+    y : array_like
+        Measured growth [µm].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    rows : ndarray of bool
+        Fit rows (before the hold-out, not outliers).
+    seen : array_like
+        Speeds seen in ``rows`` [1/min]; one steady gain each without
+        ``structure.heat_exponent``.
+    W : dict
+        Unseen-speed mapping of :func:`speed_to_heat_map` (idem).
+    temperatures : dict
+        Sensor name -> temperature series [°C]; only complete series are used.
+    structure : FrameStructure
+
+    Returns
+    -------
+    CandidateFit or None
+        ``frame_expansion`` fit: prediction [µm] over the record; parameters
+        ``frame_time_constant_h`` [h], ``frame_gain`` [-], ``frame_sensor_lag_h`` [h],
+        ``rod_time_constant_h`` [h], ``heat_exponent`` [-], ...; ``extra["frame_um"]``
+        the frame part [µm]. None if the structure needs thermometers and there is no
+        complete one, or the heat law has no running speed in ``rows``.
     """
     names, T = _temperature_matrix(temperatures)
     k = structure.components
@@ -610,7 +757,31 @@ def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps,
     :func:`frame_structures` (``search``) is scored on the same blocks; a tie keeps the
     structure earlier in that list.
 
-    Returns (FrameStructure, table {label: pooled validation RMSE [µm]}).
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s].
+    y : array_like
+        Measured growth [µm].
+    speed : array_like
+        Spindle speed on each row [1/min].
+    temperatures : dict
+        Sensor name -> temperature series [°C].
+    rows : ndarray of bool
+        Fit window (before the hold-out, not outliers); the scoring uses ``folds`` only.
+    folds : list of (ndarray of bool, ndarray of bool)
+        (train, validation) rows, as from :func:`forward_folds`.
+    fold_maps : list of (seen, W)
+        Speed mapping per fold, as from :func:`speed_to_heat_map` on its training rows.
+    search : {"narrow", "wide"}
+        Which structures to compare (:data:`FRAME_SEARCHES`).
+
+    Returns
+    -------
+    structure : FrameStructure or None
+        The best structure; None if none could be scored.
+    table : dict
+        Structure label -> pooled validation RMSE [µm] (nan if not applicable).
     """
     names, _ = _temperature_matrix(temperatures)
     table, best = {}, None

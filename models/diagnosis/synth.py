@@ -174,14 +174,44 @@ def ambient_gain_um_per_K(rod: Rod) -> float:
 
 @functools.lru_cache(maxsize=8)
 def rod_model(rod: Rod = Rod()) -> HeatFEM:
-    """The rod's axisymmetric Q2 model, nr=3, nz=12 (175 dofs). Its paper-cycle peak at
-    q = 2000 W/m² is 22.16664 µm, the nr=6, nz=32 reference 22.1666 µm to all digits quoted."""
+    """The rod's axisymmetric Q2 model, nr=3, nz=12 (175 dofs), cached per rod.
+
+    Its paper-cycle peak at q = 2000 W/m² is 22.16664 µm, the nr=6, nz=32 reference
+    22.1666 µm to all digits quoted.
+
+    Parameters
+    ----------
+    rod : Rod
+        Geometry [m], material, nominal h [W/(m²·K)] and ambient [°C].
+
+    Returns
+    -------
+    HeatFEM
+        See :func:`fem.heat.build_axisymmetric`; ``growth @ θ`` is the axial growth
+        [m] of a temperature rise θ [K].
+    """
     return build_axisymmetric(rod, **_MESH)
 
 
 @functools.lru_cache(maxsize=32)
 def frame_model(convection_W_m2K: float, ambient_C: float = 20.0) -> HeatFEM:
-    """The frame body: a steel cylinder R = 0.25 m, L = 1.2 m, heated on one end face."""
+    """The frame body: a steel cylinder R = 0.25 m, L = 1.2 m, heated on one end face.
+
+    Axisymmetric Q2, nr=3, nz=8 (119 dofs), the default :class:`Rod` steel; cached.
+
+    Parameters
+    ----------
+    convection_W_m2K : float
+        Lateral convection coefficient h of the frame [W/(m²·K)].
+    ambient_C : float
+        Nominal ambient [°C].
+
+    Returns
+    -------
+    HeatFEM
+        The frame's heat model; ``growth @ θ`` is its axial growth [m] of a
+        temperature rise θ [K].
+    """
     frod = Rod(radius_m=_FRAME_RADIUS_M, length_m=_FRAME_LENGTH_M,
                convection_W_m2K=convection_W_m2K, ambient_C=ambient_C)
     return build_axisymmetric(frod, **_FRAME_MESH)
