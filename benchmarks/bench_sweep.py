@@ -24,7 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from scenarios.config import apply_override, builtin_scenario_path, load_toml  # noqa: E402
+from scenarios.config import apply_override, builtin_scenario_path  # noqa: E402
+from scenarios.io import read_toml  # noqa: E402
 from scenarios.sweep import _BlasThreads, evaluate_point, load_sweep, run_sweep  # noqa: E402
 
 
@@ -76,7 +77,7 @@ def main(argv=None) -> int:
     print(f"   peak RSS             {me:8.1f} MB main process, {ch:.1f} MB largest worker")
 
     # 2./3. cost per point (in this process, single-threaded BLAS like a worker)
-    base = load_toml(builtin_scenario_path("paper_fig2"))
+    base = read_toml(builtin_scenario_path("paper_fig2"))
     with _BlasThreads(1):
         print("\n2. time per point against mesh size (q = 2000 W/m², h = 55, Δτ = 30 s, "
               "2881 samples)")

@@ -43,20 +43,16 @@ from __future__ import annotations
 import copy
 import difflib
 import math
-import sys
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from models.params import InputError, Rod, Schedule, steps_per_segment
+from scenarios.io import read_toml
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
-__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_toml", "load_scenario",
+__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
            "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
            "PAPER_SCENARIOS"]
 
@@ -148,26 +144,12 @@ def builtin_scenario_path(name: str) -> Path:
     return Path(str(p))
 
 
-def load_toml(path) -> dict:
-    """Read a TOML file; a missing or malformed file is an :class:`InputError`."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError("no such file", str(p))
-    try:
-        with open(p, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"malformed TOML: {exc}", str(p)) from None
-    except UnicodeDecodeError:
-        raise InputError("is not UTF-8 text", str(p)) from None
-
-
 def load_scenario(path) -> Scenario:
     """Load and validate a scenario file (or a built-in name such as ``paper_fig2``)."""
     p = Path(path)
     if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
         p = builtin_scenario_path(p.name)
-    return scenario_from_dict(load_toml(p), str(p))
+    return scenario_from_dict(read_toml(p), str(p))
 
 
 # -- validation helpers ---------------------------------------------------------------

@@ -1,6 +1,6 @@
-"""Output plumbing shared by every ``arfem`` command: safe output directories and
-atomic writes (a reader never sees a half-written file; nothing the user owns is
-overwritten without ``--force``)."""
+"""File plumbing shared by every ``arfem`` command: strict reading of the user's text
+files (one-line errors), safe output directories and atomic writes (a reader never sees
+a half-written file; nothing the user owns is overwritten without ``--force``)."""
 from __future__ import annotations
 
 import contextlib
@@ -15,8 +15,54 @@ import numpy as np
 
 from models.params import InputError
 
-__all__ = ["prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["read_text_utf8", "read_toml", "json_text", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
            "write_json", "write_csv", "staged_out_dir"]
+
+
+def read_text_utf8(path: str | os.PathLike, missing: str = "file not found") -> str:
+    """The text of a UTF-8 file (a leading BOM dropped).
+
+    A missing file, a directory, an unreadable file or bytes that are not UTF-8 raise
+    :class:`InputError` naming the file (and, for bad bytes, the line).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "x.csv"
+    >>> _ = p.write_bytes(b"a,b\\n1,\\xe9\\n")
+    >>> try:
+    ...     read_text_utf8(p)
+    ... except InputError as e:
+    ...     print(str(e).replace(str(p), "x.csv"))
+    x.csv: line 2: is not UTF-8 (byte 6 of the file)
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(missing if not p.exists() else "is not a file", str(p))
+    try:
+        raw = p.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot be read ({e.strerror})", str(p)) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise InputError(f"is not UTF-8 (byte {e.start} of the file)",
+                         f"{p}: line {line}") from None
+
+
+def read_toml(path: str | os.PathLike) -> dict:
+    """Parse a UTF-8 TOML file; anything wrong is one :class:`InputError` line."""
+    text = read_text_utf8(path)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
 
 
 def prepare_out_dir(out: str | os.PathLike, force: bool = False) -> Path:
@@ -101,9 +147,18 @@ def _jsonable(o):
     return o
 
 
+def json_text(obj, indent: int | None = None) -> str:
+    """JSON text of ``obj`` with numpy types converted and NaN/inf as null.
+
+    >>> json_text({"ratio": np.float64(1.25), 3000.0: [np.int64(2), float("nan")]})
+    '{"ratio": 1.25, "3000.0": [2, null]}'
+    """
+    return json.dumps(_jsonable(obj), indent=indent, allow_nan=False, ensure_ascii=False)
+
+
 def write_json(path: str | os.PathLike, obj) -> None:
     """Atomic JSON (NaN/inf written as null, numpy types converted)."""
-    atomic_write_text(path, json.dumps(_jsonable(obj), indent=2, allow_nan=False) + "\n")
+    atomic_write_text(path, json_text(obj, indent=2) + "\n")
 
 
 def write_csv(path: str | os.PathLike, columns: dict[str, np.ndarray], fmt: str = "%.10g") -> None:

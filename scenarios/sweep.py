@@ -52,9 +52,9 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 
 from models.params import InputError
-from scenarios.config import (ALIASES, apply_override, builtin_scenario_path, load_toml,
+from scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
                               scenario_from_dict)
-from scenarios.io import atomic_write_text, staged_out_dir, write_json
+from scenarios.io import atomic_write_text, read_toml, staged_out_dir, write_json
 
 __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "point_key",
            "resolved_inputs",
@@ -228,7 +228,7 @@ def load_sweep(path) -> Sweep:
     is wrong, e.g. a Δτ that does not divide the phases.
     """
     p = Path(path)
-    data = load_toml(p)
+    data = read_toml(p)
     return sweep_from_dict(data, str(p))
 
 
@@ -272,7 +272,7 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         if not isinstance(sw["base"], str):
             raise InputError(f"must be a string, got {sw['base']!r}", "sweep.base")
         base_path, base_name = _resolve_base(sw["base"], Path(source))
-        base_data = load_toml(base_path)
+        base_data = read_toml(base_path)
         base_source = str(base_path)
     else:
         base_name, base_source = str(sw.get("base", "<base>")), "<base>"

@@ -257,6 +257,37 @@ def test_mapping_to_absent_column(tmp_path):
            "columns.growth_um", "'ch1(um)'")
 
 
+def test_empty_cell_in_carried_speed_is_kept(tmp_path):
+    """With q_W_m2 the input, speed_rpm is only carried along: an empty cell there is
+    not the input's and is not refused."""
+    lines = good_csv().splitlines()
+    lines = [lines[0] + ",speed_rpm"] + [l + ",1000" for l in lines[1:]]
+    lines[4] = lines[4][:-4]
+    ds = load_dataset(write(tmp_path, "\n".join(lines) + "\n"))
+    assert ds.input_kind == "q_W_m2"
+
+
+def test_all_empty_ambient_column_is_absent(tmp_path):
+    """An ambient_C column with no value at all is treated as absent (and said so), not
+    refused as a column with too many gaps."""
+    lines = good_csv().splitlines()
+    lines = [lines[0] + ",ambient_C"] + [l + "," for l in lines[1:]]
+    ds = load_dataset(write(tmp_path, "\n".join(lines) + "\n"))
+    assert ds.ambient_C is None
+    assert any("ambient_C" in n and "no value" in n for n in ds.notes)
+
+
+def test_sensor_table_on_an_extra_column(tmp_path):
+    """[sensors.X] on a column that is in the CSV but is not a T_<name>_C temperature
+    says so truthfully (it used to claim the column was missing)."""
+    lines = good_csv(extra="humidity_pct").splitlines()
+    toml = ('[dataset]\nname = "case"\ncsv = "case.csv"\n'
+            '[sensors.humidity_pct]\ndescription = "hall humidity"\n')
+    ds = load_dataset(write(tmp_path, "\n".join(lines) + "\n", toml))
+    assert not any("not in the CSV" in n for n in ds.notes)
+    assert any("sensors.humidity_pct" in n and "not a temperature" in n for n in ds.notes)
+
+
 def test_empty_input_cell(tmp_path):
     """An empty q cell on a kept row is refused (the input must be known everywhere)."""
     lines = good_csv().splitlines()
@@ -269,7 +300,16 @@ def test_not_utf8(tmp_path):
     p = write(tmp_path, good_csv())
     (tmp_path / "case.csv").write_bytes("time_s,growth_um,q_W_m2,T_\xb0_C\n0,0,0,1\n"
                                         .encode("latin-1"))
-    refuse(p, "case.csv", "UTF-8")
+    refuse(p, "case.csv", "line 1", "UTF-8")
+
+
+@pytest.mark.parametrize("cell", ["\uff11\uff12", "\u0660.\u0665", "1,5"])
+def test_non_ascii_digits_are_text(tmp_path, cell):
+    """Digits other than ASCII 0-9 (fullwidth, Arabic-Indic) are text, not a number --
+    Python's float() would take them, the contract's '.'-decimal CSV does not."""
+    lines = good_csv().splitlines()
+    lines[3] = f'60,"{cell}",2000'
+    refuse(write(tmp_path, "\n".join(lines) + "\n"), "case.csv", "line 4", "'growth_um'")
 
 
 def test_duplicate_header(tmp_path):

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from scenarios.cli import main
-from scenarios.config import load_scenario, scenario_from_dict, load_toml, builtin_scenario_path
+from scenarios.config import load_scenario, scenario_from_dict, builtin_scenario_path
+from scenarios.io import read_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
@@ -76,7 +77,7 @@ def test_bad_scenario_is_one_line_exit_2(tmp_path, capsys, text, where, what):
 def test_missing_file_exit_2(tmp_path, capsys):
     rc = main(["run", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
-    assert rc == 2 and "nope.toml: no such file" in err
+    assert rc == 2 and "nope.toml: file not found" in err
 
 
 def test_cli_subprocess_has_no_traceback(tmp_path):

@@ -25,20 +25,16 @@ from __future__ import annotations
 
 import math
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 from models.allocation import screw
 from models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
 from models.params import PAPER_PHASES_S, InputError, steps_per_segment
+from scenarios.io import read_toml
 
 __all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "load_scenario", "parse_scenario",
            "build_chain"]
@@ -314,25 +310,32 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
 def load_scenario(path) -> AllocationScenario:
     """Read and validate a scenario file; :class:`InputError` names the file and key."""
     p = Path(path)
-    if not p.is_file():
-        raise InputError("no such file", str(p))
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as exc:
-        raise InputError(f"is not UTF-8 text ({exc.reason})", str(p)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"is not valid TOML: {exc}", str(p)) from None
+    data = read_toml(p)
     return parse_scenario(data, str(p))
 
 
 def build_chain(sc: AllocationScenario, rod=None) -> tuple[Chain, dict | None]:
     """Turn a scenario into a :class:`Chain`, resolving the spindle's thermal Δz.
 
+    The spindle, if any, becomes a unit with every error fixed: Δz [mm] from
+    :func:`models.allocation.thermal.spindle_dz_mm`, the others 0, inserted after
+    the unit it names.
+
+    Parameters
+    ----------
+    sc : AllocationScenario
+        Unit and tool poses (translation [mm]), error bounds and fixed errors in
+        scenario units ([mm], [mrad]); spindle heat flux [W/m²], AR step [s].
+    rod : Rod, optional
+        Spindle rod for the thermal growth (default :class:`models.params.Rod`).
+
     Returns
     -------
     chain : Chain
+        Units in chain order and the tool pose (translation [mm]).
     spindle_info : dict or None
-        What :func:`models.allocation.thermal.spindle_dz_mm` returned.
+        What :func:`models.allocation.thermal.spindle_dz_mm` returned (``dz_mm``
+        [mm], ``peak_growth_um`` [µm], ...) plus ``position``; None without a spindle.
     """
     units = [Unit(u.name, u.motion, u.pose, u.free, u.bounds, u.fixed, True) for u in sc.units]
     info = None

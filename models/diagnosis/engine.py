@@ -30,6 +30,7 @@ from models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometer
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
 from models.params import InputError
+from scenarios.io import json_text
 
 __all__ = ["Diagnosis", "diagnose", "diagnose_file", "ALPHA", "MIN_GAIN"]
 
@@ -37,6 +38,18 @@ __all__ = ["Diagnosis", "diagnose", "diagnose_file", "ALPHA", "MIN_GAIN"]
 ALPHA = 1e-3
 #: minimum relative cut of the fit-window RMSE for a cause to be named
 MIN_GAIN = 0.05
+#: the ``parameters`` of diagnosis.json, by cause, exactly as the measured-data contract
+#: names them; anything else a fit reports goes under ``parameters_detail``
+CONTRACT_PARAMETERS = {
+    "none": (),
+    "ambient_drift": ("ambient_gain_um_per_K",),
+    "convection_mismatch": ("h_W_m2K",),
+    "speed_dependent_convection": ("h_running_W_m2K", "h_stopped_W_m2K"),
+    "heat_input_scale": ("scale",),
+    "frame_expansion": ("frame_time_constant_h", "frame_gain"),
+    "sensor_drift": ("drift_um_per_h",),
+    "nonlinear_convection": ("exponent",),
+}
 
 
 @dataclass
@@ -67,6 +80,10 @@ def _metrics(y, pred, mask):
 
 
 def _holdout_start(t, holdout_start_s, where):
+    """The hold-out start [s] -- as given, or 2/3 of the record -- and how it was chosen.
+
+    Fitting uses the samples with t < start and scoring those with t >= start, so the
+    given value is kept as it is (not moved to the next sample time)."""
     if holdout_start_s is None:
         hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
         how = "not given: the last third of the record (from 2/3 of its duration)"
@@ -78,10 +95,13 @@ def _holdout_start(t, holdout_start_s, where):
     n_before = int(np.sum(t < hs))
     n_after = int(np.sum(t >= hs))
     if n_before < 20 or n_after < 5:
-        raise InputError(f"{hs:g} s leaves {n_before} samples to fit and {n_after} to score "
-                         f"(record {t[0]:g}..{t[-1]:g} s); need >= 20 and >= 5",
-                         "--holdout-start")
-    return float(t[np.searchsorted(t, hs)]), how
+        span = (f"{n_before} samples to fit and {n_after} to score (record {t[0]:g}..{t[-1]:g} s); "
+                "need >= 20 and >= 5")
+        if holdout_start_s is None:
+            raise InputError(f"record too short: its last third from {hs:g} s leaves {span}",
+                             where)
+        raise InputError(f"{hs:g} s leaves {span}", f"--holdout-start (for {where})")
+    return hs, how
 
 
 def _select(fits: dict, base: CandidateFit, n_tests: int):
@@ -279,8 +299,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         base_model = "ar"
         ar_label = "paper AR(1) calibrated by eq. 17 before the hold-out"
         extra_models["ar_output_error"] = {"baseline": fits["none"], "extended": ext}
-        text.append(f"speed-to-heat mapping: {map_info}")
-        text.append(f"paper AR(1) calibration: {paper_info}")
+        text.append(f"speed-to-heat mapping: {json_text(map_info)}")
+        text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
 
     bres = _residual_analysis(t, y, base.prediction, good, signals, running, tau_s)
     eres = _residual_analysis(t, y, ext.prediction, good, signals, running, tau_s)
@@ -305,7 +325,10 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         "holdout": {"start_s": hs, "how_chosen": how, "baseline_rmse_um": b_hold,
                     "extended_rmse_um": e_hold, "gain_pct": gain,
                     "n_samples": int(hold.sum())},
-        "parameters": {k: v for k, v in ext.parameters.items()} if cause != "none" else {},
+        "parameters": {k: v for k, v in ext.parameters.items()
+                       if k in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+        "parameters_detail": {k: v for k, v in ext.parameters.items()
+                              if k not in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
         "candidates": [{"cause": c, "score": scores[c], **({k: v for k, v in tests[c].items()}
                                                           if c in tests else {}),
                         "parameters": fits[c].parameters,

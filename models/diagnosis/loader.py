@@ -28,11 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from models.params import InputError, Rod, Schedule
+from scenarios.io import read_text_utf8, read_toml
 
-try:  # Python >= 3.11
-    import tomllib
-except ModuleNotFoundError:  # pragma: no cover
-    import tomli as tomllib
 
 __all__ = ["Dataset", "load_dataset", "hampel_outliers", "sampling_gaps",
            "ROD_KEYS", "MAX_MISSING_FRACTION"]
@@ -51,7 +48,7 @@ _INITIAL_VALUES = ("equilibrium", "unknown")
 _SENSOR_KEYS = ("description",)
 _BASE_COLUMNS = ("time_s", "growth_um", "q_W_m2", "speed_rpm", "ambient_C")
 _TEMP_RE = re.compile(r"^T_.+_C$")
-_NUMBER_RE = re.compile(r"^[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?$")
+_NUMBER_RE = re.compile(r"^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$")
 _NONFINITE_RE = re.compile(r"^[+-]?(?:nan|inf|infinity)$", re.IGNORECASE)
 
 
@@ -248,20 +245,7 @@ def _fail(message: str, where: str):
     raise InputError(message, where)
 
 
-def _read_toml(path: Path) -> dict:
-    if not path.is_file():
-        _fail("file not found" if not path.exists() else "is not a file", str(path))
-    try:
-        raw = path.read_bytes()
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        _fail(f"is not UTF-8 (byte {e.start})", str(path))
-    except OSError as e:
-        _fail(f"cannot be read ({e.strerror})", str(path))
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        _fail(f"malformed TOML: {str(e).splitlines()[0]}", str(path))
+
 
 
 def _is_number(v) -> bool:
@@ -333,15 +317,7 @@ def _parse_meta(path: Path, doc: dict):
 
 def _read_csv(path: Path, toml_path: Path):
     """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
-    if not path.is_file():
-        _fail(f"CSV file not found (named by {toml_path})" if not path.exists()
-              else "is not a file", str(path))
-    try:
-        text = path.read_bytes().decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        _fail(f"is not UTF-8 (byte {e.start})", str(path))
-    except OSError as e:
-        _fail(f"cannot be read ({e.strerror})", str(path))
+    text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})")
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     rows, lines = [], []
     header = None
@@ -430,7 +406,7 @@ def load_dataset(toml_path) -> Dataset:
     ('q_W_m2', [0.0, 0.2, 0.4], 55.0)
     """
     toml_path = Path(toml_path)
-    doc = _read_toml(toml_path)
+    doc = read_toml(toml_path)
     name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc)
     header, rows, lines = _read_csv(csv_path, toml_path)
     notes: list[str] = []
@@ -495,8 +471,8 @@ def load_dataset(toml_path) -> Dataset:
         _fail(f"time_s = {t[i]:g} does not increase (previous row, line {lines[i - 1]}, "
               f"has {t[i - 1]:g})", f"{csv_path}: line {lines[i]}, column {label('time_s')}")
 
-    # inputs: complete and non-negative
-    for key in ("q_W_m2", "speed_rpm"):
+    # the input (q_W_m2 where given, else speed_rpm): complete and non-negative
+    for key in ("q_W_m2", "speed_rpm")[:1 if "q_W_m2" in values else 2]:
         if key not in values:
             continue
         v = values[key]
@@ -514,6 +490,9 @@ def load_dataset(toml_path) -> Dataset:
 
     # ambient: fill short gaps
     amb = values.get("ambient_C")
+    if amb is not None and np.isnan(amb).all():
+        notes.append("ambient_C: the column has no value; treated as absent")
+        amb = None
     if amb is not None:
         nan = np.isnan(amb)
         if nan.sum() > MAX_MISSING_FRACTION * amb.size:
@@ -554,7 +533,10 @@ def load_dataset(toml_path) -> Dataset:
     if extra:
         notes.append(f"extra columns carried and ignored: {', '.join(extra)}")
     for key in sensors:
-        if key not in col:
+        if key in extra:
+            notes.append(f"[sensors.{key}] describes a column that is carried but not used: "
+                         "it is not a temperature T_<name>_C")
+        elif key not in col:
             notes.append(f"[sensors.{key}] describes a column that is not in the CSV")
     if initial_unknown:
         notes.append('initial = "unknown": the record does not start at equilibrium')

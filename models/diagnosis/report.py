@@ -22,6 +22,15 @@ def _fmt(v, nd=3):
     return str(v)
 
 
+def _plain(text: str) -> str:
+    """``text`` as matplotlib shows it literally: a user's ``$`` is not mathtext.
+
+    >>> print(_plain("run $x^{$ 17"))
+    run \\$x^{\\$ 17
+    """
+    return str(text).replace("$", r"\$")
+
+
 def _figures(diag, out: Path):
     import matplotlib
     matplotlib.use("Agg")
@@ -40,7 +49,7 @@ def _figures(diag, out: Path):
     ax[0].axvline(hs, color="k", ls="--", lw=0.8, label="hold-out start")
     ax[0].set_ylabel("growth [µm]")
     ax[0].legend(fontsize=8)
-    ax[0].set_title(f"{j['dataset']}: cause = {j['cause']}")
+    ax[0].set_title(_plain(f"{j['dataset']}: cause = {j['cause']}"))
     ax[1].plot(th[good], (s["growth_um"] - s["baseline_um"])[good], lw=0.7, label="residual, baseline")
     ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7, label="residual, extended")
     ax[1].axvline(hs, color="k", ls="--", lw=0.8)
@@ -70,7 +79,7 @@ def _figures(diag, out: Path):
         ax[1].axhline(b, color="k", ls=ls, lw=0.8)
         ax[1].axhline(-b, color="k", ls=ls, lw=0.8)
     ax[1].set_xticks(range(len(names)))
-    ax[1].set_xticklabels(names, rotation=70, fontsize=7)
+    ax[1].set_xticklabels([_plain(k) for k in names], rotation=70, fontsize=7)
     ax[1].set_ylabel("xcorr(baseline residual, signal)")
     ax[1].set_title("bounds: ±1.96/√N (dotted), ±1.96/√N_eff (dashed)", fontsize=8)
     fig.tight_layout()

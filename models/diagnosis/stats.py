@@ -93,15 +93,20 @@ def acf(r, max_lag: int) -> np.ndarray:
 
 
 def xcorr(r, x) -> float:
-    """Zero-lag normalised cross-correlation of residual ``r`` with signal ``x`` [-].
+    """Zero-lag normalised cross-correlation of residual ``r`` with signal ``x`` [-],
+    over the samples where both are finite (a sensor may have empty cells).
 
     Examples
     --------
     >>> xcorr([1.0, 2.0, 3.0], [2.0, 4.0, 6.5]) > 0.99
     True
+    >>> xcorr([1.0, 2.0, 3.0, 9.0], [2.0, 4.0, 6.5, float("nan")]) > 0.99
+    True
     """
-    r = np.asarray(r, float) - np.mean(r)
-    x = np.asarray(x, float) - np.mean(x)
+    r, x = np.asarray(r, float), np.asarray(x, float)
+    ok = np.isfinite(r) & np.isfinite(x)
+    r = r[ok] - np.mean(r[ok]) if ok.any() else r[:0]
+    x = x[ok] - np.mean(x[ok]) if ok.any() else x[:0]
     den = np.linalg.norm(r) * np.linalg.norm(x)
     return float(r @ x / den) if den > 0 else 0.0
 
