@@ -28,8 +28,16 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the house error format: one line, status 2 (argparse's own is a
+    usage block and then the error)."""
+
+    def error(self, message):
+        self.exit(2, f"arfem: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="arfem",
         description="FEM thermo-elastic simulation of a spindle rod against the AR(1) "
                     "thermal-growth model (Du et al. 2021), with sweeps and diagnosis of "
@@ -61,6 +69,11 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("arfem: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("arfem: error: out of memory; the input asks for more than this machine has "
+              "(a finer mesh, more field snapshots or a bigger grid than it can hold)",
+              file=sys.stderr)
+        return 2
     return int(rc or 0)
 
 

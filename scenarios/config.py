@@ -42,13 +42,13 @@ from __future__ import annotations
 
 import copy
 import difflib
-import math
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from models.params import InputError, Rod, Schedule, steps_per_segment
+from models.params import (InputError, Rod, Schedule, check_finite, check_plausible,
+                           steps_per_segment)
 from scenarios.io import read_toml
 
 
@@ -62,20 +62,11 @@ PAPER_SCENARIOS = ("paper_fig2", "paper_fig3")
 #: Short names usable in sweeps and overrides.
 ALIASES = {"dtau_s": "ar.dtau_s", "h_W_m2K": "rod.convection_W_m2K", "q_W_m2": "cycle.q_W_m2"}
 
-# Plausible ranges: a value outside is almost certainly in the wrong unit.
-_PLAUSIBLE = {
-    "radius_m": (1e-4, 5.0, "metres (a radius in mm?)"),
-    "length_m": (1e-3, 50.0, "metres (a length in mm?)"),
-    "conductivity_W_mK": (1e-3, 2000.0, "W/(m·K)"),
-    "density_kg_m3": (10.0, 30000.0, "kg/m³ (a density in g/cm³?)"),
-    "specific_heat_J_kgK": (10.0, 20000.0, "J/(kg·K) (a value in kJ/(kg·K)?)"),
-    "expansion_1_K": (1e-8, 1e-3, "1/K (a value in µm/(m·K) or ppm/K?)"),
-    "youngs_modulus_Pa": (1e6, 2e12, "Pa (a modulus in GPa?)"),
-    "convection_W_m2K": (0.01, 1e5, "W/(m²·K)"),
-    "ambient_C": (-100.0, 500.0, "°C (a temperature in K?)"),
-    "q_W_m2": (0.0, 1e7, "W/m²"),
-    "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
-}
+#: Resource bounds, far above any study here, that turn a typo (nz = 100000000) into a
+#: clear refusal instead of an allocation failure minutes later.
+MAX_ELEMENTS_PER_DIRECTION = 4096
+MAX_FIELD_SNAPSHOTS = 5000
+
 
 _TOP = {"scenario", "rod", "cycle", "ar", "fem", "outputs"}
 _SCENARIO_KEYS = {"name", "description"}
@@ -179,20 +170,10 @@ def _number(v, where: str, *, positive=False, allow_zero=False, integer=False) -
         raise InputError(f"must be a number, got {type(v).__name__} {v!r}", where)
     if integer and not isinstance(v, int):
         raise InputError(f"must be a whole number, got {v!r}", where)
-    f = float(v)
-    if not math.isfinite(f):
-        raise InputError(f"must be finite, got {v!r}", where)
+    f = check_finite(where, v)
     if positive and (f < 0 or (f == 0 and not allow_zero)):
         raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}", where)
     return f
-
-
-def _plausible(key: str, value: float, where: str):
-    if key in _PLAUSIBLE:
-        lo, hi, unit = _PLAUSIBLE[key]
-        if not lo <= value <= hi and not (key == "q_W_m2" and value == 0):
-            raise InputError(f"{value:g} is outside the plausible range [{lo:g}, {hi:g}] "
-                             f"for a value in {unit}", where)
 
 
 def _string(v, where: str, choices=None) -> str:
@@ -241,7 +222,7 @@ def _from_dict(data: dict, source: str) -> Scenario:
     for k, v in rod_d.items():
         where = f"rod.{k}"
         f = _number(v, where)
-        _plausible(k, f, where)
+        check_plausible(k, f, where)
         rod_kw[k] = f
     try:
         rod = Rod(**rod_kw)
@@ -271,13 +252,13 @@ def _from_dict(data: dict, source: str) -> Scenario:
         if "q_W_m2" not in ph:
             raise InputError("missing q_W_m2 (heat flux in W/m²; 0 for a pause)", where)
         q = _number(ph["q_W_m2"], f"{where}.q_W_m2", positive=True, allow_zero=True)
-        _plausible("q_W_m2", q, f"{where}.q_W_m2")
+        check_plausible("q_W_m2", q, f"{where}.q_W_m2")
         qs.append(q)
         a = _number(ph.get("ambient_C", rod.ambient_C), f"{where}.ambient_C")
-        _plausible("ambient_C", a, f"{where}.ambient_C")
+        check_plausible("ambient_C", a, f"{where}.ambient_C")
         ambs.append(a)
         h = _number(ph.get("h_W_m2K", rod.convection_W_m2K), f"{where}.h_W_m2K", positive=True)
-        _plausible("h_W_m2K", h, f"{where}.h_W_m2K")
+        check_plausible("h_W_m2K", h, f"{where}.h_W_m2K")
         hs.append(h)
         labels.append(_string(ph.get("label", "heating" if q > 0 else "cooling"),
                               f"{where}.label"))
@@ -291,6 +272,10 @@ def _from_dict(data: dict, source: str) -> Scenario:
     any_amb = any("ambient_C" in ph for ph in phases)
     any_h = any("h_W_m2K" in ph for ph in phases)
     schedule = Schedule(durations, qs, ambs if any_amb else None, hs if any_h else None)
+    if not any(q > 0 for q in qs) and len({float(a) for a in schedule.ambient_for(rod)}) == 1:
+        raise InputError("no phase heats the rod (every q_W_m2 is 0) and the ambient is "
+                         "constant: the growth is zero and AR(1) cannot be identified",
+                         "cycle.phases")
 
     # ar
     ar = _table(data, "ar", "")
@@ -325,6 +310,10 @@ def _from_dict(data: dict, source: str) -> Scenario:
             n = _number(v, f"fem.mesh.{k}", integer=True)
             if n < 1:
                 raise InputError(f"a mesh needs at least 1 element, got {v!r}", f"fem.mesh.{k}")
+            if n > MAX_ELEMENTS_PER_DIRECTION:
+                raise InputError(f"{n:g} elements in one direction is more than this solver "
+                                 f"is built for (at most {MAX_ELEMENTS_PER_DIRECTION})",
+                                 f"fem.mesh.{k}")
             mesh[k] = int(n)
 
     out = _table(data, "outputs", "")
@@ -334,6 +323,12 @@ def _from_dict(data: dict, source: str) -> Scenario:
         picture=_bool(out.get("picture", True), "outputs.picture"),
         field_interval_s=_number(out.get("field_interval_s", 1800.0), "outputs.field_interval_s",
                                  positive=True))
+    n_snap = schedule.total_s / outputs.field_interval_s
+    if outputs.fields and n_snap > MAX_FIELD_SNAPSHOTS:
+        raise InputError(f"{outputs.field_interval_s:g} s asks for {n_snap:.0f} field snapshots "
+                         f"over the {schedule.total_s:g} s cycle; at most "
+                         f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
+                         "outputs.field_interval_s")
     return Scenario(name=name, description=description, source=source, rod=rod,
                     schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
                     fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,

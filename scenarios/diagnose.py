@@ -23,7 +23,7 @@ def add_parser(subparsers):
     p.add_argument("--frame-search", choices=("narrow", "wide"), default="narrow",
                    help="speed-only records: frame structures compared by validation -- "
                         "thermometer components only (narrow, default) or also speed-to-heat "
-                        "laws n^p and a slow frame response (wide, ~10x slower)")
+                        "laws n^p and a slow frame response (wide, ~5x slower)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
     return p

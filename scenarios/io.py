@@ -20,7 +20,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["read_text_utf8", "read_toml", "json_text", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
+__all__ = ["read_text_utf8", "read_toml", "json_text", "check_out_path", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
            "write_json", "write_csv", "staged_out_dir"]
 
 
@@ -65,42 +65,138 @@ def read_toml(path: str | os.PathLike) -> dict:
         raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
 
 
-def prepare_out_dir(out: str | os.PathLike, force: bool = False) -> Path:
-    """Check ``out`` may be written: absent, empty, or ``force``. Creates nothing."""
+def check_out_path(out: str | os.PathLike) -> Path:
+    """Refuse an output path that cannot become a writable directory. Creates nothing.
+
+    Catches, before any work is done: an existing file or a broken symbolic link at
+    ``out``, a file where one of its parent directories should be, and a directory
+    (``out`` or its nearest existing parent) that cannot be written.
+    """
     p = Path(out)
+    if p.is_symlink() and not p.exists():
+        raise InputError("is a broken symbolic link", str(p))
     if p.exists() and not p.is_dir():
         raise InputError("exists and is not a directory", str(p))
+    anc = p.parent if str(p.parent) else Path(".")
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise InputError(f"cannot be created: {anc} is not a directory", str(p))
+    for d in ([p] if p.is_dir() else []) + [anc]:
+        try:
+            tempfile.TemporaryDirectory(prefix=".arfem-probe-", dir=d).cleanup()
+        except OSError as e:
+            raise InputError(f"cannot be written ({e.strerror or e})",
+                             str(p) if d is p else f"{p} (in {d})") from None
+    return p
+
+
+def prepare_out_dir(out: str | os.PathLike, force: bool = False) -> Path:
+    """Check ``out`` may be written: absent, empty, or ``force``. Creates nothing."""
+    p = check_out_path(out)
     if p.is_dir() and any(p.iterdir()) and not force:
         raise InputError("is not empty; choose another --out or pass --force to replace "
                          "the files arfem writes there", str(p))
     return p
 
 
+def _stale_stages(out: Path):
+    """Staging directories of ``out`` left by an arfem process that no longer runs."""
+    parent = out.parent if str(out.parent) else Path(".")
+    for d in parent.glob(f".{out.name}.staging-*-*"):
+        try:
+            pid = int(d.name[len(f".{out.name}.staging-"):].split("-", 1)[0])
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            yield d
+        except (ValueError, PermissionError, OSError):
+            continue
+
+
 @contextlib.contextmanager
-def staged_out_dir(out: str | os.PathLike, force: bool = False):
+def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None):
     """Write a whole result set into a staging directory, then move it into ``out``.
 
-    Yields the staging directory. On success each staged file replaces its
-    namesake in ``out`` by an atomic rename (other files already in ``out`` are
-    left alone); on any error ``out`` is untouched and the staging directory removed.
+    Yields the staging directory. On success each staged file replaces its namesake
+    in ``out`` by an atomic rename (other files already in ``out`` are left alone).
+    The move is all or nothing: every clash (a directory where a file goes, or the
+    reverse) is refused before the first rename, and if a rename still fails, the
+    files already moved are put back as they were. On any error ``out`` is as it was
+    and the staging directory is removed; one left by a killed run is removed by the
+    next run into the same ``out``.
+
+    ``may_replace(rel, path)``, if given, lets ``out`` be non-empty and is asked before
+    each existing file is replaced (unless ``force``); a False refuses the whole set.
     """
-    out = prepare_out_dir(out, force)
+    out = prepare_out_dir(out, force or may_replace is not None)
+    for d in _stale_stages(out):
+        shutil.rmtree(d, ignore_errors=True)
     parent = out.parent if str(out.parent) else Path(".")
-    parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-", dir=parent))
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-{os.getpid()}-", dir=parent))
+    except OSError as e:
+        raise InputError(f"cannot be written ({e.strerror or e})", str(out)) from None
     try:
         yield stage
-        out.mkdir(parents=True, exist_ok=True)
-        for src in sorted(stage.rglob("*")):
-            rel = src.relative_to(stage)
-            dst = out / rel
-            if src.is_dir():
-                dst.mkdir(parents=True, exist_ok=True)
-            else:
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(src, dst)
+        _move_all(stage, out, force, may_replace)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+def _move_all(stage: Path, out: Path, force: bool, may_replace) -> None:
+    entries = sorted(stage.rglob("*"))
+    files = [s for s in entries if not s.is_dir()]
+    for src in entries:                                   # every clash, before any move
+        rel = src.relative_to(stage)
+        dst = out / rel
+        if src.is_dir() and (dst.exists() or dst.is_symlink()) and not dst.is_dir():
+            raise InputError(f"{rel} is a file here, where arfem writes a directory; "
+                             "move it away", str(out))
+        if not src.is_dir() and dst.is_dir():
+            raise InputError(f"{rel} is a directory here, where arfem writes a file; "
+                             "move it away", str(out))
+        if (not src.is_dir() and not force and may_replace is not None and dst.exists()
+                and not may_replace(rel, dst)):
+            raise InputError(f"{rel} was not written by arfem (or was changed since); "
+                             "pass --force to replace it", str(out))
+    backup = stage.with_name(stage.name + ".old")
+    done, made = [], []
+    try:
+        for d in [out] + [out / s.relative_to(stage) for s in entries if s.is_dir()]:
+            if not d.is_dir():
+                d.mkdir(parents=True)
+                made.append(d)
+        for src in files:
+            rel = src.relative_to(stage)
+            dst = out / rel
+            bak = None
+            if dst.exists() or dst.is_symlink():
+                bak = backup / rel
+                bak.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(dst, bak)
+            done.append((dst, bak))
+            os.replace(src, dst)
+    except OSError as e:
+        for dst, bak in reversed(done):                   # put everything back
+            with contextlib.suppress(OSError):
+                if bak is not None and bak.exists():
+                    os.replace(bak, dst)
+                elif dst.exists():
+                    dst.unlink()
+        for d in reversed(made):
+            with contextlib.suppress(OSError):
+                d.rmdir()
+        raise InputError(f"cannot be written ({e.strerror or e}); left as it was",
+                         str(out)) from None
+    finally:
+        shutil.rmtree(backup, ignore_errors=True)
+
+
+def _umask() -> int:
+    m = os.umask(0o022)
+    os.umask(m)
+    return m
 
 
 @contextlib.contextmanager
@@ -112,6 +208,8 @@ def atomic_path(path: str | os.PathLike):
     os.close(fd)
     try:
         yield Path(tmp)
+        if os.path.exists(tmp):           # mkstemp's 0600 -> what open() would have made
+            os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):

@@ -344,26 +344,54 @@ def _paper_readme(evs: list[Evaluation], wall_s: float) -> str:
 MANIFEST = "MANIFEST.json"
 
 
+def _sha256(path: Path) -> str:
+    import hashlib
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _own_files(out: Path) -> dict | None:
+    """{file: sha256 or None} that an earlier ``arfem reproduce`` wrote into ``out``
+    (from its MANIFEST.json), or None if ``out`` holds no such manifest."""
+    try:
+        man = json.loads((out / MANIFEST).read_text("utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(man, dict) or man.get("generator") != "arfem reproduce":
+        return None
+    files = man.get("files")
+    if isinstance(files, dict):
+        return {str(k): v for k, v in files.items()} | {MANIFEST: None}
+    if isinstance(files, list):             # older manifests: names only
+        return {str(k): None for k in files} | {MANIFEST: None}
+    return None
+
+
 def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     """Run every paper scenario into ``out``/<name>/ plus a README comparing with the paper.
 
-    ``out`` may be replaced without ``--force`` only if it holds an earlier
-    ``arfem reproduce`` result (its ``MANIFEST.json``).
+    ``out`` may be updated without ``--force`` only if it holds an earlier
+    ``arfem reproduce`` result (its ``MANIFEST.json``), and then only the files that
+    result wrote and nobody has changed since (their SHA-256 is in the manifest).
     """
     t0 = time.perf_counter()
     out = Path(out)
-    own = (out / MANIFEST).is_file()
-    prepare_out_dir(out, force or own)
+    own = _own_files(out)
+    prepare_out_dir(out, force or own is not None)
     evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
-    with staged_out_dir(out, True) as stage:
+
+    def unchanged(rel, path):
+        rel = rel.as_posix()
+        return own is not None and rel in own and own[rel] in (None, _sha256(path))
+    with staged_out_dir(out, force, may_replace=unchanged) as stage:
         for ev in evs:
             write_outputs(ev, stage / ev.scenario.name)
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
         write_json(stage / MANIFEST, {"generator": "arfem reproduce",
                                       "scenarios": list(PAPER_SCENARIOS),
-                                      "files": sorted(str(p.relative_to(stage))
-                                                      for p in stage.rglob("*") if p.is_file())})
+                                      "files": {p.relative_to(stage).as_posix(): _sha256(p)
+                                                for p in sorted(stage.rglob("*"))
+                                                if p.is_file()}})
     return evs
 
 

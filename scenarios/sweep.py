@@ -51,10 +51,10 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from models.params import InputError
+from models.params import InputError, check_finite
 from scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
                               scenario_from_dict)
-from scenarios.io import atomic_write_text, read_toml, staged_out_dir, write_json
+from scenarios.io import atomic_write_text, check_out_path, read_toml, staged_out_dir, write_json
 
 __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "point_key",
            "resolved_inputs",
@@ -196,10 +196,7 @@ def _normalise(o):
     if isinstance(o, bool) or o is None or isinstance(o, str):
         return o
     if isinstance(o, (int, float, np.integer, np.floating)):
-        f = float(o)
-        if not math.isfinite(f):
-            raise InputError(f"must be finite, got {o!r}")
-        return f
+        return check_finite(None, o)
     if hasattr(o, "isoformat"):          # TOML dates and times
         return o.isoformat()
     return str(o)
@@ -293,7 +290,10 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         col = _COLUMN.get(path, key)
         if col in grid:
             raise InputError(f"sets the same input as sweep.grid.{paths[col]}", where)
-        norm = [_normalise(v) for v in values]
+        try:
+            norm = [_normalise(v) for v in values]
+        except InputError as e:
+            raise e.at(where) from None
         dup = [v for i, v in enumerate(norm) if v in norm[:i]]
         if dup:
             raise InputError(f"lists the value {dup[0]!r} twice", where)
@@ -438,8 +438,7 @@ def _open_store(out: Path, sweep: Sweep, force: bool) -> str:
     A directory holding the store of the same sweep is resumed; any other
     non-empty directory is refused unless ``force``.
     """
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a directory", str(out))
+    check_out_path(out)
     if not out.is_dir() or not any(out.iterdir()):
         return "new"
     man = out / _STORE_MANIFEST
@@ -739,6 +738,9 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     """
     out = Path(out)
     mode = _open_store(out, sweep, force)
+    if not (math.isfinite(timeout_s) and timeout_s > 0):
+        raise InputError(f"must be a finite number of seconds > 0, got {timeout_s!r}",
+                         "--connect-timeout")
     if workers is not None and (isinstance(workers, bool) or int(workers) != workers
                                 or workers < 1):
         raise InputError(f"must be a whole number >= 1, got {workers!r}", "--workers")

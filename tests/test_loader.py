@@ -316,3 +316,25 @@ def test_duplicate_header(tmp_path):
     """A column named twice is ambiguous and refused."""
     refuse(write(tmp_path, "time_s,growth_um,growth_um,q_W_m2\n0,0,0,0\n"), "case.csv",
            "line 1", "twice")
+
+
+@pytest.mark.parametrize("toml_extra, needles", [
+    ("[rod]\nradius_m = 100.0\n", ("rod.radius_m", "plausible", "mm?")),
+    ("[rod]\nambient_C = 293.15\n", ("rod.ambient_C", "in K?")),
+])
+def test_implausible_rod_values(tmp_path, toml_extra, needles):
+    """[rod] values in a wrong unit are refused like the scenario keys of `arfem run`
+    (one table of plausible ranges, models.params.PLAUSIBLE_RANGES)."""
+    toml = '[dataset]\nname = "case"\ncsv = "case.csv"\n' + toml_extra
+    refuse(write(tmp_path, good_csv(), toml), "case.toml", *needles)
+
+
+def test_implausible_columns(tmp_path):
+    """A q_W_m2 column a million times too large is refused at its largest row; an
+    ambient_C column in kelvin is refused by its median."""
+    lines = good_csv().splitlines()
+    lines[7] = "180,0.6,2e12"
+    refuse(write(tmp_path, "\n".join(lines) + "\n"), "line 8", "'q_W_m2'", "plausible")
+    lines = good_csv().splitlines()
+    lines = [lines[0] + ",ambient_C"] + [l + ",293.4" for l in lines[1:]]
+    refuse(write(tmp_path, "\n".join(lines) + "\n"), "'ambient_C'", "median", "in K?")

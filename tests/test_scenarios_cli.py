@@ -58,6 +58,14 @@ picture = false
     (GOOD.replace("[scenario]", "[rod]\nconvection_W_m2K = nan\n[scenario]"),
      "rod.convection_W_m2K", "finite"),
     (GOOD.replace("nz = 8", "nz = 0"), "fem.mesh.nz", "at least 1 element"),
+    (GOOD.replace("nz = 8", "nz = 100000000"), "fem.mesh.nz", "at most 4096"),
+    (GOOD.replace("nz = 8", "nz = " + "9" * 400), "fem.mesh.nz", "too large for a number"),
+    (GOOD.replace("fields = false", "fields = true\nfield_interval_s = 0.01"),
+     "outputs.field_interval_s", "at most 5000"),
+    (GOOD.replace("q_W_m2 = 2000.0", "q_W_m2 = 0.0"), "cycle.phases", "no phase heats"),
+    (GOOD.replace("{ duration_h = 1.0, q_W_m2 = 0.0 }",
+                  "{ duration_h = 1.0, q_W_m2 = 0.0, ambient_C = 293.0 }"),
+     "cycle.phases[1].ambient_C", "in K?"),
     (GOOD + "\n[extra]\n", "extra", "unknown key"),
     ("this is = not [toml", "", "malformed TOML"),
 ])
@@ -154,8 +162,87 @@ def test_reproduce_writes_both_figures_and_refuses_foreign_dir(tmp_path, capsys)
     readme = (out / "README.md").read_text()
     assert "0.1985" in readme and "0.2977" in readme
     assert main(["reproduce", "--out", str(out)]) == 0       # own output: replaced
+    (out / "README.md").write_text("my notes")              # ... unless someone edited it
+    capsys.readouterr()
+    assert main(["reproduce", "--out", str(out)]) == 2
+    assert "README.md" in capsys.readouterr().err
+    assert (out / "README.md").read_text() == "my notes"
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "x").write_text("keep")
     assert main(["reproduce", "--out", str(foreign)]) == 2
     assert (foreign / "x").read_text() == "keep"
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["run"], "required"),
+    (["bogus"], "invalid choice"),
+    (["diagnose", "x.toml", "--out", "o", "--holdout-start", "abc"], "invalid float"),
+])
+def test_usage_errors_are_one_line(capsys, argv, needle):
+    """argparse's own errors follow the house format: one line, status 2."""
+    with pytest.raises(SystemExit) as ei:
+        main(argv)
+    err = capsys.readouterr().err
+    assert ei.value.code == 2 and err.count("\n") == 1 and needle in err, err
+
+
+def test_out_paths_that_cannot_be_directories(tmp_path, capsys):
+    """--out under a file, a broken symlink, or with a directory where arfem writes a
+    file (even with --force): one line, status 2, before any work, nothing changed."""
+    p = _write(tmp_path, GOOD)
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "lnk").symlink_to(tmp_path / "nowhere")
+    clash = tmp_path / "clash"
+    (clash / "summary.json").mkdir(parents=True)
+    for out, force, needle in ((tmp_path / "afile" / "o", [], "not a directory"),
+                               (tmp_path / "lnk", [], "broken symbolic link"),
+                               (clash, ["--force"], "summary.json is a directory")):
+        assert main(["run", str(p), "--out", str(out)] + force) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err, err
+    assert sorted(x.name for x in clash.iterdir()) == ["summary.json"]
+    assert not [x for x in tmp_path.iterdir() if "staging" in x.name]
+
+
+def test_staged_move_is_all_or_nothing(tmp_path, monkeypatch):
+    """If a rename fails halfway, the files already moved are put back: ``out`` is
+    exactly as before (old content, no new file) and no staging debris is left."""
+    import os
+
+    import scenarios.io as sio
+    from models.params import InputError
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "b.txt").write_text("old b")
+    real, calls = os.replace, []
+
+    def flaky(src, dst):
+        calls.append(dst)
+        if len(calls) == 4:               # a.txt moved, b.txt backed up and moved, then c
+            raise OSError(28, "No space left on device")
+        return real(src, dst)
+    monkeypatch.setattr(sio.os, "replace", flaky)
+    with pytest.raises(InputError, match="left as it was"):
+        with sio.staged_out_dir(out, force=True) as st:
+            for n in "abc":
+                (st / f"{n}.txt").write_text(f"new {n}")
+    assert sorted(x.name for x in out.iterdir()) == ["b.txt"]
+    assert (out / "b.txt").read_text() == "old b"
+    assert [x.name for x in tmp_path.iterdir()] == ["out"]
+
+
+def test_stale_staging_of_a_killed_run_is_removed(tmp_path):
+    """A staging directory left by a process that no longer exists (kill -9) is removed
+    by the next run into the same --out; one of a live process is left alone."""
+    import os
+
+    import scenarios.io as sio
+    dead = tmp_path / ".out.staging-999999999-abc"
+    live = tmp_path / f".out.staging-{os.getpid()}-xyz"
+    dead.mkdir()
+    live.mkdir()
+    with sio.staged_out_dir(tmp_path / "out") as st:
+        (st / "f.txt").write_text("x")
+    assert not dead.exists() and live.exists()
+    assert (tmp_path / "out" / "f.txt").read_text() == "x"

@@ -33,7 +33,7 @@ import numpy as np
 
 from models.allocation import screw
 from models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
-from models.params import PAPER_PHASES_S, InputError, steps_per_segment
+from models.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
 from scenarios.io import read_toml
 
 __all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "load_scenario", "parse_scenario",
@@ -115,7 +115,7 @@ class _Reader:
             raise self.err(path, f"must be {'<' if high_open else '<='} {high:g}, got {v:g}")
         return v
 
-    def integer(self, d, key, path, default, low):
+    def integer(self, d, key, path, default, low, high):
         if key not in d:
             return int(default)
         v = d[key]
@@ -123,6 +123,8 @@ class _Reader:
             raise self.err(path, f"must be an integer, got {type(v).__name__} {v!r}")
         if v < low:
             raise self.err(path, f"must be >= {low}, got {v}")
+        if v > high:
+            raise self.err(path, f"must be <= {high}, got {v}")
         return int(v)
 
     def choice(self, d, key, path, options, default=None):
@@ -155,7 +157,9 @@ class _Reader:
             raise self.err(path, f"must be true or false, got {v!r}")
         return v
 
-    def vector(self, d, key, path, n=3, default=None):
+    def vector(self, d, key, path, n=3, default=None, bound=1e5):
+        """``n`` finite numbers, each within ±``bound`` (in the unit the key names: a
+        larger value is a wrong unit, and would overflow the error model)."""
         if key not in d:
             return np.array(default if default is not None else [0.0] * n, float)
         v = d[key]
@@ -165,11 +169,14 @@ class _Reader:
         for i, x in enumerate(v):
             if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
                 raise self.err(f"{path}[{i}]", f"must be a finite number, got {x!r}")
+            if abs(x) > bound:
+                raise self.err(f"{path}[{i}]", f"must be within ±{bound:g} (wrong unit?), "
+                                               f"got {x:g}")
             out.append(float(x))
         return np.array(out)
 
     def interval(self, d, key, path, default):
-        lo, hi = self.vector(d, key, path, 2, default)
+        lo, hi = self.vector(d, key, path, 2, default, bound=1e3)
         if lo < 0:
             raise self.err(path, f"lower bound must be >= 0 (an error magnitude), got {lo:g}")
         if not hi > lo:
@@ -250,15 +257,15 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                    "eta_mutation", "seed", "pick"})
     settings = Settings(
         delta_E_mm=dE, working_radius_mm=rw, a=a, b_mm=b, formula=formula, constraint=constraint,
-        pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 16, 4),
-        n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 30, 1),
+        pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 16, 4, 10_000),
+        n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 30, 1, 100_000),
         crossover_prob=rd.number(op, "crossover_prob", "optimizer.crossover_prob", 0.9, 0.0, 1.0),
         mutation_prob=rd.number(op, "mutation_prob", "optimizer.mutation_prob", 0.1, 0.0, 1.0),
         eta_crossover=rd.number(op, "eta_crossover", "optimizer.eta_crossover", 20.0, 0.0,
                                 low_open=True),
         eta_mutation=rd.number(op, "eta_mutation", "optimizer.eta_mutation", 20.0, 0.0,
                                low_open=True),
-        seed=rd.integer(op, "seed", "optimizer.seed", 1, 0),
+        seed=rd.integer(op, "seed", "optimizer.seed", 1, 0, 2**32 - 1),
         pick=rd.choice(op, "pick", "optimizer.pick", ("compromise", "min_cost", "min_pitch"),
                        "compromise"))
     tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
@@ -294,8 +301,9 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         after = rd.string(sp, "after", "spindle.after", default=units[-1].name)
         if after not in {u.name for u in units}:
             raise rd.err("spindle.after", f"names no unit, got {after!r}")
+        q = rd.number(sp, "q_W_m2", "spindle.q_W_m2", low=0.0, high=PLAUSIBLE_RANGES["q_W_m2"][1])
         spindle = SpindleSpec(
-            sname, rd.number(sp, "q_W_m2", "spindle.q_W_m2", low=0.0), model, dtau, comp, after,
+            sname, q, model, dtau, comp, after,
             screw.pose(rd.vector(sp, "offset_mm", "spindle.offset_mm"),
                        rd.vector(sp, "rpy_deg", "spindle.rpy_deg")))
     ref = None

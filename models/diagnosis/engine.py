@@ -308,6 +308,9 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
     e_hold = st.rmse((y - ext.prediction)[hold])
     gain = 100.0 * (1.0 - e_hold / b_hold) if b_hold > 0 else 0.0
 
+    # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
+    # forward-chaining validation RMSE [µm] for speed-only ones
+    score_kind = "bic_on_n_eff" if ds.input_kind == "q_W_m2" else "validation_rmse_um"
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -329,8 +332,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                        if k in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
         "parameters_detail": {k: v for k, v in ext.parameters.items()
                               if k not in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
-        "candidates": [{"cause": c, "score": scores[c], **({k: v for k, v in tests[c].items()}
-                                                          if c in tests else {}),
+        "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
+                        **(tests[c] if c in tests else {}),
                         "parameters": fits[c].parameters,
                         "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                        for c in sorted(scores, key=scores.get)],
@@ -357,7 +360,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                    + (f"; cut {tests[runner]['rmse_cut_pct']:.1f} % of the baseline's, "
                       f"{tests[runner]['blocks_won']}/{len(tests[runner]['cv_per_block_um'])} "
                       f"blocks won" if runner in tests else ""))
-        summary["runner_up"] = {"cause": runner, "score": scores[runner],
+        summary["runner_up"] = {"cause": runner, "score": scores[runner], "score_kind": score_kind,
                                 "parameters": fits[runner].parameters, "why_lost": why}
     # AR-form results
     ar_out = {}

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from models.params import InputError, Rod, Schedule
+from models.params import InputError, Rod, Schedule, check_plausible
 from scenarios.io import read_text_utf8, read_toml
 
 
@@ -287,6 +287,8 @@ def _parse_meta(path: Path, doc: dict):
         rod = Rod(**rod_doc)
     except InputError as e:
         raise e.at(f"{where}: rod") from None
+    for key, value in rod_doc.items():       # physical, so now: in the right unit?
+        check_plausible(key, float(value), f"{where}: rod.{key}")
 
     columns = doc.get("columns", {})
     seen: dict[str, str] = {}
@@ -484,6 +486,8 @@ def load_dataset(toml_path) -> Dataset:
             i = int(np.flatnonzero(v < 0)[0])
             _fail(f"{v[i]:g} is negative; it must be >= 0",
                   f"{csv_path}: line {lines[i]}, column {label(key)}")
+        i = int(np.argmax(v))
+        check_plausible(key, float(v[i]), f"{csv_path}: line {lines[i]}, column {label(key)}")
     if "q_W_m2" in values and "speed_rpm" in values:
         notes.append("both q_W_m2 and speed_rpm are given; the heat flux q_W_m2 is the input, "
                      "speed_rpm is carried along")
@@ -494,6 +498,8 @@ def load_dataset(toml_path) -> Dataset:
         notes.append("ambient_C: the column has no value; treated as absent")
         amb = None
     if amb is not None:
+        med = float(np.nanmedian(amb))
+        check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
         nan = np.isnan(amb)
         if nan.sum() > MAX_MISSING_FRACTION * amb.size:
             i = int(np.flatnonzero(nan)[0])
