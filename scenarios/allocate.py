@@ -4,8 +4,8 @@ Reads an allocation scenario (:mod:`models.allocation.scenario`), solves the
 NSGA-II allocation of Zhou et al. (2020) and writes, atomically:
 
 * ``pareto.csv``      -- the Pareto front (one row per member, unit-suffixed columns)
-* ``allocation.json`` -- the picked member: ``units`` {unit: accuracy [mm]}, ``m_E``,
-  ``h_E``, ``cost`` and unit-suffixed details
+* ``allocation.json`` -- the picked member: ``units_accuracy_mm`` {unit: accuracy [mm]},
+  ``m_E_mm``, ``h_E_mm_per_rad``, ``cost_rel`` and more, every quantity's unit in its name
 * ``pareto.png``      -- the front (scenario formula and the other one), unit accuracies
 * ``report.md``       -- conventions, geometry, result, screw-vs-paper comparison, seeds
 """
@@ -41,8 +41,8 @@ def add_parser(subparsers) -> None:
 
 def _row(chain, ev, k) -> dict:
     return {"m_E_mm": float(ev.m_E_mm[k]), "h_E_mm_per_rad": float(ev.h_E_mm_per_rad[k]),
-            "cost": float(ev.cost[k]), "m_E_worst_case_mm": float(ev.m_E_worst_case_mm[k]),
-            "units_mm": {n: float(a) for n, a in zip(chain.names, ev.unit_accuracy_mm[k])}}
+            "cost_rel": float(ev.cost[k]), "m_E_worst_case_mm": float(ev.m_E_worst_case_mm[k]),
+            "units_accuracy_mm": {n: float(a) for n, a in zip(chain.names, ev.unit_accuracy_mm[k])}}
 
 
 def run_allocation(scenario_path) -> dict:
@@ -87,10 +87,6 @@ def _allocation_json(run) -> dict:
         "formula": st.formula,
         "constraint": st.constraint,
         "feasible": bool(res.feasible),
-        "units": {n: float(a) for n, a in zip(chain.names, ev.unit_accuracy_mm[k])},
-        "m_E": float(ev.m_E_mm[k]),
-        "h_E": float(ev.h_E_mm_per_rad[k]),
-        "cost": float(ev.cost[k]),
         "units_accuracy_mm": {n: float(a) for n, a in zip(chain.names, ev.unit_accuracy_mm[k])},
         "m_E_mm": float(ev.m_E_mm[k]),
         "h_E_mm_per_rad": float(ev.h_E_mm_per_rad[k]),
@@ -131,7 +127,7 @@ def _allocation_json(run) -> dict:
 def _pareto_columns(chain, res) -> dict:
     ev = res.front
     cols = {"h_E_mm_per_rad": ev.h_E_mm_per_rad, "abs_h_E_mm_per_rad": np.abs(ev.h_E_mm_per_rad),
-            "cost": ev.cost, "m_E_mm": ev.m_E_mm, "m_E_worst_case_mm": ev.m_E_worst_case_mm,
+            "cost_rel": ev.cost, "m_E_mm": ev.m_E_mm, "m_E_worst_case_mm": ev.m_E_worst_case_mm,
             "chosen": (np.arange(len(res.front_X)) == res.chosen).astype(float)}
     for i, n in enumerate(chain.names):
         cols[f"{n}_accuracy_mm"] = ev.unit_accuracy_mm[:, i]
@@ -241,12 +237,12 @@ def _report(run, alloc: dict, command: str) -> str:
     L += [f"| quantity | this work ({st.formula}) |" + (" reference |" if ref else ""),
           "|---|---|" + ("---|" if ref else "")]
     for n in chain.names:
-        L.append(f"| {n} accuracy [mm] | {alloc['units'][n]:.5f} |"
+        L.append(f"| {n} accuracy [mm] | {alloc['units_accuracy_mm'][n]:.5f} |"
                  + (f" {_fmt(ref.get(n))} |" if ref else ""))
     L += [f"| m_E [mm] | {alloc['m_E_mm']:.5f} |" + (" ≤ ΔE |" if ref else ""),
           f"| m_E worst case [mm] | {alloc['m_E_worst_case_mm']:.5f} |" + (" |" if ref else ""),
           f"| h_E [mm/rad] | {alloc['h_E_mm_per_rad']:.4g} |" + (" |" if ref else ""),
-          f"| cost [-] | {alloc['cost']:.6f} |" + (" |" if ref else ""), "",
+          f"| cost [-] | {alloc['cost_rel']:.6f} |" + (" |" if ref else ""), "",
           "Errors of the picked allocation (translations mm, rotations mrad):", "",
           "| unit | " + " | ".join(f"{c} [{COMPONENT_UNIT[c]}]" for c in COMPONENTS) + " |",
           "|---|" + "---|" * len(COMPONENTS)]
@@ -259,7 +255,7 @@ def _report(run, alloc: dict, command: str) -> str:
           f"{so['m_E_mm']:.5f} mm, h_E = {so['h_E_mm_per_rad']:.4g} mm/rad "
           f"(`{st.formula}`: m_E = {alloc['m_E_mm']:.5f} mm, h_E = {alloc['h_E_mm_per_rad']:.4g}).",
           f"* Optimising with the `{oa['formula']}` form instead (same seed) picks: "
-          + ", ".join(f"{n} {v:.5f}" for n, v in oa["units_mm"].items())
+          + ", ".join(f"{n} {v:.5f}" for n, v in oa["units_accuracy_mm"].items())
           + f" mm; m_E = {oa['m_E_mm']:.5f} mm under its own form but "
           f"{oa[f'm_E_mm_under_{st.formula}']:.5f} mm under the `{st.formula}` form "
           f"(ΔE = {st.delta_E_mm:g} mm).", "",
@@ -270,7 +266,7 @@ def _report(run, alloc: dict, command: str) -> str:
     for s in run["seeds"]:
         L.append(f"| {s['formula']} | {s['seed']} | {s['feasible']} | {s['n_front']} | "
                  f"{s['m_E_mm']:.5f} | {s['m_E_worst_case_mm']:.5f} | {s['h_E_mm_per_rad']:.4g} | "
-                 f"{s['cost']:.6f} | " + " | ".join(f"{v:.5f}" for v in s["units_mm"].values())
+                 f"{s['cost_rel']:.6f} | " + " | ".join(f"{v:.5f}" for v in s["units_accuracy_mm"].values())
                  + " |")
     L += ["", "## Pareto front", "", "See `pareto.csv` (all members, all variables) and "
           "`pareto.png`.", "", "| # | |h_E| [mm/rad] | cost | m_E [mm] | "
@@ -297,6 +293,6 @@ def main(args) -> int:
     r = run["result"]
     print(f"allocate: {run['scenario'].name}: {'feasible' if r.feasible else 'INFEASIBLE'}, "
           f"m_E = {alloc['m_E_mm']:.5f} mm (ΔE {r.settings.delta_E_mm:g}), "
-          f"h_E = {alloc['h_E_mm_per_rad']:.4g} mm/rad, cost = {alloc['cost']:.6f}; "
-          + ", ".join(f"{n} {v:.5f} mm" for n, v in alloc["units"].items()) + f" -> {out}")
+          f"h_E = {alloc['h_E_mm_per_rad']:.4g} mm/rad, cost = {alloc['cost_rel']:.6f}; "
+          + ", ".join(f"{n} {v:.5f} mm" for n, v in alloc["units_accuracy_mm"].items()) + f" -> {out}")
     return 0

@@ -119,16 +119,18 @@ def test_malformed_toml_exits_2(tmp_path, capsys):
 
 
 def test_cli_writes_outputs_and_refuses_nonempty_out(tmp_path, capsys):
-    """The command writes the four outputs; allocation.json carries units/m_E/h_E/cost with
-    m_E ≤ ΔE; a second run into the same --out without --force is refused (exit 2)."""
+    """The command writes the four outputs; allocation.json carries the unit accuracies,
+    m_E, h_E and the cost, each with its unit in its name, with m_E ≤ ΔE; a second run
+    into the same --out without --force is refused (exit 2)."""
     out = tmp_path / "alloc"
     assert main(["allocate", str(SCENARIO), "--out", str(out)]) == 0
     for f in ("pareto.csv", "allocation.json", "pareto.png", "report.md"):
         assert (out / f).stat().st_size > 0
     a = json.loads((out / "allocation.json").read_text())
-    assert set(a["units"]) == {"piston", "rack", "gear", "carrier"}
-    assert a["m_E"] <= a["delta_E_mm"] and a["m_E"] == a["m_E_mm"]
-    assert np.isfinite(a["h_E"]) and a["cost"] > 0
+    assert set(a["units_accuracy_mm"]) == {"piston", "rack", "gear", "carrier"}
+    assert a["m_E_mm"] <= a["delta_E_mm"]
+    assert np.isfinite(a["h_E_mm_per_rad"]) and a["cost_rel"] > 0
+    assert not {"units", "m_E", "h_E", "cost"} & set(a)       # no unit-less duplicates
     header = (out / "pareto.csv").read_text().splitlines()[0].split(",")
     assert "m_E_mm" in header and "carrier_accuracy_mm" in header
     capsys.readouterr()
