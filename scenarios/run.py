@@ -68,7 +68,7 @@ def _fem_growth(scenario: Scenario, model: HeatFEM, cache: dict | None):
 
 
 def _levels_metrics(prefix: str, by_q: dict) -> dict:
-    return {f"{prefix}_by_q": {f"{q:g}": v for q, v in by_q.items()},
+    return {f"{prefix}_by_q_W_m2": {f"{q:g}": v for q, v in by_q.items()},
             prefix: by_q[max(by_q)] if by_q else 0.0}
 
 
@@ -183,10 +183,10 @@ def _summary_md(ev: Evaluation) -> str:
         "|---|---|",
         f"| C1 (closed form, eq. 13) | {m['C1']:.6f} |",
     ]
-    for q, v in m["C2_um_by_q"].items():
+    for q, v in m["C2_um_by_q_W_m2"].items():
         lines.append(f"| C2 at q = {q} W/m² (closed form, eq. 14) [µm] | {v:.6f} |")
     lines.append(f"| C1 fitted to the FEM (eq. 17) | {m['C1_fitted']:.6f} |")
-    for q, v in m["C2_fitted_um_by_q"].items():
+    for q, v in m["C2_fitted_um_by_q_W_m2"].items():
         lines.append(f"| C2 fitted to the FEM at q = {q} W/m² [µm] | {v:.6f} |")
     lines += [
         f"| C1 of the corrected AR(1) | {m['corrected_C1']:.6f} |",

@@ -62,7 +62,7 @@ __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "poi
            "add_parser", "main", "STORE_VERSION", "METRIC_COLUMNS"]
 
 #: Bumped when the stored record or the meaning of a metric changes; part of every key.
-STORE_VERSION = 1
+STORE_VERSION = 2   # 2: per-level metrics named *_by_q_W_m2
 
 #: Column name of a grid key (the three usual inputs keep their short names).
 _COLUMN = {"ar.dtau_s": "dtau_s", "rod.convection_W_m2K": "h_W_m2K", "cycle.q_W_m2": "q_W_m2"}
