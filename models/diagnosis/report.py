@@ -146,6 +146,15 @@ def _markdown(diag) -> str:
                   "different h and a heat scale; nonlinear convection needs a temperature "
                   "scale the record lacks; ambient drift needs `ambient_C`)."
                   if j["input_kind"] == "speed_rpm" else " (missing input column)."))
+    named = next((c for c in j["candidates"] if c["cause"] == j["cause"]), {})
+    if named.get("named_by") == "misfit":
+        L += ["", f"**Named by misfit, not by the F test.** The baseline is off by "
+              f"{sel['baseline_rmse_over_noise']:.0f} noise σ (σ ≈ {sel['noise_sigma_um']:.3g} µm "
+              f"from second differences), so `none` cannot hold; `{j['cause']}` removes "
+              f"{named['rmse_cut_pct']:.0f} % of it, but what it leaves is so correlated "
+              f"(N_eff = {sel['n_eff']:.1f}) that the F test is not significant (p = "
+              f"{named['p_value']:.3g}). More than one cause, or one outside the vocabulary, "
+              "is likely; treat the named one as the largest part."]
     if j.get("runner_up"):
         r = j["runner_up"]
         L += ["", f"Runner-up: `{r['cause']}` — lost because {r['why_lost']}."]

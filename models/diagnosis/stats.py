@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats as _st
 
-__all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr",
+__all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr", "noise_sigma",
            "bic", "f_test_p"]
 
 
@@ -109,6 +109,28 @@ def xcorr(r, x) -> float:
     x = x[ok] - np.mean(x[ok]) if ok.any() else x[:0]
     den = np.linalg.norm(r) * np.linalg.norm(x)
     return float(r @ x / den) if den > 0 else 0.0
+
+
+def noise_sigma(y, trim: float = 0.02) -> float:
+    """Standard deviation of the measurement noise on ``y`` [unit of y], from its second
+    differences: for white noise E[(Δ²y)²] = 6σ², while a smooth thermal response adds
+    almost nothing at one sample; the largest ``trim`` fraction (outliers, the kinks where
+    the input switches) is left out.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> t = np.arange(5000) * 60.0
+    >>> y = 20 * (1 - np.exp(-t / 3600)) + rng.normal(0, 0.1, t.size)
+    >>> round(noise_sigma(y), 2)
+    0.09
+    """
+    d2 = np.diff(np.asarray(y, float), 2)
+    d2 = np.sort(np.abs(d2[np.isfinite(d2)]))
+    if d2.size < 10:
+        return float("nan")
+    d2 = d2[:max(1, int(np.ceil((1.0 - trim) * d2.size)))]
+    return float(np.sqrt(np.mean(d2 ** 2) / 6.0))
 
 
 def bic(rss: float, n: int, n_eff: float, k: int) -> float:
