@@ -20,8 +20,9 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["read_text_utf8", "read_toml", "json_text", "check_out_path", "prepare_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
-           "write_json", "write_csv", "staged_out_dir"]
+__all__ = ["read_text_utf8", "read_toml", "json_text", "check_out_path", "prepare_out_dir",
+           "staged_out_dir", "atomic_write_text", "atomic_write_bytes", "atomic_path",
+           "write_json", "write_csv"]
 
 
 def read_text_utf8(path: str | os.PathLike, missing: str = "file not found") -> str:
@@ -77,7 +78,7 @@ def check_out_path(out: str | os.PathLike) -> Path:
         raise InputError("is a broken symbolic link", str(p))
     if p.exists() and not p.is_dir():
         raise InputError("exists and is not a directory", str(p))
-    anc = p.parent if str(p.parent) else Path(".")
+    anc = p.parent                        # Path("out").parent is Path(".")
     while not anc.exists() and anc != anc.parent:
         anc = anc.parent
     if not anc.is_dir():
@@ -102,8 +103,7 @@ def prepare_out_dir(out: str | os.PathLike, force: bool = False) -> Path:
 
 def _stale_stages(out: Path):
     """Staging directories of ``out`` left by an arfem process that no longer runs."""
-    parent = out.parent if str(out.parent) else Path(".")
-    for d in parent.glob(f".{out.name}.staging-*-*"):
+    for d in out.parent.glob(f".{out.name}.staging-*-*"):
         try:
             pid = int(d.name[len(f".{out.name}.staging-"):].split("-", 1)[0])
             os.kill(pid, 0)
@@ -131,10 +131,10 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None
     out = prepare_out_dir(out, force or may_replace is not None)
     for d in _stale_stages(out):
         shutil.rmtree(d, ignore_errors=True)
-    parent = out.parent if str(out.parent) else Path(".")
     try:
-        parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-{os.getpid()}-", dir=parent))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-{os.getpid()}-",
+                                      dir=out.parent))
     except OSError as e:
         raise InputError(f"cannot be written ({e.strerror or e})", str(out)) from None
     try:
