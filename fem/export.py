@@ -220,6 +220,11 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
         grid = grid.warp_by_vector("displacement_m", factor=scale)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_beside(path)
+    from vtkmodules.vtkCommonCore import vtkLogger
+    verbosity = vtkLogger.GetCurrentVerbosityCutoff()
+    # a headless machine has no X server; VTK falls back to off-screen rendering but logs a
+    # warning on stderr first, which reads like a failure of a run that succeeded
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
     pl = pv.Plotter(off_screen=True, window_size=list(window_size))
     try:
         pl.add_mesh(grid, scalars="T_C", cmap="inferno", show_edges=True, edge_color="grey",
@@ -237,6 +242,7 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
         os.replace(tmp, path)
     finally:
         pl.close()
+        vtkLogger.SetStderrVerbosity(verbosity)
         if tmp.exists():
             tmp.unlink()
     return path
