@@ -272,7 +272,7 @@ def _from_dict(data: dict, source: str) -> Scenario:
     any_amb = any("ambient_C" in ph for ph in phases)
     any_h = any("h_W_m2K" in ph for ph in phases)
     schedule = Schedule(durations, qs, ambs if any_amb else None, hs if any_h else None)
-    if not any(q > 0 for q in qs) and len({float(a) for a in schedule.ambient_for(rod)}) == 1:
+    if not any(q > 0 for q in qs) and len(set(ambs)) == 1:
         raise InputError("no phase heats the rod (every q_W_m2 is 0) and the ambient is "
                          "constant: the growth is zero and AR(1) cannot be identified",
                          "cycle.phases")

@@ -66,15 +66,14 @@ def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1
 
     csv = Path(csv).resolve()
     with tempfile.TemporaryDirectory() as tmp:
-        tomls = []
         for ch in channels:
-            text = (Path(data) / f"fl_thermal_ch{ch}.toml").read_text(encoding="utf-8")
+            name = f"fl_thermal_ch{ch}.toml"
+            text = (Path(data) / name).read_text(encoding="utf-8")
             text, n = re.subn(r"(?m)^csv\s*=.*$", lambda _: f"csv = {json.dumps(str(csv))}",
                               text)
             if n != 1:
-                raise ValueError(f"fl_thermal_ch{ch}.toml: expected one csv line, found {n}")
-            tomls.append(Path(tmp) / f"fl_thermal_ch{ch}.toml")
-            tomls[-1].write_text(text, encoding="utf-8")
+                raise ValueError(f"{name}: expected one csv line, found {n}")
+            (Path(tmp) / name).write_text(text, encoding="utf-8")
         args = [(tmp, ch, holdout_s, "narrow", None) for ch in channels]
         if jobs == 1:
             res = list(map(_one, args))
