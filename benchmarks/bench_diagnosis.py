@@ -11,15 +11,14 @@ from __future__ import annotations
 import argparse
 import collections
 import resource
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from models.diagnosis.engine import diagnose_file  # noqa: E402
-from models.diagnosis.synth import CAUSES, generate, write_case  # noqa: E402
+from arfem.scenarios.diagnose import diagnose_file
+from arfem.models.diagnosis.synth import CAUSES, generate
+from arfem.scenarios.synth_files import write_case
 
 
 def _one(job):

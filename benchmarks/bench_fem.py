@@ -26,16 +26,15 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 CASES = ["axi-theta", "axi-modal", "3d-theta", "3d-theta-coarse"]
 
 
 def run_case(name: str) -> dict:
     import numpy as np
-    from fem.elastic import ThermoElastic
-    from fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
-    from models.params import Rod, paper_cycle
+    from arfem.fem.elastic import ThermoElastic
+    from arfem.fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
+    from arfem.params import Rod, paper_cycle
 
     rod = Rod()
     sched = paper_cycle(2000.0)

@@ -14,9 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from scenarios.run import reproduce  # noqa: E402
+from arfem.scenarios.run import reproduce
 
 
 def main() -> int:

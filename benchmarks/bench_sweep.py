@@ -22,11 +22,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from scenarios.config import apply_override, builtin_scenario_path  # noqa: E402
-from scenarios.io import read_toml  # noqa: E402
-from scenarios.sweep import _BlasThreads, evaluate_point, load_sweep, run_sweep  # noqa: E402
+from arfem.scenarios.config import apply_override, builtin_scenario_path
+from arfem.io import read_toml
+from arfem.scenarios.sweep import _BlasThreads, evaluate_point, load_sweep, run_sweep
 
 
 def peak_mb() -> tuple[float, float]:
@@ -38,7 +37,7 @@ def peak_mb() -> tuple[float, float]:
 
 def time_point(data: dict, warm: bool, repeat: int = 3) -> tuple[float, dict]:
     """Best-of-``repeat`` wall time [s] of one point; warm = eigen-decomposition cached."""
-    import scenarios.sweep as sw
+    import arfem.scenarios.sweep as sw
     best, res = float("inf"), None
     for _ in range(repeat):
         sw._WORKER_CACHE.clear()

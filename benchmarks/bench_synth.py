@@ -9,17 +9,15 @@ default OpenBLAS threads and 7 ms with OPENBLAS_NUM_THREADS=1.)
 from __future__ import annotations
 
 import resource
-import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from models.diagnosis.loader import load_dataset
-from models.diagnosis.synth import CAUSES, generate, write_case
+from arfem.scenarios.dataset import load_dataset
+from arfem.models.diagnosis.synth import CAUSES, generate
+from arfem.scenarios.synth_files import write_case
 
 
 def main():

@@ -15,14 +15,12 @@ import os
 import resource
 import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from scipy.optimize import brentq  # noqa: E402
+from scipy.optimize import brentq
 
-from fem.heat import build_3d, build_axisymmetric, solve_theta  # noqa: E402
-from models.params import Rod, Schedule, paper_cycle  # noqa: E402
+from arfem.fem.heat import build_3d, build_axisymmetric, solve_theta
+from arfem.params import Rod, Schedule, paper_cycle
 
 ROD = Rod()
 CYCLE = paper_cycle(2000.0)
@@ -85,7 +83,7 @@ def main(argv=None) -> int:
     g_ref = g_inf
 
     # time step on the default mesh (limit: exact-in-time modal value)
-    from fem.heat import solve_modal
+    from arfem.fem.heat import solve_modal
     m = build_axisymmetric(ROD)
     exact = float(solve_modal(m, CYCLE, output_times_s=[9.5 * 3600]).growth_um[0])
     dts = [240.0, 120.0, 60.0, 30.0, 15.0]

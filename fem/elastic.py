@@ -9,12 +9,12 @@ The problem (small strain, isotropic, θ = T − T_ref):
 plus the few point constraints that remove the remaining rigid-body motion
 (none of which load the rod, because the thermal load is self-equilibrated).
 
-Two geometries, both on the mesh and the element family of a :class:`fem.heat.HeatFEM`:
+Two geometries, both on the mesh and the element family of a :class:`arfem.fem.heat.HeatFEM`:
 
 * axisymmetric, coordinates (r, z), displacement (u_r, u_z), hoop strain
   ε_θθ = u_r / r, volume weight 2πr; u_r = 0 on the axis;
 * 3D, displacement (u_x, u_y, u_z) on the curved-hex mesh of
-  :func:`fem.mesh.cylinder_mesh`; u_x = u_y = 0 at the heated-face vertex nearest
+  :func:`arfem.fem.mesh.cylinder_mesh`; u_x = u_y = 0 at the heated-face vertex nearest
   the axis and the in-row component at a second vertex of the same row, which
   fixes the in-plane translations and the rotation about z.
 
@@ -25,7 +25,7 @@ displacement of any number of temperature fields costs one triangular solve each
 Reciprocity (Maxwell–Betti with the uniform-tension field σ* = e_z ⊗ e_z, whose
 displacement is linear and therefore in the FE space): the far-face integral of
 u_z equals α∫θ dV, exactly in the discrete problem too. Hence the face-averaged
-far-end growth equals :attr:`fem.heat.HeatFEM.growth` ``@ θ`` (up to the ratio of
+far-end growth equals :attr:`arfem.fem.heat.HeatFEM.growth` ``@ θ`` (up to the ratio of
 the discrete to the exact face area) -- the identity the AR(1) comparison rests on.
 """
 from __future__ import annotations
@@ -37,8 +37,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from skfem import Basis, BilinearForm, ElementVector, FacetBasis, LinearForm
 
-from fem.heat import HeatFEM
-from models.params import InputError, Rod
+from arfem.fem.heat import HeatFEM
+from arfem.params import InputError, Rod
 
 __all__ = ["lame_parameters", "ThermoElastic", "elastic_forms"]
 
@@ -181,7 +181,7 @@ class ThermoElastic:
 
         Examples
         --------
-        >>> from fem.heat import build_axisymmetric
+        >>> from arfem.fem.heat import build_axisymmetric
         >>> hm = build_axisymmetric(Rod(), order=2, nr=2, nz=4)
         >>> te = ThermoElastic.build(hm)
         >>> g_face, g_axis = te.growth(np.ones(hm.ndofs))   # uniform 1 K rise

@@ -1,7 +1,7 @@
 """Field output: an XDMF time series (ParaView) and a 3D picture of the rod.
 
-Data flow: a :class:`fem.heat.HeatResult` with stored fields (and optionally a
-:class:`fem.elastic.ThermoElastic` for the displacement) → files. No global
+Data flow: a :class:`arfem.fem.heat.HeatResult` with stored fields (and optionally a
+:class:`arfem.fem.elastic.ThermoElastic` for the displacement) → files. No global
 state; every file is written to a temporary name beside its target and renamed
 into place, so a reader never sees a half-written file.
 
@@ -18,19 +18,15 @@ into place, so a reader never sees a half-written file.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
-from fem.heat import HeatFEM, HeatResult
-from models.params import InputError
+from arfem.fem.heat import HeatFEM, HeatResult
+from arfem.io import atomic_path
+from arfem.params import InputError
 
 __all__ = ["vertex_grid", "write_fields", "render_png", "write_scenario_fields"]
-
-
-def _tmp_beside(path: Path) -> Path:
-    return path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
 
 
 def vertex_grid(model: HeatFEM):
@@ -49,8 +45,8 @@ def vertex_grid(model: HeatFEM):
 
     Examples
     --------
-    >>> from fem.heat import build_axisymmetric
-    >>> from models.params import Rod
+    >>> from arfem.fem.heat import build_axisymmetric
+    >>> from arfem.params import Rod
     >>> p, kind, c, d = vertex_grid(build_axisymmetric(Rod(), nr=2, nz=3))
     >>> p.shape, kind, c.shape
     ((12, 3), 'quad', (6, 4))
@@ -115,8 +111,8 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     Examples
     --------
     >>> import tempfile, meshio
-    >>> from fem.heat import build_axisymmetric, solve_modal
-    >>> from models.params import Rod, paper_cycle
+    >>> from arfem.fem.heat import build_axisymmetric, solve_modal
+    >>> from arfem.params import Rod, paper_cycle
     >>> hm = build_axisymmetric(Rod(), nr=2, nz=4)
     >>> res = solve_modal(hm, paper_cycle(2000.0), store_fields=True)
     >>> with tempfile.TemporaryDirectory() as d:
@@ -135,10 +131,8 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     idx = _frames(result, max_frames)
     theta = np.asarray(result.fields)[idx]
     disp = _vertex_displacement(model, elastic, theta) if elastic is not None else None
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_beside(path)
-    try:
-        # inline XML: one self-contained file, renamed atomically into place
+    # inline XML: one self-contained file, renamed atomically into place
+    with atomic_path(path) as tmp:
         with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
             w.write_points_cells(pts, [(kind, cells)])
             for k, i in enumerate(idx):
@@ -147,10 +141,6 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
                 if disp is not None:
                     pd["displacement_m"] = disp[k]
                 w.write_data(float(result.times_s[i]), point_data=pd)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -218,8 +208,6 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
             if exaggeration is None else float(exaggeration)
         grid.point_data["displacement_m"] = disp
         grid = grid.warp_by_vector("displacement_m", factor=scale)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = _tmp_beside(path)
     from vtkmodules.vtkCommonCore import vtkLogger
     verbosity = vtkLogger.GetCurrentVerbosityCutoff()
     # a headless machine has no X server; VTK falls back to off-screen rendering but logs a
@@ -238,13 +226,11 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
         pl.view_vector((0.6, -1.0, 0.0), viewup=(1.0, 0.0, 0.0))
         pl.reset_camera()
         pl.camera.zoom(1.4)
-        pl.screenshot(str(tmp))
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            pl.screenshot(str(tmp))
     finally:
         pl.close()
         vtkLogger.SetStderrVerbosity(verbosity)
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -261,7 +247,7 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         With stored fields.
     out_dir : str or Path
         Directory (created if needed); typically a staging directory of
-        :func:`scenarios.io.staged_out_dir`.
+        :func:`arfem.io.staged_out_dir`.
     elastic : ThermoElastic, optional
         Adds the displacement to both outputs; built from ``model`` if None.
     max_frames : int or None
@@ -274,7 +260,7 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
     dict
         ``{"fields_xdmf": Path, "picture_png": Path, "picture_time_s": float}``.
     """
-    from fem.elastic import ThermoElastic
+    from arfem.fem.elastic import ThermoElastic
     out = Path(out_dir)
     if result.fields is None:
         raise InputError("has no stored fields; solve with store_fields=True", "result")

@@ -8,7 +8,7 @@ The problem (θ = T − T_ref, T_ref = the rod's nominal ambient):
     ∂θ/∂n = 0                                       on ``far``
 
 Semi-discretised: M θ' + (K + h B) θ = q f_q + h θ_amb f_b, with every input
-piecewise constant in time (a :class:`models.params.Schedule`).
+piecewise constant in time (a :class:`arfem.params.Schedule`).
 
 Two integrators:
 
@@ -22,7 +22,7 @@ Two integrators:
 
 Axial growth is reported as α∫θ dV / A, which for a free bar held axially at one
 end equals the face-averaged axial displacement of the far face (reciprocity;
-see :mod:`fem.elastic`).
+see :mod:`arfem.fem.elastic`).
 """
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ from skfem import (Basis, BilinearForm, ElementHex1, ElementHex2, ElementHexS2,
                    ElementQuad1, ElementQuad2, FacetBasis, LinearForm, Mesh)
 from skfem.helpers import dot, grad
 
-from models.params import InputError, Rod, Schedule
+from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["HeatFEM", "HeatResult", "solve_theta", "solve_modal", "build_axisymmetric",
            "build_3d", "ELEMENTS"]
@@ -116,7 +116,7 @@ class HeatFEM:
         ----------
         mesh : skfem.Mesh
             Coordinates [m] ((r, z) if ``axisymmetric``), with boundaries tagged
-            ``heated`` and ``lateral`` (and ``far`` for :mod:`fem.elastic`).
+            ``heated`` and ``lateral`` (and ``far`` for :mod:`arfem.fem.elastic`).
         element : skfem.Element
             Scalar element family (see :data:`ELEMENTS`).
         rod : Rod
@@ -234,7 +234,7 @@ class HeatFEM:
 
 def build_axisymmetric(rod: Rod, order: int = 2, nr: int = 4, nz: int = 24,
                        ratio_r: float = 3.0, ratio_z: float = 6.0) -> HeatFEM:
-    """Axisymmetric model on :func:`fem.mesh.axisymmetric_mesh` with Q1 or Q2 elements.
+    """Axisymmetric model on :func:`arfem.fem.mesh.axisymmetric_mesh` with Q1 or Q2 elements.
 
     The default mesh (Q2, nr=4, nz=24) has a paper-cycle peak-growth error below
     1e-4 µm (Richardson over Q1 refinements; ``benchmarks/study_convergence.py``).
@@ -262,7 +262,7 @@ def build_axisymmetric(rod: Rod, order: int = 2, nr: int = 4, nz: int = 24,
     InputError
         If ``order`` is not 1 or 2, or a mesh count is invalid.
     """
-    from fem.mesh import axisymmetric_mesh
+    from arfem.fem.mesh import axisymmetric_mesh
     if order not in (1, 2):
         raise InputError(f"must be 1 or 2, got {order!r}", "order")
     mesh = axisymmetric_mesh(rod, nr=nr, nz=nz, ratio_r=ratio_r, ratio_z=ratio_z)
@@ -271,7 +271,7 @@ def build_axisymmetric(rod: Rod, order: int = 2, nr: int = 4, nz: int = 24,
 
 def build_3d(rod: Rod, order: int | str = 2, n_core: int = 3, n_ring: int = 2, nz: int = 16,
              ratio_ring: float = 2.0, ratio_z: float = 6.0) -> HeatFEM:
-    """3D model on :func:`fem.mesh.cylinder_mesh` (order 2 = 20-node serendipity bricks).
+    """3D model on :func:`arfem.fem.mesh.cylinder_mesh` (order 2 = 20-node serendipity bricks).
 
     The default mesh (n_core=3: 12 elements around the circumference) has a
     paper-cycle peak-growth error of ~0.002 µm by Richardson extrapolation over
@@ -303,7 +303,7 @@ def build_3d(rod: Rod, order: int | str = 2, n_core: int = 3, n_ring: int = 2, n
     InputError
         If ``order`` is not one of the above, or a mesh count is invalid.
     """
-    from fem.mesh import cylinder_mesh
+    from arfem.fem.mesh import cylinder_mesh
     if ("3d", order) not in ELEMENTS:
         raise InputError(f"must be 1, 2 or '2-lagrange', got {order!r}", "order")
     mesh = cylinder_mesh(rod, n_core=n_core, n_ring=n_ring, nz=nz, ratio_ring=ratio_ring,

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from skfem import MeshHex1, MeshHex2, MeshQuad1
 
-from models.params import InputError, Rod
+from arfem.params import InputError, Rod
 
 __all__ = ["graded", "axisymmetric_mesh", "cylinder_mesh", "disk_map"]
 

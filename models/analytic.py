@@ -24,7 +24,7 @@ Bi = hR/λ. The growth step response is
     ΔL(t) = Σ_{m≥1} α q w_m R² / (λ μ_m²) · (1 − e^{−a μ_m² t / R²}),
     w_m = (∫φ_m dA)² / (A ∫φ_m² dA) = 4 Bi² / (μ_m² (μ_m² + Bi²)),  Σ_m w_m = 1,
 
-of which :func:`models.ar1.corrected_coefficients` keeps m = 1. The modes
+of which :func:`arfem.models.ar1.corrected_coefficients` keeps m = 1. The modes
 m ≥ 2 carry 1 − w_1 ≈ Bi²/48 of the weight (see :func:`radial_mode_weights`)
 and, being fast, only ~3e-6 of the steady growth at the paper's Bi = 0.11. The
 steady 3D growth is exactly (1 + Bi/4) times the 1D one
@@ -49,8 +49,8 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import j0, j1, jn_zeros
 
-from models.ar1 import steady_growth_m
-from models.params import InputError, Rod, Schedule
+from arfem.models.ar1 import steady_growth_m
+from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["fin_parameter_1_m", "steady_profile_1d", "series_rates_1d", "temperature_1d",
            "growth_1d_step", "growth_1d", "radial_eigenvalues", "radial_mode_weights",
@@ -320,7 +320,7 @@ def growth_1d(rod: Rod, schedule: Schedule, t_s) -> np.ndarray:
     -----
     Paper eq. 8 superposed over the flux steps. Sampled every Δτ on a schedule
     whose segments are multiples of Δτ it equals the AR(1) of paper eqs. 12-14
-    (:func:`models.ar1.ar1_on_schedule`) to rounding.
+    (:func:`arfem.models.ar1.ar1_on_schedule`) to rounding.
 
     References
     ----------
@@ -328,7 +328,7 @@ def growth_1d(rod: Rod, schedule: Schedule, t_s) -> np.ndarray:
 
     Examples
     --------
-    >>> from models.params import paper_cycle
+    >>> from arfem.params import paper_cycle
     >>> g = growth_1d(Rod(), paper_cycle(2000.0), [4 * 3600.0, 9.5 * 3600.0])
     >>> np.round(g * 1e6, 3).tolist()
     [21.547, 21.598]
@@ -430,7 +430,7 @@ def steady_growth_3d_m(rod: Rod, q_W_m2: float) -> float:
     Integrating the steady heat equation over z leaves λ ∇²_r Θ + q = 0 for
     Θ(r) = ∫θ dz, with −λΘ'(R) = hΘ(R); so Θ = qR/(2h) + q(R² − r²)/(4λ), whose
     area mean is (qR/(2h))(1 + Bi/4). The 1D value of paper eq. 8 is the Bi → 0
-    limit (:func:`models.ar1.steady_growth_m`); the sum of the modal gains of
+    limit (:func:`arfem.models.ar1.steady_growth_m`); the sum of the modal gains of
     :func:`growth_3d_modes` converges to this.
 
     Examples
@@ -488,7 +488,7 @@ def growth_3d_step(rod: Rod, q_W_m2: float, t_s, n_modes: int = 40,
         Times since the step [s], >= 0.
     n_modes : int
         Radial modes summed. ``n_modes=1`` is the response of the corrected
-        AR(1) (:func:`models.ar1.corrected_coefficients`).
+        AR(1) (:func:`arfem.models.ar1.corrected_coefficients`).
     per_mode : bool
         Return the contribution of every mode, shape (len(t_s), n_modes).
 
@@ -537,7 +537,7 @@ def growth_3d(rod: Rod, schedule: Schedule, t_s, n_modes: int = 40) -> np.ndarra
 
     Examples
     --------
-    >>> from models.params import paper_cycle
+    >>> from arfem.params import paper_cycle
     >>> g = growth_3d(Rod(), paper_cycle(2000.0), [4 * 3600.0, 9.5 * 3600.0])
     >>> np.round(g * 1e6, 4).tolist()      # 9.5 h: the cycle's peak
     [22.1042, 22.1666]

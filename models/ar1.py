@@ -26,7 +26,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import j0, j1, jn_zeros
 
-from models.params import InputError, Rod, Schedule
+from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["c1_paper", "c2_paper", "steady_growth_m", "radial_eigenvalue",
            "corrected_coefficients", "ar1_simulate", "ar1_on_schedule", "fit_ar1", "AR1Fit"]
@@ -179,7 +179,7 @@ def corrected_coefficients(rod: Rod, dtau_s: float, q_W_m2: float) -> tuple[floa
     """C1, C2 [-, m] of the AR(1) derived from the slowest radial mode of the 3D rod.
 
     The growth response to a unit step of flux is Σ_m w_m (1 − e^{−a μ_m² t/R²}),
-    exactly, for the rod with uniform lateral h (see :mod:`models.analytic`).
+    exactly, for the rod with uniform lateral h (see :mod:`arfem.models.analytic`).
     Keeping m = 1:
 
         C1 = exp(−a μ1² Δτ / R²)
@@ -242,7 +242,7 @@ def ar1_simulate(c1, c2, g0: float = 0.0) -> np.ndarray:
     >>> ar1_simulate(0.5, [1.0, float("nan")])
     Traceback (most recent call last):
     ...
-    models.params.InputError: c2: must be finite
+    arfem.params.InputError: c2: must be finite
     """
     try:
         c2 = np.asarray(c2, float)
@@ -302,7 +302,7 @@ def ar1_on_schedule(rod: Rod, schedule: Schedule, dtau_s: float, corrected: bool
 
     Examples
     --------
-    >>> from models.params import paper_cycle
+    >>> from arfem.params import paper_cycle
     >>> t, g = ar1_on_schedule(Rod(), paper_cycle(2000.0), 30.0)
     >>> t.size, round(float(t[-1]) / 3600, 1), round(float(g.max()) * 1e6, 3)
     (2881, 24.0, 21.598)
@@ -368,7 +368,7 @@ def fit_ar1(growth, levels) -> AR1Fit:
     >>> fit_ar1([0.0, 1.0, 2.0], [1.0])
     Traceback (most recent call last):
     ...
-    models.params.InputError: levels: needs 2 levels for 3 growth values
+    arfem.params.InputError: levels: needs 2 levels for 3 growth values
     """
     try:
         g = np.asarray(growth, float)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.params import InputError, check_finite
+from arfem.params import InputError, check_finite
 
 __all__ = ["check_ar_tracks_fem", "MAX_DEV_OF_PEAK", "C1_TOL"]
 
@@ -39,7 +39,7 @@ def check_ar_tracks_fem(fem_growth, ar_growth, c1_fitted: float, c1_closed: floa
     ar_growth : array_like
         AR(1) growth at the same times, same unit.
     c1_fitted : float
-        C1 fitted to the FEM series (:func:`models.ar1.fit_ar1`) [-].
+        C1 fitted to the FEM series (:func:`arfem.models.ar1.fit_ar1`) [-].
     c1_closed : float
         C1 of the AR being checked, e.g. paper eq. 13 [-].
     max_dev_of_peak : float

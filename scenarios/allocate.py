@@ -1,6 +1,6 @@
 """``arfem allocate SCENARIO --out DIR [--force]``: precision allocation over a motion chain.
 
-Reads an allocation scenario (:mod:`models.allocation.scenario`), solves the
+Reads an allocation scenario (:mod:`arfem.models.allocation.scenario`), solves the
 NSGA-II allocation of Zhou et al. (2020) and writes, atomically:
 
 * ``pareto.csv``      -- the Pareto front (one row per member, unit-suffixed columns)
@@ -17,12 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
-from models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, TWIST_INDEX, allocate,
+from arfem.models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, TWIST_INDEX, allocate,
                                        evaluate, unit_twists)
-from models.allocation.scenario import build_chain, load_scenario
-from scenarios.io import prepare_out_dir, staged_out_dir, write_csv, write_json
+from arfem.io import read_toml, write_csv, write_json
+from arfem.models.allocation.scenario import AllocationScenario, build_chain, parse_scenario
+from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
-__all__ = ["add_parser", "main", "run_allocation"]
+__all__ = ["add_parser", "main", "run_allocation", "load_allocation_scenario"]
+
+def load_allocation_scenario(path) -> AllocationScenario:
+    """Read and validate an allocation scenario file; :class:`InputError` names the file and key."""
+    p = Path(path)
+    return parse_scenario(read_toml(p), str(p))
+
 
 #: seeds of the seed-sensitivity table in the report
 SEEDS = (1, 2, 3, 4, 5)
@@ -47,7 +54,7 @@ def _row(chain, ev, k) -> dict:
 
 def run_allocation(scenario_path) -> dict:
     """Everything the writers need: scenario, chain, main result and comparisons."""
-    sc = load_scenario(scenario_path)
+    sc = load_allocation_scenario(scenario_path)
     chain, spindle = build_chain(sc)
     st = sc.settings
     main_res = allocate(chain, st)

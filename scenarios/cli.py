@@ -16,15 +16,16 @@ import argparse
 import importlib
 import sys
 
-from models.params import InputError
+from arfem import __version__
+from arfem.params import InputError
 
 #: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
 COMMANDS = {
-    "run": "scenarios.run",
-    "reproduce": "scenarios.run",
-    "sweep": "scenarios.sweep",
-    "diagnose": "scenarios.diagnose",
-    "allocate": "scenarios.allocate",
+    "run": "arfem.scenarios.run",
+    "reproduce": "arfem.scenarios.run",
+    "sweep": "arfem.scenarios.sweep",
+    "diagnose": "arfem.scenarios.diagnose",
+    "allocate": "arfem.scenarios.allocate",
 }
 
 
@@ -42,6 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="FEM thermo-elastic simulation of a spindle rod against the AR(1) "
                     "thermal-growth model (Du et al. 2021), with sweeps and diagnosis of "
                     "measured data.")
+    p.add_argument("--version", action="version", version=f"arfem {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
     seen = set()
     for name, modname in COMMANDS.items():

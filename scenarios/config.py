@@ -41,15 +41,20 @@ refused with one line naming the file and the key.
 from __future__ import annotations
 
 import copy
-import difflib
 from dataclasses import dataclass, field, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from models.params import (InputError, Rod, Schedule, check_finite, check_plausible,
+from arfem.params import (InputError, Rod, Schedule, check_finite, check_plausible,
                            steps_per_segment)
-from scenarios.io import read_toml
+from arfem.io import read_toml
+from arfem.strict import boolean as _bool
+from arfem.strict import check_keys as _unknown
+from arfem.strict import join as _join
+from arfem.strict import number as _number
+from arfem.strict import string as _string
+from arfem.strict import table as _table
 
 
 __all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
@@ -144,52 +149,6 @@ def load_scenario(path) -> Scenario:
 
 
 # -- validation helpers ---------------------------------------------------------------
-
-def _unknown(keys, allowed, where: str):
-    for k in keys:
-        if k not in allowed:
-            close = difflib.get_close_matches(k, sorted(allowed), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else \
-                f" (allowed: {', '.join(sorted(allowed))})"
-            raise InputError(f"unknown key{hint}", f"{where}.{k}" if where else k)
-
-
-def _table(d: dict, key: str, where: str) -> dict:
-    v = d.get(key, {})
-    if not isinstance(v, dict):
-        raise InputError(f"must be a table, got {type(v).__name__}", _join(where, key))
-    return v
-
-
-def _join(a: str, b: str) -> str:
-    return f"{a}.{b}" if a else b
-
-
-def _number(v, where: str, *, positive=False, allow_zero=False, integer=False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(f"must be a number, got {type(v).__name__} {v!r}", where)
-    if integer and not isinstance(v, int):
-        raise InputError(f"must be a whole number, got {v!r}", where)
-    f = check_finite(where, v)
-    if positive and (f < 0 or (f == 0 and not allow_zero)):
-        raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}", where)
-    return f
-
-
-def _string(v, where: str, choices=None) -> str:
-    if not isinstance(v, str):
-        raise InputError(f"must be a string, got {type(v).__name__} {v!r}", where)
-    if choices is not None and v not in choices:
-        raise InputError(f"must be one of {', '.join(repr(c) for c in choices)}, got {v!r}",
-                         where)
-    return v
-
-
-def _bool(v, where: str) -> bool:
-    if not isinstance(v, bool):
-        raise InputError(f"must be true or false, got {v!r}", where)
-    return v
-
 
 def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     """Validate a scenario given as a dict (as read from TOML).

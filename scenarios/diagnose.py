@@ -6,9 +6,16 @@ Writes ``diagnosis.json`` (the measured-data contract's keys and more), ``report
 """
 from __future__ import annotations
 
-from scenarios.io import prepare_out_dir, staged_out_dir
+from arfem.models.diagnosis.engine import Diagnosis, diagnose
+from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
-__all__ = ["add_parser", "main", "run_diagnosis"]
+__all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
+
+
+def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
+    """Load a contract dataset (TOML + CSV) and diagnose it."""
+    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search)
 
 
 def add_parser(subparsers):
@@ -31,8 +38,7 @@ def add_parser(subparsers):
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow"):
     """Diagnose ``case`` (TOML path) and write every output into ``out``; returns the summary."""
-    from models.diagnosis.engine import diagnose_file
-    from models.diagnosis.report import write_all
+    from arfem.scenarios.diagnosis_report import write_all
     prepare_out_dir(out, force)           # refuse early, before any work
     diag = diagnose_file(case, holdout_start_s, frame_search)
     with staged_out_dir(out, force) as stage:

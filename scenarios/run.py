@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from fem.heat import HeatFEM, build_3d, build_axisymmetric, solve_modal, solve_theta
-from models.ar1 import (ar1_on_schedule, c1_paper, c2_paper, corrected_coefficients, fit_ar1)
-from models.params import InputError
-from scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
-from scenarios.io import (atomic_write_text, prepare_out_dir, staged_out_dir, write_csv,
-                          write_json)
+from arfem.fem.heat import HeatFEM, build_3d, build_axisymmetric, solve_modal, solve_theta
+from arfem.models.ar1 import (ar1_on_schedule, c1_paper, c2_paper, corrected_coefficients, fit_ar1)
+from arfem.params import InputError
+from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
+from arfem.io import atomic_write_text, write_csv, write_json
+from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "PAPER_VALUES"]
@@ -227,7 +227,7 @@ def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
 
 
 def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
-    """FEM field time series and 3D picture (:mod:`fem.export`), where the scenario asks.
+    """FEM field time series and 3D picture (:mod:`arfem.fem.export`), where the scenario asks.
 
     The fields are solved again, with stored states, at every
     ``outputs.field_interval_s`` (and at the growth peak), and the thermo-elastic
@@ -238,8 +238,8 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
     sc = ev.scenario
     if not (sc.outputs.fields or sc.outputs.picture or sc.fem.elastic):
         return {}
-    from fem import export
-    from fem.elastic import ThermoElastic
+    from arfem.fem import export
+    from arfem.fem.elastic import ThermoElastic
 
     total = sc.schedule.total_s
     times = np.arange(0.0, total + 1e-9, sc.outputs.field_interval_s)

@@ -51,10 +51,11 @@ from typing import Callable, Iterable, Sequence
 
 import numpy as np
 
-from models.params import InputError, check_finite
-from scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
+from arfem.params import InputError, check_finite
+from arfem.scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
                               scenario_from_dict)
-from scenarios.io import atomic_write_text, check_out_path, read_toml, staged_out_dir, write_json
+from arfem.io import atomic_write_text, read_toml, write_json
+from arfem.scenarios.outdir import check_out_path, staged_out_dir
 
 __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "point_key",
            "resolved_inputs",
@@ -169,7 +170,7 @@ def resolved_inputs(scenario) -> dict:
 
     Examples
     --------
-    >>> from scenarios.config import scenario_from_dict
+    >>> from arfem.scenarios.config import scenario_from_dict
     >>> cyc = {"phases": [{"duration_h": 1.0, "q_W_m2": 2000.0}]}
     >>> a = scenario_from_dict({"cycle": cyc, "scenario": {"name": "a"}})
     >>> b = scenario_from_dict({"cycle": cyc, "rod": {"radius_m": 0.1}, "ar": {"dtau_s": 30}})
@@ -361,7 +362,7 @@ def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
     dict
         ``{"metrics": {...}, "run_time_s": float, "worker": "host:pid"}``.
     """
-    from scenarios.run import evaluate
+    from arfem.scenarios.run import evaluate
     t0 = time.perf_counter()
     scenario = scenario_from_dict(data, source)
     if len(_WORKER_CACHE) > _WORKER_CACHE_MAX:

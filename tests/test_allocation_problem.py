@@ -7,16 +7,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.allocation.problem import allocate, evaluate
-from models.allocation.scenario import build_chain, load_scenario
-from scenarios.cli import main
+from arfem.models.allocation.problem import allocate, evaluate
+from arfem.models.allocation.scenario import build_chain
+from arfem.scenarios.allocate import load_allocation_scenario
+from arfem.scenarios.cli import main
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "pallet_changer.toml"
 
 
 @pytest.fixture(scope="module")
 def chain_settings():
-    sc = load_scenario(SCENARIO)
+    sc = load_allocation_scenario(SCENARIO)
     chain, _ = build_chain(sc)
     return chain, sc.settings
 
@@ -65,7 +66,7 @@ def test_spindle_growth_is_fixed_and_uncosted(chain_settings, tmp_path):
     text = text.replace("delta_E_mm = 0.005", "delta_E_mm = 0.030")
     p = tmp_path / "s.toml"
     p.write_text(text)
-    sc = load_scenario(p)
+    sc = load_allocation_scenario(p)
     chain, info = build_chain(sc)
     base, _ = chain_settings
     assert len(chain.variables) == len(base.variables)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from models.allocation import screw
+from arfem.models.allocation import screw
 
 
 def _random_chain(rng, n=4):

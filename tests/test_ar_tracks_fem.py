@@ -1,9 +1,9 @@
 """CI check: the paper's AR(1) tracks the FEM on the paper duty cycle (issue 3).
 
 The FEM is the axisymmetric Q2 model on the default mesh of
-:func:`fem.heat.build_axisymmetric`, integrated exactly in time by
-:func:`fem.heat.solve_modal` on the paper cycle subdivided into Δτ = 30 s steps.
-The criterion itself is :func:`models.checks.check_ar_tracks_fem`; here it is
+:func:`arfem.fem.heat.build_axisymmetric`, integrated exactly in time by
+:func:`arfem.fem.heat.solve_modal` on the paper cycle subdivided into Δτ = 30 s steps.
+The criterion itself is :func:`arfem.models.checks.check_ar_tracks_fem`; here it is
 shown to pass for the paper AR(1) and to fail for deliberately broken ones.
 
 Measured (python -m pytest tests/test_ar_tracks_fem.py, default mesh nr=4, nz=24):
@@ -26,10 +26,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem.heat import build_axisymmetric, solve_modal
-from models.ar1 import ar1_on_schedule, c1_paper, corrected_coefficients, fit_ar1
-from models.checks import check_ar_tracks_fem
-from models.params import Rod, paper_cycle
+from arfem.fem.heat import build_axisymmetric, solve_modal
+from arfem.models.ar1 import ar1_on_schedule, c1_paper, corrected_coefficients, fit_ar1
+from arfem.models.checks import check_ar_tracks_fem
+from arfem.params import Rod, paper_cycle
 
 ROD = Rod()
 DTAU = 30.0

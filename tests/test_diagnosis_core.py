@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from fem.heat import build_axisymmetric, solve_modal
-from models.diagnosis.forward import RodModel
-from models.params import Rod, Schedule
-from scenarios.cli import main as cli
+from arfem.fem.heat import build_axisymmetric, solve_modal
+from arfem.models.diagnosis.forward import RodModel
+from arfem.params import Rod, Schedule
+from arfem.scenarios.cli import main as cli
 
 
 def test_reduced_rod_equals_full_modal_fem_with_switching_h_and_ambient():

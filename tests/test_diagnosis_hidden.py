@@ -5,9 +5,10 @@ import json
 
 import pytest
 
-from models.diagnosis.engine import CONTRACT_PARAMETERS
-from models.diagnosis.synth import generate, write_case
-from scenarios.diagnose import run_diagnosis
+from arfem.models.diagnosis.engine import CONTRACT_PARAMETERS
+from arfem.models.diagnosis.synth import generate
+from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.diagnose import run_diagnosis
 
 #: relative (or absolute, for the exponent) tolerance on the fitted parameter, and why
 TOL = {

@@ -11,10 +11,10 @@ import json
 import numpy as np
 import pytest
 
-from models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag
-from models.diagnosis.speed import (FrameStructure, fit_frame_thermometers, forward_folds,
+from arfem.models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag
+from arfem.models.diagnosis.speed import (FrameStructure, fit_frame_thermometers, forward_folds,
                                     frame_structures, heat_law, select_frame_structure)
-from scenarios.cli import main as cli
+from arfem.scenarios.cli import main as cli
 
 ROD_TAU_H, FRAME_TAU_H, FRAME_GAIN, P_TRUE, K_ROD_UM = 1.0, 8.0, -0.4, 5.0 / 3.0, 20.0
 ROOM_UM_PER_K = 1.5

@@ -3,7 +3,7 @@
 The quantity is the largest growth over the paper's 24 h cycle, reached at the
 end of the second heating (t = 9.5 h). Richardson extrapolation of a refinement
 sequence estimates the remaining error of the default meshes of
-:func:`fem.heat.build_axisymmetric` and :func:`fem.heat.build_3d`, which must be
+:func:`arfem.fem.heat.build_axisymmetric` and :func:`arfem.fem.heat.build_3d`, which must be
 below 0.01 µm (0.05 % of the 22.17 µm peak). The 3D study is ``slow``; the full
 table is printed by ``benchmarks/study_convergence.py``.
 """
@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
-from models.params import Rod, Schedule, paper_cycle
+from arfem.fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
+from arfem.params import Rod, Schedule, paper_cycle
 
 ROD = Rod()
 SCHED = paper_cycle(2000.0)

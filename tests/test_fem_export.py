@@ -5,10 +5,10 @@ import meshio
 import numpy as np
 import pytest
 
-from fem.elastic import ThermoElastic
-from fem.export import render_png, write_fields, write_scenario_fields
-from fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
-from models.params import InputError, Rod, paper_cycle
+from arfem.fem.elastic import ThermoElastic
+from arfem.fem.export import render_png, write_fields, write_scenario_fields
+from arfem.fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
+from arfem.params import InputError, Rod, paper_cycle
 
 ROD = Rod()
 TIMES = np.array([0.0, 4 * 3600.0, 9.5 * 3600.0, 24 * 3600.0])

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-import fem.heat
-from fem.elastic import ThermoElastic
-from fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
-from models.params import InputError, Rod, Schedule
+from arfem.fem import heat as fem_heat
+from arfem.fem.elastic import ThermoElastic
+from arfem.fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
+from arfem.params import InputError, Rod, Schedule
 
 POSITIVE = ["radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
             "specific_heat_J_kgK", "convection_W_m2K", "expansion_1_K", "youngs_modulus_Pa"]
@@ -47,9 +47,9 @@ def no_assembly(monkeypatch):
     """Make any assembly or solve fail loudly, to prove refusal happens before them."""
     def boom(*a, **k):
         raise AssertionError("assembly/solve reached with bad input")
-    monkeypatch.setattr(fem.heat.HeatFEM, "build", classmethod(boom))
-    monkeypatch.setattr(fem.heat, "splu", boom)
-    monkeypatch.setattr(fem.heat, "modes", boom)
+    monkeypatch.setattr(fem_heat.HeatFEM, "build", classmethod(boom))
+    monkeypatch.setattr(fem_heat, "splu", boom)
+    monkeypatch.setattr(fem_heat, "modes", boom)
 
 
 @pytest.mark.parametrize("kw, name", [

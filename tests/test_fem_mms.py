@@ -1,4 +1,4 @@
-"""Method of manufactured solutions for the transient heat operator of :mod:`fem.heat`.
+"""Method of manufactured solutions for the transient heat operator of :mod:`arfem.fem.heat`.
 
 Spatial and temporal accuracy are measured apart:
 
@@ -27,9 +27,9 @@ from scipy.sparse.linalg import cg
 from skfem import Basis, ElementHex1, ElementHexS2, ElementQuad1, ElementQuad2, \
     FacetBasis, Functional, LinearForm
 
-from fem.heat import HeatFEM, solve_theta
-from fem.mesh import axisymmetric_mesh, cylinder_mesh
-from models.params import Rod, Schedule
+from arfem.fem.heat import HeatFEM, solve_theta
+from arfem.fem.mesh import axisymmetric_mesh, cylinder_mesh
+from arfem.params import Rod, Schedule
 
 ROD = Rod()
 R, L = ROD.radius_m, ROD.length_m

@@ -1,6 +1,6 @@
 """Physical identities the FEM must satisfy: energy balance, reciprocity, the 1D limit.
 
-Shared fixtures use the default axisymmetric mesh (Q2, :func:`fem.heat.build_axisymmetric`)
+Shared fixtures use the default axisymmetric mesh (Q2, :func:`arfem.fem.heat.build_axisymmetric`)
 and a coarse 3D serendipity mesh, so the module runs in a few seconds.
 """
 from __future__ import annotations
@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem.elastic import ThermoElastic
-from fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
-from models.ar1 import ar1_on_schedule
-from models.params import Rod, Schedule, paper_cycle
+from arfem.fem.elastic import ThermoElastic
+from arfem.fem.heat import build_3d, build_axisymmetric, solve_modal, solve_theta
+from arfem.models.ar1 import ar1_on_schedule
+from arfem.params import Rod, Schedule, paper_cycle
 
 ROD = Rod()
 

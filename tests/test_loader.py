@@ -1,4 +1,4 @@
-"""Tests of models.diagnosis.loader: the measured-data contract, read exactly, refused clearly."""
+"""Tests of arfem.scenarios.dataset (the loader): the measured-data contract, read exactly, refused clearly."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.diagnosis.loader import Dataset, hampel_outliers, load_dataset, sampling_gaps
-from models.params import InputError
+from arfem.models.diagnosis.dataset import Dataset, hampel_outliers, sampling_gaps
+from arfem.scenarios.dataset import load_dataset
+from arfem.params import InputError
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
-FL = SHARED / "data" / "fl_thermal"
+FL = Path(__file__).resolve().parents[1] / "scenarios" / "fl_thermal"
 
 
 def write(tmp_path: Path, csv_text: str, toml_text: str | None = None, stem="case",
@@ -43,17 +43,16 @@ def refuse(path: Path, *needles: str) -> str:
 
 # -- the real recording ------------------------------------------------------------
 
-@pytest.mark.skipif(not (FL / "fl_thermal_ch1.toml").exists(), reason="shared data absent")
 def test_real_fl_thermal_ch1_loads():
     """The real foreign-format file (non-ASCII mapped columns, BOM-free UTF-8, speed input,
     initial unknown) loads completely: exact row and sensor counts, nothing dropped."""
     ds = load_dataset(FL / "fl_thermal_ch1.toml")
     assert isinstance(ds, Dataset)
     assert ds.input_kind == "speed_rpm" and ds.q_W_m2 is None
-    assert ds.n_rows == 6721
+    assert ds.n_rows == 11115
     assert len(ds.temperatures) == 16 and "T_t5_C" in ds.temperatures
     assert ds.initial_known is False
-    assert ds.time_s[0] == 0.0 and ds.time_s[-1] == 100800.0
+    assert ds.time_s[0] == 0.0 and ds.time_s[-1] == 166710.0
     assert np.all(np.diff(ds.time_s) == 15.0) and ds.gaps == []
     assert set(np.unique(ds.speed_rpm)) <= set(range(0, 5001))
     assert ds.speed_rpm.max() == 5000

@@ -8,9 +8,9 @@ import pytest
 from scipy.integrate import quad, simpson
 from scipy.special import erf
 
-from models import analytic
-from models.ar1 import corrected_coefficients, steady_growth_m
-from models.params import InputError, Rod, Schedule, paper_cycle
+from arfem.models import analytic
+from arfem.models.ar1 import corrected_coefficients, steady_growth_m
+from arfem.params import InputError, Rod, Schedule, paper_cycle
 
 ROD = Rod()
 Q = 2000.0
@@ -75,7 +75,7 @@ def test_series_converges_with_n_terms():
     where the high modes matter most. Measured: 1.4 (25 terms) → 1.5e-10
     (400 terms) at 0.5 s; asserted: monotone decrease and < 1e-8 at 400 terms.
     (The reference's own error is below 1e-16: the truncation error decays
-    like e^{−a(nπ/L)²t}, see :func:`models.analytic.temperature_1d`.)
+    like e^{−a(nπ/L)²t}, see :func:`arfem.models.analytic.temperature_1d`.)
     """
     x = np.linspace(0, ROD.length_m, 401)
     t = [0.5, 3601.0]
@@ -202,7 +202,7 @@ def test_3d_modal_growth_matches_axisymmetric_fem_on_paper_cycle():
     room for mesh changes while any modelling slip (a wrong weight, a missing
     mode, 1D instead of 3D: 2.6 %) fails.
     """
-    from fem.heat import build_axisymmetric, solve_modal
+    from arfem.fem.heat import build_axisymmetric, solve_modal
     sched = paper_cycle(Q)
     t = sched.subdivided(300.0).edges_s
     fem = solve_modal(build_axisymmetric(ROD), sched, output_times_s=t).growth_m

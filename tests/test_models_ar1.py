@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from models import analytic
-from models.ar1 import (ar1_on_schedule, ar1_simulate, c1_paper, c2_paper,
+from arfem.models import analytic
+from arfem.models.ar1 import (ar1_on_schedule, ar1_simulate, c1_paper, c2_paper,
                         corrected_coefficients, fit_ar1, radial_eigenvalue, steady_growth_m)
-from models.params import InputError, Rod, Schedule, paper_cycle
+from arfem.params import InputError, Rod, Schedule, paper_cycle
 from scipy.special import j0, j1
 
 ROD = Rod()

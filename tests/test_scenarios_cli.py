@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.cli import main
-from scenarios.config import load_scenario, scenario_from_dict, builtin_scenario_path
-from scenarios.io import read_toml
+from arfem.scenarios.cli import main
+from arfem.scenarios.config import load_scenario, scenario_from_dict, builtin_scenario_path
+from arfem.io import read_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
@@ -210,8 +210,8 @@ def test_staged_move_is_all_or_nothing(tmp_path, monkeypatch):
     exactly as before (old content, no new file) and no staging debris is left."""
     import os
 
-    import scenarios.io as sio
-    from models.params import InputError
+    import arfem.scenarios.outdir as sio
+    from arfem.params import InputError
     out = tmp_path / "out"
     out.mkdir()
     (out / "b.txt").write_text("old b")
@@ -237,7 +237,7 @@ def test_stale_staging_of_a_killed_run_is_removed(tmp_path):
     by the next run into the same --out; one of a live process is left alone."""
     import os
 
-    import scenarios.io as sio
+    import arfem.scenarios.outdir as sio
     dead = tmp_path / ".out.staging-999999999-abc"
     live = tmp_path / f".out.staging-{os.getpid()}-xyz"
     dead.mkdir()

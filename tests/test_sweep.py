@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from models.params import InputError
-from scenarios.cli import main
-from scenarios.config import scenario_from_dict
-from scenarios.run import evaluate
-from scenarios.sweep import (PointStore, TIMING_COLUMNS, biot_threshold, load_sweep,
+from arfem.params import InputError
+from arfem.scenarios.cli import main
+from arfem.scenarios.config import scenario_from_dict
+from arfem.scenarios.run import evaluate
+from arfem.scenarios.sweep import (PointStore, TIMING_COLUMNS, biot_threshold, load_sweep,
                              point_key, run_sweep)
 
 REPO = Path(__file__).resolve().parents[1]

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem.heat import modes
-from models.diagnosis.loader import load_dataset
-from models.diagnosis.synth import (CAUSES, ambient_gain_um_per_K, generate, random_case,
-                                    rod_model, write_case)
-from models.params import InputError, Rod
+from arfem.fem.heat import modes
+from arfem.scenarios.dataset import load_dataset
+from arfem.models.diagnosis.synth import (CAUSES, ambient_gain_um_per_K, generate, random_case, rod_model)
+from arfem.scenarios.synth_files import write_case
+from arfem.params import InputError, Rod
 
 H0 = 55.0
 

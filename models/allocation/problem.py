@@ -5,8 +5,8 @@ marks free (translations [mm], rotations [mrad] as given in scenario files,
 rad inside the screw algebra). For each candidate:
 
 * the chain error screw ξ_E in the frame of the functional point
-  (:func:`models.allocation.screw.compose_adjoint`, or the paper's form
-  :func:`~models.allocation.screw.compose_paper`), eqs. 6-8;
+  (:func:`arfem.models.allocation.screw.compose_adjoint`, or the paper's form
+  :func:`~arfem.models.allocation.screw.compose_paper`), eqs. 6-8;
 * its pitch h_E [mm/rad] and the displacement bound m_E [mm] (eqs. 10-13);
 * each unit's accuracy x_i [mm] = |v_i| + r·|ω_i| of its own error screw mapped to
   the functional point (what that unit alone moves a point within the working
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from models.allocation import screw
+from arfem.models.allocation import screw
 
 __all__ = ["COMPONENTS", "TWIST_INDEX", "Unit", "Chain", "Settings", "Evaluation",
            "AllocationResult", "cost_model", "unit_twists", "evaluate", "allocate",

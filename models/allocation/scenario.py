@@ -31,12 +31,11 @@ from pathlib import Path
 import numpy as np
 
 
-from models.allocation import screw
-from models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
-from models.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
-from scenarios.io import read_toml
+from arfem.models.allocation import screw
+from arfem.models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
+from arfem.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
 
-__all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "load_scenario", "parse_scenario",
+__all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "parse_scenario",
            "build_chain"]
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
@@ -315,18 +314,11 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref)
 
 
-def load_scenario(path) -> AllocationScenario:
-    """Read and validate a scenario file; :class:`InputError` names the file and key."""
-    p = Path(path)
-    data = read_toml(p)
-    return parse_scenario(data, str(p))
-
-
 def build_chain(sc: AllocationScenario, rod=None) -> tuple[Chain, dict | None]:
     """Turn a scenario into a :class:`Chain`, resolving the spindle's thermal Δz.
 
     The spindle, if any, becomes a unit with every error fixed: Δz [mm] from
-    :func:`models.allocation.thermal.spindle_dz_mm`, the others 0, inserted after
+    :func:`arfem.models.allocation.thermal.spindle_dz_mm`, the others 0, inserted after
     the unit it names.
 
     Parameters
@@ -335,21 +327,21 @@ def build_chain(sc: AllocationScenario, rod=None) -> tuple[Chain, dict | None]:
         Unit and tool poses (translation [mm]), error bounds and fixed errors in
         scenario units ([mm], [mrad]); spindle heat flux [W/m²], AR step [s].
     rod : Rod, optional
-        Spindle rod for the thermal growth (default :class:`models.params.Rod`).
+        Spindle rod for the thermal growth (default :class:`arfem.params.Rod`).
 
     Returns
     -------
     chain : Chain
         Units in chain order and the tool pose (translation [mm]).
     spindle_info : dict or None
-        What :func:`models.allocation.thermal.spindle_dz_mm` returned (``dz_mm``
+        What :func:`arfem.models.allocation.thermal.spindle_dz_mm` returned (``dz_mm``
         [mm], ``peak_growth_um`` [µm], ...) plus ``position``; None without a spindle.
     """
     units = [Unit(u.name, u.motion, u.pose, u.free, u.bounds, u.fixed, True) for u in sc.units]
     info = None
     if sc.spindle is not None:
-        from models.allocation.thermal import spindle_dz_mm
-        from models.params import Rod
+        from arfem.models.allocation.thermal import spindle_dz_mm
+        from arfem.params import Rod
         s = sc.spindle
         info = spindle_dz_mm(rod or Rod(), s.q_W_m2, s.model, s.dtau_s, s.compensated)
         fixed = {c: 0.0 for c in COMPONENTS}

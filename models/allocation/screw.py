@@ -1,6 +1,6 @@
 """Small-displacement screws of meta-action units (MUs) and their composition.
 
-Conventions (used throughout :mod:`models.allocation`)
+Conventions (used throughout :mod:`arfem.models.allocation`)
 -----------------------------------------------------
 * A twist is ξ = [ω; v] (6-vector): ω = (Δα, Δβ, Δγ) [rad] small rotations about
   x, y, z; v = (Δx, Δy, Δz) [mm] small translations. Lengths are in mm everywhere

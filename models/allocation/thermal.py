@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.params import InputError, Rod, paper_cycle
+from arfem.params import InputError, Rod, paper_cycle
 
 __all__ = ["MODELS", "growth_on_paper_cycle_m", "spindle_dz_mm"]
 
@@ -29,8 +29,8 @@ def growth_on_paper_cycle_m(rod: Rod, q_W_m2: float, model: str, dtau_s: float =
     model : {"ar", "ar_corrected", "fem"}
         ``"ar"``: AR(1) with the paper's C1, C2 (Du et al. eqs. 12-14);
         ``"ar_corrected"``: AR(1) from the slowest radial mode
-        (:func:`models.ar1.corrected_coefficients`); ``"fem"``: axisymmetric Q2
-        FEM (nr = 6, nz = 32) advanced exactly in time by :func:`fem.heat.solve_modal`.
+        (:func:`arfem.models.ar1.corrected_coefficients`); ``"fem"``: axisymmetric Q2
+        FEM (nr = 6, nz = 32) advanced exactly in time by :func:`arfem.fem.heat.solve_modal`.
     dtau_s : float
         Sampling step [s]; must divide the cycle's phases.
 
@@ -46,10 +46,10 @@ def growth_on_paper_cycle_m(rod: Rod, q_W_m2: float, model: str, dtau_s: float =
     """
     sched = paper_cycle(q_W_m2)
     if model in ("ar", "ar_corrected"):
-        from models.ar1 import ar1_on_schedule
+        from arfem.models.ar1 import ar1_on_schedule
         return ar1_on_schedule(rod, sched, dtau_s, corrected=(model == "ar_corrected"))
     if model == "fem":
-        from fem.heat import build_axisymmetric, solve_modal
+        from arfem.fem.heat import build_axisymmetric, solve_modal
         fem = build_axisymmetric(rod, order=2, nr=6, nz=32)
         t = sched.subdivided(dtau_s).edges_s
         res = solve_modal(fem, sched, output_times_s=t)

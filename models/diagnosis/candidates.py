@@ -9,13 +9,13 @@ on the rows before the hold-out that the loader did not flag as outliers.
 
 Two physics back-ends realise the causes:
 
-* :class:`FemPhysics` -- the FEM rod (:class:`models.diagnosis.forward.RodModel`), for
+* :class:`FemPhysics` -- the FEM rod (:class:`arfem.models.diagnosis.forward.RodModel`), for
   datasets that record the heat flux ``q_W_m2``;
 * :class:`ArPhysics` -- the paper's AR(1) (eqs. 12-14) with the same physical
   parameters (b = 2h/(ρcR), steady gain qαR/(2h)), the form a compensation controller
   would run.
 
-Datasets that only record ``speed_rpm`` use :mod:`models.diagnosis.speed`.
+Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 """
 from __future__ import annotations
 
@@ -25,8 +25,8 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
-from models.params import Rod
+from arfem.models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
+from arfem.params import Rod
 
 __all__ = ["CAUSES", "CandidateFit", "FemPhysics", "ArPhysics", "fit_candidate", "project"]
 
@@ -113,7 +113,7 @@ class FemPhysics:
         """Growth [µm] with h = h_ref (ΔT_s/DT_REF_K)^exponent (semi-implicit).
 
         ΔT_s is the lateral-surface mean temperature minus the ambient [K]; see
-        :meth:`models.diagnosis.forward.RodModel.simulate_nonlinear`.
+        :meth:`arfem.models.diagnosis.forward.RodModel.simulate_nonlinear`.
 
         Parameters
         ----------

@@ -1,14 +1,14 @@
 """The diagnosis: what the nominal simulation gets wrong on a measured record, which cause
 explains it, and how much the model extended by that cause gains on a hold-out.
 
-Data flow: :class:`models.diagnosis.loader.Dataset` → :func:`diagnose` → :class:`Diagnosis`
+Data flow: :class:`arfem.models.diagnosis.dataset.Dataset` → :func:`diagnose` → :class:`Diagnosis`
 (the contract's ``diagnosis.json`` content plus the series for figures) → writers in
-:mod:`models.diagnosis.report`.
+:mod:`arfem.models.diagnosis.report`.
 
 Selection rule (documented in every report):
 
 1. every applicable cause is fitted on the rows before the hold-out that the loader
-   did not flag as outliers (:mod:`models.diagnosis.candidates`);
+   did not flag as outliers (:mod:`arfem.models.diagnosis.candidates`);
 2. each is scored by BIC on *effective* samples, N_eff ln(RSS/N) + k ln N_eff, with
    N_eff = N(1 − ρ1)/(1 + ρ1) from the lag-1 autocorrelation ρ1 of the best candidate's
    residual (one N_eff for all, so the scores are comparable);
@@ -30,17 +30,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from models.diagnosis import stats as st
-from models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
+from arfem.models.diagnosis import stats as st
+from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
                                          fit_candidate)
-from models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
+from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
                                     fit_speed_candidate,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
-from models.params import InputError
-from scenarios.io import json_text
+from arfem.params import InputError
+from arfem.io import json_text
 
-__all__ = ["Diagnosis", "diagnose", "diagnose_file", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR",
+__all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR",
            "MISFIT_CUT", "CONTRACT_PARAMETERS"]
 
 #: family-wise significance level of the test against the baseline
@@ -159,7 +159,7 @@ def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
 def _select_cv(fits: dict, cvs: dict, folds, t):
     """Speed-only records: the cause with the least forward-chaining validation RMSE on
     the fit window is named only if it cuts the baseline's by >= ``MIN_GAIN`` *and* wins
-    on a majority of the validation blocks (see :func:`models.diagnosis.speed.forward_folds`);
+    on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed.forward_folds`);
     otherwise ``none``. Residuals of thermal models are so autocorrelated that the
     effective sample size of the fit window is a few dozen, so out-of-sample error on
     later blocks -- each opening, like the hold-out, with a speed the training part has
@@ -218,7 +218,7 @@ def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
-    """Diagnose a loaded :class:`~models.diagnosis.loader.Dataset`.
+    """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
     ----------
@@ -228,7 +228,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         Start of the hold-out [s]; default the last third of the record.
     frame_search : {"narrow", "wide"}
         Speed-only records: the frame structures compared by forward-chaining
-        validation (:func:`models.diagnosis.speed.frame_structures`).
+        validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
     """
     t = np.asarray(ds.time_s, float)
     y = np.asarray(ds.growth_um, float)
@@ -413,9 +413,3 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                                       "(paper eq. 18)"}
             series["mlr_um"] = pm
     return Diagnosis(summary, series, text)
-
-
-def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
-    """Load a contract dataset (TOML + CSV) and diagnose it."""
-    from models.diagnosis.loader import load_dataset
-    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search)

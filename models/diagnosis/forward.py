@@ -27,8 +27,8 @@ import numpy as np
 import scipy.linalg
 from scipy.signal import lfilter
 
-from fem.heat import build_axisymmetric, modes
-from models.params import Rod
+from arfem.fem.heat import build_axisymmetric, modes
+from arfem.params import Rod
 
 #: quantisation step of ln h in the semi-implicit natural-convection model
 _H_STEP = float(np.log1p(0.0025))
@@ -155,7 +155,7 @@ def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
 
     Examples
     --------
-    >>> from models.ar1 import c1_paper, c2_paper, steady_growth_m
+    >>> from arfem.models.ar1 import c1_paper, c2_paper, steady_growth_m
     >>> rod = Rod()
     >>> g = ar_first_order([30.0, 60.0], [2000.0, 2000.0], rod.fin_rate_1_s,
     ...                    steady_growth_m(rod, 1.0) * 1e6)
@@ -231,7 +231,7 @@ class RodModel:
     rod : Rod
         Geometry, material, nominal h [W/(m²·K)] and nominal ambient [°C].
     order, nr, nz : int
-        Axisymmetric mesh of :func:`fem.heat.build_axisymmetric` (Q2, 4 x 24 default:
+        Axisymmetric mesh of :func:`arfem.fem.heat.build_axisymmetric` (Q2, 4 x 24 default:
         the growth modes are radial, so nz barely matters).
 
     Examples

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from models.diagnosis.candidates import CandidateFit, project
-from models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag, intervals
+from arfem.models.diagnosis.candidates import CandidateFit, project
+from arfem.models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag, intervals
 
 __all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES",
            "FrameStructure", "frame_structures", "heat_law", "fit_frame_thermometers",
@@ -564,7 +564,7 @@ class _Projection:
     factorisation; each call then solves only the small normal equations of the varying
     columns (eigen-decomposition, directions below 1e-12 of the largest dropped), which
     is what makes the structure search affordable. Used for the search only; the final
-    coefficients come from :func:`~models.diagnosis.candidates.project`.
+    coefficients come from :func:`~arfem.models.diagnosis.candidates.project`.
     """
 
     def __init__(self, fixed: list, y, rows):

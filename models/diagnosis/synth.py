@@ -1,7 +1,7 @@
 """Synthetic measured datasets with a hidden physical effect, simulated in the FEM.
 
 Each cause of the measured-data contract's vocabulary is produced *physically* by the
-axisymmetric heat FEM (:func:`fem.heat.build_axisymmetric`), never by the equations of
+axisymmetric heat FEM (:func:`arfem.fem.heat.build_axisymmetric`), never by the equations of
 a diagnosis model:
 
 =============================  ==================================================================
@@ -44,11 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fem.heat import HeatFEM, build_axisymmetric, modes, solve_modal, solve_theta
-from models.params import InputError, Rod, Schedule
+from arfem.fem.heat import HeatFEM, build_axisymmetric, modes, solve_modal, solve_theta
+from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["CAUSES", "COMMON_RANGES", "CAUSE_RANGES", "SynthCase", "generate", "random_case",
-           "write_case", "ambient_gain_um_per_K", "rod_model", "frame_model"]
+           "ambient_gain_um_per_K", "rod_model", "frame_model"]
 
 CAUSES = ("none", "ambient_drift", "convection_mismatch", "speed_dependent_convection",
           "heat_input_scale", "frame_expansion", "sensor_drift", "nonlinear_convection")
@@ -187,7 +187,7 @@ def rod_model(rod: Rod = Rod()) -> HeatFEM:
     Returns
     -------
     HeatFEM
-        See :func:`fem.heat.build_axisymmetric`; ``growth @ θ`` is the axial growth
+        See :func:`arfem.fem.heat.build_axisymmetric`; ``growth @ θ`` is the axial growth
         [m] of a temperature rise θ [K].
     """
     return build_axisymmetric(rod, **_MESH)
@@ -555,50 +555,3 @@ def random_case(seed: int, name: str | None = None) -> SynthCase:
     """
     cause = CAUSES[int(np.random.default_rng([seed, 0]).integers(len(CAUSES)))]
     return generate(cause, seed, name=name)
-
-
-# -- writing --------------------------------------------------------------------------
-
-def _fmt(values, decimals: int) -> list[str]:
-    return ["" if not np.isfinite(v) else f"{v:.{decimals}f}" for v in np.asarray(values, float)]
-
-
-def write_case(case: SynthCase, directory) -> Path:
-    """Write ``<name>.csv`` and ``<name>.toml`` per the measured-data contract.
-
-    Parameters
-    ----------
-    case : SynthCase
-    directory : str or path-like
-        Created if absent; files are written atomically.
-
-    Returns
-    -------
-    Path
-        The TOML file.
-    """
-    from scenarios.io import atomic_write_text
-
-    directory = Path(directory)
-    cols = {"time_s": _fmt(case.time_s, 0), "growth_um": _fmt(case.growth_um, 3),
-            "q_W_m2": _fmt(case.q_W_m2, 1), "ambient_C": _fmt(case.ambient_C, 3)}
-    for k, v in case.temperatures.items():
-        cols[k] = _fmt(v, 3)
-    lines = [",".join(cols)] + [",".join(row) for row in zip(*cols.values())]
-    atomic_write_text(directory / f"{case.name}.csv", "\n".join(lines) + "\n")
-    r = case.rod
-    toml = [
-        "[dataset]",
-        f'name = "{case.name}"',
-        f'csv = "{case.name}.csv"',
-        "",
-        "[rod]",
-        *(f"{k} = {getattr(r, k)!r}" for k in (
-            "radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
-            "specific_heat_J_kgK", "expansion_1_K", "convection_W_m2K", "ambient_C")),
-    ]
-    for key, desc in case.sensors.items():
-        toml += ["", f"[sensors.{key}]", f'description = "{desc}"']
-    path = directory / f"{case.name}.toml"
-    atomic_write_text(path, "\n".join(toml) + "\n")
-    return path

@@ -1,6 +1,10 @@
-"""Regenerate reports/fl_thermal/ from the real recording in ../shared/data/fl_thermal/.
+"""Regenerate reports/fl_thermal/ from the shipped real recording, scenarios/fl_thermal/.
 
     cd <repo> && python reports/fl_thermal/regenerate.py [--data DIR]
+
+The published table and the experiments are on the first 28 h of the record (its first
+6 721 rows, t <= 100 800 s: the part on which they were made); they are run on a copy of
+those rows, with the channel TOMLs pointed at it.
 
 Hold-out: from t = 72 000 s (20 h) on -- the cooling after the 3750 rpm block and the
 whole 5000 rpm block, a speed the calibration never saw (its C2 comes from the
@@ -9,11 +13,11 @@ The published table uses the default structure search (``narrow``); the experime
 table adds the ``wide`` search and a second hold-out (t >= 16.13 h), whose outputs are
 not kept (numbers in experiments.json). About 10 min on 2 cores (``--jobs``).
 
-    python reports/fl_thermal/regenerate.py --preregistered FULL.csv
+    python reports/fl_thermal/regenerate.py --preregistered [FULL.csv]
 
 runs instead the one test fixed in PREREGISTRATION.md, on the rest of the record
-(t >= 100 800 s, which no part of this project has seen): the published procedure,
-fitted on t < 100 800 s, scored on t >= 100 800 s; writes preregistered.json/.md.
+(t >= 100 800 s): the published procedure, fitted on t < 100 800 s, scored on
+t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole record.
 """
 from __future__ import annotations
 
@@ -26,11 +30,15 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
-sys.path.insert(0, str(REPO))
+#: the shipped real example: the whole record and one TOML per channel
+DATA = REPO / "scenarios" / "fl_thermal"
+WHOLE_CSV = "fl_thermal_whole.csv"
+#: rows of the first 28 h (t <= 100 800 s), on which the published table was made
+FIRST_28H_ROWS = 6721
 
-from models.diagnosis.engine import diagnose_file  # noqa: E402
-from scenarios.diagnose import run_diagnosis  # noqa: E402
-from scenarios.io import atomic_write_text  # noqa: E402
+from arfem.scenarios.diagnose import diagnose_file
+from arfem.scenarios.diagnose import run_diagnosis
+from arfem.io import atomic_write_text
 
 HOLDOUT_S = 72000.0
 #: second hold-out, added afterwards: from the 3750 rpm run-up on (16.13 h), fitted on
@@ -53,10 +61,33 @@ def _scores(s):
     return h["baseline_rmse_um"], s["mlr"]["holdout_rmse_um"], h["extended_rmse_um"]
 
 
+def first_28h_csv(data, directory) -> Path:
+    """Write the first 28 h of the record (header + the first 6 721 rows, byte for byte)
+    to ``directory``; returns the path."""
+    with open(Path(data) / WHOLE_CSV, "rb") as fh:
+        head = b"".join(fh.readline() for _ in range(FIRST_28H_ROWS + 1))
+    path = Path(directory) / "fl_thermal_first28h.csv"
+    path.write_bytes(head)
+    return path
+
+
+def retarget(data, csv, directory, channels=range(1, 6)) -> Path:
+    """Copy each channel's TOML from ``data`` into ``directory`` with its ``csv`` line
+    pointed at ``csv`` (nothing in ``data`` is touched); returns ``directory``."""
+    for ch in channels:
+        name = f"fl_thermal_ch{ch}.toml"
+        text = (Path(data) / name).read_text(encoding="utf-8")
+        text, n = re.subn(r"(?m)^csv\s*=.*$", lambda _: f"csv = {json.dumps(str(csv))}", text)
+        if n != 1:
+            raise ValueError(f"{name}: expected one csv line, found {n}")
+        (Path(directory) / name).write_text(text, encoding="utf-8")
+    return Path(directory)
+
+
 def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1, 6),
                          jobs=1):
-    """Score the published procedure (narrow search) on ``csv`` -- a longer record in the
-    same columns as the shared 28 h one -- with the hold-out from ``holdout_s`` on.
+    """Score the published procedure (narrow search) on ``csv`` -- a record in the
+    columns of the shipped one -- with the hold-out from ``holdout_s`` on.
 
     Each channel's TOML from ``data`` is used as it is but for its ``csv`` line, which is
     pointed at ``csv`` (written to a temporary copy; nothing in ``data`` is touched).
@@ -66,14 +97,7 @@ def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1
 
     csv = Path(csv).resolve()
     with tempfile.TemporaryDirectory() as tmp:
-        for ch in channels:
-            name = f"fl_thermal_ch{ch}.toml"
-            text = (Path(data) / name).read_text(encoding="utf-8")
-            text, n = re.subn(r"(?m)^csv\s*=.*$", lambda _: f"csv = {json.dumps(str(csv))}",
-                              text)
-            if n != 1:
-                raise ValueError(f"{name}: expected one csv line, found {n}")
-            (Path(tmp) / name).write_text(text, encoding="utf-8")
+        retarget(data, csv, tmp, channels)
         args = [(tmp, ch, holdout_s, "narrow", None) for ch in channels]
         if jobs == 1:
             res = list(map(_one, args))
@@ -117,25 +141,28 @@ def main(argv=None) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
     ap = argparse.ArgumentParser()
-    ap.add_argument("--data", default=str(REPO.parent / "shared" / "data" / "fl_thermal"))
+    ap.add_argument("--data", default=str(DATA))
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--preregistered", metavar="FULL.csv",
-                    help="run only the pre-registered test on a record longer than 28 h")
+    ap.add_argument("--preregistered", metavar="FULL.csv", nargs="?", const="",
+                    help="run only the pre-registered test (default record: the whole one)")
     a = ap.parse_args(argv)
-    if a.preregistered:
-        from models.params import InputError
+    if a.preregistered is not None:
+        from arfem.params import InputError
+        csv = a.preregistered or str(Path(a.data) / WHOLE_CSV)
         try:
-            return _run_preregistered(a.preregistered, a.data, a.jobs)
+            return _run_preregistered(csv, a.data, a.jobs)
         except (InputError, OSError) as e:
             print(f"regenerate.py: {a.preregistered}: {e}", file=sys.stderr)
             return 2
     chans = range(1, 6)
-    jobs = [(a.data, ch, HOLDOUT_S, "narrow", HERE / f"ch{ch}") for ch in chans]
-    jobs += [(a.data, ch, hs, se, None) for se, hs in (("wide", HOLDOUT_S),
-                                                        ("narrow", HOLDOUT2_S),
-                                                        ("wide", HOLDOUT2_S)) for ch in chans]
-    with ProcessPoolExecutor(a.jobs) as ex:
-        res = dict(ex.map(_one, jobs))
+    with tempfile.TemporaryDirectory() as tmp:
+        d28 = retarget(a.data, first_28h_csv(a.data, tmp), tmp, chans)
+        jobs = [(d28, ch, HOLDOUT_S, "narrow", HERE / f"ch{ch}") for ch in chans]
+        jobs += [(d28, ch, hs, se, None) for se, hs in (("wide", HOLDOUT_S),
+                                                         ("narrow", HOLDOUT2_S),
+                                                         ("wide", HOLDOUT2_S)) for ch in chans]
+        with ProcessPoolExecutor(a.jobs) as ex:
+            res = dict(ex.map(_one, jobs))
 
     rows, wins = [], 0
     for ch in chans:

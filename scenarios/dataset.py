@@ -1,14 +1,14 @@
 """Read a measured dataset (``NAME.toml`` + ``NAME.csv``) exactly per the measured-data contract.
 
-The contract (``measured-data.md``) fixes the form of every measured dataset: a CSV of
+The contract (``docs/measured-data.md``) fixes the form of every measured dataset: a CSV of
 samples with the columns ``time_s``, ``growth_um``, ``q_W_m2`` or ``speed_rpm``,
 optionally ``ambient_C`` and ``T_<name>_C``, and a TOML beside it with the tables
 ``[dataset]``, ``[rod]``, ``[columns]`` and ``[sensors.*]``. :func:`load_dataset`
-turns the pair into a validated, immutable :class:`Dataset` or refuses it with one
-:class:`models.params.InputError` whose message names the file, the CSV line or the
+turns the pair into a validated, immutable :class:`~arfem.models.diagnosis.dataset.Dataset` or refuses it with one
+:class:`arfem.params.InputError` whose message names the file, the CSV line or the
 column/key, and what is wrong.
 
-Data flow: file -> :class:`Dataset` (this module) -> models. Nothing here fits or
+Data flow: file -> ``Dataset`` (this module) -> models. Nothing here fits or
 simulates; the only processing is what the contract prescribes (drop <= 5 % rows with
 an empty ``time_s``/``growth_um``, fill short ``ambient_C`` gaps) plus robust flags
 that the models may use (growth outliers, sampling gaps), each reported in ``notes``.
@@ -22,25 +22,21 @@ import csv
 import io
 import math
 import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from models.params import InputError, Rod, Schedule, check_plausible
-from scenarios.io import read_text_utf8, read_toml
+from arfem.io import read_text_utf8, read_toml
+from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
+from arfem.params import InputError, Rod, check_plausible
 
+__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION"]
 
-__all__ = ["Dataset", "load_dataset", "hampel_outliers", "sampling_gaps",
-           "ROD_KEYS", "MAX_MISSING_FRACTION"]
-
-#: ``[rod]`` keys of the contract (a subset of :class:`models.params.Rod`'s fields).
+#: ``[rod]`` keys of the contract (a subset of :class:`arfem.params.Rod`'s fields).
 ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
             "specific_heat_J_kgK", "expansion_1_K", "convection_W_m2K", "ambient_C")
 #: Rows with an empty ``time_s``/``growth_um`` are dropped up to this fraction, refused above.
 MAX_MISSING_FRACTION = 0.05
-#: A sampling interval longer than this multiple of the median interval is a gap.
-GAP_FACTOR = 3.0
 
 _TOP_TABLES = ("dataset", "rod", "columns", "sensors")
 _DATASET_KEYS = ("name", "csv", "initial")
@@ -50,193 +46,6 @@ _BASE_COLUMNS = ("time_s", "growth_um", "q_W_m2", "speed_rpm", "ambient_C")
 _TEMP_RE = re.compile(r"^T_.+_C$")
 _NUMBER_RE = re.compile(r"^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$")
 _NONFINITE_RE = re.compile(r"^[+-]?(?:nan|inf|infinity)$", re.IGNORECASE)
-
-
-@dataclass(frozen=True)
-class Dataset:
-    """One measured record, validated; every array is over the kept rows.
-
-    Attributes
-    ----------
-    name : str
-        ``[dataset] name`` (the TOML stem if absent).
-    source : Path
-        The TOML file.
-    time_s : ndarray
-        Sample times [s], strictly increasing, >= 0.
-    growth_um : ndarray
-        Measured axial growth [µm], finite everywhere.
-    q_W_m2 : ndarray or None
-        Heat flux [W/m²] over (t_{i-1}, t_i] (zero-order hold; from 0 for the first row).
-    speed_rpm : ndarray or None
-        Spindle speed [1/min] over (t_{i-1}, t_i].
-    ambient_C : ndarray or None
-        Measured ambient air temperature [°C], finite (short gaps filled, see ``notes``).
-    temperatures : dict of str to ndarray
-        Every ``T_<name>_C`` column [°C] (NaN where a cell was empty).
-    rod : Rod
-        ``[rod]`` values, the seed paper's where not given.
-    initial_known : bool
-        False when ``[dataset] initial = "unknown"`` (record not started at equilibrium).
-    outliers : ndarray of bool
-        Growth samples flagged as outliers by :func:`hampel_outliers` (kept, not removed).
-    gaps : list of (float, float)
-        (start_s, end_s) of sampling intervals longer than 3x the median interval.
-    notes : list of str
-        What was done to the data and what was noticed, human-readable.
-    sensors : dict of str to str
-        ``[sensors.<column>] description``.
-    csv_path : Path
-        The CSV file.
-    line_numbers : ndarray of int
-        CSV line (1-based, header = line 1) of each kept row.
-    extra_columns : dict of str to ndarray
-        Columns the contract does not know, carried as text over the kept rows (ignored
-        by the models).
-    """
-
-    name: str
-    source: Path
-    time_s: np.ndarray
-    growth_um: np.ndarray
-    q_W_m2: np.ndarray | None
-    speed_rpm: np.ndarray | None
-    ambient_C: np.ndarray | None
-    temperatures: dict[str, np.ndarray]
-    rod: Rod
-    initial_known: bool
-    outliers: np.ndarray
-    gaps: list[tuple[float, float]]
-    notes: list[str]
-    sensors: dict[str, str]
-    csv_path: Path | None = None
-    line_numbers: np.ndarray | None = field(default=None, repr=False)
-    extra_columns: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
-
-    @property
-    def input_kind(self) -> str:
-        """``"q_W_m2"`` when the heat flux is recorded (preferred), else ``"speed_rpm"``."""
-        return "q_W_m2" if self.q_W_m2 is not None else "speed_rpm"
-
-    @property
-    def n_rows(self) -> int:
-        return int(self.time_s.size)
-
-    def schedule(self, ambient: bool = False) -> Schedule:
-        """The recorded inputs as a piecewise-constant :class:`Schedule` from t = 0.
-
-        Segment i is (t_{i-1}, t_i] with t_{-1} = 0 (a first row at t = 0 adds no
-        segment). ``ambient=True`` also carries ``ambient_C`` (each row's value held
-        over the interval that ends at it). Only for datasets with ``q_W_m2``.
-        """
-        if self.q_W_m2 is None:
-            raise InputError("has no q_W_m2 column; a schedule needs the heat flux",
-                             str(self.source))
-        t = np.concatenate([[0.0], self.time_s])
-        d = np.diff(t)
-        keep = d > 0
-        amb = None
-        if ambient and self.ambient_C is not None:
-            amb = self.ambient_C[keep]
-        return Schedule(d[keep], self.q_W_m2[keep], amb)
-
-
-# -- robust flags -------------------------------------------------------------------
-
-def hampel_outliers(values, half_window: int = 5, n_sigma: float = 6.0,
-                    floor: float = 0.0) -> np.ndarray:
-    """Hampel-type outlier flags: residual from the median of the neighbours beyond ``n_sigma`` robust σ.
-
-    The reference for each sample is the median of its ``2 * half_window`` neighbours
-    (itself excluded); a flagged sample must also differ by the threshold, in the same
-    direction, from both nearest unflagged samples (an isolated spike, not the peak or
-    kink of a smooth record). σ is 1.4826 × the median absolute deviation of the
-    residuals over the whole record (σ for Gaussian noise), so a slow trend does not
-    inflate it; ``floor`` is a lower bound on σ in the unit of ``values`` (e.g. the
-    quantisation step).
-
-    Parameters
-    ----------
-    values : array_like
-        Samples, e.g. growth [µm], finite.
-    half_window : int
-        Neighbours on each side used for the reference median [-].
-    n_sigma : float
-        Threshold in robust standard deviations [-].
-    floor : float
-        Smallest σ used, in the unit of ``values``.
-
-    Returns
-    -------
-    ndarray of bool
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> x = 10 * np.sin(np.linspace(0, 3, 500)) + rng.normal(0, 0.1, 500)
-    >>> x[[50, 300]] += [3.0, -2.0]
-    >>> np.flatnonzero(hampel_outliers(x)).tolist()
-    [50, 300]
-    """
-    x = np.asarray(values, dtype=float)
-    k = int(half_window)
-    if x.size < 2 * k + 1 or k < 1:
-        return np.zeros(x.shape, dtype=bool)
-    # median of the 2k neighbours, the sample itself excluded: on a smooth record this
-    # is ~ the sample's value (residual = noise + curvature), and a spike cannot mask itself
-    pad = np.pad(x, k, mode="reflect", reflect_type="odd")   # keeps a linear trend
-    win = np.lib.stride_tricks.sliding_window_view(pad, 2 * k + 1)
-    neigh = np.delete(win, k, axis=1)
-    r = x - np.median(neigh, axis=1)
-    sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), float(floor))
-    if sigma == 0.0:
-        return np.zeros(x.shape, dtype=bool)
-    thr = n_sigma * sigma
-    cand = np.abs(r) > thr
-    if not cand.any():
-        return cand
-    # a spike also stands out by the threshold from BOTH nearest unflagged samples, in the
-    # same direction; the peak or kink of a smooth record (the growth rate jumps where the
-    # heat input switches) does not, so it is not flagged
-    idx = np.arange(x.size)
-    ok = np.where(~cand, idx, -1)
-    prev = np.concatenate([[-1], np.maximum.accumulate(ok)[:-1]])
-    ok = np.where(~cand, idx, x.size)
-    nxt = np.concatenate([np.minimum.accumulate(ok[::-1])[::-1][1:], [x.size]])
-    out = np.zeros(x.size, dtype=bool)
-    for i in np.flatnonzero(cand):
-        sides = [x[i] - x[j] for j in (prev[i], nxt[i]) if 0 <= j < x.size]
-        out[i] = bool(sides) and all(np.sign(d) == np.sign(r[i]) and abs(d) > thr
-                                     for d in sides)
-    return out
-
-
-def sampling_gaps(time_s, factor: float = GAP_FACTOR) -> list[tuple[float, float]]:
-    """Intervals whose length exceeds ``factor`` × the median sampling interval.
-
-    Parameters
-    ----------
-    time_s : array_like
-        Strictly increasing sample times [s].
-    factor : float
-        Multiple of the median interval beyond which an interval is a gap [-].
-
-    Returns
-    -------
-    list of (start_s, end_s)
-
-    Examples
-    --------
-    >>> sampling_gaps([0, 30, 60, 90, 400, 430])
-    [(90.0, 400.0)]
-    """
-    t = np.asarray(time_s, dtype=float)
-    if t.size < 3:
-        return []
-    d = np.diff(t)
-    med = float(np.median(d))
-    idx = np.flatnonzero(d > factor * med)
-    return [(float(t[i]), float(t[i + 1])) for i in idx]
 
 
 # -- reading ------------------------------------------------------------------------
@@ -394,7 +203,7 @@ def load_dataset(toml_path) -> Dataset:
 
     Raises
     ------
-    models.params.InputError
+    arfem.params.InputError
         One line naming the file, the key/line/column and what is wrong.
 
     Examples

@@ -1,6 +1,6 @@
-"""Writers for a :class:`models.diagnosis.engine.Diagnosis`: JSON, CSV, figures, Markdown.
+"""Writers for a :class:`arfem.models.diagnosis.engine.Diagnosis`: JSON, CSV, figures, Markdown.
 
-All files go into a directory the caller stages (``scenarios.io.staged_out_dir``).
+All files go into a directory the caller stages (``arfem.io.staged_out_dir``).
 """
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from models.diagnosis import stats as st
-from scenarios.io import atomic_write_text, write_csv, write_json
+from arfem.models.diagnosis import stats as st
+from arfem.io import atomic_write_text, write_csv, write_json
 
 __all__ = ["write_all"]
 

@@ -158,7 +158,7 @@ class Rod:
     >>> Rod(radius_m=-1)
     Traceback (most recent call last):
     ...
-    models.params.InputError: radius_m: must be > 0, got -1
+    arfem.params.InputError: radius_m: must be > 0, got -1
     """
 
     radius_m: float = 0.1
@@ -240,7 +240,7 @@ class Schedule:
     >>> Schedule([3600, -1], [2000, 0])
     Traceback (most recent call last):
     ...
-    models.params.InputError: durations_s[1]: must be > 0, got -1.0
+    arfem.params.InputError: durations_s[1]: must be > 0, got -1.0
     """
 
     durations_s: np.ndarray
@@ -415,7 +415,7 @@ def steps_per_segment(durations_s, step_s, where: str = "dt_s", what: str = "seg
     >>> steps_per_segment([14400, 5400], 7, where="ar.dtau_s", what="phase")
     Traceback (most recent call last):
     ...
-    models.params.InputError: ar.dtau_s: 7 s does not divide phase 0 (14400 s); choose a step that divides every phase, e.g. 120, 180, 300, 600, 900, 1800 s
+    arfem.params.InputError: ar.dtau_s: 7 s does not divide phase 0 (14400 s); choose a step that divides every phase, e.g. 120, 180, 300, 600, 900, 1800 s
     """
     step = check_positive(where, step_s)
     durations = [float(d) for d in np.atleast_1d(durations_s)]

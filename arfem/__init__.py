@@ -1,0 +1,23 @@
+"""arfem: checks a finite-element thermo-elastic simulation of a machine-tool spindle
+against the first-order autoregressive (AR(1)) thermal-growth model of Du et al. (2021),
+and diagnoses measured records.
+
+Layers, imported in one direction only (``tests/test_layering.py`` enforces it):
+
+* ground -- :mod:`arfem.params` (physical inputs ``Rod``/``Schedule``, ``InputError``
+  and the checks) and :mod:`arfem.io` (reading user files, atomic writes);
+* :mod:`arfem.fem` -- meshes, transient heat, thermo-elasticity, field export;
+* :mod:`arfem.models` -- pure models: arrays and dataclasses in, results out, no files;
+* :mod:`arfem.scenarios` -- user files, the ``arfem`` command, runners and writers.
+
+The source folders ``fem/``, ``models/`` and ``scenarios/`` sit at the top of the
+repository and are installed under this package (setuptools ``package-dir``).
+"""
+from importlib.metadata import PackageNotFoundError, version as _version
+
+try:
+    __version__ = _version("arfem")
+except PackageNotFoundError:  # pragma: no cover - running from an uninstalled tree
+    __version__ = "0+unknown"
+
+__all__ = ["__version__"]

@@ -1,0 +1,147 @@
+"""Ground-layer file plumbing: strict reading of a user's text files (one-line errors)
+and atomic writes (a reader never sees a half-written file).
+
+Everything in arfem reads and writes files through here; this module imports nothing of
+arfem but :mod:`arfem.params` (for :class:`~arfem.params.InputError`).
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from arfem.params import InputError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["read_text_utf8", "read_toml", "json_text", "atomic_write_text",
+           "atomic_write_bytes", "atomic_path", "write_json", "write_csv"]
+
+
+def read_text_utf8(path: str | os.PathLike, missing: str = "file not found") -> str:
+    """The text of a UTF-8 file (a leading BOM dropped).
+
+    A missing file, a directory, an unreadable file or bytes that are not UTF-8 raise
+    :class:`InputError` naming the file (and, for bad bytes, the line).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "x.csv"
+    >>> _ = p.write_bytes(b"a,b\\n1,\\xe9\\n")
+    >>> try:
+    ...     read_text_utf8(p)
+    ... except InputError as e:
+    ...     print(str(e).replace(str(p), "x.csv"))
+    x.csv: line 2: is not UTF-8 (byte 6 of the file)
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(missing if not p.exists() else "is not a file", str(p))
+    try:
+        raw = p.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot be read ({e.strerror})", str(p)) from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise InputError(f"is not UTF-8 (byte {e.start} of the file)",
+                         f"{p}: line {line}") from None
+
+
+def read_toml(path: str | os.PathLike) -> dict:
+    """Parse a UTF-8 TOML file; anything wrong is one :class:`InputError` line."""
+    text = read_text_utf8(path)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
+    except RecursionError:
+        raise InputError("malformed TOML: nested too deeply", str(path)) from None
+    except ValueError as e:             # e.g. an integer of more than 4300 digits
+        raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
+
+
+def _umask() -> int:
+    m = os.umask(0o022)
+    os.umask(m)
+    return m
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        if os.path.exists(tmp):           # mkstemp's 0600 -> what open() would have made
+            os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _jsonable(o):
+    if isinstance(o, dict):
+        return {str(k): _jsonable(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_jsonable(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return [_jsonable(v) for v in o.tolist()]
+    if isinstance(o, (np.floating, float)):
+        f = float(o)
+        return f if math.isfinite(f) else None
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.bool_,)):
+        return bool(o)
+    return o
+
+
+def json_text(obj, indent: int | None = None) -> str:
+    """JSON text of ``obj`` with numpy types converted and NaN/inf as null.
+
+    >>> json_text({"ratio": np.float64(1.25), 3000.0: [np.int64(2), float("nan")]})
+    '{"ratio": 1.25, "3000.0": [2, null]}'
+    """
+    return json.dumps(_jsonable(obj), indent=indent, allow_nan=False, ensure_ascii=False)
+
+
+def write_json(path: str | os.PathLike, obj) -> None:
+    """Atomic JSON (NaN/inf written as null, numpy types converted)."""
+    atomic_write_text(path, json_text(obj, indent=2) + "\n")
+
+
+def write_csv(path: str | os.PathLike, columns: dict[str, np.ndarray], fmt: str = "%.10g") -> None:
+    """Atomic CSV from named equal-length columns (header = the names)."""
+    names = list(columns)
+    data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+    import io as _io
+    buf = _io.StringIO()
+    np.savetxt(buf, data, delimiter=",", header=",".join(names), comments="", fmt=fmt)
+    atomic_write_text(path, buf.getvalue())

@@ -1,0 +1,160 @@
+"""Imports run one way: ground (``arfem.params``, ``arfem.io``) -> ``arfem.fem`` ->
+``arfem.models`` -> ``arfem.scenarios``; ``models`` touches no file; everything imports as
+``arfem.…`` and nothing edits ``sys.path``.
+
+Why these checks: a module that imports a layer above it drags user files, CLI or
+plotting into code meant to be pure and reusable (and re-creates import cycles); a
+top-level ``fem``/``models``/``scenarios`` import breaks arfem in any working directory
+that holds a ``models.py`` (issue 11). The checker reads source with :mod:`ast`, so it
+sees imports inside functions too, and it is itself tested on a synthetic upward import.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: source folder -> import name, as pyproject's package-dir maps them
+FOLDERS = {"arfem": "arfem", "fem": "arfem.fem", "models": "arfem.models",
+           "scenarios": "arfem.scenarios"}
+#: rank of each layer; a module may import its own rank or lower
+RANKS = {"ground": 0, "arfem.fem": 1, "arfem.models": 2, "arfem.scenarios": 3}
+#: ``python -m arfem`` sits above everything (the root ``arfem`` itself is ground: its version)
+ENTRY = {"arfem.__main__"}
+#: calls that read or write files; none may appear under models/
+FILE_CALLS = {"open", "read_text", "write_text", "read_bytes", "write_bytes", "savetxt",
+              "loadtxt", "savefig", "mkdir", "unlink", "replace", "rename", "genfromtxt"}
+
+
+def layer(module: str) -> str | None:
+    """The layer of an ``arfem`` module name (None for anything outside arfem)."""
+    if module in ENTRY:
+        return "entry"
+    for pkg in ("arfem.fem", "arfem.models", "arfem.scenarios"):
+        if module == pkg or module.startswith(pkg + "."):
+            return pkg
+    if module == "arfem" or module.startswith("arfem."):
+        return "ground"
+    return None
+
+
+def module_name(path: Path) -> str:
+    rel = path.relative_to(REPO)
+    parts = [FOLDERS[rel.parts[0]], *rel.parts[1:]]
+    parts[-1] = parts[-1][:-3]
+    name = ".".join(parts)
+    return name[: -len(".__init__")] if name.endswith(".__init__") else name
+
+
+def imported_modules(source: str, module: str) -> list[tuple[int, str]]:
+    """Absolute names of every module ``source`` imports (relative ones resolved)."""
+    out = []
+    pkg = module if module.count(".") == 0 else module.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg.rsplit(".", node.level - 1)[0] if node.level > 1 else pkg
+                name = f"{base}.{node.module}" if node.module else base
+            else:
+                name = node.module
+            out.append((node.lineno, name))
+            out += [(node.lineno, f"{name}.{a.name}") for a in node.names
+                    if layer(f"{name}.{a.name}") not in (None, layer(name))]
+    return out
+
+
+def violations(source: str, module: str) -> list[str]:
+    """Every import in ``source`` that runs against the layering, one line each."""
+    mine = layer(module)
+    bad = []
+    for line, name in imported_modules(source, module):
+        top = name.split(".")[0]
+        if top in ("fem", "models", "scenarios"):
+            bad.append(f"{module}:{line} imports {name!r}: everything imports as arfem.…")
+            continue
+        theirs = layer(name)
+        if theirs is None or mine == "entry":
+            continue
+        if theirs == "entry":
+            bad.append(f"{module}:{line} imports the entry point {name!r}")
+        elif RANKS[theirs] > RANKS[mine]:
+            bad.append(f"{module}:{line} ({mine}) imports {name!r} ({theirs}), a layer above")
+        elif mine == "ground" and module == "arfem.params" and theirs == "ground":
+            bad.append(f"{module}:{line} imports {name!r}: arfem.params imports nothing of arfem")
+    return bad
+
+
+def file_calls(source: str) -> list[str]:
+    """Calls in ``source`` that read or write files (by the called name)."""
+    hits = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) \
+                else None
+            if name in FILE_CALLS:
+                hits.append(f"line {node.lineno}: {name}(…)")
+    return hits
+
+
+def package_modules():
+    for folder in FOLDERS:
+        for p in sorted((REPO / folder).rglob("*.py")):
+            yield p, module_name(p)
+
+
+def test_the_checker_flags_an_upward_import():
+    """The checker itself: an upward import, a bare top-level import and a relative
+    upward import are each caught; downward ones are not (so a green run means something)."""
+    assert violations("from arfem.scenarios.io import x\n", "arfem.models.ar1")
+    assert violations("def f():\n    from arfem.models import ar1\n", "arfem.fem.heat")
+    assert violations("from arfem.fem import heat\n", "arfem.params")
+    assert violations("from models.ar1 import x\n", "arfem.scenarios.run")
+    assert violations("from ...scenarios import cli\n", "arfem.models.diagnosis.engine")
+    assert violations("from arfem.models import diagnosis\n", "arfem.io") != []
+    assert violations("from arfem.fem.heat import x\nfrom arfem.params import Rod\n",
+                      "arfem.models.ar1") == []
+    assert violations("from arfem.models.ar1 import x\n", "arfem.scenarios.run") == []
+    assert file_calls("def f(p):\n    return open(p).read()\n")
+
+
+@pytest.mark.parametrize("path, module", list(package_modules()),
+                         ids=lambda v: v if isinstance(v, str) else "")
+def test_imports_run_one_way(path, module):
+    """No module imports a layer above its own, nor a bare fem/models/scenarios."""
+    assert violations(path.read_text(encoding="utf-8"), module) == []
+
+
+@pytest.mark.parametrize("path", sorted((REPO / "models").rglob("*.py")), ids=str)
+def test_models_touch_no_file(path):
+    """models/ is pure: arrays and dataclasses in, results out; no file read or written."""
+    assert file_calls(path.read_text(encoding="utf-8")) == []
+
+
+def test_no_script_edits_sys_path():
+    """Benchmarks, report scripts and tests import the installed arfem; none puts the
+    repository on sys.path by hand."""
+    offenders = [str(p.relative_to(REPO)) for p in REPO.rglob("*.py")
+                 if ".venv" not in p.parts and p != Path(__file__).resolve()
+                 and "sys.path" in p.read_text(encoding="utf-8", errors="replace")]
+    assert offenders == []
+
+
+def test_only_arfem_is_installed():
+    """pyproject installs every package under the one name arfem (no top-level fem,
+    models or scenarios in site-packages)."""
+    cfg = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+    st = cfg["tool"]["setuptools"]
+    assert all(p == "arfem" or p.startswith("arfem.") for p in st["packages"])
+    assert set(st["package-dir"]) == set(FOLDERS.values())
+    assert cfg["project"]["scripts"]["arfem"].startswith("arfem.")
