@@ -1,0 +1,174 @@
+"""`arfem check` (the AR-tracks-FEM gate for a user's CI) and deterministic `reproduce`.
+
+The gate must be able to fail: it is shown to exit 1, naming the failing scenario in
+its JUnit report, for an AR built from a wrong h or α and for a scenario outside the
+AR's validity (Biot number 0.3), and to exit 0 on the paper's cycle. The figures the
+messages quote are the ones tests/test_ar_tracks_fem.py measures (2.57 % and 2.4e-4 on
+the paper cycle; 32.4 % for h = 80; 5.65 % for α = 13e-6) and 6.98 % at h = 150.
+"""
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from arfem.scenarios.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
+
+
+def _variant(tmp_path: Path, name: str, h=None, extra: str = "") -> Path:
+    """The paper_fig2 scenario under another name, with another h and/or more TOML."""
+    text = PAPER2.read_text("utf-8").replace('name = "paper_fig2"', f'name = "{name}"')
+    if h is not None:
+        text = text.replace("convection_W_m2K = 55.0", f"convection_W_m2K = {h}")
+    p = tmp_path / f"{name}.toml"
+    p.write_text(text + extra, encoding="utf-8")
+    return p
+
+
+def _junit(path: Path) -> ET.Element:
+    """Parse a JUnit file and check the elements its schema requires, and that its counts
+    agree with its content (a CI service trusts the counts)."""
+    root = ET.parse(path).getroot()
+    assert root.tag == "testsuites"
+    suites = root.findall("testsuite")
+    assert len(suites) == 1
+    suite = suites[0]
+    cases = suite.findall("testcase")
+    for c in cases:
+        assert c.get("name") and c.get("classname")
+        float(c.get("time"))
+        for f in c.findall("failure"):
+            assert f.get("message"), "a failure without message"
+    n_fail = sum(len(c.findall("failure")) for c in cases)
+    n_skip = sum(len(c.findall("skipped")) for c in cases)
+    for el in (root, suite):
+        assert int(el.get("tests")) == len(cases)
+        assert int(el.get("failures")) == n_fail
+        assert int(el.get("skipped")) == n_skip
+        assert int(el.get("errors")) == 0
+    return suite
+
+
+def _failures(suite: ET.Element) -> dict:
+    """{(scenario, criterion): message} of the failed test cases."""
+    out = {}
+    for c in suite.findall("testcase"):
+        for f in c.findall("failure"):
+            out[(c.get("classname").rsplit(".", 1)[-1], c.get("name").split()[0])] = \
+                f.get("message")
+    return out
+
+
+def test_gate_passes_on_the_paper_cycle(tmp_path, capsys):
+    """Exit 0 on both paper scenarios; one line each with the figure and its limit; the
+    JSON holds the same figures (2.57 % of peak against 3 %, ΔC1 2.4e-4 against 5e-4)."""
+    junit, js = tmp_path / "r" / "junit.xml", tmp_path / "r" / "check.json"
+    junit.parent.mkdir()
+    assert main(["check", str(PAPER2), "paper_fig3", "--junit", str(junit),
+                 "--json", str(js)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in out[:2]] == ["PASS", "PASS"]
+    assert "limit 3 %" in out[0] and "2.566 %" in out[0]
+    assert out[-1].startswith("2 passed, 0 failed")
+    suite = _junit(junit)
+    assert len(suite.findall("testcase")) == 4 and not _failures(suite)
+    data = json.loads(js.read_text("utf-8"))
+    assert (data["passed"], data["failed"]) == (2, 0)
+    amp = data["scenarios"][0]["criteria"][0]
+    assert amp["name"] == "max_abs_diff_pct_of_peak" and amp["limit"] == 3.0
+    assert 2.5 < amp["value"] < 2.6
+    c1 = data["scenarios"][0]["criteria"][1]
+    assert c1["limit"] == 5e-4 and 2.4e-4 < c1["value"] < 2.5e-4
+
+
+@pytest.mark.parametrize("ar_rod, failing", [
+    ("convection_W_m2K = 80.0", {"max_abs_diff_pct_of_peak", "C1_abs_diff"}),
+    ("expansion_1_K = 13e-6", {"max_abs_diff_pct_of_peak"}),      # α scales C2 only
+], ids=["h80", "alpha13e-6"])
+def test_gate_fails_for_an_ar_with_wrong_physics(tmp_path, capsys, ar_rod, failing):
+    """An AR built with a wrong h (80, not 55) or α (13e-6, not 12e-6) fails: exit 1,
+    the scenario named in the JUnit failures, with exactly the criteria that physics
+    breaks (a wrong α leaves C1 = exp(-bΔτ) untouched), while a good scenario in the
+    same run still passes."""
+    bad = _variant(tmp_path, "my_spindle", extra=f"\n[check]\nar_rod = {{ {ar_rod} }}\n")
+    junit = tmp_path / "junit.xml"
+    assert main(["check", str(bad), str(PAPER2), "--junit", str(junit)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL my_spindle" in out and "PASS paper_fig2" in out
+    assert "1 passed, 1 failed" in out
+    fails = _failures(_junit(junit))
+    assert {k[1] for k in fails if k[0] == "my_spindle"} == failing
+    assert not [k for k in fails if k[0] == "paper_fig2"]
+    msg = fails[("my_spindle", "max_abs_diff_pct_of_peak")]
+    assert "limit 3 %" in msg
+
+
+def test_gate_fails_outside_the_ar_validity(tmp_path, capsys):
+    """h = 150 W/(m²K) (Bi = 0.3): the paper's AR misses the FEM by 6.98 % of the peak
+    (the issue's 6.97 %), so the gate fails where `arfem run` used to exit 0; the
+    corrected AR, derived for any Bi, passes the same scenario."""
+    sc = _variant(tmp_path, "hot_h150", h=150.0)
+    junit = tmp_path / "j.xml"
+    assert main(["check", str(sc), "--junit", str(junit)]) == 1
+    fails = _failures(_junit(junit))
+    assert "6.976 %" in fails[("hot_h150", "max_abs_diff_pct_of_peak")]
+    capsys.readouterr()
+    assert main(["check", str(sc), "--model", "corrected"]) == 0
+    assert "1 passed, 0 failed" in capsys.readouterr().out
+
+
+def test_limits_from_the_file_and_the_command_line_overriding_them(tmp_path, capsys):
+    """A [check] limit tighter than the paper AR's 2.57 % fails it; the command line
+    overrides the file; both criteria's limits are honoured."""
+    sc = _variant(tmp_path, "strict", extra="\n[check]\nmax_abs_diff_pct_of_peak = 2.0\n")
+    assert main(["check", str(sc)]) == 1
+    assert "limit 2 %" in capsys.readouterr().out
+    assert main(["check", str(sc), "--max-abs-pct", "3"]) == 0
+    assert main(["check", str(PAPER2), "--max-c1-diff", "1e-4"]) == 1   # ΔC1 is 2.4e-4
+    assert "FAILED |C1" in capsys.readouterr().out
+
+
+def test_a_directory_checks_its_scenarios_and_says_what_it_skipped(capsys):
+    """`arfem check scenarios/` runs the two paper scenarios and names every other file
+    (sweep, allocation) and the fl_thermal/ subfolder as skipped, with the reason."""
+    assert main(["check", str(ROOT / "scenarios")]) == 0
+    out = capsys.readouterr().out
+    assert out.count("PASS ") == 2 and "FAIL" not in out
+    assert "SKIP" in out and "sweep_dtau_h.toml: a sweep file" in out
+    assert "pallet_changer.toml: a precision-allocation file" in out
+    assert "fl_thermal/: a subdirectory" in out
+
+
+@pytest.mark.parametrize("args, extra, needle", [
+    (["--max-abs-pct", "0"], "", "--max-abs-pct: must be > 0"),
+    (["--max-c1-diff", "2"], "", "--max-c1-diff: must be in (0, 1)"),
+    ([], "\n[check]\nmax_abs_pct = 2.0\n", "check.max_abs_pct: unknown key (did you mean"),
+    ([], "\n[check]\nmax_abs_diff_pct_of_peak = 200.0\n", "must be in (0, 100]"),
+    ([], "\n[check]\nmodel = \"fancy\"\n", "check.model: must be one of"),
+    ([], "\n[check]\nar_rod = { convection_W_m2k = 80.0 }\n", "check.ar_rod.convection_W_m2k"),
+])
+def test_bad_input_is_one_line_and_status_2(tmp_path, capsys, args, extra, needle):
+    """Bad limits (flags or [check]) end with one error line, status 2, and no report."""
+    sc = _variant(tmp_path, "x", extra=extra)
+    junit = tmp_path / "j.xml"
+    assert main(["check", str(sc), "--junit", str(junit)] + args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and needle in err, err
+    assert not junit.exists()
+
+
+def test_bad_paths_are_status_2(tmp_path, capsys):
+    """A missing file, another command's TOML named explicitly, and a --junit that is a
+    directory are refused before anything runs."""
+    for argv, needle in (
+            (["check", str(tmp_path / "nope.toml")], "no such file"),
+            (["check", str(ROOT / "scenarios" / "sweep_dtau_h.toml")], "is a sweep file"),
+            (["check", str(PAPER2), "--junit", str(tmp_path)], "is a directory")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and needle in err, err
