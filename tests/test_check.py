@@ -9,6 +9,7 @@ the paper cycle; 32.4 % for h = 80; 5.65 % for α = 13e-6) and 6.98 % at h = 150
 from __future__ import annotations
 
 import json
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -172,3 +173,84 @@ def test_bad_paths_are_status_2(tmp_path, capsys):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and needle in err, err
+
+
+# -- deterministic reproduce ---------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def two_reproductions(tmp_path_factory):
+    """`arfem reproduce` run twice into fresh directories (≈ 4 s each, mostly the 3D
+    pictures)."""
+    base = tmp_path_factory.mktemp("repro")
+    outs = [base / "a", base / "b"]
+    for o in outs:
+        assert main(["reproduce", "--out", str(o)]) == 0
+    return outs
+
+
+def test_reproduce_twice_writes_identical_bytes(two_reproductions):
+    """Every file of two runs is byte-identical (CSV, JSON, README, manifest, both PNGs
+    per scenario and the XDMF fields): a rerun leaves `git diff --exit-code reports/`
+    clean. No wall time or host fact is written."""
+    a, b = two_reproductions
+    files_a = sorted(p.relative_to(a).as_posix() for p in a.rglob("*") if p.is_file())
+    files_b = sorted(p.relative_to(b).as_posix() for p in b.rglob("*") if p.is_file())
+    assert files_a == files_b
+    assert {"paper_fig2/figure.png", "paper_fig2/temperature_3d.png",
+            "paper_fig3/timeseries.csv", "README.md", "MANIFEST.json"} <= set(files_a)
+    differ = [f for f in files_a if (a / f).read_bytes() != (b / f).read_bytes()]
+    assert differ == []
+    s = json.loads((a / "paper_fig2" / "summary.json").read_text("utf-8"))
+    assert "wall_s" not in s and "fem_wall_s" not in s
+    assert not re.search(r"\d s wall", (a / "README.md").read_text("utf-8"))
+    man = json.loads((a / "MANIFEST.json").read_text("utf-8"))
+    assert sorted(man["not_committed"]) == ["paper_fig2/fields/fields.xdmf",
+                                            "paper_fig3/fields/fields.xdmf"]
+    assert not any("fields/" in f for f in man["files"])
+
+
+def test_reproduce_numbers_have_fixed_decimals(two_reproductions):
+    """timeseries.csv: every µm value has exactly 6 decimals, time_s 3, no "-0.000000"
+    (a round-off sign must not show); summary.json: µm figures rounded to 6 decimals."""
+    a = two_reproductions[0]
+    lines = (a / "paper_fig2" / "timeseries.csv").read_text("utf-8").splitlines()
+    head = lines[0].split(",")
+    for ln in lines[1:50] + lines[-50:]:
+        cells = dict(zip(head, ln.split(",")))
+        assert len(cells["time_s"].split(".")[1]) == 3
+        assert all(len(cells[k].split(".")[1]) == 6 for k in head if k.endswith("_um"))
+    assert "-0.000000" not in "\n".join(lines)
+    s = json.loads((a / "paper_fig2" / "summary.json").read_text("utf-8"))
+    assert s["fem_peak_um"] == round(s["fem_peak_um"], 6)
+    assert s["C1_fitted"] == round(s["C1_fitted"], 9) != round(s["C1_fitted"], 6)
+
+
+def test_reproduce_check_passes_then_names_a_drift(two_reproductions, tmp_path, capsys):
+    """`reproduce --check` exits 0 against a fresh reproduction and against the committed
+    reports/paper (within 2 units of the last decimal), and 1 when a number moved,
+    naming the file, the key or column and the size of the drift. It writes nothing."""
+    import shutil
+    assert main(["reproduce", "--check", "--out", str(ROOT / "reports" / "paper")]) == 0
+    work = tmp_path / "paper"
+    shutil.copytree(two_reproductions[0], work)
+    before = {p: p.read_bytes() for p in work.rglob("*") if p.is_file()}
+    assert main(["reproduce", "--check", "--out", str(work)]) == 0
+    assert {p: p.read_bytes() for p in work.rglob("*") if p.is_file()} == before
+    sj = work / "paper_fig2" / "summary.json"
+    s = json.loads(sj.read_text("utf-8"))
+    s["max_abs_diff_pct_of_peak"] += 0.01
+    sj.write_text(json.dumps(s), encoding="utf-8")
+    ts = work / "paper_fig3" / "timeseries.csv"
+    rows = ts.read_text("utf-8").splitlines()
+    cells = rows[1001].split(",")
+    cells[4] = f"{float(cells[4]) + 0.5:.6f}"                    # ar_growth_um, t = 30000 s
+    rows[1001] = ",".join(cells)
+    ts.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    capsys.readouterr()
+    assert main(["reproduce", "--check", "--out", str(work)]) == 1
+    out = capsys.readouterr().out
+    assert "paper_fig2/summary.json: max_abs_diff_pct_of_peak" in out
+    assert "drift -0.01" in out
+    assert "paper_fig3/timeseries.csv: column ar_growth_um: 1 of 2881 rows" in out
+    assert "at time_s = 30000" in out
+    assert "2 drifts" in out
