@@ -281,12 +281,14 @@ def json_report(results, skipped) -> dict:
 
 def _check_report_path(path, flag: str) -> Path:
     """Refuse, before any work, a report path that cannot be written as a file."""
+    from arfem.scenarios.outdir import check_out_path
     p = Path(path)
     if p.is_dir():
         raise InputError("is a directory; give a file name", f"{flag} {p}")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"cannot be written: {parent} is not a directory", f"{flag} {p}")
+    try:
+        check_out_path(p.parent)        # may be created; not a file, writable
+    except InputError as e:
+        raise InputError(f"cannot be written: {e}", f"{flag} {p}") from None
     return p
 
 
