@@ -361,7 +361,7 @@ def _paper_readme(evs: list[Evaluation]) -> str:
         "written. `MANIFEST.json` holds the SHA-256 of every committed file. The FEM field "
         "time series (`*/fields/fields.xdmf`) are regenerated but not committed (git "
         "ignores them): the exporter writes every field value with 17 significant digits, so "
-        "a CPU whose BLAS kernels round differently changes nearly all 31 000 of them.",
+        "a CPU whose BLAS kernels round differently changes their last digits.",
         "",
         "`arfem reproduce --check` recomputes the numbers and compares them with these files "
         "instead of writing: it exits 1 and names the file, the key or column and the size "
