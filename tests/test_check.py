@@ -254,3 +254,16 @@ def test_reproduce_check_passes_then_names_a_drift(two_reproductions, tmp_path, 
     assert "paper_fig3/timeseries.csv: column ar_growth_um: 1 of 2881 rows" in out
     assert "at time_s = 30000" in out
     assert "2 drifts" in out
+
+
+def test_ci_workflow_runs_the_readme_install_and_both_gates():
+    """The shipped workflow installs with the README's command verbatim (so the README's
+    instructions are what CI exercises) and runs the tests, both gates and the JUnit upload
+    (a workflow edited into silence would otherwise pass unnoticed)."""
+    readme = (ROOT / "README.md").read_text("utf-8")
+    wf = (ROOT / ".github" / "workflows" / "ci.yml").read_text("utf-8")
+    install = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]"'
+    assert install in readme and install in wf
+    for step in ("python -m pytest -q", "arfem check scenarios/ --junit ci-reports/",
+                 "arfem reproduce --check", "actions/upload-artifact", "path: ci-reports/"):
+        assert step in wf, step
