@@ -356,9 +356,9 @@ def _paper_readme(evs: list[Evaluation]) -> str:
         "Rerunning `arfem reproduce` writes the same bytes, so `git diff --exit-code "
         "reports/` can gate a change: the computation runs on one BLAS thread (its round-off "
         "then does not depend on the core count), numbers are written with fixed decimals "
-        "(growths and differences in µm, % of peak and hours: 6; C1, C2, the Biot number and "
-        "relative differences: 9; time_s and q_W_m2: 3), and wall times are printed, not "
-        "written. `MANIFEST.json` holds the SHA-256 of every committed file. The FEM field "
+        "(growths and differences in µm: 5 in timeseries.csv, 6 in summary.json, as are % of "
+        "peak and hours; C1, C2, the Biot number and relative differences: 9; time_s and "
+        "q_W_m2: 3), and wall times are printed, not written. `MANIFEST.json` holds the SHA-256 of every committed file. The FEM field "
         "time series (`*/fields/fields.xdmf`) are regenerated but not committed (git "
         "ignores them): the exporter writes every field value with 17 significant digits, so "
         "a CPU whose BLAS kernels round differently changes their last digits.",
