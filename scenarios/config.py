@@ -64,9 +64,10 @@ from arfem.strict import string as _string
 from arfem.strict import table as _table
 
 
-__all__ = ["Scenario", "FemSettings", "OutputSettings", "CheckLimits", "check_limit", "load_scenario",
+__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
            "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
            "PAPER_SCENARIOS"]
+__all__ += ["CheckLimits", "check_limit", "CHECK_MODELS"]
 
 #: Built-in scenarios reproducing the paper's figures.
 PAPER_SCENARIOS = ("paper_fig2", "paper_fig3")
@@ -309,7 +310,7 @@ def _from_dict(data: dict, source: str) -> Scenario:
                          f"over the {schedule.total_s:g} s cycle; at most "
                          f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
                          "outputs.field_interval_s")
-    check = _check_limits(_table(data, "check", ""))
+    check = _check_limits(_table(data, "check", ""), rod)
     return Scenario(name=name, description=description, source=source, rod=rod,
                     schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
                     fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
@@ -335,7 +336,7 @@ def check_limit(name: str, value, where: str) -> float:
     return v
 
 
-def _check_limits(d: dict) -> CheckLimits:
+def _check_limits(d: dict, rod: Rod) -> CheckLimits:
     _unknown(d, _CHECK_KEYS, "check")
     kw = {k: check_limit(k, d[k], f"check.{k}") for k in _CHECK_KEYS - {"model", "ar_rod"}
           if k in d}
@@ -346,6 +347,10 @@ def _check_limits(d: dict) -> CheckLimits:
     for k, v in ar_rod.items():
         check_plausible(k, _number(v, f"check.ar_rod.{k}"), f"check.ar_rod.{k}")
     kw["ar_rod"] = tuple(sorted((k, float(v)) for k, v in ar_rod.items()))
+    try:
+        rod.with_(**dict(kw["ar_rod"]))         # the AR's rod must be a valid rod too
+    except InputError as exc:
+        raise exc.at("check.ar_rod") from None
     return CheckLimits(**kw)
 
 
@@ -378,7 +383,7 @@ def apply_override(data: dict, key: str, value: Any) -> dict:
     allowed = {
         (): _TOP, ("scenario",): _SCENARIO_KEYS, ("rod",): {f.name for f in fields(Rod)},
         ("cycle",): {"total_h", "total_s"}, ("ar",): _AR_KEYS, ("fem",): _FEM_KEYS - {"mesh"},
-        ("fem", "mesh"): _MESH_KEYS["axisymmetric"] | _MESH_KEYS["3d"], ("outputs",): _OUT_KEYS, ("check",): _CHECK_KEYS,
+        ("fem", "mesh"): _MESH_KEYS["axisymmetric"] | _MESH_KEYS["3d"], ("outputs",): _OUT_KEYS,
     }
     parent = tuple(parts[:-1])
     if parent not in allowed or parts[-1] not in allowed[parent]:
