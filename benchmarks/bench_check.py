@@ -23,15 +23,23 @@ ROOT = Path(__file__).resolve().parents[1]
 TARGET_S = 5.0
 
 
-def _timed(argv: list[str]) -> tuple[float, float, int, str]:
-    """(wall s, peak RSS MB, exit status, last output line) of one fresh process."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+_CHILD = ("import resource, sys\n"
+          "from arfem.scenarios.cli import main\n"
+          "rc = main(sys.argv[1:])\n"
+          "print('MAXRSS_KB', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, "
+          "file=sys.stderr)\n"
+          "sys.exit(rc)\n")
+
+
+def _timed(args: list[str]) -> tuple[float, float, int, str]:
+    """(wall s, peak RSS MB, exit status, last output line) of one fresh process running
+    ``arfem ARGS`` (the same entry point as the console script)."""
     t0 = time.perf_counter()
-    p = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True)
+    p = subprocess.run([sys.executable, "-c", _CHILD] + args, cwd=ROOT, capture_output=True,
+                       text=True)
     wall = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    # ru_maxrss of children is the largest child so far; report it only when it grew
-    peak_mb = max(peak, before) / 1024
+    rss = [ln.split()[1] for ln in p.stderr.splitlines() if ln.startswith("MAXRSS_KB")]
+    peak_mb = int(rss[-1]) / 1024 if rss else float("nan")
     last = (p.stdout.strip().splitlines() or [p.stderr.strip()])[-1]
     return wall, peak_mb, p.returncode, last
 
@@ -40,7 +48,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    arfem = [sys.executable, "-m", "arfem"]
+    arfem: list[str] = []
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
         junit = os.path.join(tmp, "junit.xml")

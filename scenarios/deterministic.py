@@ -36,15 +36,26 @@ far less.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CSV_DECIMALS", "WALL_KEYS", "json_decimals", "fixed_metrics", "csv_formats",
+__all__ = ["one_blas_thread", "CSV_DECIMALS", "WALL_KEYS", "json_decimals", "fixed_metrics", "csv_formats",
            "fixed_columns",
            "compare_summary", "compare_timeseries", "TOLERANCE_UNITS"]
+
+@contextlib.contextmanager
+def one_blas_thread():
+    """One BLAS/OpenMP thread (threadpoolctl): the round-off no longer depends on the
+    machine's core count, and the small dense eigenproblems here (a few hundred dofs) do
+    not slow down 10-100x when threads contend with other jobs on a busy CI machine."""
+    from threadpoolctl import threadpool_limits
+    with threadpool_limits(limits=1):
+        yield
+
 
 #: Keys holding wall times: printed by the commands, kept out of committed files.
 WALL_KEYS = ("fem_wall_s", "wall_s")

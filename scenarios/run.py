@@ -7,7 +7,6 @@ writers (:func:`write_outputs`: CSV, JSON, PNG, Markdown, XDMF).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import time
 from dataclasses import dataclass, field
@@ -407,14 +406,6 @@ def _committed(rel: str) -> bool:
     return not any(part in UNCOMMITTED_DIRS for part in rel.split("/")[:-1])
 
 
-@contextlib.contextmanager
-def _one_blas_thread():
-    """One BLAS/OpenMP thread: round-off independent of the machine's core count."""
-    from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1):
-        yield
-
-
 def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     """Run every paper scenario into ``out``/<name>/ plus a README comparing with the paper.
 
@@ -431,7 +422,7 @@ def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     def unchanged(rel, path):
         rel = rel.as_posix()
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
-    with _one_blas_thread():
+    with det.one_blas_thread():
         evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
         with staged_out_dir(out, force, may_replace=unchanged) as stage:
             for ev in evs:
@@ -465,7 +456,7 @@ def check_reproduction(out="reports/paper") -> list[str]:
         raise InputError("holds no arfem reproduce output (its MANIFEST.json) to check "
                          "against; run arfem reproduce first", str(out))
     drifts = []
-    with _one_blas_thread(), tempfile.TemporaryDirectory() as tmp:
+    with det.one_blas_thread(), tempfile.TemporaryDirectory() as tmp:
         for name in PAPER_SCENARIOS:
             sc = load_scenario(builtin_scenario_path(name))
             sc = dataclasses.replace(sc, outputs=dataclasses.replace(
