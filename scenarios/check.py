@@ -72,6 +72,7 @@ class ScenarioResult:
     model: str
     criteria: list = field(default_factory=list)
     wall_s: float = 0.0
+    biot: float = float("nan")          # hR/λ of the FEM's rod: the paper AR's validity
 
     @property
     def passed(self) -> bool:
@@ -203,7 +204,7 @@ def check_scenario(scenario: Scenario, max_abs_pct: float | None = None,
                   f"({m['C1_fitted']:.6f} vs {c1:.6f}), limit {dc1:.1e}"),
     ]
     return ScenarioResult(scenario.name, scenario.source, model, crit,
-                          time.perf_counter() - t0)
+                          time.perf_counter() - t0, scenario.rod.biot)
 
 
 def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print):
@@ -228,7 +229,7 @@ def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print
 def _line(r: ScenarioResult) -> str:
     head = "PASS" if r.passed else "FAIL"
     parts = "; ".join(("" if c.passed else "FAILED ") + c.message for c in r.criteria)
-    return f"{head} {r.scenario} ({r.file}, {r.model} AR): {parts}"
+    return f"{head} {r.scenario} ({r.file}, {r.model} AR, Bi = {r.biot:.3f}): {parts}"
 
 
 # -- reports ---------------------------------------------------------------------------------
@@ -272,7 +273,7 @@ def json_report(results, skipped) -> dict:
         "passed": sum(r.passed for r in results),
         "failed": sum(not r.passed for r in results),
         "scenarios": [{"scenario": r.scenario, "file": r.file, "model": r.model,
-                       "passed": r.passed,
+                       "biot": r.biot, "passed": r.passed,
                        "criteria": [{"name": c.name, "value": c.value, "limit": c.limit,
                                      "unit": c.unit, "passed": c.passed,
                                      "message": c.message} for c in r.criteria]}
