@@ -81,11 +81,14 @@ class ScenarioResult:
 
 # -- which files ---------------------------------------------------------------------------
 
-def _kind(data: dict) -> str | None:
-    """Why a TOML document is not a run scenario, or None if it is one."""
+def _kind(data: dict, in_dir: bool) -> str | None:
+    """Why a TOML document is not a run scenario, or None if it is one. In a directory,
+    a file without the [cycle] every scenario needs (a pyproject.toml, say) is not one."""
     for key, why in _OTHER_KINDS:
         if key in data:
             return why
+    if in_dir and "cycle" not in data:
+        return "not an arfem scenario (it has no [cycle] table)"
     return None
 
 
@@ -124,7 +127,7 @@ def collect(paths) -> tuple[list[Scenario], list[Skipped]]:
                 continue
             seen.add(key)
             data = read_toml(f)
-            why = _kind(data) if isinstance(data, dict) else None
+            why = _kind(data, not explicit) if isinstance(data, dict) else None
             if why is not None:
                 if explicit:
                     raise InputError(f"is {why}, not a scenario; arfem check runs "

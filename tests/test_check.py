@@ -134,15 +134,25 @@ def test_limits_from_the_file_and_the_command_line_overriding_them(tmp_path, cap
     assert "FAILED |C1" in capsys.readouterr().out
 
 
-def test_a_directory_checks_its_scenarios_and_says_what_it_skipped(capsys):
+def test_a_directory_checks_its_scenarios_and_says_what_it_skipped(tmp_path, capsys):
     """`arfem check scenarios/` runs the two paper scenarios and names every other file
-    (sweep, allocation) and the fl_thermal/ subfolder as skipped, with the reason."""
+    (sweep, allocation) and the fl_thermal/ subfolder as skipped, with the reason; in a
+    directory a TOML without [cycle] (a pyproject.toml) is skipped, while a scenario with
+    a bad key still stops everything with status 2."""
     assert main(["check", str(ROOT / "scenarios")]) == 0
     out = capsys.readouterr().out
     assert out.count("PASS ") == 2 and "FAIL" not in out
     assert "SKIP" in out and "sweep_dtau_h.toml: a sweep file" in out
     assert "pallet_changer.toml: a precision-allocation file" in out
     assert "fl_thermal/: a subdirectory" in out
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "x"\n', encoding="utf-8")
+    _variant(tmp_path, "mine")
+    assert main(["check", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "pyproject.toml: not an arfem scenario" in out and "PASS mine" in out
+    _variant(tmp_path, "typo", extra="\n[check]\nmodle = 'paper'\n")
+    assert main(["check", str(tmp_path)]) == 2
+    assert "check.modle: unknown key" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("args, extra, needle", [
