@@ -26,6 +26,7 @@ COMMANDS = {
     "sweep": "arfem.scenarios.sweep",
     "diagnose": "arfem.scenarios.diagnose",
     "allocate": "arfem.scenarios.allocate",
+    "check": "arfem.scenarios.check",
 }
 
 

@@ -34,6 +34,13 @@ A scenario describes one FEM-vs-AR(1) comparison. Every key carries its unit::
     picture = true               # off-screen 3D PNG of the temperature
     field_interval_s = 1800.0    # spacing of the field snapshots
 
+    [check]                      # optional: limits of `arfem check` (the command line wins)
+    max_abs_diff_pct_of_peak = 3.0   # max|AR - FEM| as % of the FEM peak growth
+    max_C1_abs_diff = 5e-4       # |C1 fitted to the FEM - C1 of the AR| [-]
+    model = "paper"              # the AR checked: "paper" (eqs. 13-14) or "corrected"
+    ar_rod = { convection_W_m2K = 55.0 }   # the AR's own rod values, where they differ
+                                 # from [rod] (e.g. the h your compensation uses)
+
 Unknown keys, wrong types, phases that do not add up, negative durations, a Δτ
 that does not divide the phases and values in units that cannot be right are
 refused with one line naming the file and the key.
@@ -60,6 +67,7 @@ from arfem.strict import table as _table
 __all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
            "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
            "PAPER_SCENARIOS"]
+__all__ += ["CheckLimits", "check_limit", "CHECK_MODELS"]
 
 #: Built-in scenarios reproducing the paper's figures.
 PAPER_SCENARIOS = ("paper_fig2", "paper_fig3")
@@ -73,7 +81,7 @@ MAX_ELEMENTS_PER_DIRECTION = 4096
 MAX_FIELD_SNAPSHOTS = 5000
 
 
-_TOP = {"scenario", "rod", "cycle", "ar", "fem", "outputs"}
+_TOP = {"scenario", "rod", "cycle", "ar", "fem", "outputs", "check"}
 _SCENARIO_KEYS = {"name", "description"}
 _CYCLE_KEYS = {"phases", "total_h", "total_s"}
 _PHASE_KEYS = {"duration_s", "duration_min", "duration_h", "q_W_m2", "ambient_C", "h_W_m2K",
@@ -83,6 +91,9 @@ _FEM_KEYS = {"model", "order", "solver", "dt_s", "mesh", "elastic"}
 _MESH_KEYS = {"axisymmetric": {"nr", "nz", "ratio_r", "ratio_z"},
               "3d": {"n_core", "n_ring", "nz", "ratio_ring", "ratio_z"}}
 _OUT_KEYS = {"fields", "picture", "field_interval_s"}
+_CHECK_KEYS = {"max_abs_diff_pct_of_peak", "max_C1_abs_diff", "model", "ar_rod"}
+#: the AR(1) models ``arfem check`` can compare with the FEM
+CHECK_MODELS = ("paper", "corrected")
 _SOLVERS = {"modal": None, "crank-nicolson": 0.5, "backward-euler": 1.0}
 
 
@@ -111,6 +122,16 @@ class OutputSettings:
 
 
 @dataclass(frozen=True)
+class CheckLimits:
+    """The scenario's own ``[check]`` limits; None where the file sets none."""
+
+    max_abs_diff_pct_of_peak: float | None = None   # [% of the FEM peak growth]
+    max_C1_abs_diff: float | None = None            # [-]
+    model: str | None = None                        # "paper" | "corrected"
+    ar_rod: tuple = ()      # ((Rod field, value), ...): the AR's rod where it differs
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A validated scenario (see module docstring for the file format)."""
 
@@ -124,6 +145,7 @@ class Scenario:
     fem: FemSettings
     outputs: OutputSettings
     data: dict = field(repr=False, default_factory=dict)
+    check: CheckLimits = field(default_factory=CheckLimits)
 
     @property
     def q_levels(self) -> list[float]:
@@ -288,11 +310,48 @@ def _from_dict(data: dict, source: str) -> Scenario:
                          f"over the {schedule.total_s:g} s cycle; at most "
                          f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
                          "outputs.field_interval_s")
+    check = _check_limits(_table(data, "check", ""), rod)
     return Scenario(name=name, description=description, source=source, rod=rod,
                     schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
                     fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
                                     elastic=elastic, mesh=mesh),
-                    outputs=outputs, data=copy.deepcopy(data))
+                    outputs=outputs, data=copy.deepcopy(data), check=check)
+
+
+def check_limit(name: str, value, where: str) -> float:
+    """Validate one ``arfem check`` limit (from ``[check]`` or the command line).
+
+    ``max_abs_diff_pct_of_peak`` must be in (0, 100] [% of the FEM peak]: above 100 %
+    an AR that predicts no growth at all would pass. ``max_C1_abs_diff`` must be in
+    (0, 1) [-]: C1 itself lies in (0, 1).
+
+    >>> check_limit("max_C1_abs_diff", 5e-4, "check.max_C1_abs_diff")
+    0.0005
+    """
+    v = _number(value, where, positive=True)
+    if name == "max_abs_diff_pct_of_peak" and v > 100.0:
+        raise InputError(f"must be in (0, 100] (% of the FEM peak), got {value!r}", where)
+    if name == "max_C1_abs_diff" and v >= 1.0:
+        raise InputError(f"must be in (0, 1) (C1 itself lies in (0, 1)), got {value!r}", where)
+    return v
+
+
+def _check_limits(d: dict, rod: Rod) -> CheckLimits:
+    _unknown(d, _CHECK_KEYS, "check")
+    kw = {k: check_limit(k, d[k], f"check.{k}") for k in _CHECK_KEYS - {"model", "ar_rod"}
+          if k in d}
+    if "model" in d:
+        kw["model"] = _string(d["model"], "check.model", CHECK_MODELS)
+    ar_rod = _table(d, "ar_rod", "check")
+    _unknown(ar_rod, {f.name for f in fields(Rod)}, "check.ar_rod")
+    for k, v in ar_rod.items():
+        check_plausible(k, _number(v, f"check.ar_rod.{k}"), f"check.ar_rod.{k}")
+    kw["ar_rod"] = tuple(sorted((k, float(v)) for k, v in ar_rod.items()))
+    try:
+        rod.with_(**dict(kw["ar_rod"]))         # the AR's rod must be a valid rod too
+    except InputError as exc:
+        raise exc.at("check.ar_rod") from None
+    return CheckLimits(**kw)
 
 
 def apply_override(data: dict, key: str, value: Any) -> dict:

@@ -20,6 +20,7 @@ from arfem.params import InputError
 from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+from arfem.scenarios import deterministic as det
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "PAPER_VALUES"]
@@ -207,20 +208,35 @@ def _summary_md(ev: Evaluation) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
-    """Write every output of one evaluation into ``out_dir`` (a staging directory)."""
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    write_csv(out_dir / "timeseries.csv", {
+def _timeseries_columns(ev: Evaluation) -> dict:
+    return {
         "time_s": ev.times_s, "time_h": ev.times_s / 3600.0, "q_W_m2": ev.q_W_m2,
         "fem_growth_um": ev.fem_growth_um, "ar_growth_um": ev.ar_growth_um,
         "ar_corrected_growth_um": ev.ar_corrected_growth_um,
         "ar_minus_fem_um": ev.ar_growth_um - ev.fem_growth_um,
         "ar_corrected_minus_fem_um": ev.ar_corrected_growth_um - ev.fem_growth_um,
-    })
+    }
+
+
+def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False) -> list[str]:
+    """Write every output of one evaluation into ``out_dir`` (a staging directory).
+
+    ``fixed_precision`` (``arfem reproduce``): numbers with the fixed decimals of
+    :mod:`arfem.scenarios.deterministic` and no wall times, so that a rerun writes the
+    same bytes.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cols = _timeseries_columns(ev)
+    if fixed_precision:
+        write_csv(out_dir / "timeseries.csv", det.fixed_columns(cols), fmt=det.csv_formats(cols))
+    else:
+        write_csv(out_dir / "timeseries.csv", cols)
     written = ["timeseries.csv"]
     extra = _write_fields(ev, out_dir)
-    write_json(out_dir / "summary.json", {**ev.metrics, **extra})
+    summary = {**ev.metrics, **extra}
+    write_json(out_dir / "summary.json", det.fixed_metrics(summary) if fixed_precision
+               else summary)
     _figure(ev, out_dir / "figure.png")
     atomic_write_text(out_dir / "summary.md", _summary_md(ev))
     return written + ["summary.json", "figure.png", "summary.md"]
@@ -286,7 +302,7 @@ def run_scenario(path, out, force: bool = False) -> Evaluation:
     return ev
 
 
-def _paper_readme(evs: list[Evaluation], wall_s: float) -> str:
+def _paper_readme(evs: list[Evaluation]) -> str:
     rows = []
     for ev in evs:
         m = ev.metrics
@@ -334,8 +350,22 @@ def _paper_readme(evs: list[Evaluation], wall_s: float) -> str:
         "cylinder (μ J1(μ) = Bi J0(μ)); it is derived, not fitted, and tracks the FEM to the "
         "figure in the last column.",
         "",
-        f"Whole run (both scenarios, all outputs): {wall_s:.1f} s wall on the machine that "
-        "generated it.",
+        "## How these files are written",
+        "",
+        "Rerunning `arfem reproduce` writes the same bytes, so `git diff --exit-code "
+        "reports/` can gate a change: the computation runs on one BLAS thread (its round-off "
+        "then does not depend on the core count), numbers are written with fixed decimals "
+        "(growths and differences in µm: 5 in timeseries.csv, 6 in summary.json, as are % of "
+        "peak and hours; C1, C2, the Biot number and relative differences: 9; time_s and "
+        "q_W_m2: 3), and wall times are printed, not written. `MANIFEST.json` holds the SHA-256 of every committed file. The FEM field "
+        "time series (`*/fields/fields.xdmf`) are regenerated but not committed (git "
+        "ignores them): the exporter writes every field value with 17 significant digits, so "
+        "a CPU whose BLAS kernels round differently changes their last digits.",
+        "",
+        "`arfem reproduce --check` recomputes the numbers and compares them with these files "
+        "instead of writing: it exits 1 and names the file, the key or column and the size "
+        "of the drift when a number moves by more than 2 units in its last written decimal "
+        "(plus 1e-9 relative). The pictures and this README are not compared by it.",
         "",
     ]
     return "\n".join(lines)
@@ -359,11 +389,21 @@ def _own_files(out: Path) -> dict | None:
     if not isinstance(man, dict) or man.get("generator") != "arfem reproduce":
         return None
     files = man.get("files")
+    extra = {str(k): None for k in man.get("not_committed", []) if isinstance(k, str)}
     if isinstance(files, dict):
-        return {str(k): v for k, v in files.items()} | {MANIFEST: None}
+        return {str(k): v for k, v in files.items()} | extra | {MANIFEST: None}
     if isinstance(files, list):             # older manifests: names only
         return {str(k): None for k in files} | {MANIFEST: None}
     return None
+
+
+#: Subdirectories reproduce writes but does not list for version control (see the README
+#: it writes): the XDMF field values are printed with 17 digits by the exporter.
+UNCOMMITTED_DIRS = ("fields",)
+
+
+def _committed(rel: str) -> bool:
+    return not any(part in UNCOMMITTED_DIRS for part in rel.split("/")[:-1])
 
 
 def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
@@ -372,27 +412,64 @@ def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     ``out`` may be updated without ``--force`` only if it holds an earlier
     ``arfem reproduce`` result (its ``MANIFEST.json``), and then only the files that
     result wrote and nobody has changed since (their SHA-256 is in the manifest).
+    The files are deterministic (:mod:`arfem.scenarios.deterministic`): a rerun writes
+    the same bytes.
     """
-    t0 = time.perf_counter()
     out = Path(out)
     own = _own_files(out)
     prepare_out_dir(out, force or own is not None)
-    evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
 
     def unchanged(rel, path):
         rel = rel.as_posix()
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
-    with staged_out_dir(out, force, may_replace=unchanged) as stage:
-        for ev in evs:
-            write_outputs(ev, stage / ev.scenario.name)
-        wall = time.perf_counter() - t0
-        atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
-        write_json(stage / MANIFEST, {"generator": "arfem reproduce",
-                                      "scenarios": list(PAPER_SCENARIOS),
-                                      "files": {p.relative_to(stage).as_posix(): _sha256(p)
-                                                for p in sorted(stage.rglob("*"))
-                                                if p.is_file()}})
+    with det.one_blas_thread():
+        evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
+        with staged_out_dir(out, force, may_replace=unchanged) as stage:
+            for ev in evs:
+                write_outputs(ev, stage / ev.scenario.name, fixed_precision=True)
+            atomic_write_text(stage / "README.md", _paper_readme(evs))
+            rels = [p.relative_to(stage).as_posix() for p in sorted(stage.rglob("*"))
+                    if p.is_file()]
+            write_json(stage / MANIFEST, {
+                "generator": "arfem reproduce",
+                "scenarios": list(PAPER_SCENARIOS),
+                "files": {r: _sha256(stage / r) for r in rels if _committed(r)},
+                "not_committed": [r for r in rels if not _committed(r)]})
     return evs
+
+
+def check_reproduction(out="reports/paper") -> list[str]:
+    """``arfem reproduce --check``: recompute the paper scenarios' numbers and compare them
+    with the ``summary.json`` and ``timeseries.csv`` files in ``out``, writing nothing.
+
+    Returns one line per drift (file, key or column, committed and recomputed values, the
+    drift and its tolerance); empty when everything agrees within
+    :data:`arfem.scenarios.deterministic.TOLERANCE_UNITS` units in the last written
+    decimal. The FEM fields and the pictures are not solved or drawn; the elastic growth
+    at the peak is (it is in summary.json).
+    """
+    import dataclasses
+    import tempfile
+
+    out = Path(out)
+    if _own_files(out) is None:
+        raise InputError("holds no arfem reproduce output (its MANIFEST.json) to check "
+                         "against; run arfem reproduce first", str(out))
+    drifts = []
+    with det.one_blas_thread(), tempfile.TemporaryDirectory() as tmp:
+        for name in PAPER_SCENARIOS:
+            sc = load_scenario(builtin_scenario_path(name))
+            sc = dataclasses.replace(sc, outputs=dataclasses.replace(
+                sc.outputs, fields=False, picture=False))
+            ev = evaluate(sc)
+            extra = _write_fields(ev, Path(tmp))       # fields and picture off: no file
+            expected = det.fixed_metrics({**ev.metrics, **extra})
+            drifts += det.compare_summary(str(out / name / "summary.json"),
+                                          out / name / "summary.json", expected)
+            drifts += det.compare_timeseries(str(out / name / "timeseries.csv"),
+                                             out / name / "timeseries.csv",
+                                             _timeseries_columns(ev))
+    return drifts
 
 
 # -- CLI -----------------------------------------------------------------------------------
@@ -413,6 +490,15 @@ def _main_run(args) -> int:
 
 def _main_reproduce(args) -> int:
     t0 = time.perf_counter()
+    if args.check:
+        drifts = check_reproduction(args.out)
+        for d in drifts:
+            print(f"DRIFT {d}")
+        print(f"reproduce --check: {len(PAPER_SCENARIOS)} scenarios recomputed against "
+              f"{args.out}: " + (f"{len(drifts)} drifts" if drifts else
+                                 "every number within tolerance")
+              + f" ({time.perf_counter() - t0:.1f} s)")
+        return 1 if drifts else 0
     evs = reproduce(args.out, args.force)
     for ev in evs:
         _print_summary(ev, Path(args.out) / ev.scenario.name)
@@ -436,4 +522,8 @@ def add_parser(sub) -> None:
     r.add_argument("--out", default="reports/paper", help="output directory (default: reports/paper)")
     r.add_argument("--force", action="store_true", help="replace a non-empty --out that is not "
                                                         "an earlier reproduce result")
+    r.add_argument("--check", action="store_true",
+                   help="write nothing: recompute the numbers and compare them with the "
+                        "committed summary.json and timeseries.csv files in --out; exit 1 "
+                        "on a drift beyond 2 units in the last written decimal")
     r.set_defaults(func=_main_reproduce)
