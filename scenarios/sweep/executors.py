@@ -1,0 +1,254 @@
+"""Where points are computed: one point (:func:`evaluate_point`), in this process, in
+local worker processes, or on a Dask distributed cluster; BLAS held single-threaded
+(:func:`blas_threads`, through threadpoolctl) so that every executor gives the same bits."""
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+import math
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+import numpy as np
+
+from arfem.params import InputError
+from arfem.scenarios.config import scenario_from_dict
+
+__all__ = ["evaluate_point", "blas_threads", "LocalExecutor", "DaskExecutor",
+           "clear_worker_cache"]
+
+# -- evaluating one point (runs in a worker) ----------------------------------------------
+
+_WORKER_CACHE: dict = {}
+_WORKER_CACHE_MAX = 24            # assembled models + eigen-decompositions kept per worker
+
+
+def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
+    """Evaluate one resolved scenario dict; return its JSON-able metrics and run time.
+
+    Runs in a worker process (local pool or Dask worker). Assembled models and
+    eigen-decompositions are cached per worker (one per rod, i.e. per h), so
+    points that share h only redo the cheap modal time stepping.
+
+    Parameters
+    ----------
+    data : dict
+        Fully resolved scenario dict.
+    source : str
+        Name used in error messages.
+
+    Returns
+    -------
+    dict
+        ``{"metrics": {...}, "run_time_s": float, "worker": "host:pid"}``.
+    """
+    from arfem.scenarios.run import evaluate
+    t0 = time.perf_counter()
+    scenario = scenario_from_dict(data, source)
+    if len(_WORKER_CACHE) > _WORKER_CACHE_MAX:
+        _WORKER_CACHE.clear()
+    ev = evaluate(scenario, cache=_WORKER_CACHE)
+    metrics = _plain(ev.metrics)
+    return {"metrics": metrics, "run_time_s": time.perf_counter() - t0,
+            "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def _plain(o):
+    """JSON-able copy: numpy scalars to Python, non-finite floats to None."""
+    if isinstance(o, dict):
+        return {str(k): _plain(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in (o.tolist() if isinstance(o, np.ndarray) else o)]
+    if isinstance(o, (bool, np.bool_)):
+        return bool(o)
+    if isinstance(o, (int, np.integer)):
+        return int(o)
+    if isinstance(o, (float, np.floating)):
+        f = float(o)
+        return f if math.isfinite(f) else None
+    return o
+
+
+
+# -- executors ----------------------------------------------------------------------------
+
+#: Same single-threaded BLAS as a Dask nanny worker, so local and Dask runs agree bit for bit.
+_WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+
+#: BLAS limits kept for the life of a worker process.
+_LIMITED = []
+
+
+def blas_threads(n: int = 1):
+    """Hold the BLAS/OpenMP thread count of this process at ``n`` (a context manager;
+    the previous counts come back on exit; applied at once, so it may also be kept).
+
+    Small dense eigen-decompositions are much faster on one thread, and far slower
+    on several when the machine is loaded; workers run single-threaded.
+    """
+    import scipy.linalg  # noqa: F401  (loads SciPy's own OpenBLAS, used by eigh)
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=n)
+
+
+def clear_worker_cache() -> None:
+    """Forget the models and eigen-decompositions cached in this process (benchmarks)."""
+    _WORKER_CACHE.clear()
+
+
+def _worker_init(ppid: int) -> None:        # pragma: no cover - runs in worker processes
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the parent's to handle
+    _LIMITED.append(blas_threads(1))
+    _watch_parent(ppid)
+
+
+def _watch_parent(ppid: int) -> None:       # pragma: no cover - runs in worker processes
+    def loop():
+        while True:
+            time.sleep(1.0)
+            if os.getppid() != ppid:
+                os._exit(1)
+    threading.Thread(target=loop, daemon=True).start()
+
+
+class LocalExecutor:
+    """Worker processes on this machine (spawned, single-threaded BLAS)."""
+
+    def __init__(self, workers: int):
+        self.workers = workers
+        self.pool = None
+        self.label = f"local, {workers} worker process{'es' if workers > 1 else ''}"
+
+    def __enter__(self):
+        import multiprocessing as mp
+        saved = {k: os.environ.get(k) for k in _WORKER_ENV}
+        os.environ.update(_WORKER_ENV)
+        try:
+            self.pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                            initializer=_worker_init, initargs=(os.getpid(),))
+            # start the workers now, while the environment is set
+            list(self.pool.map(abs, range(self.workers)))
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+        return self
+
+    def submit(self, fn, *args):
+        return self.pool.submit(fn, *args)
+
+    def as_completed(self, futures):
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            yield from done
+
+    def __exit__(self, exc_type, *exc):
+        if exc_type is None:
+            self.pool.shutdown(wait=True)
+        else:   # interrupted: drop queued work, do not wait for points in flight
+            procs = list((getattr(self.pool, "_processes", None) or {}).values())
+            self.pool.shutdown(wait=False, cancel_futures=True)
+            for p in procs:
+                p.terminate()
+
+
+
+def _probe_scheduler(address: str, timeout_s: float) -> None:
+    """Raise unless a Dask scheduler answers an ``identity`` request at ``address``."""
+    import asyncio
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address
+    from distributed.comm.registry import get_backend
+
+    scheme, loc = parse_address(address)
+    get_backend(scheme)                              # ValueError: unknown scheme
+    if scheme == "inproc":
+        return
+
+    async def probe():
+        comm = await connect(address, timeout=timeout_s)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            reply = await comm.read()
+        finally:
+            comm.abort()
+        if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+            raise ConnectionError(f"not a Dask scheduler (identity: {str(reply)[:60]})")
+
+    async def bounded():
+        return await asyncio.wait_for(probe(), timeout_s)
+
+    try:
+        asyncio.run(bounded())
+    except asyncio.TimeoutError:
+        raise TimeoutError(f"no answer after {timeout_s:g} s") from None
+    except MemoryError:
+        raise ConnectionError("something answered, but not in the Dask protocol") from None
+
+
+def _single_threaded_call(fn, *args):
+    """Run ``fn`` with single-threaded BLAS (set once per process: Dask workers)."""
+    if not _LIMITED:
+        _LIMITED.append(blas_threads(1))
+    return fn(*args)
+
+
+class DaskExecutor:
+    """The same tasks on a Dask distributed cluster."""
+
+    def __init__(self, address: str, timeout_s: float = 5.0):
+        self.address = address
+        self.timeout_s = timeout_s
+        self.client = None
+        self.submitted = []
+        self.label = f"dask scheduler {address}"
+
+    def connect(self):
+        try:
+            from dask.distributed import Client
+        except ImportError:                                     # pragma: no cover
+            raise InputError("dask.distributed is not installed", "--scheduler") from None
+        def fail(exc):
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            return InputError(f"cannot reach the Dask scheduler at {self.address!r} within "
+                              f"{self.timeout_s:g} s ({msg})", "--scheduler")
+
+        try:        # a bare probe first: a failed Client() leaves a noisy half-made object
+            _probe_scheduler(self.address, self.timeout_s)
+        except Exception as exc:      # OSError, TimeoutError, ValueError for a bad address
+            raise fail(exc) from None
+        try:
+            self.client = Client(self.address, timeout=self.timeout_s, set_as_default=False)
+        except Exception as exc:                                # pragma: no cover - races
+            raise fail(exc) from None
+        n = len(self.client.scheduler_info().get("workers", {}))
+        self.label = f"dask scheduler {self.address} ({n} workers)"
+        return self
+
+    def __enter__(self):
+        if self.client is None:
+            self.connect()
+        return self
+
+    def submit(self, fn, *args):
+        fut = self.client.submit(_single_threaded_call, fn, *args, pure=False)
+        self.submitted.append(fut)
+        return fut
+
+    def as_completed(self, futures):
+        from dask.distributed import as_completed
+        yield from as_completed(futures, loop=self.client.loop)
+
+    def __exit__(self, exc_type, *exc):
+        if exc_type is not None:
+            try:
+                self.client.cancel(self.submitted)
+            except Exception:                                   # pragma: no cover
+                pass
+        self.client.close()
+

@@ -1,0 +1,375 @@
+"""What a sweep writes from its store: the tidy ``results.csv``, the Biot thresholds and
+conclusion, the figures, ``summary.json`` and ``README.md``."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from arfem.io import atomic_write_text, write_json
+from arfem.scenarios.outdir import staged_out_dir
+from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, _canonical
+
+__all__ = ["results_rows", "rows_to_csv", "biot_threshold", "thresholds", "render_readme",
+           "write_outputs"]
+
+# -- the tidy table -----------------------------------------------------------------------
+
+def results_rows(sweep: Sweep, store) -> list[dict]:
+    """One row per stored point of ``sweep``, in grid order: inputs, then metrics."""
+    rows = []
+    for p in sweep.points:
+        rec = store.get(p.key)
+        if rec is None:
+            continue
+        m = dict(rec["metrics"])
+        peak = m.get("fem_peak_um") or float("nan")
+        for pre in ("", "corrected_"):
+            if f"{pre}rmse_pct_of_peak" not in m and f"{pre}rmse_um" in m:
+                m[f"{pre}rmse_pct_of_peak"] = 100.0 * m[f"{pre}rmse_um"] / peak
+        m["run_time_s"] = rec.get("run_time_s")
+        row = {c: m.get(c) for c in CORE_INPUTS}
+        row.update(p.inputs)
+        for c in METRIC_COLUMNS:
+            row[c] = m.get(c)
+        row["point_key"] = p.key
+        rows.append(row)
+    return rows
+
+
+def _cell(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ""
+    s = str(v)
+    if any(ch in s for ch in ',"\n'):
+        s = '"' + s.replace('"', '""') + '"'
+    return s
+
+
+def rows_to_csv(rows: list[dict]) -> str:
+    """Tidy CSV text; floats written with ``repr`` (round-trips exactly)."""
+    if not rows:
+        return ""
+    cols = list(rows[0])
+    lines = [",".join(cols)] + [",".join(_cell(r.get(c)) for c in cols) for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+# -- analysis -----------------------------------------------------------------------------
+
+def biot_threshold(biot, error, level: float) -> float:
+    """Smallest Biot number at which ``error`` reaches ``level``, linearly interpolated.
+
+    Parameters
+    ----------
+    biot : array_like
+        Biot numbers hR/λ [-] (any order).
+    error : array_like
+        Error at each Biot number [% of peak].
+    level : float
+        Threshold [% of peak].
+
+    Returns
+    -------
+    float
+        The crossing [-]; ``nan`` if the error never reaches ``level``, the
+        smallest Biot number if it is reached already there.
+
+    Examples
+    --------
+    >>> biot_threshold([0.1, 0.2, 0.4], [1.0, 2.0, 6.0], 3.0)
+    0.25
+    >>> biot_threshold([0.1, 0.2], [1.0, 2.0], 3.0)
+    nan
+    """
+    b = np.asarray(biot, float)
+    e = np.asarray(error, float)
+    o = np.argsort(b)
+    b, e = b[o], e[o]
+    above = np.nonzero(e >= level)[0]
+    if above.size == 0:
+        return float("nan")
+    i = int(above[0])
+    if i == 0:
+        return float(b[0])
+    return float(b[i - 1] + (level - e[i - 1]) * (b[i] - b[i - 1]) / (e[i] - e[i - 1]))
+
+
+def _slice_rows(sweep: Sweep, rows: list[dict]) -> tuple[list[dict], dict]:
+    """Rows at the largest q and the first value of every other non-core swept key."""
+    fixed = {c: v[0] for c, v in sweep.grid.items() if c not in CORE_INPUTS}
+    if "q_W_m2" in sweep.grid:
+        fixed["q_W_m2"] = max(v for v in sweep.grid["q_W_m2"])
+    sel = [r for r in rows if all(r.get(c) == v for c, v in fixed.items())]
+    return sel, fixed
+
+
+def thresholds(sweep: Sweep, rows: list[dict], levels=(3.0, 5.0)) -> list[dict]:
+    """Per Δτ: the Biot number above which each AR's max error exceeds each level."""
+    sel, _ = _slice_rows(sweep, rows)
+    out = []
+    for dtau in sorted({r["dtau_s"] for r in sel}):
+        rs = [r for r in sel if r["dtau_s"] == dtau]
+        b = [r["biot"] for r in rs]
+        item = {"dtau_s": dtau, "biot_min": min(b), "biot_max": max(b)}
+        for pre, name in (("", "paper"), ("corrected_", "corrected")):
+            e = [r[f"{pre}max_abs_diff_pct_of_peak"] for r in rs]
+            item[f"{name}_max_error_pct"] = max(e)
+            for lv in levels:
+                item[f"{name}_biot_at_{lv:g}pct"] = biot_threshold(b, e, lv)
+        out.append(item)
+    return out
+
+
+# -- plots --------------------------------------------------------------------------------
+
+def _plots(sweep: Sweep, rows: list[dict], stage: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    sel, fixed = _slice_rows(sweep, rows)
+    if not sel:
+        return written
+    tag = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
+                    for k, v in fixed.items())
+    dtaus = sorted({r["dtau_s"] for r in sel})
+    hs = sorted({r["h_W_m2K"] for r in sel})
+    cmap = plt.get_cmap("viridis")
+
+    # 1. error against Biot, one line per Δτ, paper and corrected AR
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for i, dt in enumerate(dtaus):
+        rs = sorted((r for r in sel if r["dtau_s"] == dt), key=lambda r: r["biot"])
+        col = cmap(i / max(1, len(dtaus) - 1))
+        b = [r["biot"] for r in rs]
+        ax.plot(b, [r["max_abs_diff_pct_of_peak"] for r in rs], "o-", color=col,
+                label=f"paper AR, Δτ = {dt:g} s")
+        ax.plot(b, [max(r["corrected_max_abs_diff_pct_of_peak"], 1e-6) for r in rs], "x--",
+                color=col, label=f"corrected AR, Δτ = {dt:g} s")
+    for lv in (3.0, 5.0):
+        ax.axhline(lv, color="0.5", lw=0.8, ls=":")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("Biot number hR/λ [-]")
+    ax.set_ylabel("max |AR − FEM| [% of FEM peak]")
+    ax.set_title(f"AR(1) error against Biot number ({tag})" if tag else "AR(1) error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(stage / "error_vs_biot.png", dpi=120)
+    plt.close(fig)
+    written.append("error_vs_biot.png")
+
+    # 2. C1 against Δτ: closed form (line), fitted to the FEM (markers), corrected (dotted)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    for j, h in enumerate(hs):
+        rs = sorted((r for r in sel if r["h_W_m2K"] == h), key=lambda r: r["dtau_s"])
+        col = cmap(j / max(1, len(hs) - 1))
+        d = [r["dtau_s"] for r in rs]
+        for ax, f in ((a1, lambda c: c), (a2, lambda c: 1.0 - c)):
+            ax.plot(d, [f(r["C1"]) for r in rs], "-", color=col, label=f"h = {h:g} closed form")
+            ax.plot(d, [f(r["C1_fitted"]) for r in rs], "o", color=col, mfc="none",
+                    label=f"h = {h:g} fitted to FEM")
+            ax.plot(d, [f(r["corrected_C1"]) for r in rs], ":", color=col)
+    a1.set_xlabel("Δτ [s]")
+    a1.set_ylabel("C1 [-]")
+    a1.set_title("C1: paper eq. 13 (line), fitted (o), corrected (dotted)")
+    a2.set_xscale("log")
+    a2.set_yscale("log")
+    a2.set_xlabel("Δτ [s]")
+    a2.set_ylabel("1 − C1 [-]")
+    a2.set_title("1 − C1 (log-log)")
+    for ax in (a1, a2):
+        ax.grid(True, which="both", alpha=0.3)
+    a1.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(stage / "c1_vs_dtau.png", dpi=120)
+    plt.close(fig)
+    written.append("c1_vs_dtau.png")
+
+    # 3. heat maps of the error over (Δτ, h), one per q
+    qs = sorted({r["q_W_m2"] for r in rows}) if "q_W_m2" in sweep.grid else [fixed.get("q_W_m2")]
+    other = {k: v for k, v in fixed.items() if k != "q_W_m2"}
+    for q in qs:
+        rs = [r for r in rows if all(r.get(c) == v for c, v in other.items())
+              and (q is None or r["q_W_m2"] == q)]
+        fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
+        for ax, pre, title in ((axs[0], "", "paper AR"), (axs[1], "corrected_", "corrected AR")):
+            Z = np.full((len(dtaus), len(hs)), np.nan)
+            for r in rs:
+                Z[dtaus.index(r["dtau_s"]), hs.index(r["h_W_m2K"])] = \
+                    r[f"{pre}max_abs_diff_pct_of_peak"]
+            from matplotlib.colors import LogNorm
+            pos = Z[np.isfinite(Z) & (Z > 0)]
+            norm = LogNorm(pos.min(), pos.max()) if pos.size and pos.max() > pos.min() else None
+            im = ax.imshow(Z, origin="lower", aspect="auto", cmap="magma_r", norm=norm)
+            ax.set_xticks(range(len(hs)), [f"{h:g}" for h in hs])
+            ax.set_yticks(range(len(dtaus)), [f"{d:g}" for d in dtaus])
+            ax.set_xlabel("h [W/(m²·K)]")
+            ax.set_ylabel("Δτ [s]")
+            ax.set_title(f"{title}: max |AR − FEM| [% of peak]" +
+                         (f", q = {q:g} W/m²" if q is not None else ""), fontsize=9)
+            for (i, j), z in np.ndenumerate(Z):
+                if np.isfinite(z):
+                    ax.text(j, i, f"{z:.2g}", ha="center", va="center", fontsize=6,
+                            color="w" if z > np.nanmax(Z) * 0.3 else "k")
+            fig.colorbar(im, ax=ax)
+        fig.tight_layout()
+        name = f"error_heatmap_q{q:g}.png" if q is not None else "error_heatmap.png"
+        fig.savefig(stage / name, dpi=120)
+        plt.close(fig)
+        written.append(name)
+    return written
+
+
+# -- writing the results ------------------------------------------------------------------
+
+def _fmt(x, nd=3) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    return f"{x:.{nd}g}" if isinstance(x, float) else str(x)
+
+
+def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
+    """Markdown report of a sweep; every number in it is computed from ``rows``."""
+    L = [f"# Sweep `{sweep.name}`", ""]
+    if sweep.description:
+        L += [sweep.description, ""]
+    L += [f"Base scenario `{sweep.base}`; grid (full Cartesian product, "
+          f"{len(sweep.points)} points):", ""]
+    for c, v in sweep.grid.items():
+        L.append(f"- `{c}` = {', '.join(_fmt(x, 6) if isinstance(x, float) else str(x) for x in v)}")
+    L += ["", f"Points in the table: {summary['n_rows']} of {summary['n_points']}. "
+          f"This run: {summary['n_computed']} computed, {summary['n_stored_before']} taken "
+          f"from the store, {summary['n_failed']} failed, wall time {summary['wall_s']:.1f} s "
+          f"({summary['executor']}). Sum of per-point run times "
+          f"{summary['sum_point_run_time_s']:.1f} s.", "",
+          "Files: `results.csv` (one row per point; inputs then outputs, units in the "
+          "column names, `pct` = % of the FEM peak growth), `summary.json`, "
+          "`error_vs_biot.png`, `c1_vs_dtau.png`, `error_heatmap_q*.png`; the per-point "
+          "store is `points/` (re-running the same command resumes it).", "",
+          f"Reproduce: `arfem sweep {sweep.source} --out DIR` (add `--scheduler ADDRESS` "
+          "for a Dask cluster; an interrupted run resumes where it stopped).", ""]
+    th = summary.get("thresholds") or []
+    if th and len({r["biot"] for r in rows}) > 1:
+        sel, fixed = _slice_rows(sweep, rows)
+        tag = ", ".join(f"{k} = {_fmt(v, 6)}" for k, v in fixed.items())
+        L += ["## When does the paper's AR(1) stop tracking the FEM?", "",
+              f"Max |AR − FEM| over the cycle in % of the FEM peak, against the Biot "
+              f"number hR/λ ({tag}{_q_note(sweep, rows)}). Thresholds are interpolated linearly in Biot "
+              "between grid points by `scenarios.sweep.biot_threshold`; `–` = not reached "
+              "in the grid.", "",
+              "| Δτ [s] | Biot range | paper AR max error [%] | Bi at 3 % | Bi at 5 % | "
+              "corrected AR max error [%] | corrected: Bi at 3 % | corrected: Bi at 5 % |",
+              "|---|---|---|---|---|---|---|---|"]
+        for t in th:
+            L.append(f"| {t['dtau_s']:g} | {t['biot_min']:.3g}–{t['biot_max']:.3g} | "
+                     f"{t['paper_max_error_pct']:.3g} | {_fmt(t['paper_biot_at_3pct'])} | "
+                     f"{_fmt(t['paper_biot_at_5pct'])} | {t['corrected_max_error_pct']:.2g} | "
+                     f"{_fmt(t['corrected_biot_at_3pct'])} | {_fmt(t['corrected_biot_at_5pct'])} |")
+        s = summary["conclusion"]
+        L += ["", "**From the data:** " + s["text"], ""]
+        L += _by_h_table(sel)
+    return "\n".join(L) + "\n"
+
+
+def _q_note(sweep: Sweep, rows: list[dict]) -> str:
+    """How much the % errors differ between q levels at equal other inputs (from the data)."""
+    qs = sweep.grid.get("q_W_m2", [])
+    if len(qs) < 2:
+        return ""
+    groups: dict = {}
+    for r in rows:
+        k = _canonical({c: r[c] for c in sweep.grid if c != "q_W_m2"})
+        groups.setdefault(k, []).append(r)
+    d = max(((max(r[c] for r in g) - min(r[c] for r in g))
+             for g in groups.values() if len(g) > 1
+             for c in ("max_abs_diff_pct_of_peak", "corrected_max_abs_diff_pct_of_peak")),
+            default=float("nan"))
+    if not math.isfinite(d):
+        return ""
+    return (f"; the other q levels give the same % errors to within {d:.1g} percentage points, "
+            "as the FEM and both ARs are linear in q")
+
+
+def _by_h_table(sel: list[dict]) -> list[str]:
+    """Per h: errors (max over Δτ, and their spread over Δτ) and the fitted decay rate."""
+    dts = sorted({r["dtau_s"] for r in sel})
+    L = ["Per h (same slice; \"spread\" = max − min over the Δτ values, showing how little "
+         "the error depends on Δτ; the last column compares the FEM's fitted per-step decay "
+         "1 − C1_fitted with the paper's 1 − C1 = 1 − exp(−bΔτ) at the smallest Δτ):", "",
+         "| h [W/(m²·K)] | Bi [-] | paper AR max error [%] | spread over Δτ [% points] | "
+         "corrected AR max error [%] | (1 − C1_fitted)/(1 − C1) at "
+         f"Δτ = {dts[0]:g} s |", "|---|---|---|---|---|---|"]
+    for h in sorted({r["h_W_m2K"] for r in sel}):
+        rs = [r for r in sel if r["h_W_m2K"] == h]
+        e = [r["max_abs_diff_pct_of_peak"] for r in rs]
+        ec = [r["corrected_max_abs_diff_pct_of_peak"] for r in rs]
+        r0 = min(rs, key=lambda r: r["dtau_s"])
+        ratio = (1 - r0["C1_fitted"]) / (1 - r0["C1"])
+        L.append(f"| {h:g} | {r0['biot']:.3g} | {max(e):.3g} | {max(e) - min(e):.2g} | "
+                 f"{max(ec):.2g} | {ratio:.4f} |")
+    return L + [""]
+
+
+def _conclusion(th: list[dict]) -> dict:
+    def rng(key):
+        v = [t[key] for t in th if math.isfinite(t[key])]
+        return (min(v), max(v), len(v)) if v else None
+
+    parts = []
+    out = {}
+    for lv in (3, 5):
+        r = rng(f"paper_biot_at_{lv}pct")
+        out[f"paper_biot_at_{lv}pct_range"] = None if r is None else [r[0], r[1]]
+        if r is None:
+            parts.append(f"the paper's AR never exceeds {lv} % of peak in this grid")
+        elif f"{r[0]:.3g}" == f"{r[1]:.3g}":
+            parts.append(f"the paper's AR exceeds {lv} % of peak above Bi ≈ {r[0]:.3g}, the "
+                         f"same to 3 digits for all {r[2]} of {len(th)} Δτ values that reach it")
+        else:
+            parts.append(f"the paper's AR exceeds {lv} % of peak above Bi ≈ {r[0]:.3g}–"
+                         f"{r[1]:.3g} depending on Δτ ({r[2]} of {len(th)} Δτ values reach it)")
+    cmax = max(t["corrected_max_error_pct"] for t in th)
+    out["corrected_max_error_pct"] = cmax
+    out["corrected_exceeds_3pct"] = bool(cmax >= 3.0)
+    out["corrected_exceeds_5pct"] = bool(cmax >= 5.0)
+    parts.append(("the corrected AR stays below 3 % everywhere in the grid" if cmax < 3 else
+                  "the corrected AR also exceeds 3 % somewhere in the grid")
+                 + f" (its largest error is {cmax:.3g} % of peak)")
+    out["text"] = "; ".join(parts) + "."
+    out["text"] = out["text"][0].upper() + out["text"][1:]
+    return out
+
+
+def write_outputs(sweep: Sweep, out: Path, store, rep) -> dict:
+    """(Re)write ``results.csv``, plots, ``summary.json`` and ``README.md`` from the store."""
+    rows = results_rows(sweep, store)
+    summary = {
+        "sweep": sweep.name, "sweep_id": sweep.sweep_id, "run_id": rep.run_id,
+        "n_points": rep.n_points, "n_rows": len(rows), "n_stored_before": rep.n_stored_before,
+        "n_computed": rep.n_computed, "n_failed": rep.n_failed, "failures": rep.failures[:20],
+        "executor": rep.executor, "wall_s": rep.wall_s,
+        "points_per_s": rep.n_computed / rep.wall_s if rep.wall_s > 0 else None,
+        "sum_point_run_time_s": float(sum(r["run_time_s"] or 0.0 for r in rows)),
+    }
+    has_core = rows and all(r.get(c) is not None for r in rows for c in
+                            ("dtau_s", "h_W_m2K", "biot", "max_abs_diff_pct_of_peak"))
+    if has_core:
+        th = thresholds(sweep, rows)
+        summary["thresholds"] = th
+        summary["conclusion"] = _conclusion(th)
+    with staged_out_dir(out, force=True) as stage:
+        atomic_write_text(stage / "results.csv", rows_to_csv(rows))
+        summary["plots"] = _plots(sweep, rows, stage) if has_core else []
+        write_json(stage / "summary.json", summary)
+        atomic_write_text(stage / "README.md", render_readme(sweep, rows, summary))
+    return summary
+
