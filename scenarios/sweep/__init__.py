@@ -38,10 +38,12 @@ from pathlib import Path
 from arfem.scenarios.sweep.executors import blas_threads, clear_worker_cache, evaluate_point
 from arfem.scenarios.sweep.report import (biot_threshold, render_readme, results_rows,
                                           rows_to_csv, thresholds, write_outputs)
-from arfem.scenarios.sweep.runner import RunReport, run_sweep
+from arfem.params import InputError
+from arfem.scenarios.sweep.runner import (DEFAULT_WORKER_WAIT_S, MAX_WAIT_S, RunReport,
+                                          run_sweep)
 from arfem.scenarios.sweep.spec import (CORE_INPUTS, METRIC_COLUMNS, STORE_VERSION,
                                         TIMING_COLUMNS, Point, Sweep, load_sweep, point_key,
-                                        resolved_inputs, sweep_from_dict)
+                                        resolved_inputs, sweep_from_dict, MAX_POINTS)
 from arfem.scenarios.sweep.store import PointStore
 
 __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "point_key",
@@ -66,9 +68,18 @@ def add_parser(subparsers) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786")
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="local worker processes (default: all cores; 1 = in-process)")
+                   help="local worker processes (default: all cores; capped at the cores "
+                        "and at the points to compute, with a note; 1 = in-process)")
     p.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
-                   help="seconds to wait for the Dask scheduler (default 5)")
+                   help=f"seconds to wait for the Dask scheduler (default 5, at most "
+                        f"{MAX_WAIT_S:g})")
+    p.add_argument("--worker-wait", type=float, default=DEFAULT_WORKER_WAIT_S, metavar="S",
+                   help=f"end the sweep (exit 2, stored points kept) once the Dask cluster "
+                        f"has had no worker for S seconds (default {DEFAULT_WORKER_WAIT_S:g}, "
+                        f"at most {MAX_WAIT_S:g})")
+    p.add_argument("--max-points", type=int, default=None, metavar="N",
+                   help=f"accept a grid of up to N points (default {MAX_POINTS}; the size is "
+                        "checked from the grid before anything is resolved)")
     p.add_argument("--force", action="store_true",
                    help="run in a non-empty --out that holds something else")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -76,16 +87,22 @@ def add_parser(subparsers) -> None:
 
 
 def main(args) -> int:
-    sweep = load_sweep(args.sweep_file)
+    if args.max_points is not None and args.max_points < 1:
+        raise InputError(f"must be a whole number >= 1, got {args.max_points}", "--max-points")
+    sweep = load_sweep(args.sweep_file, max_points=args.max_points)
     rep = run_sweep(sweep, args.out, workers=args.workers, scheduler=args.scheduler,
                     force=args.force, progress=not args.no_progress,
-                    timeout_s=args.connect_timeout)
+                    timeout_s=args.connect_timeout, worker_wait_s=args.worker_wait)
     print(f"sweep {sweep.name!r}: {rep.n_points} points ({rep.n_stored_before} already "
           f"stored, {rep.n_computed} computed, {rep.n_failed} failed) in {rep.wall_s:.1f} s "
           f"[{rep.executor}] -> {Path(args.out) / 'results.csv'}")
-    errors: dict = {}
-    for f in rep.failures:
-        errors.setdefault(f["error"], []).append(f["inputs"])
-    for err, inputs in list(errors.items())[:5]:
-        print(f"arfem: {len(inputs)} point(s) failed, e.g. {inputs[0]}: {err}", file=sys.stderr)
+    if rep.failures:                    # one line, however many points and kinds of error
+        kinds: dict = {}
+        for f in rep.failures:
+            kinds.setdefault(f["error"].split(":", 1)[0], []).append(f)
+        first = max(kinds.values(), key=len)[0]
+        more = f" ({len(kinds)} kinds of error)" if len(kinds) > 1 else ""
+        print(f"arfem: {rep.n_failed} point(s) failed{more}, e.g. {first['inputs']}: "
+              f"{first['error'][:300]}; each is listed in {Path(args.out) / 'summary.json'} "
+              "and is computed again by the same command", file=sys.stderr)
     return 1 if rep.n_failed else 0

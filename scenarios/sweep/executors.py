@@ -3,6 +3,7 @@ local worker processes, or on a Dask distributed cluster; BLAS held single-threa
 (:func:`blas_threads`, through threadpoolctl) so that every executor gives the same bits."""
 from __future__ import annotations
 
+import logging
 import os
 import socket
 import threading
@@ -16,7 +17,7 @@ from arfem.params import InputError
 from arfem.scenarios.config import scenario_from_dict
 
 __all__ = ["evaluate_point", "blas_threads", "LocalExecutor", "DaskExecutor",
-           "clear_worker_cache"]
+           "clear_worker_cache", "ClusterLost"]
 
 # -- evaluating one point (runs in a worker) ----------------------------------------------
 
@@ -167,7 +168,11 @@ def _probe_scheduler(address: str, timeout_s: float) -> None:
 
     scheme, loc = parse_address(address)
     get_backend(scheme)                              # ValueError: unknown scheme
-    if scheme == "inproc":
+    if scheme == "inproc":       # only a scheduler started in this very process answers
+        from distributed.comm.inproc import global_manager
+        if global_manager.get_listener_for(loc) is None:
+            raise ConnectionError("no scheduler in this process listens there (an inproc:// "
+                                  "address is only reachable from the process that made it)")
         return
 
     async def probe():
@@ -198,15 +203,46 @@ def _single_threaded_call(fn, *args):
     return fn(*args)
 
 
-class DaskExecutor:
-    """The same tasks on a Dask distributed cluster."""
+class ClusterLost(InputError):
+    """The Dask cluster cannot finish the sweep (no worker, or the scheduler gone)."""
 
-    def __init__(self, address: str, timeout_s: float = 5.0):
+
+_NOISY_LOGGERS = ("distributed", "tornado", "asyncio")
+
+
+def _silence_distributed() -> dict:
+    """distributed logs (and prints tracebacks for) every lost connection; the sweep says
+    what happened in one line of its own instead. Returns the levels to restore."""
+    names = set(_NOISY_LOGGERS) | {n for n in logging.Logger.manager.loggerDict
+                                   if n.split(".")[0] in _NOISY_LOGGERS}
+    saved = {n: logging.getLogger(n).level for n in names}
+    for n in names:
+        logging.getLogger(n).setLevel(logging.CRITICAL + 1)
+    return saved
+
+
+def _restore_logging(saved: dict) -> None:
+    for n, lv in saved.items():
+        logging.getLogger(n).setLevel(lv)
+
+
+class DaskExecutor:
+    """The same tasks on a Dask distributed cluster.
+
+    While the tasks run it watches the cluster once a second: if the scheduler stops
+    answering, or no worker is connected for ``worker_wait_s`` seconds in a row (none
+    ever came, or all died), it raises :class:`ClusterLost` (one line); the points
+    already stored are kept and the same command resumes them.
+    """
+
+    def __init__(self, address: str, timeout_s: float = 5.0, worker_wait_s: float = 60.0):
         self.address = address
         self.timeout_s = timeout_s
+        self.worker_wait_s = worker_wait_s
         self.client = None
         self.submitted = []
         self.label = f"dask scheduler {address}"
+        self._saved_levels = None
 
     def connect(self):
         try:
@@ -218,17 +254,28 @@ class DaskExecutor:
             return InputError(f"cannot reach the Dask scheduler at {self.address!r} within "
                               f"{self.timeout_s:g} s ({msg})", "--scheduler")
 
+        self._saved_levels = _silence_distributed()
         try:        # a bare probe first: a failed Client() leaves a noisy half-made object
             _probe_scheduler(self.address, self.timeout_s)
         except Exception as exc:      # OSError, TimeoutError, ValueError for a bad address
+            self.close()
             raise fail(exc) from None
         try:
             self.client = Client(self.address, timeout=self.timeout_s, set_as_default=False)
         except Exception as exc:                                # pragma: no cover - races
+            self.close()
             raise fail(exc) from None
-        n = len(self.client.scheduler_info().get("workers", {}))
-        self.label = f"dask scheduler {self.address} ({n} workers)"
+        n = self.n_workers()
+        self.label = f"dask scheduler {self.address} ({n} workers at the start)"
         return self
+
+    def n_workers(self) -> int:
+        """Workers connected to the scheduler now (asks the scheduler, bounded wait)."""
+        try:
+            return len(self.client.sync(self.client.scheduler.ncores,
+                                        callback_timeout=min(self.timeout_s, 10.0)))
+        except Exception:
+            return -1                       # no answer: the scheduler is gone or stuck
 
     def __enter__(self):
         if self.client is None:
@@ -240,15 +287,66 @@ class DaskExecutor:
         self.submitted.append(fut)
         return fut
 
+    def _lost(self, what: str) -> ClusterLost:
+        return ClusterLost(f"{what}; the points finished so far are stored and the same "
+                           "command resumes the rest", "--scheduler")
+
     def as_completed(self, futures):
-        from dask.distributed import as_completed
-        yield from as_completed(futures, loop=self.client.loop)
+        """Yield futures as they finish; raise :class:`ClusterLost` if the cluster dies."""
+        from distributed import as_completed
+        ac = as_completed(futures, loop=self.client.loop)
+        idle_since, checked = None, time.monotonic()
+        left = len(futures)
+        while left:
+            try:
+                done = ac.next_batch(block=False)
+            except Exception:
+                raise self._lost(f"the Dask scheduler at {self.address} stopped answering") \
+                    from None
+            for fut in done:
+                if fut.status == "cancelled":          # the client lost its scheduler
+                    raise self._lost(f"the Dask scheduler at {self.address} stopped "
+                                     "answering (its tasks were cancelled)")
+                left -= 1
+                yield fut
+            if not left:
+                break
+            if done or time.monotonic() - checked < 1.0:
+                time.sleep(0.05)
+                continue
+            checked = time.monotonic()
+            if self.client.status not in ("running", "newly-created"):
+                raise self._lost(f"the Dask scheduler at {self.address} stopped answering")
+            n = self.n_workers()
+            if n < 0:
+                raise self._lost(f"the Dask scheduler at {self.address} stopped answering")
+            if n > 0:
+                idle_since = None
+                continue
+            now = time.monotonic()
+            idle_since = now if idle_since is None else idle_since
+            if now - idle_since >= self.worker_wait_s:
+                raise self._lost(f"the Dask cluster at {self.address} has had no worker for "
+                                 f"{self.worker_wait_s:g} s (--worker-wait), with "
+                                 f"{left} points left to compute")
+
+    def close(self) -> None:
+        """Cancel what is queued, disconnect (bounded), let distributed talk again."""
+        client, self.client = self.client, None
+        if client is not None:
+            try:
+                if self.submitted:
+                    client.cancel(self.submitted, force=True)
+            except Exception:
+                pass
+            try:
+                client.close(timeout=min(self.timeout_s, 5.0))
+            except Exception:
+                pass
+        self.submitted = []
+        if self._saved_levels is not None:
+            _restore_logging(self._saved_levels)
+            self._saved_levels = None
 
     def __exit__(self, exc_type, *exc):
-        if exc_type is not None:
-            try:
-                self.client.cancel(self.submitted)
-            except Exception:                                   # pragma: no cover
-                pass
-        self.client.close()
-
+        self.close()

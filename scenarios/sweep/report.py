@@ -247,14 +247,9 @@ def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
     for c, v in sweep.grid.items():
         L.append(f"- `{c}` = {', '.join(_fmt(x, 6) if isinstance(x, float) else str(x) for x in v)}")
     L += ["", f"Points in the table: {summary['n_rows']} of {summary['n_points']}. "
-          f"This run: {summary['n_computed']} computed, {summary['n_stored_before']} taken "
-          f"from the store, {summary['n_failed']} failed, wall time {summary['wall_s']:.1f} s "
-          f"({summary['executor']}). Sum of per-point run times "
-          f"{summary['sum_point_run_time_s']:.1f} s.", "",
-          "Files: `results.csv` (one row per point; inputs then outputs, units in the "
-          "column names, `pct` = % of the FEM peak growth), `summary.json`, "
-          "`error_vs_biot.png`, `c1_vs_dtau.png`, `error_heatmap_q*.png`; the per-point "
-          "store is `points/` (re-running the same command resumes it).", "",
+          f"Sum of per-point run times {summary['sum_point_run_time_s']:.1f} s.", "",
+          *_runs_lines(summary.get("runs") or []),
+          _files_line(summary), "",
           f"Reproduce: `arfem sweep {sweep.source} --out DIR` (add `--scheduler ADDRESS` "
           "for a Dask cluster; an interrupted run resumes where it stopped).", ""]
     th = summary.get("thresholds") or []
@@ -278,6 +273,31 @@ def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
         L += ["", "**From the data:** " + s["text"], ""]
         L += _by_h_table(sel)
     return "\n".join(L) + "\n"
+
+
+def _runs_lines(runs: list[dict]) -> list[str]:
+    """One line per run of the sweep (a re-run adds its own timing, never replaces one)."""
+    if not runs:
+        return []
+    L = ["Runs of this sweep into this folder (from `runs.jsonl`):", ""]
+    for i, r in enumerate(runs, 1):
+        L.append(f"{i}. {r.get('finished_at', r.get('run_id', ''))}: "
+                 f"{r.get('n_computed', 0)} computed, {r.get('n_stored_before', 0)} taken from "
+                 f"the store, {r.get('n_failed', 0)} failed, wall time "
+                 f"{float(r.get('wall_s') or 0.0):.1f} s ({r.get('executor', '')}).")
+    return L + [""]
+
+
+def _files_line(summary: dict) -> str:
+    """The files of the sweep folder, by the names actually written."""
+    figs = ", ".join(f"`{f}`" for f in summary.get("plots") or [])
+    return ("Files: `README.md` (this page), `results.csv` (one row per point; inputs then "
+            "outputs, units in the column names, `pct` = % of the FEM peak growth), "
+            "`summary.json` (the figures of this page, machine-readable)"
+            + (f", the figures {figs}" if figs else "") +
+            "; the store: `sweep.json` (what was swept), `points/` (one JSON file per "
+            "finished point; re-running the same command resumes it) and `runs.jsonl` "
+            "(one line per run).")
 
 
 def _q_note(sweep: Sweep, rows: list[dict]) -> str:
@@ -349,16 +369,17 @@ def _conclusion(th: list[dict]) -> dict:
     return out
 
 
-def write_outputs(sweep: Sweep, out: Path, store, rep) -> dict:
+def write_outputs(sweep: Sweep, out: Path, store, rep, runs: list | None = None) -> dict:
     """(Re)write ``results.csv``, plots, ``summary.json`` and ``README.md`` from the store."""
     rows = results_rows(sweep, store)
     summary = {
         "sweep": sweep.name, "sweep_id": sweep.sweep_id, "run_id": rep.run_id,
         "n_points": rep.n_points, "n_rows": len(rows), "n_stored_before": rep.n_stored_before,
-        "n_computed": rep.n_computed, "n_failed": rep.n_failed, "failures": rep.failures[:20],
+        "n_computed": rep.n_computed, "n_failed": rep.n_failed, "failures": rep.failures,
         "executor": rep.executor, "wall_s": rep.wall_s,
         "points_per_s": rep.n_computed / rep.wall_s if rep.wall_s > 0 else None,
         "sum_point_run_time_s": float(sum(r["run_time_s"] or 0.0 for r in rows)),
+        "runs": list(runs or []),
     }
     has_core = rows and all(r.get(c) is not None for r in rows for c in
                             ("dtau_s", "h_W_m2K", "biot", "max_abs_diff_pct_of_peak"))

@@ -2,6 +2,7 @@
 executor, store each as it finishes, then write the outputs from the store."""
 from __future__ import annotations
 
+import errno
 import math
 import os
 import sys
@@ -20,7 +21,8 @@ from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, _canonical
 from arfem.scenarios.sweep.store import (_STORE_MANIFEST, DirLock, PointStore,
                                          append_run_log, open_store)
 
-__all__ = ["RunReport", "run_sweep"]
+__all__ = ["RunReport", "run_sweep", "usable_cores", "check_wait", "check_workers",
+           "n_local_workers", "MAX_WAIT_S", "DEFAULT_WORKER_WAIT_S"]
 
 # -- running ------------------------------------------------------------------------------
 
@@ -39,9 +41,58 @@ class RunReport:
     mode: str = "new"
 
 
+#: Longest wait any timeout flag may ask for [s]; larger values are capped (with a note).
+MAX_WAIT_S = 600.0
+#: How long a Dask cluster may have no worker (none yet, or all gone) before the sweep ends [s].
+DEFAULT_WORKER_WAIT_S = 60.0
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity; ``os.cpu_count()`` elsewhere)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):                         # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def note(message: str) -> None:
+    """One line on stderr: something arfem decided for the user (a cap, a default)."""
+    print(f"arfem: note: {message}", file=sys.stderr, flush=True)
+
+
+def check_wait(value, flag: str, warn: Callable = note) -> float:
+    """A timeout flag [s]: a number > 0 (NaN refused), capped at :data:`MAX_WAIT_S`."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value) \
+            or value <= 0:
+        raise InputError(f"must be a number of seconds > 0, got {value!r}", flag)
+    if value > MAX_WAIT_S:
+        warn(f"{flag} {value:g} s capped at {MAX_WAIT_S:g} s (the longest wait arfem allows)")
+        return MAX_WAIT_S
+    return float(value)
+
+
+def check_workers(workers) -> int | None:
+    """``--workers``: None (all cores) or a whole number >= 1."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise InputError(f"must be a whole number >= 1, got {workers!r}", "--workers")
+    return workers
+
+
+def n_local_workers(workers: int | None, n_todo: int, warn: Callable = note) -> int:
+    """Worker processes to start: the request (default: all cores), capped at the cores
+    and at the points to compute; a cap of an explicit request is stated in one line."""
+    cores = usable_cores()
+    n = max(1, min(workers or cores, cores, n_todo))
+    if workers is not None and workers > n and workers > cores:
+        warn(f"--workers {workers} capped at {n} ({cores} cores, {n_todo} points to compute)")
+    return n
+
+
 def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str | None = None,
               force: bool = False, progress: bool = True, timeout_s: float = 5.0,
-              point_fn: Callable = evaluate_point) -> RunReport:
+              worker_wait_s: float = DEFAULT_WORKER_WAIT_S, point_fn: Callable = evaluate_point,
+              warn: Callable = note) -> RunReport:
     """Compute every point of ``sweep`` missing from the store in ``out``; write the results.
 
     Parameters
@@ -50,7 +101,8 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     out : path
         Store and output directory (resumed if it holds the same sweep).
     workers : int, optional
-        Local worker processes (default: all cores). 1 = in this process.
+        Local worker processes (default: all cores; capped at the cores and at the
+        points to compute). 1 = in this process.
     scheduler : str, optional
         Address of a Dask scheduler (``tcp://host:8786``); overrides ``workers``.
     force : bool
@@ -58,21 +110,23 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     progress : bool
         tqdm progress bar with ETA on stderr.
     timeout_s : float
-        Connection timeout for ``scheduler`` [s].
+        Connection timeout for ``scheduler`` [s] (at most :data:`MAX_WAIT_S`).
+    worker_wait_s : float
+        How long the Dask cluster may have no worker before the sweep ends [s] (at most
+        :data:`MAX_WAIT_S`); the points stored so far are kept.
     point_fn : callable
         ``point_fn(data, source) -> {"metrics": ..., "run_time_s": ...}`` (picklable).
+    warn : callable
+        Receives one-line notes (caps applied to the flags).
     """
     out = Path(out)
     mode = open_store(out, sweep, force)
-    if not (math.isfinite(timeout_s) and timeout_s > 0):
-        raise InputError(f"must be a finite number of seconds > 0, got {timeout_s!r}",
-                         "--connect-timeout")
-    if workers is not None and (isinstance(workers, bool) or int(workers) != workers
-                                or workers < 1):
-        raise InputError(f"must be a whole number >= 1, got {workers!r}", "--workers")
+    timeout_s = check_wait(timeout_s, "--connect-timeout", warn)
+    worker_wait_s = check_wait(worker_wait_s, "--worker-wait", warn)
+    workers = check_workers(workers)
     executor = None
     if scheduler is not None:
-        executor = DaskExecutor(scheduler, timeout_s).connect()   # fail before writing
+        executor = DaskExecutor(scheduler, timeout_s, worker_wait_s).connect()  # fail first
     t0 = time.perf_counter()
     run_id = time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:8]
     try:
@@ -97,22 +151,31 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
             rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
             if unique:
                 if executor is None:
-                    n = min(workers or os.cpu_count() or 1, len(unique))
+                    n = n_local_workers(workers, len(unique), warn)
                     executor = LocalExecutor(n) if n > 1 else None
                 rep.executor = executor.label if executor else "local, in-process"
                 _compute(sweep, unique, store, executor, point_fn, rep, run_id, progress)
             else:
                 rep.executor = "nothing to compute"
                 if executor is not None:
-                    executor.client.close()
+                    executor.close()
             rep.wall_s = time.perf_counter() - t0
-            append_run_log(out, rep)
-            write_outputs(sweep, out, store, rep)
-    except BaseException:
-        if isinstance(executor, DaskExecutor) and executor.client is not None:
-            executor.client.close()
+            runs = append_run_log(out, rep)
+            write_outputs(sweep, out, store, rep, runs)
+    except OSError as exc:
+        if exc.errno in _DISK_ERRNOS:
+            raise InputError(f"cannot be written ({exc.strerror}); every point stored so far "
+                             "is kept, and the same command resumes once there is room",
+                             str(out)) from None
         raise
+    finally:
+        if isinstance(executor, DaskExecutor):
+            executor.close()
     return rep
+
+
+#: Write errors that are the disk's, not arfem's: no space, quota, read-only, I/O.
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG}
 
 
 def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):

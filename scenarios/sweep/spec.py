@@ -17,7 +17,8 @@ from arfem.scenarios.config import (ALIASES, apply_override, builtin_scenario_pa
 from arfem.strict import check_keys
 
 __all__ = ["Sweep", "Point", "load_sweep", "sweep_from_dict", "point_key", "resolved_inputs",
-           "STORE_VERSION", "METRIC_COLUMNS", "CORE_INPUTS", "TIMING_COLUMNS"]
+           "STORE_VERSION", "METRIC_COLUMNS", "CORE_INPUTS", "TIMING_COLUMNS",
+           "MAX_POINTS", "check_size"]
 
 #: Bumped when the stored record or the meaning of a metric changes; part of every key.
 STORE_VERSION = 2   # 2: per-level metrics named *_by_q_W_m2
@@ -38,6 +39,10 @@ METRIC_COLUMNS = (
 )
 #: Columns that depend on the machine, not on the inputs (left out of reproducibility checks).
 TIMING_COLUMNS = ("run_time_s",)
+
+#: Largest grid accepted without ``--max-points`` (the shipped sweep has 156 points; each
+#: point is resolved and validated up front, about 1 ms each, then computed, 0.02-2 s each).
+MAX_POINTS = 20000
 
 _SWEEP_KEYS = {"name", "base", "description", "grid"}
 
@@ -170,32 +175,36 @@ def _resolve_base(base: str, sweep_path: Path) -> tuple[Path, str]:
                      "sweep.base")
 
 
-def load_sweep(path) -> Sweep:
+def load_sweep(path, max_points: int | None = None) -> Sweep:
     """Read and validate a sweep file; every point is resolved and checked up front.
 
     Errors are one line naming the file, the key (``sweep.grid.dtau_s[2]``) and what
-    is wrong, e.g. a Δτ that does not divide the phases.
+    is wrong, e.g. a Δτ that does not divide the phases. A grid of more than
+    ``max_points`` points (default :data:`MAX_POINTS`) is refused before any point is
+    resolved (:func:`check_size`).
     """
     p = Path(path)
     data = read_toml(p)
-    return sweep_from_dict(data, str(p))
+    return sweep_from_dict(data, str(p), max_points=max_points)
 
 
-def sweep_from_dict(data: dict, source: str = "<sweep>", base_data: dict | None = None) -> Sweep:
+def sweep_from_dict(data: dict, source: str = "<sweep>", base_data: dict | None = None,
+                    max_points: int | None = None) -> Sweep:
     """Validate a sweep given as a dict (as read from TOML).
 
     ``base_data`` may be given to use a scenario dict instead of reading
     ``sweep.base`` (tests, programmatic sweeps).
     """
     try:
-        return _sweep_from_dict(data, source, base_data)
+        return _sweep_from_dict(data, source, base_data, max_points)
     except InputError as exc:
         if exc.where and exc.where.startswith(source):
             raise
         raise exc.at(source) from None
 
 
-def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
+def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
+                     max_points: int | None) -> Sweep:
     if not isinstance(data, dict) or set(data) != {"sweep"}:
         extra = sorted(set(data) - {"sweep"}) if isinstance(data, dict) else []
         raise InputError(f"unknown top-level key {extra[0]!r}; a sweep file holds one [sweep] "
@@ -222,11 +231,12 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         base_source = str(base_path)
     else:
         base_name, base_source = str(sw.get("base", "<base>")), "<base>"
-    scenario_from_dict(base_data, base_source)            # the base itself must be valid
+    base_sc = scenario_from_dict(base_data, base_source)   # the base itself must be valid
 
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")
+    check_size(_flatten(grid_d), base_sc, max_points)
     grid, paths = {}, {}
     for key, values in _flatten(grid_d).items():
         where = f"sweep.grid.{key}"
@@ -271,6 +281,47 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None) -> Sweep:
         points.append(Point(i, inputs, d, point_key(resolved_inputs(sc))))
     return Sweep(name=name, description=description, source=source, base=base_name,
                  grid=grid, paths=paths, points=tuple(points))
+
+
+def check_size(grid: dict, base, max_points: int | None = None) -> tuple[int, float]:
+    """Points and AR/FEM time steps of a grid, from the list lengths alone; refuse (one
+    line) a grid of more than ``max_points`` points before anything is resolved.
+
+    Parameters
+    ----------
+    grid : dict
+        Flattened ``sweep.grid`` (dotted key -> list of values).
+    base : Scenario
+        The validated base scenario (its cycle length and Δτ give the steps per point).
+    max_points : int, optional
+        Limit (default :data:`MAX_POINTS`; ``--max-points`` lifts it).
+
+    Returns
+    -------
+    (int, float)
+        Number of points, estimated number of time steps over all points.
+    """
+    limit = MAX_POINTS if max_points is None else int(max_points)
+    n = 1
+    sizes = []
+    for v in grid.values():
+        sizes.append(len(v) if isinstance(v, list) else 1)
+        n *= sizes[-1]
+    cycle_s = float(sum(base.schedule.durations_s))
+    dtaus = next((v for k, v in grid.items() if ALIASES.get(k, k) == "ar.dtau_s"
+                  and isinstance(v, list)), None)
+    try:
+        per = (sum(cycle_s / float(d) for d in dtaus) / len(dtaus) if dtaus
+               else cycle_s / float(base.dtau_s))
+    except (TypeError, ValueError, ZeroDivisionError):
+        per = cycle_s / float(base.dtau_s)
+    steps = n * per
+    if n > limit:
+        shape = " × ".join(str(k) for k in sizes)
+        raise InputError(f"{n} points ({shape}), about {steps:.2g} AR/FEM time steps, is "
+                         f"more than the limit of {limit} points; split the grid, or pass "
+                         f"--max-points {n} to run it anyway", "sweep.grid")
+    return n, steps
 
 
 def _flatten(d: dict, prefix: str = "") -> dict:

@@ -5,22 +5,18 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import time
 from pathlib import Path
 
-from arfem.io import write_json
+from arfem.io import atomic_write_text, write_json
 from arfem.params import InputError
 from arfem.scenarios.outdir import check_out_path
 
-__all__ = ["PointStore", "open_store", "DirLock", "append_run_log"]
+__all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs"]
 
 _STORE_MANIFEST = "sweep.json"
 _POINTS = "points"
 _RUNS_LOG = "runs.jsonl"
-#: Files of ours allowed in a store directory that is resumed.
-_OUR_FILES = {_STORE_MANIFEST, _POINTS, _RUNS_LOG, "results.csv", "summary.json", "README.md",
-              ".lock"}
-
-
 
 class PointStore:
     """Finished points, one JSON file each, written atomically: ``DIR/points/<key>.json``.
@@ -61,6 +57,11 @@ class PointStore:
                 if p.is_file():
                     p.unlink(missing_ok=True)
                     n += 1
+        for name in (_STORE_MANIFEST, _RUNS_LOG):     # atomic writes beside the store
+            for p in self.dir.parent.glob(f".{name}.*"):
+                if p.is_file():
+                    p.unlink(missing_ok=True)
+                    n += 1
         return n
 
 
@@ -92,36 +93,58 @@ def open_store(out: Path, sweep, force: bool) -> str:
 
 
 class DirLock:
-    """Exclusive advisory lock on ``DIR/.lock`` (released by the OS even on kill -9)."""
+    """Exclusive advisory lock on the directory ``DIR`` itself (``flock`` on its file
+    descriptor): no lock file is left behind, and the OS releases it even on kill -9."""
 
     def __init__(self, out: Path):
-        self.path = out / ".lock"
-        self.fh = None
+        self.dir = Path(out)
+        self.fd = None
 
     def __enter__(self):
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.fh = open(self.path, "a+")
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.fd = os.open(self.dir, os.O_RDONLY | os.O_DIRECTORY)
         try:
-            fcntl.flock(self.fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            self.fh.close()
-            raise InputError("another arfem sweep is writing to this directory", str(
-                self.path.parent)) from None
+            os.close(self.fd)
+            raise InputError("another arfem sweep is writing to this directory",
+                             str(self.dir)) from None
+        legacy = self.dir / ".lock"          # the lock file of arfem <= 0.1.0 (issue 16)
+        if legacy.is_file() and legacy.stat().st_size == 0:
+            legacy.unlink(missing_ok=True)
         return self
 
     def __exit__(self, *exc):
-        fcntl.flock(self.fh, fcntl.LOCK_UN)
-        self.fh.close()
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        os.close(self.fd)
 
 
+def read_runs(out: Path) -> list[dict]:
+    """The runs recorded in ``DIR/runs.jsonl``, oldest first (unreadable lines skipped)."""
+    try:
+        text = (Path(out) / _RUNS_LOG).read_text("utf-8")
+    except (OSError, UnicodeDecodeError):
+        return []
+    runs = []
+    for ln in text.splitlines():
+        try:
+            r = json.loads(ln)
+        except ValueError:
+            continue
+        if isinstance(r, dict):
+            runs.append(r)
+    return runs
 
-def append_run_log(out: Path, rep) -> None:
-    line = json.dumps({"run_id": rep.run_id, "mode": rep.mode, "executor": rep.executor,
-                       "n_points": rep.n_points, "n_stored_before": rep.n_stored_before,
-                       "n_computed": rep.n_computed, "n_failed": rep.n_failed,
-                       "wall_s": round(rep.wall_s, 3)})
-    with open(out / _RUNS_LOG, "a", encoding="utf-8") as fh:
-        fh.write(line + "\n")
-        fh.flush()
-        os.fsync(fh.fileno())
 
+def append_run_log(out: Path, rep) -> list[dict]:
+    """Add this run to ``DIR/runs.jsonl`` (rewritten atomically: never half a line);
+    return every run recorded, this one last."""
+    runs = read_runs(out) + [{
+        "run_id": rep.run_id, "mode": rep.mode, "executor": rep.executor,
+        "n_points": rep.n_points, "n_stored_before": rep.n_stored_before,
+        "n_computed": rep.n_computed, "n_failed": rep.n_failed,
+        "wall_s": round(rep.wall_s, 3),
+        "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
+    atomic_write_text(Path(out) / _RUNS_LOG,
+                      "".join(json.dumps(r, ensure_ascii=False) + "\n" for r in runs))
+    return runs
