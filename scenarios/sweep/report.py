@@ -2,6 +2,7 @@
 conclusion, the figures, ``summary.json`` and ``README.md``."""
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.outdir import staged_out_dir
+from arfem.scenarios.sweep.figures import write_figures
 from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, _canonical
 
 __all__ = ["results_rows", "rows_to_csv", "biot_threshold", "thresholds", "render_readme",
@@ -126,109 +128,6 @@ def thresholds(sweep: Sweep, rows: list[dict], levels=(3.0, 5.0)) -> list[dict]:
     return out
 
 
-# -- plots --------------------------------------------------------------------------------
-
-def _plots(sweep: Sweep, rows: list[dict], stage: Path) -> list[str]:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    written = []
-    sel, fixed = _slice_rows(sweep, rows)
-    if not sel:
-        return written
-    tag = ", ".join(f"{k} = {v:g}" if isinstance(v, (int, float)) else f"{k} = {v}"
-                    for k, v in fixed.items())
-    dtaus = sorted({r["dtau_s"] for r in sel})
-    hs = sorted({r["h_W_m2K"] for r in sel})
-    cmap = plt.get_cmap("viridis")
-
-    # 1. error against Biot, one line per Δτ, paper and corrected AR
-    fig, ax = plt.subplots(figsize=(7.5, 5))
-    for i, dt in enumerate(dtaus):
-        rs = sorted((r for r in sel if r["dtau_s"] == dt), key=lambda r: r["biot"])
-        col = cmap(i / max(1, len(dtaus) - 1))
-        b = [r["biot"] for r in rs]
-        ax.plot(b, [r["max_abs_diff_pct_of_peak"] for r in rs], "o-", color=col,
-                label=f"paper AR, Δτ = {dt:g} s")
-        ax.plot(b, [max(r["corrected_max_abs_diff_pct_of_peak"], 1e-6) for r in rs], "x--",
-                color=col, label=f"corrected AR, Δτ = {dt:g} s")
-    for lv in (3.0, 5.0):
-        ax.axhline(lv, color="0.5", lw=0.8, ls=":")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("Biot number hR/λ [-]")
-    ax.set_ylabel("max |AR − FEM| [% of FEM peak]")
-    ax.set_title(f"AR(1) error against Biot number ({tag})" if tag else "AR(1) error")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    fig.savefig(stage / "error_vs_biot.png", dpi=120)
-    plt.close(fig)
-    written.append("error_vs_biot.png")
-
-    # 2. C1 against Δτ: closed form (line), fitted to the FEM (markers), corrected (dotted)
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
-    for j, h in enumerate(hs):
-        rs = sorted((r for r in sel if r["h_W_m2K"] == h), key=lambda r: r["dtau_s"])
-        col = cmap(j / max(1, len(hs) - 1))
-        d = [r["dtau_s"] for r in rs]
-        for ax, f in ((a1, lambda c: c), (a2, lambda c: 1.0 - c)):
-            ax.plot(d, [f(r["C1"]) for r in rs], "-", color=col, label=f"h = {h:g} closed form")
-            ax.plot(d, [f(r["C1_fitted"]) for r in rs], "o", color=col, mfc="none",
-                    label=f"h = {h:g} fitted to FEM")
-            ax.plot(d, [f(r["corrected_C1"]) for r in rs], ":", color=col)
-    a1.set_xlabel("Δτ [s]")
-    a1.set_ylabel("C1 [-]")
-    a1.set_title("C1: paper eq. 13 (line), fitted (o), corrected (dotted)")
-    a2.set_xscale("log")
-    a2.set_yscale("log")
-    a2.set_xlabel("Δτ [s]")
-    a2.set_ylabel("1 − C1 [-]")
-    a2.set_title("1 − C1 (log-log)")
-    for ax in (a1, a2):
-        ax.grid(True, which="both", alpha=0.3)
-    a1.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    fig.savefig(stage / "c1_vs_dtau.png", dpi=120)
-    plt.close(fig)
-    written.append("c1_vs_dtau.png")
-
-    # 3. heat maps of the error over (Δτ, h), one per q
-    qs = sorted({r["q_W_m2"] for r in rows}) if "q_W_m2" in sweep.grid else [fixed.get("q_W_m2")]
-    other = {k: v for k, v in fixed.items() if k != "q_W_m2"}
-    for q in qs:
-        rs = [r for r in rows if all(r.get(c) == v for c, v in other.items())
-              and (q is None or r["q_W_m2"] == q)]
-        fig, axs = plt.subplots(1, 2, figsize=(12, 4.8))
-        for ax, pre, title in ((axs[0], "", "paper AR"), (axs[1], "corrected_", "corrected AR")):
-            Z = np.full((len(dtaus), len(hs)), np.nan)
-            for r in rs:
-                Z[dtaus.index(r["dtau_s"]), hs.index(r["h_W_m2K"])] = \
-                    r[f"{pre}max_abs_diff_pct_of_peak"]
-            from matplotlib.colors import LogNorm
-            pos = Z[np.isfinite(Z) & (Z > 0)]
-            norm = LogNorm(pos.min(), pos.max()) if pos.size and pos.max() > pos.min() else None
-            im = ax.imshow(Z, origin="lower", aspect="auto", cmap="magma_r", norm=norm)
-            ax.set_xticks(range(len(hs)), [f"{h:g}" for h in hs])
-            ax.set_yticks(range(len(dtaus)), [f"{d:g}" for d in dtaus])
-            ax.set_xlabel("h [W/(m²·K)]")
-            ax.set_ylabel("Δτ [s]")
-            ax.set_title(f"{title}: max |AR − FEM| [% of peak]" +
-                         (f", q = {q:g} W/m²" if q is not None else ""), fontsize=9)
-            for (i, j), z in np.ndenumerate(Z):
-                if np.isfinite(z):
-                    ax.text(j, i, f"{z:.2g}", ha="center", va="center", fontsize=6,
-                            color="w" if z > np.nanmax(Z) * 0.3 else "k")
-            fig.colorbar(im, ax=ax)
-        fig.tight_layout()
-        name = f"error_heatmap_q{q:g}.png" if q is not None else "error_heatmap.png"
-        fig.savefig(stage / name, dpi=120)
-        plt.close(fig)
-        written.append(name)
-    return written
-
-
 # -- writing the results ------------------------------------------------------------------
 
 def _fmt(x, nd=3) -> str:
@@ -259,7 +158,7 @@ def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
         L += ["## When does the paper's AR(1) stop tracking the FEM?", "",
               f"Max |AR − FEM| over the cycle in % of the FEM peak, against the Biot "
               f"number hR/λ ({tag}{_q_note(sweep, rows)}). Thresholds are interpolated linearly in Biot "
-              "between grid points by `scenarios.sweep.biot_threshold`; `–` = not reached "
+              "between grid points by `arfem.scenarios.sweep.biot_threshold`; `–` = not reached "
               "in the grid.", "",
               "| Δτ [s] | Biot range | paper AR max error [%] | Bi at 3 % | Bi at 5 % | "
               "corrected AR max error [%] | corrected: Bi at 3 % | corrected: Bi at 5 % |",
@@ -316,7 +215,7 @@ def _q_note(sweep: Sweep, rows: list[dict]) -> str:
     if not math.isfinite(d):
         return ""
     return (f"; the other q levels give the same % errors to within {d:.1g} percentage points, "
-            "as the FEM and both ARs are linear in q")
+            "as the FEM and both ARs are linear in q, so the figures show one q level")
 
 
 def _by_h_table(sel: list[dict]) -> list[str]:
@@ -387,10 +286,18 @@ def write_outputs(sweep: Sweep, out: Path, store, rep, runs: list | None = None)
         th = thresholds(sweep, rows)
         summary["thresholds"] = th
         summary["conclusion"] = _conclusion(th)
+    try:                                  # figures of an earlier run, by the names it wrote
+        old_plots = set(json.loads((out / "summary.json").read_text("utf-8")).get("plots")
+                        or [])
+    except (OSError, ValueError, AttributeError):
+        old_plots = set()
     with staged_out_dir(out, force=True) as stage:
         atomic_write_text(stage / "results.csv", rows_to_csv(rows))
-        summary["plots"] = _plots(sweep, rows, stage) if has_core else []
+        summary["plots"] = write_figures(sweep, rows, stage) if has_core else []
         write_json(stage / "summary.json", summary)
         atomic_write_text(stage / "README.md", render_readme(sweep, rows, summary))
+    for name in old_plots - set(summary["plots"]):   # the README lists only what is there
+        if isinstance(name, str) and name.endswith(".png") and "/" not in name:
+            (out / name).unlink(missing_ok=True)
     return summary
 
