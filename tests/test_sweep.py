@@ -448,15 +448,16 @@ def test_workers_are_capped_at_cores_and_points_with_one_note():
                                            (float("nan"), "refuse"), (0.0, "refuse"),
                                            (-1.0, "refuse"), (2.5, 2.5)])
 def test_timeouts_are_capped_at_the_documented_maximum(value, expect):
-    """--connect-timeout 1e308 hung the command (issue 16): any wait above MAX_WAIT_S is
-    capped there (with a note), NaN and non-positive waits are bad input."""
-    from arfem.scenarios.sweep.runner import MAX_WAIT_S, check_wait
+    """--connect-timeout 1e308 hung the command (issue 16): any wait above its documented
+    maximum (MAX_CONNECT_S) is capped there, with a note; NaN and non-positive waits are
+    bad input."""
+    from arfem.scenarios.sweep.runner import MAX_CONNECT_S as MAX_WAIT_S, check_wait
     notes = []
     if expect == "refuse":
         with pytest.raises(InputError, match="--connect-timeout"):
             check_wait(value, "--connect-timeout", notes.append)
     elif expect == "cap":
-        assert check_wait(value, "--connect-timeout", notes.append) == MAX_WAIT_S
+        assert check_wait(value, "--connect-timeout", notes.append, MAX_WAIT_S) == MAX_WAIT_S
         assert len(notes) == 1 and f"{MAX_WAIT_S:g}" in notes[0]
     else:
         assert check_wait(value, "--connect-timeout", notes.append) == expect and not notes

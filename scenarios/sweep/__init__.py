@@ -39,7 +39,8 @@ from arfem.scenarios.sweep.executors import blas_threads, clear_worker_cache, ev
 from arfem.scenarios.sweep.report import (biot_threshold, render_readme, results_rows,
                                           rows_to_csv, thresholds, write_outputs)
 from arfem.params import InputError
-from arfem.scenarios.sweep.runner import (DEFAULT_WORKER_WAIT_S, MAX_WAIT_S, RunReport,
+from arfem.scenarios.sweep.runner import (DEFAULT_WORKER_WAIT_S, MAX_CONNECT_S, MAX_WAIT_S,
+                                          RunReport,
                                           run_sweep)
 from arfem.scenarios.sweep.spec import (CORE_INPUTS, METRIC_COLUMNS, STORE_VERSION,
                                         TIMING_COLUMNS, Point, Sweep, load_sweep, point_key,
@@ -72,7 +73,7 @@ def add_parser(subparsers) -> None:
                         "and at the points to compute, with a note; 1 = in-process)")
     p.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
                    help=f"seconds to wait for the Dask scheduler (default 5, at most "
-                        f"{MAX_WAIT_S:g})")
+                        f"{MAX_CONNECT_S:g})")
     p.add_argument("--worker-wait", type=float, default=DEFAULT_WORKER_WAIT_S, metavar="S",
                    help=f"end the sweep (exit 2, stored points kept) once the Dask cluster "
                         f"has had no worker for S seconds (default {DEFAULT_WORKER_WAIT_S:g}, "

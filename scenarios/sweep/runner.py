@@ -22,7 +22,8 @@ from arfem.scenarios.sweep.store import (_STORE_MANIFEST, DirLock, PointStore,
                                          append_run_log, open_store)
 
 __all__ = ["RunReport", "run_sweep", "usable_cores", "check_wait", "check_workers",
-           "n_local_workers", "MAX_WAIT_S", "DEFAULT_WORKER_WAIT_S"]
+           "n_local_workers", "MAX_WAIT_S", "MAX_CONNECT_S",
+           "DEFAULT_WORKER_WAIT_S"]
 
 # -- running ------------------------------------------------------------------------------
 
@@ -41,8 +42,10 @@ class RunReport:
     mode: str = "new"
 
 
-#: Longest wait any timeout flag may ask for [s]; larger values are capped (with a note).
+#: Longest wait ``--worker-wait`` may ask for [s]; larger values are capped (with a note).
 MAX_WAIT_S = 600.0
+#: Longest wait ``--connect-timeout`` may ask for [s] (a scheduler answers in well under 1 s).
+MAX_CONNECT_S = 60.0
 #: How long a Dask cluster may have no worker (none yet, or all gone) before the sweep ends [s].
 DEFAULT_WORKER_WAIT_S = 60.0
 
@@ -60,14 +63,14 @@ def note(message: str) -> None:
     print(f"arfem: note: {message}", file=sys.stderr, flush=True)
 
 
-def check_wait(value, flag: str, warn: Callable = note) -> float:
-    """A timeout flag [s]: a number > 0 (NaN refused), capped at :data:`MAX_WAIT_S`."""
+def check_wait(value, flag: str, warn: Callable = note, limit: float = MAX_WAIT_S) -> float:
+    """A timeout flag [s]: a number > 0 (NaN refused), capped at ``limit``."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value) \
             or value <= 0:
         raise InputError(f"must be a number of seconds > 0, got {value!r}", flag)
-    if value > MAX_WAIT_S:
-        warn(f"{flag} {value:g} s capped at {MAX_WAIT_S:g} s (the longest wait arfem allows)")
-        return MAX_WAIT_S
+    if value > limit:
+        warn(f"{flag} {value:g} s capped at {limit:g} s (the longest wait arfem allows)")
+        return float(limit)
     return float(value)
 
 
@@ -110,7 +113,7 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     progress : bool
         tqdm progress bar with ETA on stderr.
     timeout_s : float
-        Connection timeout for ``scheduler`` [s] (at most :data:`MAX_WAIT_S`).
+        Connection timeout for ``scheduler`` [s] (at most :data:`MAX_CONNECT_S`).
     worker_wait_s : float
         How long the Dask cluster may have no worker before the sweep ends [s] (at most
         :data:`MAX_WAIT_S`); the points stored so far are kept.
@@ -121,7 +124,7 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     """
     out = Path(out)
     mode = open_store(out, sweep, force)
-    timeout_s = check_wait(timeout_s, "--connect-timeout", warn)
+    timeout_s = check_wait(timeout_s, "--connect-timeout", warn, MAX_CONNECT_S)
     worker_wait_s = check_wait(worker_wait_s, "--worker-wait", warn)
     workers = check_workers(workers)
     executor = None
