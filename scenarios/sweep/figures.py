@@ -109,15 +109,16 @@ def _title(fig, head: str, notes: list[str]) -> None:
     """Figure title with the data-driven notes (what was drawn once, what is held fixed)
     on the lines below it, wrapped to the figure's width; nothing written over the data."""
     import textwrap
-    width = int(fig.get_figwidth() * 11)
+    width = int(fig.get_figwidth() * 13)
     fig.suptitle("\n".join(textwrap.wrap(head, width) +
                            textwrap.wrap("; ".join(notes), width)), fontsize=10)
 
 
-def _plain_log_ticks(axis) -> None:
-    """Log axis labelled 0.01, 0.02, 0.05, 0.1 ... (no crowded 2×10⁻¹ minor labels)."""
+def _plain_log_ticks(axis, decades: float = 0.0) -> None:
+    """Log axis labelled 0.01, 0.02, 0.05, 0.1 ... (no crowded 2×10⁻¹ minor labels); over
+    more than 3 decades, powers of ten only."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0,) if decades > 3 else (1.0, 2.0, 5.0)))
     axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     axis.set_minor_formatter(NullFormatter())
 
@@ -331,7 +332,10 @@ def fig_error_heatmap(sweep: Sweep, rows: list[dict]):
             for r in rs:
                 Z[dtaus.index(r["dtau_s"]), hs.index(r["h_W_m2K"])] = \
                     r[pre + "max_abs_diff_pct_of_peak"]
-            pos = Z[np.isfinite(Z) & (Z > 0)]
+            # one colour scale per AR over every q level, so the rows can be compared
+            allz = np.array([r[pre + "max_abs_diff_pct_of_peak"] for r in base
+                             if r.get("q_W_m2") in qs], float)
+            pos = allz[np.isfinite(allz) & (allz > 0)]
             norm = LogNorm(pos.min(), pos.max()) if pos.size and pos.max() > pos.min() else None
             im = ax.imshow(np.where(Z > 0, Z, np.nan), origin="lower", aspect="auto",
                            cmap=cmap, norm=norm, interpolation="nearest")
@@ -349,6 +353,9 @@ def fig_error_heatmap(sweep: Sweep, rows: list[dict]):
                             color="black" if _luminance(rgba) > 0.179 else "white")
             cb = fig.colorbar(im, ax=ax, pad=0.01)
             cb.set_label("% of FEM peak", fontsize=8)
+            if norm is not None:
+                _plain_log_ticks(cb.ax.yaxis, math.log10(norm.vmax / norm.vmin))
+                cb.ax.tick_params(labelsize=7)
             for lv, st in zip(LEVELS_PCT, _LEVEL_STYLES):
                 if np.nanmax(Z) >= lv > np.nanmin(Z):
                     _level_boundary(ax, Z >= lv, **st)
