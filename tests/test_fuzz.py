@@ -370,7 +370,8 @@ def sweep_flags(draw):
     return flags
 
 
-@settings(max_examples=40)
+@settings(max_examples=40 if settings.default.max_examples <= 50
+          else settings.default.max_examples // 5)          # each example runs a sweep
 @given(flags=sweep_flags())
 def test_fuzz_sweep_flags(tmp_path_factory, flags):
     """Random, extreme and malformed values of every sweep flag, through the CLI: exit
