@@ -25,7 +25,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 from arfem.scenarios.config import apply_override, builtin_scenario_path
 from arfem.io import read_toml
-from arfem.scenarios.sweep import _BlasThreads, evaluate_point, load_sweep, run_sweep
+from arfem.scenarios.sweep import (blas_threads, clear_worker_cache, evaluate_point,
+                                  load_sweep, run_sweep)
 
 
 def peak_mb() -> tuple[float, float]:
@@ -37,10 +38,9 @@ def peak_mb() -> tuple[float, float]:
 
 def time_point(data: dict, warm: bool, repeat: int = 3) -> tuple[float, dict]:
     """Best-of-``repeat`` wall time [s] of one point; warm = eigen-decomposition cached."""
-    import arfem.scenarios.sweep as sw
     best, res = float("inf"), None
     for _ in range(repeat):
-        sw._WORKER_CACHE.clear()
+        clear_worker_cache()
         if warm:
             evaluate_point(data)
         t0 = time.perf_counter()
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
 
     # 2./3. cost per point (in this process, single-threaded BLAS like a worker)
     base = read_toml(builtin_scenario_path("paper_fig2"))
-    with _BlasThreads(1):
+    with blas_threads(1):
         print("\n2. time per point against mesh size (q = 2000 W/m², h = 55, Δτ = 30 s, "
               "2881 samples)")
         print(f"   {'nr x nz':>8} {'dofs':>6} {'cold [s]':>9} {'warm [s]':>9} "

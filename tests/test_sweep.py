@@ -132,8 +132,8 @@ def test_table_has_one_row_per_point_with_inputs_and_outputs(small_store):
         assert math.isclose(float(r["rmse_pct_of_peak"]), 100 * float(r["rmse_um"]) / peak,
                             rel_tol=1e-9)
         assert float(r["run_time_s"]) > 0
-    for name in ("error_vs_biot.png", "c1_vs_dtau.png", "error_heatmap_q2000.png",
-                 "error_heatmap_q3000.png", "README.md", "summary.json"):
+    for name in ("error_vs_biot.png", "c1_vs_dtau.png", "error_heatmap.png",
+                 "README.md", "summary.json"):
         assert (out / name).stat().st_size > 0, name
 
 
@@ -428,3 +428,293 @@ def test_dask_cluster_gives_the_same_table_as_local_processes(small_store, tmp_p
         for col in ra:
             if col not in TIMING_COLUMNS:
                 assert ra[col] == rb[col], (col, ra[col], rb[col])
+
+
+# -- issue 16 / 17: bounded whatever the flags, one line for what goes wrong -----------------
+
+def test_workers_are_capped_at_cores_and_points_with_one_note():
+    """--workers 100000 must not start 100000 processes (issue 16: load > 60): the count
+    is capped at the usable cores and the points to compute, and the cap is said once."""
+    from arfem.scenarios.sweep.runner import n_local_workers, usable_cores
+    notes = []
+    n = n_local_workers(100000, 156, notes.append)
+    assert n == min(usable_cores(), 156) and len(notes) == 1 and "capped" in notes[0]
+    assert n_local_workers(100000, 1, notes.append) == 1
+    notes.clear()
+    assert n_local_workers(None, 3, notes.append) == min(usable_cores(), 3) and not notes
+
+
+@pytest.mark.parametrize("value, expect", [(1e308, "cap"), (float("inf"), "cap"),
+                                           (float("nan"), "refuse"), (0.0, "refuse"),
+                                           (-1.0, "refuse"), (2.5, 2.5)])
+def test_timeouts_are_capped_at_the_documented_maximum(value, expect):
+    """--connect-timeout 1e308 hung the command (issue 16): any wait above its documented
+    maximum (MAX_CONNECT_S) is capped there, with a note; NaN and non-positive waits are
+    bad input."""
+    from arfem.scenarios.sweep.runner import MAX_CONNECT_S as MAX_WAIT_S, check_wait
+    notes = []
+    if expect == "refuse":
+        with pytest.raises(InputError, match="--connect-timeout"):
+            check_wait(value, "--connect-timeout", notes.append)
+    elif expect == "cap":
+        assert check_wait(value, "--connect-timeout", notes.append, MAX_WAIT_S) == MAX_WAIT_S
+        assert len(notes) == 1 and f"{MAX_WAIT_S:g}" in notes[0]
+    else:
+        assert check_wait(value, "--connect-timeout", notes.append) == expect and not notes
+
+
+def test_rerun_keeps_first_timing_and_folder_holds_only_listed_files(small_store, tmp_path):
+    """Issue 16: a finished sweep left a .lock file, and a re-run with nothing to compute
+    wrote a wall time of 0.0 s over the real one. Now the folder holds only what its
+    README lists, and a re-run adds its own run to runs.jsonl and the README."""
+    import shutil
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    first = [json.loads(x) for x in (out2 / "runs.jsonl").read_text().splitlines()]
+    assert len(first) == 1 and first[0]["n_computed"] == 12 and first[0]["wall_s"] > 0
+    assert cli(sw, "--out", out2, "--workers", 1) == 0
+    runs = [json.loads(x) for x in (out2 / "runs.jsonl").read_text().splitlines()]
+    assert runs[0] == first[0] and runs[1]["n_computed"] == 0 and len(runs) == 2
+    s = json.loads((out2 / "summary.json").read_text())
+    assert [r["run_id"] for r in s["runs"]] == [r["run_id"] for r in runs]
+    readme = (out2 / "README.md").read_text()
+    assert f"wall time {first[0]['wall_s']:.1f} s" in readme
+    listed = set(__import__("re").findall(r"`([^`/ ]+/?)`", readme))
+    present = {p.name + ("/" if p.is_dir() else "") for p in out2.iterdir()}
+    assert present <= listed, present - listed
+    assert not (out2 / ".lock").exists()
+
+
+def test_cluster_without_workers_ends_with_one_line_and_keeps_the_store(small_store,
+                                                                       tmp_path, capsys):
+    """Issue 16: a Dask scheduler with no worker sat at 0/N forever. With --worker-wait 1
+    it ends: exit 2, one line naming --worker-wait, the stored points untouched."""
+    import shutil
+    from dask.distributed import LocalCluster
+    sw, out = small_store
+    out2 = tmp_path / "copy"
+    shutil.copytree(out, out2)
+    for p in sorted((out2 / "points").glob("*.json"))[:2]:
+        p.unlink()
+    before = snapshot(out2 / "points")
+    capsys.readouterr()
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        rc = cli(sw, "--out", out2, "--scheduler", cluster.scheduler_address,
+                 "--worker-wait", 1)
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "no worker" in err and "--worker-wait" in err
+    assert snapshot(out2 / "points") == before
+
+
+def test_inproc_address_of_no_scheduler_is_one_line(small_store, tmp_path, capsys):
+    """Issue 17: --scheduler inproc://x printed an extra 'Exception ignored' traceback
+    (a half-made Client collected later). Now: one line, exit 2, nothing else."""
+    import gc
+    sw, _ = small_store
+    capsys.readouterr()
+    assert cli(sw, "--out", tmp_path / "o", "--scheduler", "inproc://x") == 2
+    gc.collect()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("arfem: error: --scheduler"), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_huge_grid_is_refused_from_its_shape_before_any_point(tmp_path, capsys):
+    """Issue 17: a 100³ grid was still validating at 180 s. Its size is known from the list
+    lengths: refused in one line that gives the points and the estimated time steps and
+    names --max-points; check_size accepts it when the limit is lifted."""
+    from arfem.scenarios.config import load_scenario
+    from arfem.scenarios.sweep.spec import MAX_POINTS, check_size
+    write_base(tmp_path)
+    vals = lambda a: "[" + ", ".join(str(a + i) for i in range(100)) + "]"
+    grid = f"h_W_m2K = {vals(5)}\nq_W_m2 = {vals(1000)}\n\"fem.mesh.nz\" = {vals(4)}\n"
+    sw = write_sweep(tmp_path, grid, name="huge")
+    capsys.readouterr()
+    assert cli(sw, "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "1000000 points" in err and "--max-points" in err, err
+    assert f"limit of {MAX_POINTS} points" in err and "time steps" in err
+    base = load_scenario(tmp_path / "base.toml")
+    n, steps = check_size({"h_W_m2K": list(range(100)), "q_W_m2": list(range(100)),
+                           "fem.mesh.nz": list(range(100))}, base, max_points=10**6)
+    assert n == 10**6 and steps == pytest.approx(10**6 * 86400 / 600)
+
+
+def test_disk_full_is_one_line_and_leaves_the_store_intact(tmp_path, capsys, monkeypatch):
+    """Issue 17: Errno 28 in `sweep` gave a traceback. Simulated at the third point file:
+    one line naming --out's folder and the cause, exit 2; the two points stored before
+    parse and no half-written file is left; the same command then finishes the sweep."""
+    import errno as _errno
+    import arfem.scenarios.sweep.store as store_mod
+    write_base(tmp_path)
+    sw = write_sweep(tmp_path, "h_W_m2K = [20, 55, 150, 250]\n", name="full")
+    out = tmp_path / "o"
+    real, calls = store_mod.write_json, []
+
+    def full(path, obj):
+        calls.append(path)
+        if len(calls) == 3:               # points 1 and 2 stored, then no room
+            raise OSError(_errno.ENOSPC, "No space left on device")
+        real(path, obj)
+
+    monkeypatch.setattr(store_mod, "write_json", full)
+    capsys.readouterr()
+    assert cli(sw, "--out", out, "--workers", 1) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "No space left" in err and str(out) in err, err
+    files = sorted(p.name for p in (out / "points").iterdir())
+    assert len(files) == 2 and all(not f.startswith(".") for f in files)
+    for f in files:
+        assert json.loads((out / "points" / f).read_text())["metrics"]
+    monkeypatch.setattr(store_mod, "write_json", real)
+    assert cli(sw, "--out", out, "--workers", 1) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert (s["n_stored_before"], s["n_computed"]) == (2, 2)
+
+
+@pytest.mark.slow
+def test_scheduler_killed_mid_sweep_is_one_line_and_keeps_points(tmp_path):
+    """Issue 17: the Dask scheduler killed mid-sweep gave distributed's tracebacks and five
+    failure lines. Now: exit 2, one line on stderr, the points finished before are kept."""
+    port = _free_port()
+    env = dict(os.environ)
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                              "--port", str(port), "--no-dashboard"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    work = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker",
+                             f"tcp://127.0.0.1:{port}", "--nthreads", "1", "--no-dashboard"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    out = tmp_path / "o"
+    try:
+        time.sleep(5)
+        proc = subprocess.Popen([sys.executable, "-m", "arfem", "sweep",
+                                 str(REPO / "scenarios" / "sweep_dtau_h.toml"), "--out",
+                                 str(out), "--scheduler", f"tcp://127.0.0.1:{port}",
+                                 "--no-progress"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, cwd=tmp_path)
+        store = PointStore(out)
+        t_end = time.time() + 120
+        while len(store.keys()) < 3 and time.time() < t_end and proc.poll() is None:
+            time.sleep(0.1)
+        sched.kill()
+        _, err = proc.communicate(timeout=120)
+    finally:
+        for p in (sched, work):
+            p.kill()
+            p.wait()
+    err = err.decode()
+    assert proc.returncode == 2 and err.count("\n") == 1 and "stopped answering" in err, err
+    assert len(store.keys()) >= 3
+
+
+# -- figures (issue 15) -----------------------------------------------------------------------
+
+def _figure_rows(small_store):
+    from arfem.scenarios.sweep import results_rows
+    sw, out = small_store
+    sweep = load_sweep(sw)
+    return sweep, results_rows(sweep, PointStore(out))
+
+
+def _check_figure(fig):
+    """Sensible size; every data axes labelled (units in brackets), every colour bar
+    labelled; every legend inside its axes and over none of the plotted points."""
+    fig.canvas.draw()
+    w, h = fig.get_size_inches()
+    assert 5 <= w <= 16 and 3 <= h <= 14, (w, h)
+    r = fig.canvas.get_renderer()
+    n_data = 0
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        if ax.get_label() == "<colorbar>":
+            assert ax.get_ylabel().strip(), "colour bar without a label"
+            continue
+        n_data += 1
+        for lab in (ax.get_xlabel(), ax.get_ylabel()):
+            assert lab.strip() and "[" in lab and "]" in lab, lab
+        leg = ax.get_legend()
+        if leg is None:
+            continue
+        lb, ab = leg.get_window_extent(r), ax.get_window_extent(r)
+        assert ab.x0 - 1 <= lb.x0 and lb.x1 <= ab.x1 + 1 and ab.y0 - 1 <= lb.y0 \
+            and lb.y1 <= ab.y1 + 1, "legend outside its axes"
+        for line in ax.lines:
+            xy = line.get_xydata()
+            if len(xy) == 0 or line.get_label().startswith("_"):
+                continue
+            pts = ax.transData.transform(xy)
+            inside = ((pts[:, 0] > lb.x0) & (pts[:, 0] < lb.x1) & (pts[:, 1] > lb.y0)
+                      & (pts[:, 1] < lb.y1))
+            assert not inside.any(), f"legend covers data of {line.get_label()!r}"
+    assert n_data >= 1
+
+
+@pytest.mark.parametrize("name", ["fig_error_vs_biot", "fig_c1_vs_dtau", "fig_error_heatmap"])
+def test_each_figure_is_labelled_and_its_legend_covers_no_data(small_store, name):
+    """Issue 15 (journal standard): each figure function returns a Figure of a sensible
+    size with units on every axis, labelled colour bars and legends inside the axes that
+    cover none of the plotted points."""
+    import arfem.scenarios.sweep.figures as F
+    sweep, rows = _figure_rows(small_store)
+    _check_figure(getattr(F, name)(sweep, rows))
+
+
+def test_one_heatmap_when_the_error_does_not_depend_on_q(small_store):
+    """The % errors are the same at q = 2000 and 3000 W/m² (FEM and ARs are linear in q):
+    decided from the data (differences < 1e-6 % points), one heat map is written and its
+    title says so; the folder holds exactly the figures summary.json names."""
+    import arfem.scenarios.sweep.figures as F
+    sweep, rows = _figure_rows(small_store)
+    assert F.q_dependence(sweep, rows) < F.Q_SAME_PP
+    fig = F.fig_error_heatmap(sweep, rows)
+    assert "identical for q = 2000, 3000" in fig._suptitle.get_text()
+    assert len([a for a in fig.axes if a.get_label() != "<colorbar>" and a.images]) == 2
+    sw, out = small_store
+    pngs = {p.name for p in out.glob("*.png")}
+    assert pngs == set(json.loads((out / "summary.json").read_text())["plots"])
+    assert not any("_q" in p for p in pngs)
+
+
+def test_heatmap_labels_contrast_with_their_cells(small_store):
+    """White labels on pale yellow could not be read (issue 15): the label colour is chosen
+    from the cell's luminance, so every label has a WCAG contrast ratio >= 4.5 with its
+    cell (the level at which text counts as readable)."""
+    import arfem.scenarios.sweep.figures as F
+    from matplotlib.colors import to_rgba
+    sweep, rows = _figure_rows(small_store)
+    fig = F.fig_error_heatmap(sweep, rows)
+    n = 0
+    for ax in fig.axes:
+        if not ax.images:
+            continue
+        im = ax.images[0]
+        Z = im.get_array()
+        for t in ax.texts:
+            j, i = (int(round(v)) for v in t.get_position())
+            if not (0 <= i < Z.shape[0] and 0 <= j < Z.shape[1]) or np.ma.is_masked(Z[i, j]):
+                continue
+            lc = F._luminance(im.cmap(im.norm(Z[i, j])))
+            lt = F._luminance(to_rgba(t.get_color()))
+            ratio = (max(lc, lt) + 0.05) / (min(lc, lt) + 0.05)
+            assert ratio >= 4.5, (t.get_text(), ratio)
+            n += 1
+    assert n >= 12
+
+
+def test_third_swept_variable_is_stated_on_the_figures(tmp_path):
+    """A custom sweep's figures held a third swept variable at a value chosen silently:
+    now the value is stated in each figure's title (Δτ × h × fem.mesh.nz, no core q)."""
+    import arfem.scenarios.sweep.figures as F
+    write_base(tmp_path)
+    sweep = load_sweep(write_sweep(tmp_path, 'h_W_m2K = [20, 150]\n"fem.mesh.nz" = [4, 6]\n',
+                                   name="third"))
+    rows = [{"dtau_s": 600.0, "h_W_m2K": h, "q_W_m2": 2000.0, "fem.mesh.nz": nz,
+             "biot": h / 500, "C1": 0.9, "C1_fitted": 0.91, "corrected_C1": 0.91,
+             "max_abs_diff_pct_of_peak": h / 30, "corrected_max_abs_diff_pct_of_peak": h / 3e3}
+            for h in (20, 150) for nz in (4, 6)]
+    for make in (F.fig_error_vs_biot, F.fig_c1_vs_dtau, F.fig_error_heatmap):
+        fig = make(sweep, rows)
+        assert "fem.mesh.nz = 4 (first of 2 values)" in fig._suptitle.get_text().replace("\n", " ")
+        _check_figure(fig)

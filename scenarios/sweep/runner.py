@@ -1,0 +1,231 @@
+"""Running a sweep: open (or resume) the store, compute the missing points on an
+executor, store each as it finishes, then write the outputs from the store."""
+from __future__ import annotations
+
+import errno
+import math
+import os
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from arfem.params import InputError
+from arfem.io import write_json
+from arfem.scenarios.sweep.executors import (DaskExecutor, LocalExecutor, blas_threads,
+                                            evaluate_point)
+from arfem.scenarios.sweep.report import write_outputs
+from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, _canonical
+from arfem.scenarios.sweep.store import (_STORE_MANIFEST, DirLock, PointStore,
+                                         append_run_log, open_store)
+
+__all__ = ["RunReport", "run_sweep", "usable_cores", "check_wait", "check_workers",
+           "n_local_workers", "MAX_WAIT_S", "MAX_CONNECT_S",
+           "DEFAULT_WORKER_WAIT_S"]
+
+# -- running ------------------------------------------------------------------------------
+
+@dataclass
+class RunReport:
+    """What one invocation did."""
+
+    run_id: str
+    n_points: int
+    n_stored_before: int
+    n_computed: int = 0
+    n_failed: int = 0
+    failures: list = field(default_factory=list)
+    wall_s: float = 0.0
+    executor: str = ""
+    mode: str = "new"
+
+
+#: Longest wait ``--worker-wait`` may ask for [s]; larger values are capped (with a note).
+MAX_WAIT_S = 600.0
+#: Longest wait ``--connect-timeout`` may ask for [s] (a scheduler answers in well under 1 s).
+MAX_CONNECT_S = 60.0
+#: How long a Dask cluster may have no worker (none yet, or all gone) before the sweep ends [s].
+DEFAULT_WORKER_WAIT_S = 60.0
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity; ``os.cpu_count()`` elsewhere)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):                         # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def note(message: str) -> None:
+    """One line on stderr: something arfem decided for the user (a cap, a default)."""
+    print(f"arfem: note: {message}", file=sys.stderr, flush=True)
+
+
+def check_wait(value, flag: str, warn: Callable = note, limit: float = MAX_WAIT_S) -> float:
+    """A timeout flag [s]: a number > 0 (NaN refused), capped at ``limit``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value) \
+            or value <= 0:
+        raise InputError(f"must be a number of seconds > 0, got {value!r}", flag)
+    if value > limit:
+        warn(f"{flag} {value:g} s capped at {limit:g} s (the longest wait arfem allows)")
+        return float(limit)
+    return float(value)
+
+
+def check_workers(workers) -> int | None:
+    """``--workers``: None (all cores) or a whole number >= 1."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise InputError(f"must be a whole number >= 1, got {workers!r}", "--workers")
+    return workers
+
+
+def n_local_workers(workers: int | None, n_todo: int, warn: Callable = note) -> int:
+    """Worker processes to start: the request (default: all cores), capped at the cores
+    and at the points to compute; a cap of an explicit request is stated in one line."""
+    cores = usable_cores()
+    n = max(1, min(workers or cores, cores, n_todo))
+    if workers is not None and workers > n and workers > cores:
+        warn(f"--workers {workers} capped at {n} ({cores} cores, {n_todo} points to compute)")
+    return n
+
+
+def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str | None = None,
+              force: bool = False, progress: bool = True, timeout_s: float = 5.0,
+              worker_wait_s: float = DEFAULT_WORKER_WAIT_S, point_fn: Callable = evaluate_point,
+              warn: Callable = note) -> RunReport:
+    """Compute every point of ``sweep`` missing from the store in ``out``; write the results.
+
+    Parameters
+    ----------
+    sweep : Sweep
+    out : path
+        Store and output directory (resumed if it holds the same sweep).
+    workers : int, optional
+        Local worker processes (default: all cores; capped at the cores and at the
+        points to compute). 1 = in this process.
+    scheduler : str, optional
+        Address of a Dask scheduler (``tcp://host:8786``); overrides ``workers``.
+    force : bool
+        Allow a non-empty ``out`` that holds something else.
+    progress : bool
+        tqdm progress bar with ETA on stderr.
+    timeout_s : float
+        Connection timeout for ``scheduler`` [s] (at most :data:`MAX_CONNECT_S`).
+    worker_wait_s : float
+        How long the Dask cluster may have no worker before the sweep ends [s] (at most
+        :data:`MAX_WAIT_S`); the points stored so far are kept.
+    point_fn : callable
+        ``point_fn(data, source) -> {"metrics": ..., "run_time_s": ...}`` (picklable).
+    warn : callable
+        Receives one-line notes (caps applied to the flags).
+    """
+    out = Path(out)
+    mode = open_store(out, sweep, force)
+    timeout_s = check_wait(timeout_s, "--connect-timeout", warn, MAX_CONNECT_S)
+    worker_wait_s = check_wait(worker_wait_s, "--worker-wait", warn)
+    workers = check_workers(workers)
+    executor = None
+    if scheduler is not None:
+        executor = DaskExecutor(scheduler, timeout_s, worker_wait_s).connect()  # fail first
+    t0 = time.perf_counter()
+    run_id = time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:8]
+    try:
+        with DirLock(out):
+            store = PointStore(out)
+            store.dir.mkdir(parents=True, exist_ok=True)
+            store.remove_temporaries()
+            man = out / _STORE_MANIFEST
+            if mode != "resume" or not man.is_file():
+                write_json(man, sweep.manifest())
+            stored = store.keys()
+            todo = [p for p in sweep.points if p.key not in stored or store.get(p.key) is None]
+            seen, unique = set(), []
+            for p in todo:                                  # identical inputs: compute once
+                if p.key not in seen:
+                    seen.add(p.key)
+                    unique.append(p)
+            # points that share everything but Δτ and q share the FEM model and its
+            # eigen-decomposition: submit them together so worker caches hit
+            unique.sort(key=lambda p: _canonical({k: v for k, v in p.inputs.items()
+                                                  if k not in ("dtau_s", "q_W_m2")}))
+            rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
+            if unique:
+                if executor is None:
+                    n = n_local_workers(workers, len(unique), warn)
+                    executor = LocalExecutor(n) if n > 1 else None
+                rep.executor = executor.label if executor else "local, in-process"
+                _compute(sweep, unique, store, executor, point_fn, rep, run_id, progress)
+            else:
+                rep.executor = "nothing to compute"
+                if executor is not None:
+                    executor.close()
+            rep.wall_s = time.perf_counter() - t0
+            runs = append_run_log(out, rep)
+            write_outputs(sweep, out, store, rep, runs)
+    except OSError as exc:
+        if exc.errno in _DISK_ERRNOS:
+            raise InputError(f"cannot be written ({exc.strerror}); every point stored so far "
+                             "is kept, and the same command resumes once there is room",
+                             str(out)) from None
+        raise
+    finally:
+        if isinstance(executor, DaskExecutor):
+            executor.close()
+    return rep
+
+
+#: Write errors that are the disk's, not arfem's: no space, quota, read-only, I/O.
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG}
+
+
+def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress):
+    from tqdm import tqdm
+    bar = tqdm(total=rep.n_points, initial=rep.n_points - len(points), desc=f"sweep {sweep.name}",
+               unit="pt", file=sys.stderr, disable=not progress, dynamic_ncols=True,
+               mininterval=0.5)
+
+    def record(p: Point, res: dict) -> dict:
+        return {"key": p.key, "store_version": STORE_VERSION, "sweep": sweep.name,
+                "inputs": p.inputs, "scenario": p.data, "metrics": res["metrics"],
+                "run_time_s": res["run_time_s"], "worker": res.get("worker", ""),
+                "run_id": run_id, "finished_at": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+
+    def failed(p: Point, exc: BaseException):
+        rep.n_failed += 1
+        msg = " ".join(str(exc).split())
+        if "deserializ" in msg:
+            msg += (" [the Dask scheduler and every worker must be able to import arfem: "
+                    "pip install -e <repo> there, or start them with PYTHONPATH=<repo>]")
+        rep.failures.append({"inputs": p.inputs, "error": f"{type(exc).__name__}: {msg}"})
+
+    def settle(p: Point, get_result) -> None:
+        """Store one finished point as soon as it completes, or record its failure."""
+        try:
+            res = get_result()
+        except Exception as exc:
+            failed(p, exc)
+        else:
+            store.put(record(p, res))
+            rep.n_computed += 1
+        bar.update(1)
+
+    try:
+        if executor is None:
+            with blas_threads(1):
+                _serial(sweep, points, point_fn, settle)
+            return
+        with executor:
+            futs = {executor.submit(point_fn, p.data, f"{sweep.source} point {p.index}"): p
+                    for p in points}
+            for fut in executor.as_completed(list(futs)):
+                settle(futs[fut], fut.result)
+    finally:
+        bar.close()
+
+
+def _serial(sweep, points, point_fn, settle):
+    for p in points:
+        settle(p, lambda p=p: point_fn(p.data, f"{sweep.source} point {p.index}"))
