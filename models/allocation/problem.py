@@ -566,7 +566,9 @@ def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX
                  crossover=SBX(prob=st.crossover_prob, eta=st.eta_crossover),
                  mutation=PM(prob=1.0, prob_var=st.mutation_prob, eta=st.eta_mutation),
                  eliminate_duplicates=True)
-    term = (DefaultMultiObjectiveTermination(n_max_gen=st.n_gen) if st.converge
+    term = (DefaultMultiObjectiveTermination(n_max_gen=st.n_gen,
+                                             n_max_evals=st.pop_size * (st.n_gen + 1))
+            if st.converge
             else MaximumGenerationTermination(st.n_gen))
     with threadpool_limits(1):          # small matrices: BLAS threads only contend
         res = minimize(_Alloc(), algo, term, seed=int(st.seed), verbose=False,
