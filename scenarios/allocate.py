@@ -387,18 +387,21 @@ def _plot_thermal(path, run, alloc) -> None:
     st = run["result"].settings
     ts = alloc["thermal_series"]
     h = np.asarray(ts["times_s"]) / 3600.0
-    fig, ax = plt.subplots(figsize=(7.6, 3.9))
+    fig, ax = plt.subplots(figsize=(7.6, 4.3))
     sp = run["spindle"]
     lab = ("compensation residual (FEM + noise − " + sp.get("compensation_model", "") + ")"
            if sp["compensated"] else f"spindle growth ({sp['model']})")
     ax.plot(h, np.asarray(ts["growth_mm"]) * 1e3, color=OKABE[1], lw=1, label=lab)
     ax.plot(h, np.asarray(ts["worst_case_mm"]) * 1e3, color=OKABE[0], lw=1.4,
             label="worst-case stack: kinematic tolerances + thermal term")
-    ax.axhline(st.delta_E_mm * 1e3, color=OKABE[5], ls="--", lw=1.2, label=f"ΔE = {st.delta_E_mm * 1e3:g} µm")
+    ax.axhline(st.delta_E_mm * 1e3, color=OKABE[5], ls="--", lw=1.2)
+    ax.text(h[-1], st.delta_E_mm * 1e3, f"ΔE = {st.delta_E_mm * 1e3:g} µm ", color=OKABE[5],
+            ha="right", va="bottom", fontsize=8)
+    ax.set_ylim(top=max(st.delta_E_mm * 1e3, float(np.max(ts["worst_case_mm"])) * 1e3) * 1.12)
     ax.set_xlabel("time in the duty cycle [h]")
-    ax.set_ylabel("displacement along / at the tool [µm]")
+    ax.set_ylabel("displacement at the tool [µm]")
     ax.set_title("Thermal budget at every instant of the cycle")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
