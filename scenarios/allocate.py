@@ -282,8 +282,10 @@ def _plot_pareto(path, run, alloc) -> None:
                 label=f"knee (picked): {ev.stack_mm[k] * 1e3:.2f} µm, cost {ev.cost[k]:.1f}")
         ax.axvline(st.delta_E_mm * 1e3, color=OKABE[5], ls="--", lw=1.2)
         ax.text(st.delta_E_mm * 1e3, ax.get_ylim()[1], " ΔE", color=OKABE[5], va="top", ha="left")
-        ax.set_xlabel(f"{'worst-case' if st.constraint == 'worst_case' else 'RSS'} stack-up m_E "
-                      "at the functional point [µm]")
+        what = {"worst_case": "worst-case stack-up m_E", "rss": "RSS stack-up m_E",
+                "yield": f"{100 * st.target_yield:g} % quantile of m_E ({st.yield_dist}, "
+                         f"{st.yield_draws} draws)"}[st.constraint]
+        ax.set_xlabel(f"{what} at the functional point [µm]")
         ax.set_ylabel("cost Σ B/t^k [relative units]")
         ax.set_title("Tolerance–cost front (feasible side of ΔE)")
     else:
@@ -344,16 +346,24 @@ def _plot_stackup(path, run, alloc) -> None:
     vals = [alloc["sum_of_unit_worst_cases_um"], alloc["worst_case_um"], alloc["rss_um"],
             alloc["monte_carlo"]["uniform"]["p99_um"], alloc["monte_carlo"]["normal"]["p99_um"]]
     y = np.arange(len(labels))
-    a2.barh(y, vals, color=[OKABE[4], OKABE[0], OKABE[2], OKABE[1], OKABE[3]], height=0.6)
+    left = 0.0                           # first row: the units' worst cases stacked end to end
+    cmap = plt.get_cmap("cividis")
+    for j, n in enumerate(names):
+        v = alloc["units_worst_case_um"][n]
+        a2.barh(0, v, left=left, height=0.6, color=cmap(0.15 + 0.7 * j / max(1, len(names) - 1)),
+                edgecolor="white", label=n)
+        left += v
+    a2.barh(y[1:], vals[1:], color=[OKABE[0], OKABE[2], OKABE[1], OKABE[3]], height=0.6)
+    a2.legend(fontsize=7, loc="lower right", title="units (row 1)", title_fontsize=7)
     for yy, v in zip(y, vals):
         a2.text(v, yy, f" {v:.2f}", va="center", fontsize=8)
     a2.axvline(st.delta_E_mm * 1e3, color=OKABE[5], ls="--", lw=1.2)
-    a2.text(st.delta_E_mm * 1e3, len(labels) - 0.45, f" ΔE = {st.delta_E_mm * 1e3:g} µm",
-            color=OKABE[5], fontsize=8, va="bottom")
+    a2.text(st.delta_E_mm * 1e3, 0.5, f" ΔE = {st.delta_E_mm * 1e3:g} µm",
+            color=OKABE[5], fontsize=8, va="center")
     a2.set_yticks(y, labels, fontsize=8)
     a2.invert_yaxis()
     a2.set_xlabel("stack-up of the whole chain [µm]")
-    a2.set_xlim(0, max(vals + [st.delta_E_mm * 1e3]) * 1.25)
+    a2.set_xlim(0, max(vals + [st.delta_E_mm * 1e3]) * 1.45)
     a2.set_title("Whole chain against ΔE")
     fig.tight_layout()
     fig.savefig(path, dpi=130)

@@ -44,7 +44,7 @@ ROTATIONS = ("dalpha", "dbeta", "dgamma")
 COMPONENT_UNIT = {c: ("mrad" if c in ROTATIONS else "mm") for c in COMPONENTS}
 _TO_INTERNAL = np.array([1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-3])
 FORMULAS = ("screw", "paper_literal")
-CONSTRAINTS = ("worst_case", "rss")
+CONSTRAINTS = ("worst_case", "rss", "yield")
 PICKS = ("knee", "min_cost", "min_stack", "compromise")
 COST_MODELS = ("reciprocal_power", "exponential")
 #: candidate evaluations (pop_size × n_gen) beyond which :func:`allocate` refuses unless
@@ -187,7 +187,10 @@ class Settings:
     delta_E_mm: float = 0.005
     working_radius_mm: float = 0.0
     formula: str = "screw"              # "screw" | "paper_literal"
-    constraint: str = "worst_case"      # "worst_case" | "rss"   (screw formula)
+    constraint: str = "worst_case"      # "worst_case" | "rss" | "yield"   (screw formula)
+    target_yield: float = 0.9973        # constraint "yield": P(m_E <= ΔE) >= this
+    yield_dist: str = "normal"          # "normal" (t = 3σ) | "uniform"
+    yield_draws: int = 10_000           # common random numbers, seeded by ``seed``
     cost_model: str = "reciprocal_power"
     cost_A: float = 0.0
     cost_B: float = 1.0
@@ -247,6 +250,7 @@ class Evaluation:
     worst_case_mm: np.ndarray | None = None
     rss_mm: np.ndarray | None = None
     kinematic_worst_case_mm: np.ndarray | None = None
+    yield_: np.ndarray | None = None
     f1_mm: np.ndarray | None = None
     m_E: np.ndarray | None = None
 
@@ -290,6 +294,46 @@ def _kernel(chain: Chain) -> _Kernel:
         _KERNELS.clear()
         _KERNELS[key] = k
     return k
+
+
+def _yield_quantile(chain: Chain, T, st: Settings):
+    """Monte Carlo with common random numbers (same draws for every candidate, so the
+    optimiser compares designs, not noise): the ``target_yield`` quantile of the worst
+    pose's |δp| [mm] (<= ΔE exactly when the yield >= target) and the yield itself."""
+    kern = _kernel(chain)
+    key = (st.yield_dist, st.yield_draws, st.seed)
+    if getattr(kern, "mc_key", None) != key:
+        rng = np.random.default_rng(st.seed)
+        K = T.shape[1]
+        if st.yield_dist == "uniform":
+            U = rng.uniform(-1.0, 1.0, (st.yield_draws, K))
+        else:
+            U = rng.standard_normal((st.yield_draws, K)) / 3.0
+        kern.mc_key, kern.mc_U = key, U
+    U = kern.mc_U
+    th = chain.thermal
+    Js = kern.Jv
+    offs = [np.zeros((len(Js), 3))]
+    if th is not None:
+        offs = [np.min(th.growth_mm) * th.direction, np.max(th.growth_mm) * th.direction]
+    active = np.flatnonzero(np.any(np.abs(np.asarray(Js)) > 0, axis=(0, 2)))
+    M = np.asarray(Js)[:, active, :].transpose(1, 0, 2).reshape(len(active), -1)   # (Ka, P*3)
+    Ua = U[:, active].astype(np.float32)
+    P = len(Js)
+    q = np.empty(T.shape[0])
+    y = np.empty(T.shape[0])
+    step = 25                                   # candidates per block: bounds the memory
+    for a in range(0, T.shape[0], step):
+        Tb = T[a:a + step, active]
+        B = (Tb[:, :, None] * M[None]).transpose(1, 0, 2).reshape(len(active), -1)
+        D = (Ua @ B.astype(np.float32)).reshape(len(U), len(Tb), P, 3)
+        w = None
+        for o in offs:
+            n = np.sqrt(np.sum((D + o[None, None].astype(np.float32)) ** 2, axis=3)).max(axis=2)
+            w = n if w is None else np.maximum(w, n)
+        q[a:a + step] = np.quantile(w, st.target_yield, axis=0)
+        y[a:a + step] = np.mean(w <= st.delta_E_mm, axis=0)
+    return q, y
 
 
 def _worst_with_offset(T, J, S, offsets) -> np.ndarray:
@@ -357,9 +401,13 @@ def evaluate_design(chain: Chain, X, settings: Settings) -> Evaluation:
             unit[:, i] = np.maximum(unit[:, i], tolerance.worst_case(T[:, sl], Jv[sl],
                                                                      kern.unit_S[p][i]))
     cost = _costs(chain, V, st).sum(axis=1)
-    stack = wc if st.constraint == "worst_case" else rs
+    yl = None
+    if st.constraint == "yield":
+        stack, yl = _yield_quantile(chain, T, st)
+    else:
+        stack = wc if st.constraint == "worst_case" else rs
     return Evaluation("screw", cost, stack, unit, worst_case_mm=wc, rss_mm=rs,
-                      kinematic_worst_case_mm=wc_kin)
+                      kinematic_worst_case_mm=wc_kin, yield_=yl)
 
 
 def worst_case_over_cycle(chain: Chain, X) -> np.ndarray:

@@ -3,9 +3,11 @@
 Layout (every key carries its unit; unknown keys are refused with a "did you mean")::
 
     [scenario]     name, description, formula = "screw"|"paper_literal",
-                   constraint = "worst_case"|"rss",
+                   constraint = "worst_case"|"rss"|"yield",
                    reference_accuracy_mm = {unit = mm, ...}   (e.g. a paper's table)
-    [tolerance]    delta_E_mm (> 0), working_radius_mm (>= 0, default 0)
+    [tolerance]    delta_E_mm (> 0), working_radius_mm (>= 0, default 0);
+                   constraint "yield": target_yield, yield_dist = "normal"|"uniform",
+                   yield_draws (>= 10 000)
     [cost]         model = "reciprocal_power"|"exponential", A, B, k, b_um,
                    angular_length_mm (screw formula, tolerances in µm);
                    a, b_mm (paper eq. 14, paper_literal)
@@ -281,8 +283,9 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     desc = rd.string(sc, "description", "scenario.description", default="")
     formula = rd.choice(sc, "formula", "scenario.formula", FORMULAS, "screw")
     constraint = rd.choice(sc, "constraint", "scenario.constraint", CONSTRAINTS, "worst_case")
-    tol = rd.table(data["tolerance"], "tolerance", {"delta_E_mm", "working_radius_mm"},
-                   required=("delta_E_mm",))
+    tol = rd.table(data["tolerance"], "tolerance",
+                   {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
+                    "yield_draws"}, required=("delta_E_mm",))
     dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True)
     rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0)
     co = rd.table(data.get("cost", {}), "cost",
@@ -292,6 +295,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                    "eta_crossover", "eta_mutation", "seed", "pick"})
     settings = Settings(
         delta_E_mm=dE, working_radius_mm=rw, formula=formula, constraint=constraint,
+        target_yield=rd.number(tol, "target_yield", "tolerance.target_yield", default=0.9973,
+                               low=0.5, high=1.0, high_open=True),
+        yield_dist=rd.choice(tol, "yield_dist", "tolerance.yield_dist", ("normal", "uniform"),
+                             "normal"),
+        yield_draws=rd.integer(tol, "yield_draws", "tolerance.yield_draws", 10_000, 10_000,
+                               1_000_000),
         cost_model=rd.choice(co, "model", "cost.model", COST_MODELS, "reciprocal_power"),
         cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0),
         cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True),
