@@ -80,11 +80,13 @@ def _percentile_of(values, x) -> float:
 
 def run_allocation(scenario_path, seeds: int | None = None, work_limit=MAX_EVALUATIONS) -> dict:
     """Everything the writers need: scenario, chain, the runs of every seed, the pick."""
+    if seeds is not None and not 1 <= seeds <= 100:
+        raise InputError(f"must be 1 to 100, got {seeds}", "--seeds")
     sc = load_allocation_scenario(scenario_path)
     _check_work(sc, work_limit)
     chain, spindle = build_chain(sc)
     st = sc.settings
-    n_seeds = seeds or (20 if st.formula == "paper_literal" else 3)
+    n_seeds = seeds if seeds is not None else (20 if st.formula == "paper_literal" else 3)
     if not 1 <= n_seeds <= 100:
         raise InputError(f"must be 1 to 100, got {n_seeds}", "--seeds")
     runs = [allocate(chain, with_settings(st, seed=st.seed + s), max_evaluations=None)

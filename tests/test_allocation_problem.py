@@ -159,3 +159,12 @@ def test_cli_end_to_end_small(tmp_path, capsys):
     capsys.readouterr()
     assert main(["allocate", str(p), "--out", str(out)]) == 2
     assert "--force" in capsys.readouterr().err
+
+
+def test_bad_seed_count_refused_before_any_work(tmp_path, capsys):
+    """--seeds outside 1..100 is one line, exit 2, before any optimisation (0 is not
+    taken as "the default")."""
+    out = tmp_path / "o"
+    assert main(["allocate", str(SCENARIO), "--out", str(out), "--seeds", "0"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--seeds" in err and not out.exists()
