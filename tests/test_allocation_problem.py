@@ -168,3 +168,16 @@ def test_bad_seed_count_refused_before_any_work(tmp_path, capsys):
     assert main(["allocate", str(SCENARIO), "--out", str(out), "--seeds", "0"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--seeds" in err and not out.exists()
+
+
+def test_idle_tolerances_are_left_at_their_upper_bound(chain_settings):
+    """Components that move the pallet point at no pose (piston and rack Δy, Δz and
+    rotations: they do not turn the pinion) cost something and buy nothing: every front
+    member has them at the upper bound."""
+    chain, st = chain_settings
+    res = allocate(chain, st)
+    _, hi = chain.bounds()
+    names = chain.variable_names()
+    for k, n in enumerate(names):
+        if n.startswith(("piston_", "rack_")) and not n.split("_")[1] == "dx":
+            assert np.all(res.front_X[:, k] == hi[k]), n

@@ -545,12 +545,27 @@ def _hv_reference(chain: Chain, st: Settings) -> np.ndarray:
     return np.array([float(c), st.delta_E_mm])
 
 
+def _loosen_idle(chain: Chain, X, hi) -> np.ndarray:
+    """Set every free tolerance that moves the functional point at no pose (zero gain in
+    translation and rotation) to its upper bound: the stack cannot change, the cost can
+    only fall, so the member stays on the front. NSGA-II leaves such variables wherever
+    its tolerance stopped it."""
+    Jv, Jw = chain.sensitivities()
+    gain = np.linalg.norm(Jv, axis=2).max(axis=0) + np.linalg.norm(Jw, axis=2).max(axis=0)
+    X = np.array(X, float)
+    for k, (i, c) in enumerate(chain.variables):
+        if gain[6 * i + COMPONENTS.index(c)] == 0.0:
+            X[:, k] = hi[k]
+    return X
+
+
 def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX_EVALUATIONS,
              record_history: bool = True) -> AllocationResult:
     """Solve the allocation with pymoo's NSGA-II, seeded (same inputs, same front).
 
     SBX crossover and polynomial mutation (per-variable probability), duplicates
-    eliminated. With ``settings.converge`` the run stops by pymoo's default
+    eliminated. Tolerances with no effect at any pose are set to their upper bound in
+    the returned front (same stack, lower cost). With ``settings.converge`` the run stops by pymoo's default
     multi-objective termination (design-space, constraint and objective-space
     tolerances over a sliding window) or at ``n_gen``, whichever is first.
 
@@ -629,6 +644,8 @@ def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX
             pop = res.pop
             X = np.atleast_2d(pop.get("X")[int(np.argmin(pop.get("CV").ravel()))])
             feasible = False
+        if st.formula == "screw":
+            X = _loosen_idle(chain, X, hi)
         F, _ = _objectives(evaluate_design(chain, X, st), st)
         order = np.lexsort((F[:, 1], F[:, 0]))
         X = X[order]
