@@ -65,3 +65,16 @@ def test_thermal_term_combines_as_a_vector(loop):
     d = np.max(np.abs(chain.thermal.growth_mm))
     kin = ev.kinematic_worst_case_mm[0]
     assert max(kin, d) - 1e-12 <= ev.worst_case_mm[0] <= kin + d + 1e-12
+
+
+def test_workpiece_errors_enter_the_loop_with_the_opposite_sign(loop):
+    """A pallet-clamp error that lifts the workpiece by Δy moves the tool by −Δy
+    relative to it (base y), at every B angle; an x-column error Δx moves the tool by
+    +Δx. The loop is tool minus workpiece (exact: pure translations)."""
+    _, chain = loop
+    names = chain.component_names()
+    Jv, _ = chain.sensitivities()
+    np.testing.assert_allclose(Jv[:, names.index("pallet_clamp.dy")], np.tile([0, -1.0, 0], (4, 1)),
+                               atol=1e-12)
+    np.testing.assert_allclose(Jv[:, names.index("x_column.dx")], np.tile([1.0, 0, 0], (4, 1)),
+                               atol=1e-12)
