@@ -95,14 +95,3 @@ def test_pitch_is_invariant_under_change_of_frame():
     xi = _random_errors(rng, 1, 1e-5)[0]
     g = screw.pose(rng.uniform(-400, 400, 3), rng.uniform(-180, 180, 3))
     assert screw.pitch(screw.adjoint(g) @ xi) == pytest.approx(screw.pitch(xi), rel=1e-9)
-
-
-def test_paper_form_equals_plain_sum_to_first_order():
-    """The paper's product of raw error matrices is the plain sum Σ ξ_i plus second-order
-    rotation × translation products (bounded by ~n²·ε_ω·ε_v)."""
-    rng = np.random.default_rng(5)
-    xi = _random_errors(rng, 4, 1e-5)
-    diff = screw.compose_paper(xi) - xi.sum(axis=0)
-    eps_w, eps_v = 1e-5, 1e-3
-    assert np.max(np.abs(diff)) < 16 * eps_w * max(eps_v, eps_w)
-    assert np.max(np.abs(diff[3:])) > 0          # the products are there

@@ -1,25 +1,39 @@
-"""Allocation scenario files (TOML): strict reading into a validated object.
+"""Allocation scenario files (TOML): strict reading into a validated object, and the chain.
 
-Layout (every key carries its unit; unknown keys are refused)::
+Layout (every key carries its unit; unknown keys are refused with a "did you mean")::
 
-    [scenario]   name, description, formula = "screw"|"paper",
-                 constraint = "composed"|"worst_case",
-                 reference_accuracy_mm = {unit = mm, ...}   (e.g. a paper's table)
-    [tolerance]  delta_E_mm (> 0), working_radius_mm (>= 0, default 0)
-    [cost]       a (> 0), b_mm (> 0)                      paper eq. 14
-    [optimizer]  pop_size, n_gen, crossover_prob, mutation_prob, eta_crossover,
-                 eta_mutation, seed, pick = "compromise"|"min_cost"|"min_pitch"
-    [tool]       offset_mm = [x, y, z], rpy_deg = [r, p, y]   functional point
-    [[units]]    name, motion = "translation"|"rotation", axis = "x"|"y"|"z",
-                 offset_mm, rpy_deg, joint_mm (translation) | joint_deg (rotation),
-                 free = [...of dx dy dz dalpha dbeta dgamma],
-                 translation_mm = [lo, hi], rotation_mrad = [lo, hi],
-                 fixed = {dx_mm = .., dalpha_mrad = ..}   (components not free)
-    [spindle]    optional thermal unit: name, q_W_m2, model = "ar"|"ar_corrected"|"fem",
-                 dtau_s, cycle = "paper", compensated, after = "<unit>", offset_mm, rpy_deg
+    [scenario]     name, description, formula = "screw"|"paper_literal",
+                   constraint = "worst_case"|"rss"|"yield",
+                   reference_accuracy_mm = {unit = mm, ...}   (e.g. a paper's table)
+    [tolerance]    delta_E_mm (> 0), working_radius_mm (>= 0, default 0);
+                   constraint "yield": target_yield, yield_dist = "normal"|"uniform",
+                   yield_draws (>= 10 000)
+    [cost]         model = "reciprocal_power"|"exponential", A, B, k, b_um,
+                   angular_length_mm (screw formula, tolerances in µm);
+                   a, b_mm (paper eq. 14, paper_literal)
+    [optimizer]    pop_size, n_gen, converge, crossover_prob, mutation_prob, eta_crossover,
+                   eta_mutation, seed, pick = "knee"|"min_cost"|"min_stack"|"compromise"
+    [tool]         offset_mm = [x, y, z], rpy_deg = [r, p, y]   functional point in the
+                   frame of the last "tool"-branch unit
+    [[units]]      name, motion = "translation"|"rotation", axis = "x"|"y"|"z",
+                   branch = "tool"|"workpiece"|"drive",
+                   offset_mm, rpy_deg, joint_mm (translation) | joint_deg (rotation),
+                   free = [...of dx dy dz dalpha dbeta dgamma],
+                   translation_mm = [lo, hi], rotation_mrad = [lo, hi],
+                   fixed = {dx_mm = .., dalpha_mrad = ..}   (components not free)
+    [transmission] type = "rack_pinion", drive_unit, driven_unit, pitch_radius_mm,
+                   mesh_point_mm = [x, y, z] (base frame), rack_axis = "x"|"y"|"z"
+    [travel]       unit = "<rotation unit>", angles_deg = [...]   poses to check
+    [spindle]      unit = "<tool-branch unit whose axis is the spindle axis>", q_W_m2,
+                   model = "fem"|"ar"|"ar_corrected", dtau_s, cycle = "paper",
+                   compensated, compensation_model = "ar"|"ar_corrected",
+                   measurement_noise_um, noise_seed
 
-The unit's nominal pose is Trans(offset)·Rot(rpy)·Joint, Joint being a
-translation of ``joint_mm`` along, or a rotation of ``joint_deg`` about, its axis.
+Each branch is a serial chain from the base. A unit's nominal pose is
+Trans(offset)·Rot(rpy)·Joint, Joint being a translation of ``joint_mm`` along, or a
+rotation of ``joint_deg`` about, its axis. "tool" units carry the tool, "workpiece"
+units the workpiece (their errors enter the tool-to-workpiece loop with the opposite
+sign); "drive" units act only through the transmission.
 """
 from __future__ import annotations
 
@@ -30,15 +44,19 @@ from pathlib import Path
 
 import numpy as np
 
-
 from arfem.models.allocation import screw
-from arfem.models.allocation.problem import COMPONENTS, COMPONENT_UNIT, ROTATIONS, Chain, Settings, Unit
+from arfem.models.allocation.problem import (COMPONENTS, COMPONENT_UNIT, CONSTRAINTS,
+                                             COST_MODELS, FORMULAS, PICKS, ROTATIONS, Chain,
+                                             Settings, Thermal, Unit)
 from arfem.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
+from arfem.strict import check_keys
 
-__all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "parse_scenario",
-           "build_chain"]
+__all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "TransmissionSpec", "parse_scenario",
+           "build_chain", "chain_maps"]
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*$")
+_AXES = {"x": 0, "y": 1, "z": 2}
+BRANCHES = ("tool", "workpiece", "drive")
 
 
 @dataclass(frozen=True)
@@ -46,21 +64,45 @@ class UnitSpec:
     name: str
     motion: str
     axis: str
-    pose: np.ndarray
+    offset: np.ndarray          # Trans(offset)·Rot(rpy), before the joint
+    joint: float                # mm (translation) or deg (rotation)
     free: tuple
     bounds: dict
     fixed: dict
+    branch: str = "tool"
+
+    def pose(self, joint=None) -> np.ndarray:
+        """Nominal pose in the previous unit's frame for a joint value [mm or deg]."""
+        q = self.joint if joint is None else joint
+        J = np.eye(4)
+        if self.motion == "translation":
+            J[_AXES[self.axis], 3] = q
+        else:
+            ang = [0.0, 0.0, 0.0]
+            ang[_AXES[self.axis]] = q
+            J = screw.pose([0, 0, 0], ang)
+        return self.offset @ J
+
+
+@dataclass(frozen=True)
+class TransmissionSpec:
+    drive_unit: str
+    driven_unit: str
+    pitch_radius_mm: float
+    mesh_point_mm: np.ndarray
+    rack_axis: str
 
 
 @dataclass(frozen=True)
 class SpindleSpec:
-    name: str
+    unit: str
     q_W_m2: float
     model: str
     dtau_s: float
     compensated: bool
-    after: str
-    pose: np.ndarray
+    compensation_model: str
+    measurement_noise_um: float
+    noise_seed: int
 
 
 @dataclass(frozen=True)
@@ -75,6 +117,9 @@ class AllocationScenario:
     tool: np.ndarray
     spindle: SpindleSpec | None = None
     reference_accuracy_mm: dict | None = None
+    transmission: TransmissionSpec | None = None
+    travel_unit: str | None = None
+    travel_angles_deg: tuple = ()
 
 
 class _Reader:
@@ -87,10 +132,10 @@ class _Reader:
     def table(self, d, key, allowed, required=()):
         if not isinstance(d, dict):
             raise self.err(key, f"must be a table, got {type(d).__name__}")
-        for k in d:
-            if k not in allowed:
-                raise self.err(f"{key}.{k}" if key else k,
-                               f"unknown key (allowed: {', '.join(sorted(allowed))})")
+        try:
+            check_keys(d, allowed, key)
+        except InputError as exc:
+            raise InputError(exc.message, f"{self.where}: {exc.where}") from None
         for k in required:
             if k not in d:
                 raise self.err(f"{key}.{k}" if key else k, "is required")
@@ -183,9 +228,8 @@ class _Reader:
         return float(lo), float(hi)
 
 
-_UNIT_KEYS = {"name", "motion", "axis", "offset_mm", "rpy_deg", "joint_mm", "joint_deg", "free",
-              "translation_mm", "rotation_mrad", "fixed"}
-_AXES = {"x": 0, "y": 1, "z": 2}
+_UNIT_KEYS = {"name", "motion", "axis", "branch", "offset_mm", "rpy_deg", "joint_mm", "joint_deg",
+              "free", "translation_mm", "rotation_mrad", "fixed"}
 
 
 def _unit(rd: _Reader, d, i, names) -> UnitSpec:
@@ -196,19 +240,15 @@ def _unit(rd: _Reader, d, i, names) -> UnitSpec:
         raise rd.err(f"{key}.name", f"duplicate unit name {name!r}")
     motion = rd.choice(d, "motion", f"{key}.motion", ("translation", "rotation"))
     axis = rd.choice(d, "axis", f"{key}.axis", tuple(_AXES))
+    branch = rd.choice(d, "branch", f"{key}.branch", BRANCHES, "tool")
     wrong = "joint_deg" if motion == "translation" else "joint_mm"
     if wrong in d:
         raise rd.err(f"{key}.{wrong}", f"does not apply to a {motion} unit "
                                       f"(use {'joint_mm' if wrong == 'joint_deg' else 'joint_deg'})")
     g = screw.pose(rd.vector(d, "offset_mm", f"{key}.offset_mm"),
                    rd.vector(d, "rpy_deg", f"{key}.rpy_deg"))
-    joint = np.eye(4)
-    if motion == "translation":
-        joint[_AXES[axis], 3] = rd.number(d, "joint_mm", f"{key}.joint_mm", default=0.0)
-    else:
-        ang = [0.0, 0.0, 0.0]
-        ang[_AXES[axis]] = rd.number(d, "joint_deg", f"{key}.joint_deg", default=0.0)
-        joint = screw.pose([0, 0, 0], ang)
+    jkey = "joint_mm" if motion == "translation" else "joint_deg"
+    joint = rd.number(d, jkey, f"{key}.{jkey}", default=0.0)
     free = d.get("free", list(COMPONENTS))
     if not isinstance(free, list) or not all(isinstance(c, str) for c in free):
         raise rd.err(f"{key}.free", f"must be a list of component names, got {free!r}")
@@ -217,8 +257,8 @@ def _unit(rd: _Reader, d, i, names) -> UnitSpec:
             raise rd.err(f"{key}.free", f"unknown component {c!r} (allowed: {', '.join(COMPONENTS)})")
     if len(set(free)) != len(free):
         raise rd.err(f"{key}.free", "lists a component twice")
-    tb = rd.interval(d, "translation_mm", f"{key}.translation_mm", [0.0, 0.005])
-    rb = rd.interval(d, "rotation_mrad", f"{key}.rotation_mrad", [0.0, 0.005])
+    tb = rd.interval(d, "translation_mm", f"{key}.translation_mm", [0.0001, 0.005])
+    rb = rd.interval(d, "rotation_mrad", f"{key}.rotation_mrad", [0.0001, 0.005])
     fixed_in = d.get("fixed", {})
     allowed_fixed = {f"{c}_{COMPONENT_UNIT[c]}" for c in COMPONENTS if c not in free}
     rd.table(fixed_in, f"{key}.fixed", allowed_fixed)
@@ -226,38 +266,53 @@ def _unit(rd: _Reader, d, i, names) -> UnitSpec:
     for c in COMPONENTS:
         if c not in free:
             k = f"{c}_{COMPONENT_UNIT[c]}"
-            fixed[c] = rd.number(fixed_in, k, f"{key}.fixed.{k}", default=0.0)
+            fixed[c] = rd.number(fixed_in, k, f"{key}.fixed.{k}", default=0.0, low=0.0)
     bounds = {c: (rb if c in ROTATIONS else tb) for c in free}
-    return UnitSpec(name, motion, axis, g @ joint, tuple(c for c in COMPONENTS if c in free),
-                    bounds, fixed)
+    return UnitSpec(name, motion, axis, g, joint, tuple(c for c in COMPONENTS if c in free),
+                    bounds, fixed, branch)
 
 
 def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario:
     """Validate a parsed TOML mapping; raise :class:`InputError` naming ``source`` and the key."""
     rd = _Reader(source)
-    rd.table(data, "", {"scenario", "tolerance", "cost", "optimizer", "tool", "units", "spindle"},
-             required=("tolerance", "units"))
+    rd.table(data, "", {"scenario", "tolerance", "cost", "optimizer", "tool", "units", "spindle",
+                        "transmission", "travel"}, required=("tolerance", "units"))
     sc = rd.table(data.get("scenario", {}), "scenario",
                   {"name", "description", "formula", "constraint", "reference_accuracy_mm"})
     name = rd.string(sc, "name", "scenario.name", default=Path(source).stem)
     desc = rd.string(sc, "description", "scenario.description", default="")
-    formula = rd.choice(sc, "formula", "scenario.formula", ("screw", "paper"), "screw")
-    constraint = rd.choice(sc, "constraint", "scenario.constraint", ("composed", "worst_case"),
-                           "composed")
-    tol = rd.table(data["tolerance"], "tolerance", {"delta_E_mm", "working_radius_mm"},
-                   required=("delta_E_mm",))
+    formula = rd.choice(sc, "formula", "scenario.formula", FORMULAS, "screw")
+    constraint = rd.choice(sc, "constraint", "scenario.constraint", CONSTRAINTS, "worst_case")
+    tol = rd.table(data["tolerance"], "tolerance",
+                   {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
+                    "yield_draws"}, required=("delta_E_mm",))
     dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True)
     rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0)
-    co = rd.table(data.get("cost", {}), "cost", {"a", "b_mm"})
-    a = rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True)
-    b = rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True)
+    co = rd.table(data.get("cost", {}), "cost",
+                  {"model", "A", "B", "k", "b_um", "angular_length_mm", "a", "b_mm"})
     op = rd.table(data.get("optimizer", {}), "optimizer",
-                  {"pop_size", "n_gen", "crossover_prob", "mutation_prob", "eta_crossover",
-                   "eta_mutation", "seed", "pick"})
+                  {"pop_size", "n_gen", "converge", "crossover_prob", "mutation_prob",
+                   "eta_crossover", "eta_mutation", "seed", "pick"})
     settings = Settings(
-        delta_E_mm=dE, working_radius_mm=rw, a=a, b_mm=b, formula=formula, constraint=constraint,
-        pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 16, 4, 10_000),
-        n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 30, 1, 100_000),
+        delta_E_mm=dE, working_radius_mm=rw, formula=formula, constraint=constraint,
+        target_yield=rd.number(tol, "target_yield", "tolerance.target_yield", default=0.9973,
+                               low=0.5, high=1.0, high_open=True),
+        yield_dist=rd.choice(tol, "yield_dist", "tolerance.yield_dist", ("normal", "uniform"),
+                             "normal"),
+        yield_draws=rd.integer(tol, "yield_draws", "tolerance.yield_draws", 10_000, 10_000,
+                               1_000_000),
+        cost_model=rd.choice(co, "model", "cost.model", COST_MODELS, "reciprocal_power"),
+        cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0),
+        cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True),
+        cost_k=rd.number(co, "k", "cost.k", default=1.0, low=0.0, low_open=True, high=10.0),
+        cost_b_um=rd.number(co, "b_um", "cost.b_um", default=1.0, low=0.0, low_open=True),
+        angular_length_mm=rd.number(co, "angular_length_mm", "cost.angular_length_mm",
+                                    default=100.0, low=0.0, low_open=True),
+        a=rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True),
+        b_mm=rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True),
+        pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 200, 4, 1_000_000),
+        n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 1000, 1, 100_000_000),
+        converge=rd.boolean(op, "converge", "optimizer.converge", True),
         crossover_prob=rd.number(op, "crossover_prob", "optimizer.crossover_prob", 0.9, 0.0, 1.0),
         mutation_prob=rd.number(op, "mutation_prob", "optimizer.mutation_prob", 0.1, 0.0, 1.0),
         eta_crossover=rd.number(op, "eta_crossover", "optimizer.eta_crossover", 20.0, 0.0,
@@ -265,8 +320,7 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         eta_mutation=rd.number(op, "eta_mutation", "optimizer.eta_mutation", 20.0, 0.0,
                                low_open=True),
         seed=rd.integer(op, "seed", "optimizer.seed", 1, 0, 2**32 - 1),
-        pick=rd.choice(op, "pick", "optimizer.pick", ("compromise", "min_cost", "min_pitch"),
-                       "compromise"))
+        pick=rd.choice(op, "pick", "optimizer.pick", PICKS, "knee"))
     tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
     tool = screw.pose(rd.vector(tl, "offset_mm", "tool.offset_mm"),
                       rd.vector(tl, "rpy_deg", "tool.rpy_deg"))
@@ -278,75 +332,205 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         units.append(_unit(rd, d, i, {u.name for u in units}))
     if not any(u.free for u in units):
         raise rd.err("units", "no unit has a free component: nothing to allocate")
+    byname = {u.name: u for u in units}
+    if formula == "screw" and not any(u.branch == "tool" for u in units):
+        raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
+    trans = None
+    if "transmission" in data:
+        tr = rd.table(data["transmission"], "transmission",
+                      {"type", "drive_unit", "driven_unit", "pitch_radius_mm", "mesh_point_mm",
+                       "rack_axis"}, required=("drive_unit", "driven_unit", "pitch_radius_mm"))
+        rd.choice(tr, "type", "transmission.type", ("rack_pinion",), "rack_pinion")
+        drive = rd.string(tr, "drive_unit", "transmission.drive_unit")
+        driven = rd.string(tr, "driven_unit", "transmission.driven_unit")
+        drive_units = [u.name for u in units if u.branch == "drive"]
+        if not drive_units or drive != drive_units[-1]:
+            raise rd.err("transmission.drive_unit", f"must name the last unit with branch = "
+                                                    f"\"drive\" ({drive_units or 'none'}), got {drive!r}")
+        if driven not in byname or byname[driven].branch == "drive" \
+                or byname[driven].motion != "rotation":
+            raise rd.err("transmission.driven_unit", f"must name a rotation unit of the tool or "
+                                                     f"workpiece branch, got {driven!r}")
+        trans = TransmissionSpec(
+            drive, driven,
+            rd.number(tr, "pitch_radius_mm", "transmission.pitch_radius_mm", low=0.0,
+                      low_open=True),
+            rd.vector(tr, "mesh_point_mm", "transmission.mesh_point_mm"),
+            rd.choice(tr, "rack_axis", "transmission.rack_axis", tuple(_AXES), "x"))
+    elif any(u.branch == "drive" for u in units):
+        raise rd.err("transmission", "is required when a unit has branch = \"drive\"")
+    travel_unit, angles = None, ()
+    if "travel" in data:
+        tv = rd.table(data["travel"], "travel", {"unit", "angles_deg"},
+                      required=("unit", "angles_deg"))
+        travel_unit = rd.string(tv, "unit", "travel.unit")
+        if travel_unit not in byname or byname[travel_unit].motion != "rotation":
+            raise rd.err("travel.unit", f"must name a rotation unit, got {travel_unit!r}")
+        av = tv["angles_deg"]
+        if not isinstance(av, list) or not 1 <= len(av) <= 36:
+            raise rd.err("travel.angles_deg", f"must be a list of 1 to 36 angles, got {av!r}")
+        angles = tuple(float(rd.vector(tv, "angles_deg", "travel.angles_deg", n=len(av),
+                                       bound=3600.0)[j]) for j in range(len(av)))
     spindle = None
     if "spindle" in data:
         sp = rd.table(data["spindle"], "spindle",
-                      {"name", "q_W_m2", "model", "dtau_s", "cycle", "compensated", "after",
-                       "offset_mm", "rpy_deg"}, required=("q_W_m2",))
-        sname = rd.string(sp, "name", "spindle.name", default="spindle", pattern=_NAME_RE)
-        if sname in {u.name for u in units}:
-            raise rd.err("spindle.name", f"duplicate unit name {sname!r}")
-        model = rd.choice(sp, "model", "spindle.model", ("ar", "ar_corrected", "fem"), "ar")
+                      {"unit", "q_W_m2", "model", "dtau_s", "cycle", "compensated",
+                       "compensation_model", "measurement_noise_um", "noise_seed"},
+                      required=("unit", "q_W_m2"))
+        sunit = rd.string(sp, "unit", "spindle.unit")
+        if sunit not in byname or byname[sunit].branch != "tool":
+            raise rd.err("spindle.unit", f"must name a unit of the tool branch (the spindle "
+                                         f"carries the tool), got {sunit!r}")
+        model = rd.choice(sp, "model", "spindle.model", ("fem", "ar", "ar_corrected"), "fem")
         rd.choice(sp, "cycle", "spindle.cycle", ("paper",), "paper")
         comp = rd.boolean(sp, "compensated", "spindle.compensated", False)
-        if comp and model == "fem":
-            raise rd.err("spindle.compensated", "needs model 'ar' or 'ar_corrected' (the FEM "
-                                                "is the reference the residual is taken against)")
+        cmodel = rd.choice(sp, "compensation_model", "spindle.compensation_model",
+                           ("ar", "ar_corrected"), "ar")
         dtau = rd.number(sp, "dtau_s", "spindle.dtau_s", default=30.0, low=0.0, low_open=True)
         try:
             steps_per_segment([d for d, _ in PAPER_PHASES_S], dtau, what="paper-cycle phase")
         except InputError as exc:
             raise rd.err("spindle.dtau_s", exc.message) from None
-        after = rd.string(sp, "after", "spindle.after", default=units[-1].name)
-        if after not in {u.name for u in units}:
-            raise rd.err("spindle.after", f"names no unit, got {after!r}")
         q = rd.number(sp, "q_W_m2", "spindle.q_W_m2", low=0.0, high=PLAUSIBLE_RANGES["q_W_m2"][1])
-        spindle = SpindleSpec(
-            sname, q, model, dtau, comp, after,
-            screw.pose(rd.vector(sp, "offset_mm", "spindle.offset_mm"),
-                       rd.vector(sp, "rpy_deg", "spindle.rpy_deg")))
+        noise = rd.number(sp, "measurement_noise_um", "spindle.measurement_noise_um", default=0.2,
+                          low=0.0, high=100.0)
+        seed = rd.integer(sp, "noise_seed", "spindle.noise_seed", 0, 0, 2**32 - 1)
+        spindle = SpindleSpec(sunit, q, model, dtau, comp, cmodel, noise, seed)
     ref = None
     if "reference_accuracy_mm" in sc:
-        names = {u.name for u in units}
+        names = set(byname)
         rt = rd.table(sc["reference_accuracy_mm"], "scenario.reference_accuracy_mm", names)
         ref = {k: rd.number(rt, k, f"scenario.reference_accuracy_mm.{k}", low=0.0)
                for k in rt}
-    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref)
+    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref,
+                              trans, travel_unit, angles)
+
+
+def _blk(R) -> np.ndarray:
+    B = np.zeros((6, 6))
+    B[:3, :3] = R
+    B[3:, 3:] = R
+    return B
+
+
+def chain_maps(units, tool, transmission=None, joints=None) -> tuple[np.ndarray, dict]:
+    """6×6 maps of every unit's error twist to the functional point, at one pose.
+
+    The functional point is the tool point (``tool`` in the last tool-branch frame);
+    the twist is the tool's small motion relative to the workpiece, in base-aligned
+    axes at that point: Rblk·Ad(H_i⁻¹) for a tool-branch unit (H_i: unit i → point,
+    paper eqs. 6-8 done with the geometry), −Rblk·Ad(H_j⁻¹) for a workpiece-branch unit
+    (its frame → the same point), and for a drive unit the rank-one map
+    Δθ = e_rack·δp_mesh / r about the driven unit's joint axis (rack and pinion).
+
+    Parameters
+    ----------
+    units : sequence of UnitSpec
+    tool : (4, 4) array
+        Functional point in the last tool-branch unit's frame [mm].
+    transmission : TransmissionSpec, optional
+    joints : dict, optional
+        Unit name -> joint value [mm or deg] overriding the nominal.
+
+    Returns
+    -------
+    maps : ndarray, shape (n_units, 6, 6)
+    geometry : dict
+        ``tool_base`` (4, 4) pose of the functional point in the base [mm];
+        ``frames`` {unit: (4, 4) base pose}.
+    """
+    joints = joints or {}
+    n = len(units)
+    maps = np.zeros((n, 6, 6))
+    frames = {}
+
+    def branch(name):
+        idx = [i for i, u in enumerate(units) if u.branch == name]
+        G = np.eye(4)
+        poses = []
+        for i in idx:
+            g = units[i].pose(joints.get(units[i].name))
+            poses.append(g)
+            G = G @ g
+            frames[units[i].name] = G.copy()
+        return idx, poses, G
+
+    ti, tp, Gt = branch("tool")
+    tool_base = Gt @ tool
+    Rb = _blk(tool_base[:3, :3])
+    if ti:
+        A = screw.chain_adjoints(tp, tool)
+        for k, i in enumerate(ti):
+            maps[i] = Rb @ A[k]
+    wi, wp, Gw = branch("workpiece")
+    if wi:
+        A = screw.chain_adjoints(wp, screw.inverse(Gw) @ tool_base)
+        for k, i in enumerate(wi):
+            maps[i] = -Rb @ A[k]
+    di, dp, Gd = branch("drive")
+    if di:
+        tr = transmission
+        mesh = np.eye(4)
+        mesh[:3, :3] = Gd[:3, :3]
+        mesh[:3, 3] = tr.mesh_point_mm
+        A = screw.chain_adjoints(dp, screw.inverse(Gd) @ mesh)
+        j = [u.name for u in units].index(tr.driven_unit)
+        ax = _AXES[units[j].axis]
+        col = maps[j][:, ax]                       # the driven unit turning about its axis
+        for k, i in enumerate(di):
+            row = A[k][3 + _AXES[tr.rack_axis], :] / tr.pitch_radius_mm
+            maps[i] = np.outer(col, row)
+    return maps, {"tool_base": tool_base, "frames": frames}
 
 
 def build_chain(sc: AllocationScenario, rod=None) -> tuple[Chain, dict | None]:
-    """Turn a scenario into a :class:`Chain`, resolving the spindle's thermal Δz.
+    """Turn a scenario into a :class:`Chain`: the maps at every pose of the travel, and
+    the spindle's thermal series if the scenario has one.
 
-    The spindle, if any, becomes a unit with every error fixed: Δz [mm] from
-    :func:`arfem.models.allocation.thermal.spindle_dz_mm`, the others 0, inserted after
-    the unit it names.
+    Over the travel the named unit takes each angle; with a rack and pinion whose
+    driven unit it is, the first drive unit moves by r·θ [mm] (θ in rad) with it.
 
     Parameters
     ----------
     sc : AllocationScenario
-        Unit and tool poses (translation [mm]), error bounds and fixed errors in
-        scenario units ([mm], [mrad]); spindle heat flux [W/m²], AR step [s].
     rod : Rod, optional
         Spindle rod for the thermal growth (default :class:`arfem.params.Rod`).
 
     Returns
     -------
     chain : Chain
-        Units in chain order and the tool pose (translation [mm]).
     spindle_info : dict or None
-        What :func:`arfem.models.allocation.thermal.spindle_dz_mm` returned (``dz_mm``
-        [mm], ``peak_growth_um`` [µm], ...) plus ``position``; None without a spindle.
+        How the thermal series was made (see
+        :func:`arfem.models.allocation.thermal.spindle_series`); None without a spindle.
     """
-    units = [Unit(u.name, u.motion, u.pose, u.free, u.bounds, u.fixed, True) for u in sc.units]
+    units = [Unit(u.name, u.motion, u.free, u.bounds, u.fixed, True, u.branch) for u in sc.units]
+    angles = sc.travel_angles_deg or (None,)
+    maps, labels, geoms = [], [], []
+    drive = [u for u in sc.units if u.branch == "drive"]
+    for a in angles:
+        joints = {}
+        if a is not None:
+            joints[sc.travel_unit] = a
+            tr = sc.transmission
+            if tr is not None and tr.driven_unit == sc.travel_unit and drive:
+                joints[drive[0].name] = drive[0].joint + tr.pitch_radius_mm * math.radians(a)
+        m, g = chain_maps(sc.units, sc.tool, sc.transmission, joints)
+        maps.append(m)
+        geoms.append(g)
+        labels.append("nominal" if a is None else f"{sc.travel_unit} {a:g}°")
     info = None
+    thermal = None
     if sc.spindle is not None:
-        from arfem.models.allocation.thermal import spindle_dz_mm
+        from arfem.models.allocation.thermal import spindle_series
         from arfem.params import Rod
         s = sc.spindle
-        info = spindle_dz_mm(rod or Rod(), s.q_W_m2, s.model, s.dtau_s, s.compensated)
-        fixed = {c: 0.0 for c in COMPONENTS}
-        fixed["dz"] = info["dz_mm"]
-        k = [u.name for u in units].index(s.after) + 1
-        units.insert(k, Unit(s.name, "thermal", s.pose, (), {}, fixed, False))
-        info["position"] = f"after {s.after}"
-    return Chain(tuple(units), sc.tool), info
+        t, d_mm, info = spindle_series(rod or Rod(), s.q_W_m2, s.model, s.dtau_s, s.compensated,
+                                       s.compensation_model, s.measurement_noise_um,
+                                       s.noise_seed)
+        u = next(x for x in sc.units if x.name == s.unit)
+        dirs = np.array([g["frames"][s.unit][:3, _AXES[u.axis]] for g in geoms])
+        thermal = Thermal(t, d_mm, dirs, info)
+        info = dict(info, unit=s.unit)
+    geometry = {"tool_base_mm": geoms[0]["tool_base"][:3, 3].tolist(),
+                "frames_mm": {k: v[:3, 3].tolist() for k, v in geoms[0]["frames"].items()}}
+    return Chain(tuple(units), np.array(maps), tuple(labels), thermal, geometry), info

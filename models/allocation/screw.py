@@ -14,9 +14,11 @@ Conventions (used throughout :mod:`arfem.models.allocation`)
 The error of the chain seen in the frame of the functional point ("tool") is
 δg = g_nom⁻¹ g_act = Π_i e^{η_i^} exactly, with η_i = Ad_{H_i⁻¹} ξ_i and
 H_i = G_{i+1} … G_n G_tool (frame i → tool). The composed error screw of
-Zhou et al. (2020, eqs. 6-8) is therefore ξ_E = Σ_i η_i, exact in the nominal
-geometry and first order in the error size (the neglected terms are the
-½[η_i, η_j] Lie brackets, second order); :func:`compose_exact` gives log δg.
+Zhou et al. (2020, eqs. 6-8), done with the nominal geometry, is therefore
+ξ_E = Σ_i η_i, exact in the geometry and first order in the error size (the
+neglected terms are the ½[η_i, η_j] Lie brackets, second order); :func:`compose_exact`
+gives log δg. The paper's printed form, which has no geometry, is in
+:mod:`arfem.models.allocation.paper`.
 
 References
 ----------
@@ -32,7 +34,7 @@ import scipy.linalg
 
 __all__ = ["hat3", "vee3", "hat", "vee", "pose", "adjoint", "inverse", "error_twist",
            "error_transform", "chain_adjoints", "compose_adjoint", "compose_exact",
-           "paper_error_matrix", "compose_paper", "pitch", "screw_magnitude",
+           "pitch", "screw_magnitude",
            "point_displacement_bound", "axial_translation"]
 
 _EPS_OMEGA = 1e-300
@@ -196,7 +198,7 @@ def adjoint(g) -> np.ndarray:
 
 def error_twist(dx_mm=0.0, dy_mm=0.0, dz_mm=0.0, dalpha_rad=0.0, dbeta_rad=0.0,
                 dgamma_rad=0.0) -> np.ndarray:
-    """Error screw of one MU pair from its six small errors (paper eq. 5).
+    """Error twist of one MU pair from its six small errors (cf. paper eqs. 5-6).
 
     Parameters
     ----------
@@ -221,8 +223,7 @@ def error_twist(dx_mm=0.0, dy_mm=0.0, dz_mm=0.0, dalpha_rad=0.0, dbeta_rad=0.0,
 def error_transform(xi) -> np.ndarray:
     """Exact rigid error transform e^{ξ^} of a twist [rad, mm] (matrix exponential).
 
-    The exact counterpart of the first-order pair error matrix of paper eq. 5
-    (:func:`paper_error_matrix`, = I + ξ^).
+    Its first-order part is I + ξ^.
 
     Parameters
     ----------
@@ -336,74 +337,6 @@ def compose_exact(xis, poses, tool=None) -> np.ndarray:
     g_nom, g_act = g_nom @ t, g_act @ t
     d = inverse(g_nom) @ g_act
     return vee(np.real(scipy.linalg.logm(d)))
-
-
-def paper_error_matrix(xi) -> np.ndarray:
-    """First-order error matrix of one MU pair as printed in the paper (eq. 5).
-
-    [[1, −Δγ, Δβ, Δx], [Δγ, 1, −Δα, Δy], [−Δβ, Δα, 1, Δz], [0, 0, 0, 1]] for
-    ξ = [Δα, Δβ, Δγ, Δx, Δy, Δz] ([rad], [mm]); not orthonormal beyond first order.
-
-    Parameters
-    ----------
-    xi : array_like, shape (6,)
-        Error twist [Δα, Δβ, Δγ, Δx, Δy, Δz] ([rad], [mm]).
-
-    Returns
-    -------
-    ndarray, shape (4, 4)
-        I + ξ^: rotation block [-] to first order, translation column [mm].
-
-    References
-    ----------
-    Zhou et al., J. Harbin Inst. Technol. 52(1), 2020, eq. 5.
-
-    Examples
-    --------
-    >>> paper_error_matrix([0, 0, 1e-3, 2e-3, 0, 0])[:2].tolist()
-    [[1.0, -0.001, 0.0, 0.002], [0.001, 1.0, 0.0, 0.0]]
-    """
-    m = np.eye(4) + hat(xi)
-    return m
-
-
-def compose_paper(xis) -> np.ndarray:
-    """Chain error screw in the paper's form: product of the raw pair error matrices.
-
-    The pair error matrices (:func:`paper_error_matrix`) are multiplied in chain
-    order *without* the units' nominal poses, and the screw is read back from the
-    product: ω from its skew rotation block, v = its translational column, whose
-    entries carry rotation × translation products of different units (e.g.
-    Δx_1 + Δx_2 − Δγ_1·Δy_2 + Δβ_1·Δz_2). To first order this is the plain sum
-    Σ ξ_i: no lever arm p × Rω and no re-orientation R of the errors of units
-    that sit away from, or turned against, the functional point. Our
-    reconstruction of the paper's eqs. 6-8 (see ``reports/allocation/README.md``).
-
-    Parameters
-    ----------
-    xis : array_like, shape (..., n, 6)
-        Error twist of each unit [rad, mm].
-
-    Returns
-    -------
-    ndarray, shape (..., 6)
-
-    Examples
-    --------
-    >>> xi = np.array([[0, 0, 1e-3, 0, 0, 0], [0, 0, 0, 0, 2e-3, 0]])
-    >>> compose_paper(xi).round(12).tolist()          # Δx = −Δγ_1·Δy_2 (second order)
-    [0.0, 0.0, 0.001, -2e-06, 0.002, 0.0]
-    """
-    xis = np.asarray(xis, float)
-    lead = xis.shape[:-2]
-    flat = xis.reshape((-1,) + xis.shape[-2:])
-    out = np.empty((flat.shape[0], 6))
-    for k, chain in enumerate(flat):
-        m = np.eye(4)
-        for xi in chain:
-            m = m @ paper_error_matrix(xi)
-        out[k] = np.concatenate([vee3(m[:3, :3]), m[:3, 3]])
-    return out.reshape(lead + (6,))
 
 
 def pitch(xi) -> np.ndarray:

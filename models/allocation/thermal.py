@@ -1,10 +1,10 @@
-"""Spindle thermal growth as a fixed term in a precision budget.
+"""Spindle thermal growth as a term of a precision budget, instant by instant.
 
-The spindle rod of Du et al. (2021) grows axially while it runs a duty cycle.
-For allocation the growth enters a chain as a unit whose Δz is fixed (not a
-design variable): the peak growth predicted for the cycle, or -- if the machine
-compensates growth with a model -- the largest error that model leaves against
-the FEM reference.
+The spindle rod of Du et al. (2021) grows along its axis while it runs a duty cycle.
+In an allocation the growth is a translation of the tool along the spindle axis in the
+workpiece-to-tool loop, known at every instant of the cycle (not a design variable):
+the growth a model predicts, or -- if the machine compensates it with a model -- what a
+(simulated, noisy) measurement shows is left after the prediction is subtracted.
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 
 from arfem.params import InputError, Rod, paper_cycle
 
-__all__ = ["MODELS", "growth_on_paper_cycle_m", "spindle_dz_mm"]
+__all__ = ["MODELS", "growth_on_paper_cycle_m", "spindle_series"]
 
 #: growth models a scenario may name
 MODELS = ("ar", "ar_corrected", "fem")
@@ -57,47 +57,63 @@ def growth_on_paper_cycle_m(rod: Rod, q_W_m2: float, model: str, dtau_s: float =
     raise InputError(f"must be one of {', '.join(MODELS)}, got {model!r}", "model")
 
 
-def spindle_dz_mm(rod: Rod, q_W_m2: float, model: str, dtau_s: float = 30.0,
-                  compensated: bool = False) -> dict:
-    """Fixed spindle Δz [mm] for the budget, with the numbers behind it.
+def spindle_series(rod: Rod, q_W_m2: float, model: str = "fem", dtau_s: float = 30.0,
+                   compensated: bool = False, compensation_model: str = "ar",
+                   noise_um: float = 0.2, seed: int = 0):
+    """Spindle growth along its axis at every instant of the paper duty cycle, for a budget.
+
+    Uncompensated: the growth of ``model`` [mm]. Compensated: the machine subtracts what
+    ``compensation_model`` predicts; what is left is judged against a simulated
+    measurement of the real growth (the FEM, standing in for the machine) with white
+    noise of ``noise_um`` (1σ, a displacement probe): residual(t) = FEM(t) + ε(t) −
+    prediction(t).
 
     Parameters
     ----------
     rod : Rod
     q_W_m2 : float
         Heat flux of the on-phases [W/m²].
-    model : {"ar", "ar_corrected", "fem"}
-        Growth model (see :func:`growth_on_paper_cycle_m`).
+    model : {"fem", "ar", "ar_corrected"}
+        Growth model of the uncompensated budget.
     dtau_s : float
         Sampling step [s].
     compensated : bool
-        False: Δz = peak growth of ``model`` over the cycle. True: the machine
-        subtracts the growth ``model`` predicts, so Δz = max |model − FEM| (the
-        FEM is the reference; ``model`` must then be an AR model).
+    compensation_model : {"ar", "ar_corrected"}
+        Model whose prediction is subtracted.
+    noise_um : float
+        Measurement noise, standard deviation [µm].
+    seed : int
+        Seed of the noise.
 
     Returns
     -------
-    dict
-        ``dz_mm`` (the fixed error), ``peak_growth_um`` of the model,
-        ``peak_growth_fem_um`` and ``residual_um`` when compensated.
+    times_s : ndarray
+    series_mm : ndarray
+        Growth, or the measured compensation residual, along the spindle axis [mm].
+    info : dict
+        ``peak_um`` (max |series|), ``t_peak_s`` and, compensated, ``peak_fem_um``,
+        ``peak_prediction_um``, ``true_residual_um`` (max |FEM − prediction|), ``noise_um``.
 
     Examples
     --------
-    >>> d = spindle_dz_mm(Rod(), 2000.0, "ar", 30.0)
-    >>> round(d["dz_mm"] * 1e3, 2)
+    >>> t, d, info = spindle_series(Rod(), 2000.0, "ar", 30.0)
+    >>> round(info["peak_um"], 2)
     21.6
     """
-    t, g = growth_on_paper_cycle_m(rod, q_W_m2, model, dtau_s)
     out = {"model": model, "q_W_m2": float(q_W_m2), "dtau_s": float(dtau_s),
-           "compensated": bool(compensated), "peak_growth_um": float(np.max(g) * 1e6)}
+           "compensated": bool(compensated)}
     if not compensated:
-        out["dz_mm"] = float(np.max(g) * 1e3)
-        return out
-    if model == "fem":
-        raise InputError("compensation residual needs an AR model, not the FEM reference",
-                         "model")
-    _, g_fem = growth_on_paper_cycle_m(rod, q_W_m2, "fem", dtau_s)
-    res = float(np.max(np.abs(g - g_fem)))
-    out.update(peak_growth_fem_um=float(np.max(g_fem) * 1e6), residual_um=res * 1e6,
-               dz_mm=res * 1e3)
-    return out
+        t, g = growth_on_paper_cycle_m(rod, q_W_m2, model, dtau_s)
+        series = g * 1e3
+    else:
+        t, g_fem = growth_on_paper_cycle_m(rod, q_W_m2, "fem", dtau_s)
+        _, g_pred = growth_on_paper_cycle_m(rod, q_W_m2, compensation_model, dtau_s)
+        eps = np.random.default_rng(seed).normal(0.0, noise_um * 1e-3, len(t))
+        series = (g_fem * 1e3 + eps) - g_pred * 1e3
+        out.update(compensation_model=compensation_model, noise_um=float(noise_um),
+                   noise_seed=int(seed), peak_fem_um=float(np.max(g_fem) * 1e6),
+                   peak_prediction_um=float(np.max(g_pred) * 1e6),
+                   true_residual_um=float(np.max(np.abs(g_fem - g_pred)) * 1e6))
+    k = int(np.argmax(np.abs(series)))
+    out.update(peak_um=float(abs(series[k]) * 1e3), t_peak_s=float(t[k]))
+    return np.asarray(t, float), series, out
