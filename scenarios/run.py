@@ -266,13 +266,17 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
             "elastic_growth_axis_um_at_peak": float(axis) * 1e6,
             "reciprocity_rel_diff": abs(float(face) - vol) / abs(vol) if vol else 0.0,
         })
+    k = int(np.argmax(res.growth_m))
     if sc.outputs.fields:
-        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el)
+        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el,
+                            peak_index=k)
     if sc.outputs.picture:
-        k = int(np.argmax(res.growth_m))
+        # the flux on the AR interval that ends at the FEM peak: the heating that made it
+        q_peak = float(ev.q_W_m2[int(np.argmax(np.abs(ev.fem_growth_um)))])
         export.render_png(model, np.asarray(res.fields[k]), out_dir / "temperature_3d.png",
-                          elastic=el, title=f"{sc.name}, t = {res.times_s[k] / 3600:.2f} h "
-                                            "(peak growth)")
+                          elastic=el, heat_flux_W_m2=q_peak,
+                          title=f"{sc.name}: temperature at peak growth, "
+                                f"t = {res.times_s[k] / 3600:.2f} h")
     return extra
 
 
