@@ -22,7 +22,7 @@ from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
-           "reproduce", "PAPER_VALUES"]
+           "reproduce", "growth_figure", "PAPER_VALUES"]
 
 #: Values printed in the seed paper (Du et al. 2021, Sec. 2) at Δτ = 30 s.
 PAPER_VALUES = {"C1": 0.9909, "C2_um": {2000.0: 0.1985, 3000.0: 0.2977}}
@@ -133,39 +133,105 @@ def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
 
 # -- writers -----------------------------------------------------------------------------
 
-def _figure(ev: Evaluation, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+#: tolerance of the CI check "AR tracks FEM" (tests/test_ar_tracks_fem.py) [% of FEM peak]
+AR_TOLERANCE_PCT = 3.0
+#: colour-blind-safe colours (Okabe & Ito), each series also with its own line style
+_C_FEM, _C_AR, _C_ARC, _C_HEAT = "black", "#0072B2", "#D55E00", "#E69F00"
+
+
+def growth_figure(ev: Evaluation):
+    """The paper's Fig. 2/3 and its errors as one figure (returned, not saved).
+
+    Three panels on one time axis, each on its own scale: (a) axial growth of the
+    FEM, the paper's AR(1) and the corrected AR(1) with the heating phases shaded;
+    (b) paper AR(1) − FEM [µm] with the CI tolerance (± 3 % of the FEM peak) as
+    labelled lines; (c) corrected AR(1) − FEM [nm]. Colours are colour-blind safe
+    and every series has its own line style, so it reads in grey too.
+
+    Parameters
+    ----------
+    ev : Evaluation
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
     th = ev.times_s / 3600.0
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True,
-                                 gridspec_kw={"height_ratios": [2.2, 1]})
+    m = ev.metrics
+    fig = Figure(figsize=(8.0, 8.6), dpi=150, layout="constrained")
+    ax, bx, cx = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1, 1]})
     edges = ev.scenario.schedule.edges_s / 3600.0
+    levels = sorted({float(q) for q in ev.scenario.schedule.q_W_m2 if q > 0})
     for i, qv in enumerate(ev.scenario.schedule.q_W_m2):
         if qv > 0:
-            for a in (ax, bx):
-                a.axvspan(edges[i], edges[i + 1], color="tab:orange", alpha=0.08, lw=0)
-    ax.plot(th, ev.fem_growth_um, "k-", lw=2.2, label="FEM")
-    ax.plot(th, ev.ar_growth_um, "--", color="tab:blue", lw=1.6, label="AR(1), paper eq. 12–14")
-    ax.plot(th, ev.ar_corrected_growth_um, ":", color="tab:red", lw=1.8,
+            for a in (ax, bx, cx):
+                a.axvspan(edges[i], edges[i + 1], color=_C_HEAT, alpha=0.15, lw=0)
+    ax.plot(th, ev.fem_growth_um, "-", color=_C_FEM, lw=2.4, label="FEM (scikit-fem)")
+    ax.plot(th, ev.ar_growth_um, "--", color=_C_AR, lw=1.6, label="AR(1), paper eqs. 12–14")
+    ax.plot(th, ev.ar_corrected_growth_um, ":", color=_C_ARC, lw=2.0,
             label="AR(1), radial-mode corrected")
+    qtxt = ", ".join(f"{q:g}" for q in levels) if levels else "none"
+    handles, labels = ax.get_legend_handles_labels()
+    handles.append(Patch(color=_C_HEAT, alpha=0.3, lw=0))
+    labels.append(f"heat flux on: q = {qtxt} W/m²")
+    lo = min(0.0, float(np.min(ev.fem_growth_um)), float(np.min(ev.ar_growth_um)))
+    hi = max(float(np.max(ev.fem_growth_um)), float(np.max(ev.ar_growth_um)),
+             float(np.max(ev.ar_corrected_growth_um)))
+    span = (hi - lo) or 1.0
+    ax.set_ylim(lo - 0.03 * span, hi + 0.45 * span)       # the legend's room above the data
+    ax.legend(handles, labels, loc="upper center", ncol=2, fontsize=8, frameon=False)
     ax.set_ylabel("axial growth ΔL [µm]")
-    ax.set_title(f"{ev.scenario.name}: q = {ev.metrics['q_W_m2']:g} W/m², "
-                 f"h = {ev.metrics['h_W_m2K']:g} W/(m²K), Δτ = {ev.scenario.dtau_s:g} s")
-    ax.legend(loc="upper right")
-    ax.grid(alpha=0.3)
-    bx.plot(th, ev.ar_growth_um - ev.fem_growth_um, "--", color="tab:blue", label="AR − FEM")
-    bx.plot(th, ev.ar_corrected_growth_um - ev.fem_growth_um, ":", color="tab:red",
-            label="corrected AR − FEM")
-    bx.axhline(0, color="k", lw=0.6)
-    bx.set_xlabel("time [h]")
-    bx.set_ylabel("difference [µm]")
-    bx.legend(loc="lower right")
-    bx.grid(alpha=0.3)
-    bx.set_xlim(th[0], th[-1])
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    ax.set_title(f"{ev.scenario.name}: h = {m['h_W_m2K']:g} W/(m²K), Bi = {m['biot']:.3f}, "
+                 f"Δτ = {ev.scenario.dtau_s:g} s, FEM {m['fem_model']} order {m['fem_order']}",
+                 fontsize=9)
+    ax.text(0.005, 0.98, "(a)", transform=ax.transAxes, va="top", fontsize=9)
+
+    d = ev.ar_growth_um - ev.fem_growth_um
+    thr = AR_TOLERANCE_PCT / 100.0 * m["fem_peak_um"]
+    bx.plot(th, d, "--", color=_C_AR, lw=1.4)
+    bx.axhline(0, color="0.5", lw=0.6)
+    if thr > 0:
+        for sgn, va in ((1, "bottom"), (-1, "top")):
+            bx.axhline(sgn * thr, color="0.25", lw=0.9, ls="-.")
+            bx.text(th[-1], sgn * thr, f"{'+' if sgn > 0 else '−'}{AR_TOLERANCE_PCT:g} % of FEM "
+                    "peak (CI tolerance) ", ha="right", va=va, fontsize=7, color="0.25",
+                    bbox=dict(facecolor="white", edgecolor="none", pad=0.5, alpha=0.85))
+        top = max(1.45 * thr, 1.1 * float(np.max(d)))
+        bot = min(-1.45 * thr, 1.1 * float(np.min(d)))
+        bx.set_ylim(bot, top)
+    bx.set_ylabel("paper AR(1) − FEM\n[µm]")
+    bx.text(0.005, 0.96, f"(b) max |AR − FEM| = {m['max_abs_diff_um']:.3f} µm "
+            f"({m['max_abs_diff_pct_of_peak']:.2f} % of peak)", transform=bx.transAxes,
+            va="top", fontsize=8)
+
+    dc = (ev.ar_corrected_growth_um - ev.fem_growth_um) * 1e3
+    cx.plot(th, dc, ":", color=_C_ARC, lw=1.8)
+    cx.axhline(0, color="0.5", lw=0.6)
+    amp = float(np.max(np.abs(dc))) or 1.0
+    cx.set_ylim(-1.6 * amp, 1.9 * amp)
+    cx.set_ylabel("corrected AR(1) − FEM\n[nm]")
+    cx.text(0.005, 0.96, f"(c) max |corrected AR − FEM| = {m['corrected_max_abs_diff_um'] * 1e3:.3g}"
+            f" nm ({m['corrected_max_abs_diff_pct_of_peak']:.2g} % of peak)",
+            transform=cx.transAxes, va="top", fontsize=8)
+    cx.set_xlabel("time t [h]")
+    cx.set_xlim(th[0], th[-1])
+    if th[-1] - th[0] <= 48:
+        from matplotlib.ticker import MultipleLocator
+        cx.xaxis.set_major_locator(MultipleLocator(2 if th[-1] - th[0] > 6 else 0.5))
+    for a in (ax, bx, cx):
+        a.grid(alpha=0.3)
+        a.tick_params(labelsize=8)
+    fig.align_ylabels([ax, bx, cx])
+    return fig
+
+
+def _figure(ev: Evaluation, path: Path) -> None:
+    from arfem.io import atomic_path
+    fig = growth_figure(ev)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
 
 
 def _summary_md(ev: Evaluation) -> str:
