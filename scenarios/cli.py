@@ -26,6 +26,7 @@ COMMANDS = {
     "sweep": "arfem.scenarios.sweep",
     "diagnose": "arfem.scenarios.diagnose",
     "allocate": "arfem.scenarios.allocate",
+    "report": "arfem.scenarios.html_report",
 }
 
 

@@ -18,7 +18,8 @@ from arfem.fem.heat import HeatFEM, build_3d, build_axisymmetric, solve_modal, s
 from arfem.models.ar1 import (ar1_on_schedule, c1_paper, c2_paper, corrected_coefficients, fit_ar1)
 from arfem.params import InputError
 from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
-from arfem.io import atomic_write_text, write_csv, write_json
+from arfem.io import atomic_write_text, read_text_utf8, write_csv, write_json
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
@@ -289,7 +290,12 @@ def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
     write_json(out_dir / "summary.json", {**ev.metrics, **extra})
     _figure(ev, out_dir / "figure.png")
     atomic_write_text(out_dir / "summary.md", _summary_md(ev))
-    return written + ["summary.json", "figure.png", "summary.md"]
+    written += ["summary.json", "figure.png", "summary.md"]
+    src = Path(ev.scenario.source)
+    if src.suffix == ".toml" and src.is_file():     # the input, for report.html and reruns
+        atomic_write_text(out_dir / "scenario.toml", read_text_utf8(src))
+        written.append("scenario.toml")
+    return written
 
 
 def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
@@ -353,6 +359,7 @@ def run_scenario(path, out, force: bool = False) -> Evaluation:
     ev = evaluate(scenario)
     with staged_out_dir(out, force) as stage:
         write_outputs(ev, stage)
+        write_html_report(stage)
     return ev
 
 
@@ -457,6 +464,7 @@ def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
             write_outputs(ev, stage / ev.scenario.name)
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
+        write_html_report(stage)
         write_json(stage / MANIFEST, {"generator": "arfem reproduce",
                                       "scenarios": list(PAPER_SCENARIOS),
                                       "files": {p.relative_to(stage).as_posix(): _sha256(p)
