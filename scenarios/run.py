@@ -21,6 +21,7 @@ from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_p
 from arfem.io import atomic_write_text, read_text_utf8, write_csv, write_json
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+from arfem.scenarios.progress import add_progress_flag
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "growth_figure", "PAPER_VALUES"]
@@ -73,7 +74,7 @@ def _levels_metrics(prefix: str, by_q: dict) -> dict:
             prefix: by_q[max(by_q)] if by_q else 0.0}
 
 
-def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
+def evaluate(scenario: Scenario, cache: dict | None = None, progress=None) -> Evaluation:
     """Run the FEM and both AR(1) models on the scenario's cycle; compare them.
 
     Parameters
@@ -81,12 +82,18 @@ def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
     scenario : Scenario
     cache : dict, optional
         Reuse assembled models and eigen-decompositions across calls (sweeps).
+    progress : callable, optional
+        Called with the name of each slow step as it starts
+        (:class:`arfem.scenarios.progress.Progress`).
     """
+    progress = progress or _no_progress
+    progress("FEM solve")
     t0 = time.perf_counter()
     rod, dtau = scenario.rod, scenario.dtau_s
     model = build_model(scenario, cache)
     fine, fem_m = _fem_growth(scenario, model, cache)
     t_fem = time.perf_counter() - t0
+    progress("AR(1) models and fit")
     times, ar_m = ar1_on_schedule(rod, scenario.schedule, dtau)
     _, arc_m = ar1_on_schedule(rod, scenario.schedule, dtau, corrected=True)
     q = np.concatenate([[fine.q_W_m2[0]], fine.q_W_m2])
@@ -130,6 +137,15 @@ def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
         "wall_s": time.perf_counter() - t0,
     }
     return Evaluation(scenario, times, q, fem, ar, arc, m, model)
+
+
+def _no_progress(step: str) -> None:
+    """The default progress hook: nothing."""
+
+
+def _tagged(progress, tag: str):
+    """A progress hook that prefixes every step with ``tag`` (one scenario of several)."""
+    return lambda step: progress(f"{tag}: {step}")
 
 
 # -- writers -----------------------------------------------------------------------------
@@ -274,8 +290,10 @@ def _summary_md(ev: Evaluation) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
-    """Write every output of one evaluation into ``out_dir`` (a staging directory)."""
+def write_outputs(ev: Evaluation, out_dir: Path, progress=None) -> list[str]:
+    """Write every output of one evaluation into ``out_dir`` (a staging directory);
+    ``progress`` as in :func:`evaluate`."""
+    progress = progress or _no_progress
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     write_csv(out_dir / "timeseries.csv", {
@@ -286,8 +304,9 @@ def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
         "ar_corrected_minus_fem_um": ev.ar_corrected_growth_um - ev.fem_growth_um,
     })
     written = ["timeseries.csv"]
-    extra = _write_fields(ev, out_dir)
+    extra = _write_fields(ev, out_dir, progress)
     write_json(out_dir / "summary.json", {**ev.metrics, **extra})
+    progress("figure")
     _figure(ev, out_dir / "figure.png")
     atomic_write_text(out_dir / "summary.md", _summary_md(ev))
     written += ["summary.json", "figure.png", "summary.md"]
@@ -298,7 +317,7 @@ def write_outputs(ev: Evaluation, out_dir: Path) -> list[str]:
     return written
 
 
-def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
+def _write_fields(ev: Evaluation, out_dir: Path, progress=_no_progress) -> dict:
     """FEM field time series and 3D picture (:mod:`arfem.fem.export`), where the scenario asks.
 
     The fields are solved again, with stored states, at every
@@ -318,6 +337,7 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
     peak_t = ev.metrics["fem_peak_time_h"] * 3600.0
     times = np.union1d(np.append(times, total), [peak_t])
     model = ev.model
+    progress("FEM fields and displacement")
     if sc.fem.theta is None:
         res = solve_modal(model, sc.schedule, output_times_s=times, store_fields=True)
     else:
@@ -340,9 +360,11 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
         })
     k = int(np.argmax(res.growth_m))
     if sc.outputs.fields:
+        progress("fields.xdmf + fields.h5")
         export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el,
                             peak_index=k)
     if sc.outputs.picture:
+        progress("3D picture")
         # the flux on the AR interval that ends at the FEM peak: the heating that made it
         q_peak = float(ev.q_W_m2[int(np.argmax(np.abs(ev.fem_growth_um)))])
         export.render_png(model, np.asarray(res.fields[k]), out_dir / "temperature_3d.png",
@@ -352,13 +374,16 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
     return extra
 
 
-def run_scenario(path, out, force: bool = False) -> Evaluation:
-    """Load, evaluate and write one scenario into ``out`` (atomically)."""
+def run_scenario(path, out, force: bool = False, progress=None) -> Evaluation:
+    """Load, evaluate and write one scenario into ``out`` (atomically); ``progress`` as in
+    :func:`evaluate`."""
+    progress = progress or _no_progress
     scenario = load_scenario(path)
     prepare_out_dir(out, force)
-    ev = evaluate(scenario)
+    ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
-        write_outputs(ev, stage)
+        write_outputs(ev, stage, progress)
+        progress("report.html")
         write_html_report(stage)
     return ev
 
@@ -443,7 +468,7 @@ def _own_files(out: Path) -> dict | None:
     return None
 
 
-def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
+def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[Evaluation]:
     """Run every paper scenario into ``out``/<name>/ plus a README comparing with the paper.
 
     ``out`` may be updated without ``--force`` only if it holds an earlier
@@ -454,16 +479,19 @@ def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     out = Path(out)
     own = _own_files(out)
     prepare_out_dir(out, force or own is not None)
-    evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
+    progress = progress or _no_progress
+    evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=_tagged(progress, n))
+           for n in PAPER_SCENARIOS]
 
     def unchanged(rel, path):
         rel = rel.as_posix()
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
     with staged_out_dir(out, force, may_replace=unchanged) as stage:
         for ev in evs:
-            write_outputs(ev, stage / ev.scenario.name)
+            write_outputs(ev, stage / ev.scenario.name, _tagged(progress, ev.scenario.name))
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
+        progress("report.html")
         write_html_report(stage)
         write_json(stage / MANIFEST, {"generator": "arfem reproduce",
                                       "scenarios": list(PAPER_SCENARIOS),
@@ -484,14 +512,19 @@ def _print_summary(ev: Evaluation, out) -> None:
 
 
 def _main_run(args) -> int:
-    ev = run_scenario(args.scenario, args.out, args.force)
+    from arfem.scenarios.progress import Progress
+    with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
+        ev = run_scenario(args.scenario, args.out, args.force, progress=progress)
     _print_summary(ev, args.out)
     return 0
 
 
 def _main_reproduce(args) -> int:
+    from arfem.scenarios.progress import Progress
     t0 = time.perf_counter()
-    evs = reproduce(args.out, args.force)
+    with Progress(7 * len(PAPER_SCENARIOS) + 1, "arfem reproduce",
+                  enabled=not args.no_progress) as progress:
+        evs = reproduce(args.out, args.force, progress=progress)
     for ev in evs:
         _print_summary(ev, Path(args.out) / ev.scenario.name)
     print(f"reproduced {len(evs)} paper scenarios into {args.out} in "
@@ -507,6 +540,7 @@ def add_parser(sub) -> None:
     p.add_argument("scenario", help="scenario TOML file (or a built-in name: paper_fig2, paper_fig3)")
     p.add_argument("--out", required=True, help="output directory (must be new or empty)")
     p.add_argument("--force", action="store_true", help="replace files in a non-empty --out")
+    add_progress_flag(p)
     p.set_defaults(func=_main_run)
     r = sub.add_parser("reproduce", help="regenerate the paper's Fig. 2 and 3 into reports/paper/",
                        description="Run every paper scenario into reports/paper/ with a README "
@@ -514,4 +548,5 @@ def add_parser(sub) -> None:
     r.add_argument("--out", default="reports/paper", help="output directory (default: reports/paper)")
     r.add_argument("--force", action="store_true", help="replace a non-empty --out that is not "
                                                         "an earlier reproduce result")
+    add_progress_flag(r)
     r.set_defaults(func=_main_reproduce)
