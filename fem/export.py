@@ -283,7 +283,9 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
               "theta_K": (len(pts),), "displacement_m": (len(pts), 3)}
     gz = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
     with atomic_path(h5path) as tmp:
-        with h5py.File(tmp, "w") as f:
+        # HDF5 1.10 object format: compact metadata (a third of the file with the 1.8 default)
+        # and readable by every HDF5 from 1.10 on (Debian 12's ParaView links 1.10)
+        with h5py.File(tmp, "w", libver=("v110", "v110")) as f:
             f.attrs["generator"] = "arfem"
             f.create_dataset("mesh/points", data=pts, **gz)
             f.create_dataset("mesh/cells", data=cells, **gz)
