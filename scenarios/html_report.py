@@ -12,8 +12,8 @@ about which command wrote the directory:
 * the inputs: TOML files in the directory (``scenario.toml``, a copied dataset
   description) are shown verbatim, and any ``.toml`` / ``.csv`` file a JSON file
   names (``"source"``, ``"dataset"``, ...) that exists is linked;
-* Markdown files (``summary.md``, ``README.md``) are shown as text in collapsible
-  blocks;
+* Markdown files (``summary.md``, ``README.md``) are rendered (headings, lists, pipe
+  tables; links only to files that exist), open for the top folder, collapsed below;
 * every other file (CSV, JSON, XDMF, HDF5) is linked by its relative path with its
   size, so the links work wherever the directory is moved;
 * the versions of the software that wrote the report.
@@ -29,8 +29,9 @@ import html
 import json
 import os
 import platform
+import re
 from pathlib import Path
-from urllib.parse import quote
+from urllib.parse import quote, unquote
 
 from arfem.io import atomic_write_text
 from arfem.params import InputError
@@ -188,6 +189,75 @@ def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> N
                 continue
 
 
+_INLINE = re.compile(r"`([^`]+)`|\[([^\]]+)\]\(([^)\s]+)\)|\*\*([^*]+)\*\*")
+
+
+def _md_inline(text: str, base: Path, root: Path) -> str:
+    """Escaped text with `code`, **bold** and [links](to files that exist) rendered."""
+    out, pos = [], 0
+    for m in _INLINE.finditer(text):
+        out.append(_e(text[pos:m.start()]))
+        code, label, target, bold = m.groups()
+        if code is not None:
+            out.append(f"<code>{_e(code)}</code>")
+        elif bold is not None:
+            out.append(f"<b>{_e(bold)}</b>")
+        else:
+            dest = base / unquote(target)
+            if "://" not in target and dest.is_file():
+                rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
+                out.append(f'<a href="{_href(rel)}">{_e(label)}</a>')
+            else:
+                out.append(_e(label))
+        pos = m.end()
+    out.append(_e(text[pos:]))
+    return "".join(out)
+
+
+def _markdown(text: str, base: Path, root: Path) -> str:
+    """The Markdown arfem writes (headings, paragraphs, lists, pipe tables) as HTML.
+
+    Everything is escaped; links are kept only to files that exist (made relative to
+    the report).
+    """
+    lines, out, i = text.splitlines(), [], 0
+    inl = lambda t: _md_inline(t, base, root)                       # noqa: E731
+    while i < len(lines):
+        ln = lines[i]
+        if ln.lstrip().startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].lstrip().startswith("|"):
+                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                if not all(c and set(c) <= set("-: ") for c in cells):
+                    rows.append(cells)
+                i += 1
+            if rows:
+                head = "".join(f"<th>{inl(c)}</th>" for c in rows[0])
+                body = "".join("<tr>" + "".join(f"<td>{inl(c)}</td>" for c in r) + "</tr>"
+                               for r in rows[1:])
+                out.append(f"<table><tr>{head}</tr>{body}</table>")
+            continue
+        if ln.startswith("#"):
+            level = min(len(ln) - len(ln.lstrip("#")) + 2, 6)
+            out.append(f"<h{level}>{inl(ln.lstrip('#').strip())}</h{level}>")
+        elif ln.lstrip().startswith(("- ", "* ")):
+            items = []
+            while i < len(lines) and lines[i].lstrip().startswith(("- ", "* ")):
+                items.append(f"<li>{inl(lines[i].lstrip()[2:])}</li>")
+                i += 1
+            out.append(f"<ul>{''.join(items)}</ul>")
+            continue
+        elif ln.strip():
+            para = [ln]
+            while (i + 1 < len(lines) and lines[i + 1].strip()
+                   and not lines[i + 1].lstrip().startswith(("|", "#", "- ", "* "))):
+                i += 1
+                para.append(lines[i])
+            out.append(f"<p>{inl(' '.join(p.strip() for p in para))}</p>")
+        i += 1
+    return "".join(out)
+
+
 def _anchor(rel: Path) -> str:
     return "f-" + "".join(c if c.isalnum() else "-" for c in rel.as_posix())
 
@@ -299,8 +369,11 @@ def write_html_report(out_dir, title: str | None = None) -> Path:
                         f"<pre>{_e(text)}</pre>")
         for r in mds:
             text = (root / r).read_text("utf-8", errors="replace")
-            body.append(f'<details><summary><a href="{_href(r)}">{_e(r.as_posix())}</a> '
-                        f"(text)</summary><pre>{_e(text)}</pre></details>")
+            # the top folder's Markdown (a README, a report) is the page's lead text
+            opened = " open" if d == Path(".") else ""
+            body.insert(0, f'<details{opened}><summary><a href="{_href(r)}">'
+                           f"{_e(r.as_posix())}</a></summary>"
+                           f"{_markdown(text, (root / r).parent, root)}</details>")
         if body:
             sid = "d-" + _anchor(d)
             toc.append(f'<li><a href="#{_e(sid)}">{_e(name)}</a></li>')
