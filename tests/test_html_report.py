@@ -135,7 +135,10 @@ def test_report_discovers_other_layouts(tmp_path):
         "baseline": {"rmse_um": 1.25, "per_phase": [{"phase": 0, "rmse_um": 0.5},
                                                     {"phase": 1, "rmse_um": 2.0}]},
         "<script>alert(1)</script>": 3}), encoding="utf-8")
-    (diag / "report.md").write_text("# Diagnosis of x\n\ntext", encoding="utf-8")
+    (diag / "report.md").write_text(
+        "# Diagnosis of x\n\ntext with [the data](../data/case.toml) and "
+        "[a dead link](nowhere.csv)\n\n| channel | rmse [µm] |\n|---|---|\n| ch<1> | 0.75 |\n",
+        encoding="utf-8")
     sweep = tmp_path / "sweep"
     (sweep / "points").mkdir(parents=True)
     for i in range(30):
@@ -149,6 +152,8 @@ def test_report_discovers_other_layouts(tmp_path):
     assert "1.25" in page.cells and "h_drift" in page.cells and "2.0" in page.cells
     assert "../data/case.toml" in page.links
     assert "<title>Diagnosis of x</title>" in text
+    assert "<td>ch&lt;1&gt;</td>" in text and "0.75" in page.cells   # the Markdown table
+    assert "nowhere.csv" not in page.links              # links only to files that exist
 
     r = write_html_report(sweep)
     page = assert_self_contained(r)
