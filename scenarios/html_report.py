@@ -137,9 +137,9 @@ def _records_table(records: list) -> str:
     head = "".join(f"<th>{_e(c)}</th>" for c in cols)
     body = ""
     for r in records[:MAX_ROWS]:
-        cells = "".join(_cell(r[c]) if _is_scalar(r.get(c)) else
+        cells = "".join("<td></td>" if c not in r else _cell(r[c]) if _is_scalar(r[c]) else
                         f"<td>{_e(json.dumps(r[c], ensure_ascii=False)[:300])}</td>"
-                        if c in r else "<td></td>" for c in cols)
+                        for c in cols)
         body += f"<tr>{cells}</tr>"
     more = (f'<p class="note">first {MAX_ROWS} of {len(records)} rows; the JSON file '
             "has all</p>" if len(records) > MAX_ROWS else "")
@@ -224,6 +224,15 @@ def _markdown(text: str, base: Path, root: Path) -> str:
     inl = lambda t: _md_inline(t, base, root)                       # noqa: E731
     while i < len(lines):
         ln = lines[i]
+        if ln.lstrip().startswith("```"):
+            code = []
+            i += 1
+            while i < len(lines) and not lines[i].lstrip().startswith("```"):
+                code.append(lines[i])
+                i += 1
+            out.append(f"<pre>{_e(chr(10).join(code))}</pre>")
+            i += 1
+            continue
         if ln.lstrip().startswith("|"):
             rows = []
             while i < len(lines) and lines[i].lstrip().startswith("|"):
@@ -242,15 +251,27 @@ def _markdown(text: str, base: Path, root: Path) -> str:
             out.append(f"<h{level}>{inl(ln.lstrip('#').strip())}</h{level}>")
         elif ln.lstrip().startswith(("- ", "* ")):
             items = []
-            while i < len(lines) and lines[i].lstrip().startswith(("- ", "* ")):
-                items.append(f"<li>{inl(lines[i].lstrip()[2:])}</li>")
+            while i < len(lines) and lines[i].strip():
+                if lines[i].lstrip().startswith(("- ", "* ")):
+                    items.append(lines[i].lstrip()[2:])
+                elif lines[i][:1].isspace():          # an item's continuation line
+                    items[-1] += " " + lines[i].strip()
+                else:
+                    break
                 i += 1
-            out.append(f"<ul>{''.join(items)}</ul>")
+            out.append("<ul>" + "".join(f"<li>{inl(t)}</li>" for t in items) + "</ul>")
+            continue
+        elif ln.startswith("    "):                    # indented code block
+            code = []
+            while i < len(lines) and (lines[i].startswith("    ") or not lines[i].strip()):
+                code.append(lines[i][4:])
+                i += 1
+            out.append(f"<pre>{_e(chr(10).join(code).rstrip())}</pre>")
             continue
         elif ln.strip():
             para = [ln]
             while (i + 1 < len(lines) and lines[i + 1].strip()
-                   and not lines[i + 1].lstrip().startswith(("|", "#", "- ", "* "))):
+                   and not lines[i + 1].lstrip().startswith(("|", "#", "- ", "* ", "```"))):
                 i += 1
                 para.append(lines[i])
             out.append(f"<p>{inl(' '.join(p.strip() for p in para))}</p>")
@@ -367,11 +388,13 @@ def write_html_report(out_dir, title: str | None = None) -> Path:
             text = (root / r).read_text("utf-8", errors="replace")
             body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
                         f"<pre>{_e(text)}</pre>")
-        for r in mds:
+        # the top folder's README (else its first Markdown file) is the page's lead text,
+        # open; every other Markdown file is collapsed
+        mds.sort(key=lambda r: (r.name != "README.md", r.name))
+        for k, r in enumerate(mds):
             text = (root / r).read_text("utf-8", errors="replace")
-            # the top folder's Markdown (a README, a report) is the page's lead text
-            opened = " open" if d == Path(".") else ""
-            body.insert(0, f'<details{opened}><summary><a href="{_href(r)}">'
+            opened = " open" if d == Path(".") and k == 0 else ""
+            body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
                            f"{_e(r.as_posix())}</a></summary>"
                            f"{_markdown(text, (root / r).parent, root)}</details>")
         if body:

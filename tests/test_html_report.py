@@ -133,7 +133,7 @@ def test_report_discovers_other_layouts(tmp_path):
     (diag / "diagnosis.json").write_text(json.dumps({
         "dataset": str(data / "case.toml"), "cause": "h_drift",
         "baseline": {"rmse_um": 1.25, "per_phase": [{"phase": 0, "rmse_um": 0.5},
-                                                    {"phase": 1, "rmse_um": 2.0}]},
+                                                    {"phase": 1, "rmse_um": 2.0, "n": 7}]},
         "<script>alert(1)</script>": 3}), encoding="utf-8")
     (diag / "report.md").write_text(
         "# Diagnosis of x\n\ntext with [the data](../data/case.toml) and "
