@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["Progress", "add_progress_flag"]
+__all__ = ["Progress", "tagged", "add_progress_flag"]
 
 
 def _columns() -> int:
@@ -111,6 +111,17 @@ class Progress:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def tagged(progress, prefix: str):
+    """A progress hook that prefixes every step with ``prefix`` (one item of several).
+
+    >>> seen = []
+    >>> tagged(seen.append, "ch1")("fit")
+    >>> seen
+    ['ch1: fit']
+    """
+    return lambda step: progress(f"{prefix}: {step}")
 
 
 def add_progress_flag(parser) -> None:

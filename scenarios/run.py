@@ -21,7 +21,7 @@ from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_p
 from arfem.io import atomic_write_text, read_text_utf8, write_csv, write_json
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
-from arfem.scenarios.progress import add_progress_flag
+from arfem.scenarios.progress import add_progress_flag, tagged
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "growth_figure", "PAPER_VALUES"]
@@ -141,11 +141,6 @@ def evaluate(scenario: Scenario, cache: dict | None = None, progress=None) -> Ev
 
 def _no_progress(step: str) -> None:
     """The default progress hook: nothing."""
-
-
-def _tagged(progress, tag: str):
-    """A progress hook that prefixes every step with ``tag`` (one scenario of several)."""
-    return lambda step: progress(f"{tag}: {step}")
 
 
 # -- writers -----------------------------------------------------------------------------
@@ -480,7 +475,7 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
     own = _own_files(out)
     prepare_out_dir(out, force or own is not None)
     progress = progress or _no_progress
-    evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=_tagged(progress, n))
+    evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=tagged(progress, n))
            for n in PAPER_SCENARIOS]
 
     def unchanged(rel, path):
@@ -488,7 +483,7 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
     with staged_out_dir(out, force, may_replace=unchanged) as stage:
         for ev in evs:
-            write_outputs(ev, stage / ev.scenario.name, _tagged(progress, ev.scenario.name))
+            write_outputs(ev, stage / ev.scenario.name, tagged(progress, ev.scenario.name))
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
         progress("report.html")
