@@ -524,7 +524,7 @@ def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
     # heated end
     hc, ht = sh(heat_c), sh(heat_top)
     qtxt = f"q = {heat_flux_W_m2:g} W/m²" if heat_flux_W_m2 is not None else "heat flux q"
-    for f in (-0.5, 0.0, 0.5):
+    for f in (-0.5, 0.0, 0.5) if heat_flux_W_m2 is None or heat_flux_W_m2 > 0 else ():
         y = hc[1] + f * (hc[1] - ht[1])
         ax.annotate("", xy=(hc[0] - 4, y), xytext=(hc[0] - 4 * pad, y),
                     arrowprops=dict(arrowstyle="-|>", color="#b2182b", lw=1.6))

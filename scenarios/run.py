@@ -186,8 +186,9 @@ def growth_figure(ev: Evaluation):
             label="AR(1), radial-mode corrected")
     qtxt = ", ".join(f"{q:g}" for q in levels) if levels else "none"
     handles, labels = ax.get_legend_handles_labels()
-    handles.append(Patch(color=_C_HEAT, alpha=0.3, lw=0))
-    labels.append(f"heat flux on: q = {qtxt} W/m²")
+    if levels:
+        handles.append(Patch(color=_C_HEAT, alpha=0.3, lw=0))
+        labels.append(f"heat flux on: q = {qtxt} W/m²")
     lo = min(0.0, float(np.min(ev.fem_growth_um)), float(np.min(ev.ar_growth_um)))
     hi = max(float(np.max(ev.fem_growth_um)), float(np.max(ev.ar_growth_um)),
              float(np.max(ev.ar_corrected_growth_um)))
@@ -210,9 +211,11 @@ def growth_figure(ev: Evaluation):
             bx.text(th[-1], sgn * thr, f"{'+' if sgn > 0 else '−'}{AR_TOLERANCE_PCT:g} % of FEM "
                     "peak (CI tolerance) ", ha="right", va=va, fontsize=7, color="0.25",
                     bbox=dict(facecolor="white", edgecolor="none", pad=0.5, alpha=0.85))
-        top = max(1.45 * thr, 1.1 * float(np.max(d)))
-        bot = min(-1.45 * thr, 1.1 * float(np.min(d)))
-        bx.set_ylim(bot, top)
+    # room above the data and the tolerance lines for the panel's heading, below for a label
+    top = max(thr, float(np.max(d)))
+    bot = min(-thr, float(np.min(d)))
+    span = (top - bot) or 1.0
+    bx.set_ylim(bot - 0.15 * span, top + 0.3 * span)
     bx.set_ylabel("paper AR(1) − FEM\n[µm]")
     bx.text(0.005, 0.96, f"(b) max |AR − FEM| = {m['max_abs_diff_um']:.3f} µm "
             f"({m['max_abs_diff_pct_of_peak']:.2f} % of peak)", transform=bx.transAxes,
