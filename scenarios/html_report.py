@@ -236,7 +236,10 @@ def _markdown(text: str, base: Path, root: Path) -> str:
         if ln.lstrip().startswith("|"):
             rows = []
             while i < len(lines) and lines[i].lstrip().startswith("|"):
-                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                row = lines[i].strip().removeprefix("|").removesuffix("|")
+                # "\|" is a literal bar inside a cell
+                cells = [c.strip().replace("\0", "|")
+                         for c in row.replace("\\|", "\0").split("|")]
                 if not all(c and set(c) <= set("-: ") for c in cells):
                     rows.append(cells)
                 i += 1
@@ -313,7 +316,7 @@ def _title(root: Path, files: list[Path]) -> str:
         if p.is_file():
             for line in p.read_text("utf-8", errors="replace").splitlines():
                 if line.startswith("# "):
-                    return line[2:].strip()
+                    return line[2:].strip().replace("`", "")
     return root.resolve().name
 
 

@@ -137,7 +137,8 @@ def test_report_discovers_other_layouts(tmp_path):
         "<script>alert(1)</script>": 3}), encoding="utf-8")
     (diag / "report.md").write_text(
         "# Diagnosis of x\n\ntext with [the data](../data/case.toml) and "
-        "[a dead link](nowhere.csv)\n\n| channel | rmse [µm] |\n|---|---|\n| ch<1> | 0.75 |\n",
+        "[a dead link](nowhere.csv)\n\n| channel | rmse [µm] | max \\|error\\| [µm] |\n|---|---|---|\n"
+        "| ch<1> | 0.75 | 1.5 |\n",
         encoding="utf-8")
     sweep = tmp_path / "sweep"
     (sweep / "points").mkdir(parents=True)
@@ -153,6 +154,7 @@ def test_report_discovers_other_layouts(tmp_path):
     assert "../data/case.toml" in page.links
     assert "<title>Diagnosis of x</title>" in text
     assert "<td>ch&lt;1&gt;</td>" in text and "0.75" in page.cells   # the Markdown table
+    assert "max |error| [µm]" in page.cells                           # an escaped bar
     assert "nowhere.csv" not in page.links              # links only to files that exist
 
     r = write_html_report(sweep)
