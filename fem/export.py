@@ -374,7 +374,11 @@ def _render(grid, undeformed, clim, window_size):
                     edge_color="#555555", line_width=0.4, show_scalar_bar=False,
                     # mostly ambient light: the colours stay those of the colour bar
                     ambient=0.55, diffuse=0.45, specular=0.0)
-        edges = undeformed.extract_surface(algorithm=None).extract_feature_edges(
+        try:                              # pyvista >= 0.47 warns unless the algorithm is named
+            surface = undeformed.extract_surface(algorithm=None)
+        except TypeError:                 # older pyvista has no such keyword
+            surface = undeformed.extract_surface()
+        edges = surface.extract_feature_edges(
             feature_angle=40, boundary_edges=False, non_manifold_edges=False,
             manifold_edges=False)
         pl.add_mesh(edges, color="black", line_width=1.5, opacity=0.6)
