@@ -320,7 +320,7 @@ def _title(root: Path, files: list[Path]) -> str:
     return root.resolve().name
 
 
-def write_html_report(out_dir, title: str | None = None) -> Path:
+def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True) -> Path:
     """Write ``out_dir/report.html`` from whatever arfem outputs ``out_dir`` holds.
 
     Parameters
@@ -330,6 +330,10 @@ def write_html_report(out_dir, title: str | None = None) -> Path:
     title : str, optional
         Page title; default: the first heading of ``README.md`` / ``summary.md`` /
         ``report.md``, else the directory's name.
+    file_sizes : bool
+        List each file's size. ``arfem reproduce`` passes False: its report must be
+        byte-identical on a rerun, and the size of the compressed field file depends
+        on the last digits of the values, which depend on the CPU's BLAS kernels.
 
     Returns
     -------
@@ -413,7 +417,8 @@ def write_html_report(out_dir, title: str | None = None) -> Path:
         ext.append(f'<li><a href="{_href(rel)}">{_e(rel.as_posix())}</a></li>')
     listing = "".join(
         f'<tr><td><a href="{_href(r)}">{_e(r.as_posix())}</a></td>'
-        f'<td class="num">{_e(_size((root / r).stat().st_size))}</td></tr>' for r in files)
+        + (f'<td class="num">{_e(_size((root / r).stat().st_size))}</td>' if file_sizes else "")
+        + "</tr>" for r in files)
     versions = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _versions())
     page = (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
@@ -432,8 +437,8 @@ def write_html_report(out_dir, title: str | None = None) -> Path:
            "(<code>*.toml</code>).</p>" if any(r.suffix == ".toml" for r in files) else "")
         + ("" if ext or any(r.suffix == ".toml" for r in files) else
            '<p class="note">No input file is recorded in this directory.</p>')
-        + f'<h2 id="files">files</h2><table><tr><th>file</th><th>size</th></tr>{listing}'
-        "</table>"
+        + '<h2 id="files">files</h2><table><tr><th>file</th>'
+        + ("<th>size</th>" if file_sizes else "") + f"</tr>{listing}</table>"
         + '<h2 id="versions">software</h2><p class="note">Versions installed where this '
         f"report was written.</p><table>{versions}</table>"
         "</body></html>\n")

@@ -490,7 +490,7 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
         progress("report.html")
-        write_html_report(stage)
+        write_html_report(stage, file_sizes=False)      # byte-identical on a rerun
         write_json(stage / MANIFEST, {"generator": "arfem reproduce",
                                       "scenarios": list(PAPER_SCENARIOS),
                                       "files": {p.relative_to(stage).as_posix(): _sha256(p)

@@ -162,6 +162,8 @@ def test_report_discovers_other_layouts(tmp_path):
     assert "30 JSON files" in r.read_text("utf-8")
     assert "points/007.json" in page.links and "results.csv" in page.links
     assert write_html_report(sweep).read_bytes() == r.read_bytes()   # no timestamp in it
+    assert "<th>size</th>" in r.read_text("utf-8")
+    assert "<th>size</th>" not in write_html_report(sweep, file_sizes=False).read_text("utf-8")
 
 
 def test_report_command(tmp_path, capsys):
