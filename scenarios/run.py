@@ -380,7 +380,7 @@ def run_scenario(path, out, force: bool = False, progress=None) -> Evaluation:
     prepare_out_dir(out, force)
     ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
-        write_outputs(ev, stage, progress)
+        write_outputs(ev, stage, progress=progress)
         progress("report.html")
         write_html_report(stage)
     return ev
@@ -486,7 +486,8 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
     with staged_out_dir(out, force, may_replace=unchanged) as stage:
         for ev in evs:
-            write_outputs(ev, stage / ev.scenario.name, tagged(progress, ev.scenario.name))
+            write_outputs(ev, stage / ev.scenario.name,
+                          progress=tagged(progress, ev.scenario.name))
         wall = time.perf_counter() - t0
         atomic_write_text(stage / "README.md", _paper_readme(evs, wall))
         progress("report.html")
