@@ -1,20 +1,32 @@
-"""Field output: an XDMF time series (ParaView) and a 3D picture of the rod.
+"""Field output: an XDMF + HDF5 time series (ParaView) and a 3D picture of the rod.
 
 Data flow: a :class:`arfem.fem.heat.HeatResult` with stored fields (and optionally a
 :class:`arfem.fem.elastic.ThermoElastic` for the displacement) → files. No global
 state; every file is written to a temporary name beside its target and renamed
 into place, so a reader never sees a half-written file.
 
-* :func:`write_fields` -- temperature ``T_C``, rise ``theta_K`` and displacement
-  ``displacement_m`` at the mesh vertices, one frame per output time, on the
-  *linear* cells of the mesh (quadratic elements contribute their vertex values),
-  as XDMF 3 with inline XML data (no HDF5 dependency; ParaView opens it).
+* :func:`node_grid` -- the mesh with *every* node of its elements, cells in VTK
+  node order: Q1 → ``quad``, Q2 (9-node Lagrange) → ``quad9``
+  (VTK_BIQUADRATIC_QUAD), Hex1 → ``hexahedron``, 20-node serendipity →
+  ``hexahedron20`` (VTK_QUADRATIC_HEXAHEDRON), 27-node Lagrange →
+  ``hexahedron27`` (VTK_TRIQUADRATIC_HEXAHEDRON). The 9-node quad keeps its
+  centre node: scikit-fem's Q2 has an independent dof there, and dropping it (to an
+  8-node serendipity quad) would make ParaView interpolate a different field from
+  the one solved.
+* :func:`write_fields` -- temperature ``T_C``, rise ``theta_K`` and the
+  displacement vector ``displacement_m`` at every node, one XDMF 3 step per output
+  time (``Time`` in seconds), heavy data in an HDF5 file beside it (gzip).
   Axisymmetric results are written in the plane y = 0 (x = r), displacement
-  (u_r, 0, u_z).
-* :func:`render_png` -- an off-screen pyvista picture of the temperature on the
-  displaced (exaggerated) rod; an axisymmetric section is revolved through 270°.
-* :func:`write_scenario_fields` -- both at once into an output directory; what
-  the scenario runner calls.
+  (u_r, 0, u_z). Read it with ParaView ("Xdmf3 Reader" or "XDMF Reader"),
+  ``meshio.xdmf.TimeSeriesReader`` or :func:`read_fields`; **not** with
+  ``meshio.read``, which reads single-grid files only and, in meshio ≤ 5.3, ends
+  the interpreter (``sys.exit``) on a time series. ``peak.xdmf`` (one grid, same
+  HDF5 data) is the file for ``meshio.read``.
+* :func:`render_png` -- an off-screen, orthographic pyvista rendering of the
+  temperature on the rod deformed by an exaggerated displacement, annotated with
+  matplotlib: a ruler along the axis in mm, the heated end, the undeformed and the
+  grown far end, a colour bar in °C.
+* :func:`write_scenario_fields` -- both at once into an output directory.
 """
 from __future__ import annotations
 
@@ -23,10 +35,11 @@ from pathlib import Path
 import numpy as np
 
 from arfem.fem.heat import HeatFEM, HeatResult
-from arfem.io import atomic_path
+from arfem.io import atomic_path, atomic_write_text
 from arfem.params import InputError
 
-__all__ = ["vertex_grid", "write_fields", "render_png", "write_scenario_fields"]
+__all__ = ["vertex_grid", "node_grid", "write_fields", "read_fields", "picture_figure",
+           "render_png", "write_scenario_fields"]
 
 
 def vertex_grid(model: HeatFEM):
@@ -65,6 +78,94 @@ def vertex_grid(model: HeatFEM):
     return pts, block.type, np.asarray(block.data), np.asarray(model.basis.nodal_dofs[0])
 
 
+# VTK node order of the quadratic cells, as tuples of the corners whose mean is the node
+# (VTK_BIQUADRATIC_QUAD, VTK_QUADRATIC_HEXAHEDRON, VTK_TRIQUADRATIC_HEXAHEDRON).
+_Q_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0)]
+_H_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
+            (0, 4), (1, 5), (2, 6), (3, 7)]
+_H_FACES = [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2, 3), (4, 5, 6, 7)]
+_NODE_LAYOUT = {
+    # (mesh dim, nodes per element) -> (meshio type, XDMF topology, node definitions)
+    (2, 4): ("quad", "Quadrilateral", [(i,) for i in range(4)]),
+    (2, 9): ("quad9", "Quadrilateral_9", [(i,) for i in range(4)] + _Q_EDGES + [(0, 1, 2, 3)]),
+    (3, 8): ("hexahedron", "Hexahedron", [(i,) for i in range(8)]),
+    (3, 20): ("hexahedron20", "Hexahedron_20", [(i,) for i in range(8)] + _H_EDGES),
+    (3, 27): ("hexahedron27", "Hexahedron_27",
+              [(i,) for i in range(8)] + _H_EDGES + _H_FACES + [tuple(range(8))]),
+}
+
+
+def node_grid(model: HeatFEM):
+    """Every node of the model's elements, cells in VTK node order.
+
+    The nodes are the dof locations of the (Lagrange or serendipity) temperature
+    basis, so point ``i`` carries dof ``i`` and a field needs no interpolation.
+    Each element's dofs are put in VTK order by position: a VTK mid-side, mid-face
+    or centre node is the dof nearest to the mean of the corners it lies between
+    (on the curved elements at the circle it is off that mean by the sagitta, far
+    less than the distance to any other node; checked).
+
+    Returns
+    -------
+    points : ndarray (ndofs, 3)
+        Node coordinates [m]; axisymmetric (r, z) is placed at (r, 0, z).
+    cell_type : str
+        meshio cell type: ``quad``, ``quad9``, ``hexahedron``, ``hexahedron20`` or
+        ``hexahedron27``.
+    xdmf_type : str
+        The XDMF topology name of the same cell.
+    cells : ndarray (n_cells, nodes_per_cell)
+        Node indices.
+
+    Examples
+    --------
+    >>> from arfem.fem.heat import build_axisymmetric
+    >>> from arfem.params import Rod
+    >>> p, kind, xkind, c = node_grid(build_axisymmetric(Rod(), order=2, nr=2, nz=3))
+    >>> p.shape, kind, xkind, c.shape
+    ((35, 3), 'quad9', 'Quadrilateral_9', (6, 9))
+    """
+    b = model.basis
+    dim = b.mesh.dim()
+    edofs = np.asarray(b.element_dofs)                       # (nloc, ne)
+    key = (dim, edofs.shape[0])
+    if key not in _NODE_LAYOUT:
+        raise InputError(f"has no VTK cell for {type(b.elem).__name__}", "model")
+    kind, xkind, nodes = _NODE_LAYOUT[key]
+    _, _, corners, _ = vertex_grid(model)                    # VTK-ordered vertex ids
+    X = np.asarray(b.doflocs)                                # (dim, ndofs)
+    vx = X[:, np.asarray(b.nodal_dofs[0])]                   # vertex coordinates
+    loc = X[:, edofs]                                        # (dim, nloc, ne)
+    cells = np.empty((edofs.shape[1], len(nodes)), dtype=np.int64)
+    cols = np.arange(edofs.shape[1])
+    for j, cs in enumerate(nodes):
+        target = vx[:, corners[:, list(cs)]].mean(axis=2)    # (dim, ne)
+        dist = np.linalg.norm(loc - target[:, None, :], axis=0)
+        order = np.argsort(dist, axis=0)
+        # curved (isoparametric) elements: the node is off the chord by the sagitta, far
+        # less than the distance to the next node
+        if len(nodes) > 1 and np.any(dist[order[0], cols] > 0.5 * dist[order[1], cols]):
+            raise InputError("has an element node that is not where VTK puts it", "model")
+        cells[:, j] = edofs[order[0], cols]
+    srt = np.sort(cells, axis=1)
+    if np.any(srt[:, 1:] == srt[:, :-1]):
+        raise InputError("has an element whose nodes cannot be put in VTK order", "model")
+    pts = X.T.astype(float)
+    if model.axisymmetric:
+        pts = np.column_stack([pts[:, 0], np.zeros(len(pts)), pts[:, 1]])
+    return pts, kind, xkind, cells
+
+
+def _node_displacement(model: HeatFEM, elastic, theta: np.ndarray) -> np.ndarray:
+    """(n_frames, ndofs, 3) displacement [m] at every node of :func:`node_grid`."""
+    U = np.atleast_2d(elastic.displacement(theta))
+    dim = model.basis.mesh.dim()
+    comp = [U[:, c::dim] for c in range(dim)]                # ElementVector interleaves
+    if model.axisymmetric:
+        return np.stack([comp[0], np.zeros_like(comp[0]), comp[1]], axis=-1)
+    return np.stack(comp, axis=-1)
+
+
 def _vertex_displacement(model: HeatFEM, elastic, theta: np.ndarray) -> np.ndarray:
     """(n_frames, n_vertices, 3) displacement [m] at the vertices."""
     U = np.atleast_2d(elastic.displacement(theta))
@@ -85,9 +186,47 @@ def _frames(result: HeatResult, max_frames: int | None) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n - 1, max_frames)).astype(int))
 
 
+def _xdmf_grid(parent, name: str, h5name: str, kind_x: str, shapes: dict, step: int | None,
+               time_s: float | None, fields: list):
+    """One XDMF ``Grid`` element whose heavy data are datasets of ``h5name``."""
+    import xml.etree.ElementTree as ET
+    g = ET.SubElement(parent, "Grid", Name=name, GridType="Uniform")
+    if time_s is not None:
+        ET.SubElement(g, "Time", Value=repr(float(time_s)))
+    n_cells, n_nodes = shapes["cells"]
+    topo = ET.SubElement(g, "Topology", TopologyType=kind_x, NumberOfElements=str(n_cells))
+    ET.SubElement(topo, "DataItem", DataType="Int", Precision="8", Format="HDF",
+                  Dimensions=f"{n_cells} {n_nodes}").text = f"{h5name}:/mesh/cells"
+    geo = ET.SubElement(g, "Geometry", GeometryType="XYZ")
+    ET.SubElement(geo, "DataItem", DataType="Float", Precision="8", Format="HDF",
+                  Dimensions=f"{shapes['points'][0]} 3").text = f"{h5name}:/mesh/points"
+    for fname in fields:
+        shape = shapes[fname]
+        a = ET.SubElement(g, "Attribute", Name=fname, Center="Node",
+                          AttributeType="Vector" if len(shape) == 2 else "Scalar")
+        ET.SubElement(a, "DataItem", DataType="Float", Precision="8", Format="HDF",
+                      Dimensions=" ".join(map(str, shape))).text = \
+            f"{h5name}:/{fname}/step_{step:05d}"
+    return g
+
+
+def _xdmf_text(root) -> str:
+    import xml.etree.ElementTree as ET
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
 def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
-                 max_frames: int | None = 200) -> Path:
-    """Write temperature (and displacement) as an XDMF time series.
+                 max_frames: int | None = 200, peak_index: int | None = None) -> Path:
+    """Write temperature (and displacement) as an XDMF time series with HDF5 data.
+
+    Writes ``path`` (the XDMF 3 description, a temporal collection with one grid
+    per output time) and ``path.with_suffix(".h5")`` (the heavy data: mesh once,
+    one gzip-compressed dataset per field and step). Both are written to temporary
+    names beside their targets and renamed into place, the HDF5 file first. Where
+    ``peak_index`` is given, ``peak.xdmf`` beside them describes that one output
+    time alone (a single grid on the same HDF5 data: the file ``meshio.read``
+    can read).
 
     Parameters
     ----------
@@ -98,10 +237,13 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     path : str or Path
         Target ``.xdmf`` file (parent directories are created).
     elastic : ThermoElastic, optional
-        If given, ``displacement_m`` is written too.
+        If given, the vector ``displacement_m`` is written too.
     max_frames : int or None
         At most this many frames, evenly spread over the output times (always
         including the first and the last); None: every output time.
+    peak_index : int, optional
+        Index into ``result.times_s`` of the frame for ``peak.xdmf`` (it is kept
+        among the frames).
 
     Returns
     -------
@@ -120,33 +262,78 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     ...     with meshio.xdmf.TimeSeriesReader(p) as r:
     ...         pts, cells = r.read_points_cells()
     ...         t, pd, _ = r.read_data(r.num_steps - 1)
-    ...         print(r.num_steps, t, sorted(pd))
-    5 86400.0 ['T_C', 'theta_K']
+    ...         print(r.num_steps, t, sorted(pd), cells[0].type)
+    5 86400.0 ['T_C', 'theta_K'] quad9
     """
-    import meshio
+    import xml.etree.ElementTree as ET
+
+    import h5py
     path = Path(path)
     if path.suffix.lower() != ".xdmf":
         raise InputError(f"must end in .xdmf, got {path.name!r}", "path")
-    pts, kind, cells, tdofs = vertex_grid(model)
+    pts, kind, kind_x, cells = node_grid(model)
     idx = _frames(result, max_frames)
+    if peak_index is not None:
+        idx = np.union1d(idx, [int(peak_index)])
     theta = np.asarray(result.fields)[idx]
-    disp = _vertex_displacement(model, elastic, theta) if elastic is not None else None
-    # inline XML: one self-contained file, renamed atomically into place
-    with atomic_path(path) as tmp:
-        with meshio.xdmf.TimeSeriesWriter(tmp, data_format="XML") as w:
-            w.write_points_cells(pts, [(kind, cells)])
-            for k, i in enumerate(idx):
-                th = theta[k][tdofs]
-                pd = {"theta_K": th, "T_C": th + model.rod.ambient_C}
+    disp = _node_displacement(model, elastic, theta) if elastic is not None else None
+    h5path = path.with_suffix(".h5")
+    names = ["T_C", "theta_K"] + (["displacement_m"] if disp is not None else [])
+    shapes = {"cells": cells.shape, "points": pts.shape, "T_C": (len(pts),),
+              "theta_K": (len(pts),), "displacement_m": (len(pts), 3)}
+    gz = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+    with atomic_path(h5path) as tmp:
+        # HDF5 1.10 object format: compact metadata (a third of the file with the 1.8 default)
+        # and readable by every HDF5 from 1.10 on (Debian 12's ParaView links 1.10)
+        with h5py.File(tmp, "w", libver=("v110", "v110")) as f:
+            f.attrs["generator"] = "arfem"
+            f.create_dataset("mesh/points", data=pts, **gz)
+            f.create_dataset("mesh/cells", data=cells, **gz)
+            f.create_dataset("time_s", data=np.asarray(result.times_s, float)[idx])
+            for k in range(idx.size):
+                f.create_dataset(f"theta_K/step_{k:05d}", data=theta[k], **gz)
+                f.create_dataset(f"T_C/step_{k:05d}", data=theta[k] + model.rod.ambient_C, **gz)
                 if disp is not None:
-                    pd["displacement_m"] = disp[k]
-                w.write_data(float(result.times_s[i]), point_data=pd)
+                    f.create_dataset(f"displacement_m/step_{k:05d}", data=disp[k], **gz)
+    root = ET.Element("Xdmf", Version="3.0")
+    coll = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", Name="arfem_fields",
+                         GridType="Collection", CollectionType="Temporal")
+    for k, i in enumerate(idx):
+        _xdmf_grid(coll, f"t_{k:05d}", h5path.name, kind_x, shapes, k,
+                   float(result.times_s[i]), names)
+    atomic_write_text(path, _xdmf_text(root))
+    if peak_index is not None:
+        k = int(np.searchsorted(idx, int(peak_index)))
+        root = ET.Element("Xdmf", Version="3.0")
+        _xdmf_grid(ET.SubElement(root, "Domain"), "peak", h5path.name, kind_x, shapes, k,
+                   None, names)
+        atomic_write_text(path.with_name("peak.xdmf"), _xdmf_text(root))
     return path
 
 
-def _revolve(pts: np.ndarray, cells: np.ndarray, n_phi: int = 36, sweep_deg: float = 270.0):
+def read_fields(path):
+    """Read an arfem ``fields.xdmf`` back: mesh and every step.
+
+    A thin wrapper of ``meshio.xdmf.TimeSeriesReader`` (the reader for time series).
+
+    Returns
+    -------
+    points : ndarray (n, 3)
+        Node coordinates [m].
+    cells : list of meshio.CellBlock
+    steps : list of (time_s, point_data dict)
+    """
+    import meshio
+    with meshio.xdmf.TimeSeriesReader(Path(path)) as r:
+        pts, cells = r.read_points_cells()
+        steps = [r.read_data(k)[:2] for k in range(r.num_steps)]
+    return pts, cells, steps
+
+
+def _revolve(pts: np.ndarray, cells: np.ndarray, n_phi: int = 36, sweep_deg: float = 270.0,
+            start_deg: float = 0.0):
     """Revolve an (r, 0, z) quad section about the z axis into hexahedra."""
-    phi = np.linspace(0.0, np.deg2rad(sweep_deg), n_phi + 1)
+    phi = np.deg2rad(start_deg) + np.linspace(0.0, np.deg2rad(sweep_deg), n_phi + 1)
     r, z = pts[:, 0], pts[:, 2]
     n = len(pts)
     P = np.concatenate([np.column_stack([r * np.cos(f), r * np.sin(f), z]) for f in phi])
@@ -154,45 +341,121 @@ def _revolve(pts: np.ndarray, cells: np.ndarray, n_phi: int = 36, sweep_deg: flo
     return P, np.concatenate(hexes), phi, n
 
 
-def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
-               exaggeration: float | None = None, title: str | None = None,
-               window_size=(1400, 700)) -> Path:
-    """Off-screen picture of the temperature on the (exaggerated) displaced rod.
+def _nice_factor(x: float) -> float:
+    """Largest 1, 2 or 5 × 10^k not above ``x`` (a readable exaggeration factor)."""
+    if not np.isfinite(x) or x <= 0:
+        return 1.0
+    e = np.floor(np.log10(x))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10 ** e <= x:
+            return float(m * 10 ** e)
+    return float(10 ** e)
+
+
+#: colour map of the temperature pictures: perceptually uniform, readable in grey and by
+#: colour-blind readers
+CMAP = "viridis"
+#: direction from the rod to the camera: perpendicular to the axis z, which runs to the right
+_VIEW = (0.55, 1.0, 0.0)
+
+
+def _render(grid, undeformed, clim, window_size):
+    """Orthographic off-screen rendering; returns (image, world→pixel function)."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+    verbosity = vtkLogger.GetCurrentVerbosityCutoff()
+    # a headless machine has no X server; VTK falls back to off-screen rendering but logs a
+    # warning on stderr first, which reads like a failure of a run that succeeded
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    try:
+        pl.set_background("white")
+        pl.add_mesh(grid, scalars="T_C", cmap=CMAP, clim=clim, show_edges=True,
+                    edge_color="#555555", line_width=0.4, show_scalar_bar=False,
+                    # mostly ambient light: the colours stay those of the colour bar
+                    ambient=0.55, diffuse=0.45, specular=0.0)
+        try:                              # pyvista >= 0.47 warns unless the algorithm is named
+            surface = undeformed.extract_surface(algorithm=None)
+        except TypeError:                 # older pyvista has no such keyword
+            surface = undeformed.extract_surface()
+        edges = surface.extract_feature_edges(
+            feature_angle=40, boundary_edges=False, non_manifold_edges=False,
+            manifold_edges=False)
+        pl.add_mesh(edges, color="black", line_width=1.5, opacity=0.6)
+        # the rod's axis (z) horizontal; the view direction is perpendicular to z, so with a
+        # parallel projection every length along z is drawn to one scale
+        pl.view_vector(_VIEW, viewup=(1.0, 0.0, 0.0))
+        pl.enable_parallel_projection()
+        pl.reset_camera()
+        pl.camera.zoom(1.25)
+        img = pl.screenshot(return_img=True)
+        ren = pl.renderer
+        h = img.shape[0]
+
+        def to_px(p):
+            ren.SetWorldPoint(float(p[0]), float(p[1]), float(p[2]), 1.0)
+            ren.WorldToDisplay()
+            x, y, _ = ren.GetDisplayPoint()
+            return np.array([x, h - 1 - y])
+        # evaluate the projections while the renderer is alive
+        return img, to_px, pl
+    except Exception:
+        pl.close()
+        raise
+    finally:
+        vtkLogger.SetStderrVerbosity(verbosity)
+
+
+def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
+                   exaggeration: float | None = None, title: str | None = None,
+                   heat_flux_W_m2: float | None = None, window_size=(1800, 900)):
+    """Annotated 3D picture of the temperature on the deformed rod (a matplotlib Figure).
+
+    An orthographic pyvista rendering (an axisymmetric section revolved through
+    270°, so the cut shows the core) with, drawn by matplotlib on top: a ruler
+    along the axis in mm (the scale bar), a 100 mm bar across it, arrows at the
+    heated end z = 0, the undeformed (dashed) and grown (solid) far end with the
+    growth ΔL and the exaggeration factor, and a colour bar T [°C].
 
     Parameters
     ----------
     model : HeatFEM
     theta : ndarray (ndofs,)
         Temperature rise [K] of one state.
-    path : str or Path
-        Target ``.png`` file.
     elastic : ThermoElastic, optional
         If given, the rod is drawn displaced by ``exaggeration`` × u.
     exaggeration : float, optional
-        Displacement scale factor [-]; default: the largest displacement is drawn
-        as 5 % of the rod length.
+        Displacement scale factor [-]; default: a round number (1, 2 or 5 × 10^k) that
+        draws the largest displacement as at most 8 % of the rod length.
     title : str, optional
-        Text drawn in the upper-left corner.
+        Figure title.
+    heat_flux_W_m2 : float, optional
+        Flux into the heated end at this instant [W/m²], written at the arrows.
     window_size : (int, int)
-        Image size [px].
+        Size of the 3D rendering [px].
 
     Returns
     -------
-    Path
-        ``path``.
+    matplotlib.figure.Figure
     """
     import pyvista as pv
-    path = Path(path)
-    if path.suffix.lower() != ".png":
-        raise InputError(f"must end in .png, got {path.name!r}", "path")
+    from matplotlib.figure import Figure
+    from matplotlib import cm, colors
     theta = np.asarray(theta, float)
     if theta.shape != (model.ndofs,):
         raise InputError(f"needs {model.ndofs} values", "theta")
+    rod = model.rod
+    L, R = rod.length_m, rod.radius_m
     pts, kind, cells, tdofs = vertex_grid(model)
-    T = theta[tdofs] + model.rod.ambient_C
+    T = theta[tdofs] + rod.ambient_C
     disp = _vertex_displacement(model, elastic, theta)[0] if elastic is not None else None
+    growth = None
+    if elastic is not None:
+        growth = float(np.atleast_1d(elastic.growth(theta)[0])[0])
     if model.axisymmetric:
-        P, hexes, phi, n = _revolve(pts, cells)
+        # the missing quarter faces the camera, so the two cut planes show the core
+        P, hexes, phi, n = _revolve(pts, cells, start_deg=np.rad2deg(np.arctan2(_VIEW[1],
+                                                                                  _VIEW[0])) + 45)
         T = np.tile(T, phi.size)
         if disp is not None:
             ur, uz = disp[:, 0], disp[:, 2]
@@ -201,42 +464,131 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
         pts, cells = P, hexes
     grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, pts)
     grid.point_data["T_C"] = T
+    undeformed = grid.copy()
     scale = 0.0
     if disp is not None:
         umax = float(np.max(np.linalg.norm(disp, axis=1)))
-        scale = (0.05 * model.rod.length_m / umax if umax > 0 else 0.0) \
+        scale = (_nice_factor(0.08 * L / umax) if umax > 0 else 1.0) \
             if exaggeration is None else float(exaggeration)
         grid.point_data["displacement_m"] = disp
         grid = grid.warp_by_vector("displacement_m", factor=scale)
-    from vtkmodules.vtkCommonCore import vtkLogger
-    verbosity = vtkLogger.GetCurrentVerbosityCutoff()
-    # a headless machine has no X server; VTK falls back to off-screen rendering but logs a
-    # warning on stderr first, which reads like a failure of a run that succeeded
-    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    clim = [float(T.min()), float(T.max())]
+    if clim[1] - clim[0] < 1e-9:
+        clim[1] = clim[0] + 1.0
+    img, to_px, pl = _render(grid, undeformed, clim, window_size)
     try:
-        pl.add_mesh(grid, scalars="T_C", cmap="inferno", show_edges=True, edge_color="grey",
-                    line_width=0.5, scalar_bar_args={"title": "T [°C]"})
-        label = title or ""
-        if disp is not None:
-            label += f"{chr(10) if label else ''}displacement × {scale:.3g}"
-        if label:
-            pl.add_text(label, position="upper_left", font_size=10)
-        # rod lying horizontally (z to the right), seen slightly from above
-        pl.view_vector((0.6, -1.0, 0.0), viewup=(1.0, 0.0, 0.0))
-        pl.reset_camera()
-        pl.camera.zoom(1.4)
-        with atomic_path(path) as tmp:
-            pl.screenshot(str(tmp))
+        v = np.array(_VIEW) / np.linalg.norm(_VIEW)
+        up = np.array([1.0, 0.0, 0.0]) - v[0] * v
+        up /= np.linalg.norm(up)                                     # screen-up direction
+        below = -1.8 * R * up                                        # ruler line, under the rod
+        z0, zL = to_px(below), to_px(below + [0, 0, L])
+        px_per_m = (zL[0] - z0[0]) / L
+        heat_c, heat_top = to_px((0, 0, 0)), to_px(R * up)
+        far_c = to_px((0, 0, L))
+        far_top, far_bot = to_px(1.15 * R * up + [0, 0, L]), to_px(-1.15 * R * up + [0, 0, L])
     finally:
         pl.close()
-        vtkLogger.SetStderrVerbosity(verbosity)
+    # crop the empty margins of the rendering (keep the ruler's and the arrows' room)
+    content = np.argwhere(np.any(img[..., :3] < 250, axis=-1))
+    r0, c0 = content.min(axis=0)
+    r1, c1 = content.max(axis=0)
+    pad = int(0.02 * img.shape[1])
+    c0 = max(0, min(c0, int(heat_c[0]) - 9 * pad) - pad)
+    c1 = min(img.shape[1], max(c1, int(zL[0] + (growth or 0) * scale * px_per_m)) + 9 * pad)
+    r0 = max(0, r0 - pad)
+    r1 = min(img.shape[0], max(r1, int(z0[1])) + 3 * pad)
+    img = img[r0:r1, c0:c1]
+    off = np.array([c0, r0])
+    sh = lambda p: p - off                                           # noqa: E731
+
+    fig = Figure(figsize=(10, 10 * img.shape[0] / img.shape[1] + 0.9), dpi=150,
+                 layout="constrained")
+    ax = fig.add_subplot()
+    ax.imshow(img, interpolation="lanczos")
+    ax.set_axis_off()
+    ax.set_xlim(0, img.shape[1])
+    ax.set_ylim(img.shape[0], -0.02 * img.shape[0])
+    ink = dict(color="black", fontsize=8)
+    # ruler along z: the axes of the picture and its scale bar
+    a, b = sh(z0), sh(zL)
+    ax.plot([a[0], b[0]], [a[1], b[1]], color="black", lw=1.2)
+    step = 0.1 if L >= 0.3 else 0.05 if L >= 0.1 else 0.01
+    for zt in np.arange(0.0, L + 1e-12, step):
+        x = a[0] + zt * px_per_m
+        ax.plot([x, x], [a[1], a[1] + 8], color="black", lw=1)
+        ax.text(x, a[1] + 12, f"{zt * 1e3:.0f}", ha="center", va="top", **ink)
+    ax.text((a[0] + b[0]) / 2, a[1] + 45, "axial position z [mm] (undeformed; drawn to scale)",
+            ha="center", va="top", **ink)
+    # a 100 mm scale bar across the axis (screen-up is perpendicular to the view: to scale)
+    bar = 0.1 if R >= 0.05 else 0.01
+    x = a[0] - 2 * pad
+    ax.plot([x, x], [a[1], a[1] - bar * px_per_m], color="black", lw=2.5, solid_capstyle="butt")
+    ax.text(x - 6, a[1] - bar * px_per_m / 2, f"{bar * 1e3:.0f} mm", ha="right", va="center",
+            rotation=90, **ink)
+    # heated end
+    hc, ht = sh(heat_c), sh(heat_top)
+    qtxt = f"q = {heat_flux_W_m2:g} W/m²" if heat_flux_W_m2 is not None else "heat flux q"
+    for f in (-0.5, 0.0, 0.5) if heat_flux_W_m2 is None or heat_flux_W_m2 > 0 else ():
+        y = hc[1] + f * (hc[1] - ht[1])
+        ax.annotate("", xy=(hc[0] - 4, y), xytext=(hc[0] - 4 * pad, y),
+                    arrowprops=dict(arrowstyle="-|>", color="#b2182b", lw=1.6))
+    ax.text(hc[0] - 4.5 * pad, hc[1], f"heated end\nz = 0\n{qtxt}", ha="right", va="center",
+            color="#b2182b", fontsize=8)
+    # far end: undeformed position and the grown end
+    ft, fb = sh(far_top), sh(far_bot)
+    ax.plot([ft[0], fb[0]], [ft[1], fb[1]], ls="--", color="black", lw=1)
+    if growth is not None:
+        xg = ft[0] + growth * scale * px_per_m
+        ax.plot([xg, xg], [ft[1], fb[1]], ls="-", color="#2166ac", lw=1.4)
+        ax.annotate("", xy=(xg, fb[1] - 6), xytext=(ft[0], fb[1] - 6),
+                    arrowprops=dict(arrowstyle="-|>", color="#2166ac", lw=1.2))
+        ax.text(xg + 10, (ft[1] + fb[1]) / 2, f"grown end\nΔL = {growth * 1e6:.2f} µm\n"
+                f"(displacement\ndrawn × {scale:g})", ha="left", va="center",
+                color="#2166ac", fontsize=8)
+        ax.text(ft[0], ft[1] - 4, "undeformed end", ha="center", va="bottom", **ink)
+    norm = colors.Normalize(*clim)
+    cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=CMAP), ax=ax, orientation="horizontal",
+                      fraction=0.05, shrink=0.5, pad=0.01, aspect=40)
+    cb.set_label("temperature T [°C]", fontsize=8)
+    cb.ax.tick_params(labelsize=8)
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.arfem_exaggeration = scale
+    return fig
+
+
+def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
+               exaggeration: float | None = None, title: str | None = None,
+               heat_flux_W_m2: float | None = None, window_size=(1800, 900)) -> Path:
+    """Save :func:`picture_figure` as a PNG (atomically).
+
+    Parameters
+    ----------
+    model, theta, elastic, exaggeration, title, heat_flux_W_m2, window_size
+        See :func:`picture_figure`.
+    path : str or Path
+        Target ``.png`` file.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise InputError(f"must end in .png, got {path.name!r}", "path")
+    fig = picture_figure(model, theta, elastic=elastic, exaggeration=exaggeration, title=title,
+                         heat_flux_W_m2=heat_flux_W_m2, window_size=window_size)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
     return path
 
 
 def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=None,
-                          max_frames: int | None = 200, title: str | None = None) -> dict:
-    """Field outputs of one scenario: ``fields.xdmf`` and ``temperature_3d.png``.
+                          max_frames: int | None = 200, title: str | None = None,
+                          heat_flux_W_m2: float | None = None) -> dict:
+    """Field outputs of one scenario: ``fields.xdmf`` + ``fields.h5`` (+ ``peak.xdmf``)
+    and ``temperature_3d.png``.
 
     The picture shows the stored field with the largest growth (the peak).
 
@@ -254,6 +606,8 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         See :func:`write_fields`.
     title : str, optional
         Picture caption (the time of the frame is appended).
+    heat_flux_W_m2 : float, optional
+        Flux at the heated end at the peak instant [W/m²], for the picture.
 
     Returns
     -------
@@ -265,10 +619,11 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
     if result.fields is None:
         raise InputError("has no stored fields; solve with store_fields=True", "result")
     el = elastic if elastic is not None else ThermoElastic.build(model)
-    xdmf = write_fields(model, result, out / "fields.xdmf", elastic=el, max_frames=max_frames)
     k = int(np.argmax(result.growth_m))
+    xdmf = write_fields(model, result, out / "fields.xdmf", elastic=el, max_frames=max_frames,
+                        peak_index=k)
     t = float(result.times_s[k])
-    cap = f"{title + ', ' if title else ''}t = {t / 3600:.2f} h (peak growth)"
+    cap = f"{title + ': ' if title else ''}temperature at peak growth, t = {t / 3600:.2f} h"
     png = render_png(model, np.asarray(result.fields[k]), out / "temperature_3d.png",
-                     elastic=el, title=cap)
+                     elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
     return {"fields_xdmf": xdmf, "picture_png": png, "picture_time_s": t}

@@ -27,6 +27,7 @@ COMMANDS = {
     "diagnose": "arfem.scenarios.diagnose",
     "allocate": "arfem.scenarios.allocate",
     "check": "arfem.scenarios.check",
+    "report": "arfem.scenarios.html_report",
 }
 
 

@@ -18,12 +18,14 @@ from arfem.fem.heat import HeatFEM, build_3d, build_axisymmetric, solve_modal, s
 from arfem.models.ar1 import (ar1_on_schedule, c1_paper, c2_paper, corrected_coefficients, fit_ar1)
 from arfem.params import InputError
 from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
-from arfem.io import atomic_write_text, write_csv, write_json
+from arfem.io import atomic_write_text, read_text_utf8, write_csv, write_json
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios import deterministic as det
+from arfem.scenarios.progress import add_progress_flag, tagged
 
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
-           "reproduce", "PAPER_VALUES"]
+           "reproduce", "growth_figure", "PAPER_VALUES"]
 
 #: Values printed in the seed paper (Du et al. 2021, Sec. 2) at Δτ = 30 s.
 PAPER_VALUES = {"C1": 0.9909, "C2_um": {2000.0: 0.1985, 3000.0: 0.2977}}
@@ -73,7 +75,7 @@ def _levels_metrics(prefix: str, by_q: dict) -> dict:
             prefix: by_q[max(by_q)] if by_q else 0.0}
 
 
-def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
+def evaluate(scenario: Scenario, cache: dict | None = None, progress=None) -> Evaluation:
     """Run the FEM and both AR(1) models on the scenario's cycle; compare them.
 
     Parameters
@@ -81,12 +83,18 @@ def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
     scenario : Scenario
     cache : dict, optional
         Reuse assembled models and eigen-decompositions across calls (sweeps).
+    progress : callable, optional
+        Called with the name of each slow step as it starts
+        (:class:`arfem.scenarios.progress.Progress`).
     """
+    progress = progress or _no_progress
+    progress("FEM solve")
     t0 = time.perf_counter()
     rod, dtau = scenario.rod, scenario.dtau_s
     model = build_model(scenario, cache)
     fine, fem_m = _fem_growth(scenario, model, cache)
     t_fem = time.perf_counter() - t0
+    progress("AR(1) models and fit")
     times, ar_m = ar1_on_schedule(rod, scenario.schedule, dtau)
     _, arc_m = ar1_on_schedule(rod, scenario.schedule, dtau, corrected=True)
     q = np.concatenate([[fine.q_W_m2[0]], fine.q_W_m2])
@@ -132,41 +140,114 @@ def evaluate(scenario: Scenario, cache: dict | None = None) -> Evaluation:
     return Evaluation(scenario, times, q, fem, ar, arc, m, model)
 
 
+def _no_progress(step: str) -> None:
+    """The default progress hook: nothing."""
+
+
 # -- writers -----------------------------------------------------------------------------
 
-def _figure(ev: Evaluation, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+#: tolerance of the CI check "AR tracks FEM" (tests/test_ar_tracks_fem.py) [% of FEM peak]
+AR_TOLERANCE_PCT = 3.0
+#: colour-blind-safe colours (Okabe & Ito), each series also with its own line style
+_C_FEM, _C_AR, _C_ARC, _C_HEAT = "black", "#0072B2", "#D55E00", "#E69F00"
+
+
+def growth_figure(ev: Evaluation):
+    """The paper's Fig. 2/3 and its errors as one figure (returned, not saved).
+
+    Three panels on one time axis, each on its own scale: (a) axial growth of the
+    FEM, the paper's AR(1) and the corrected AR(1) with the heating phases shaded;
+    (b) paper AR(1) − FEM [µm] with the CI tolerance (± 3 % of the FEM peak) as
+    labelled lines; (c) corrected AR(1) − FEM [nm]. Colours are colour-blind safe
+    and every series has its own line style, so it reads in grey too.
+
+    Parameters
+    ----------
+    ev : Evaluation
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
     th = ev.times_s / 3600.0
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True,
-                                 gridspec_kw={"height_ratios": [2.2, 1]})
+    m = ev.metrics
+    fig = Figure(figsize=(8.0, 8.6), dpi=150, layout="constrained")
+    ax, bx, cx = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1, 1]})
     edges = ev.scenario.schedule.edges_s / 3600.0
+    levels = sorted({float(q) for q in ev.scenario.schedule.q_W_m2 if q > 0})
     for i, qv in enumerate(ev.scenario.schedule.q_W_m2):
         if qv > 0:
-            for a in (ax, bx):
-                a.axvspan(edges[i], edges[i + 1], color="tab:orange", alpha=0.08, lw=0)
-    ax.plot(th, ev.fem_growth_um, "k-", lw=2.2, label="FEM")
-    ax.plot(th, ev.ar_growth_um, "--", color="tab:blue", lw=1.6, label="AR(1), paper eq. 12–14")
-    ax.plot(th, ev.ar_corrected_growth_um, ":", color="tab:red", lw=1.8,
+            for a in (ax, bx, cx):
+                a.axvspan(edges[i], edges[i + 1], color=_C_HEAT, alpha=0.15, lw=0)
+    ax.plot(th, ev.fem_growth_um, "-", color=_C_FEM, lw=2.4, label="FEM (scikit-fem)")
+    ax.plot(th, ev.ar_growth_um, "--", color=_C_AR, lw=1.6, label="AR(1), paper eqs. 12–14")
+    ax.plot(th, ev.ar_corrected_growth_um, ":", color=_C_ARC, lw=2.0,
             label="AR(1), radial-mode corrected")
+    qtxt = ", ".join(f"{q:g}" for q in levels) if levels else "none"
+    handles, labels = ax.get_legend_handles_labels()
+    if levels:
+        handles.append(Patch(color=_C_HEAT, alpha=0.3, lw=0))
+        labels.append(f"heat flux on: q = {qtxt} W/m²")
+    lo = min(0.0, float(np.min(ev.fem_growth_um)), float(np.min(ev.ar_growth_um)))
+    hi = max(float(np.max(ev.fem_growth_um)), float(np.max(ev.ar_growth_um)),
+             float(np.max(ev.ar_corrected_growth_um)))
+    span = (hi - lo) or 1.0
+    ax.set_ylim(lo - 0.03 * span, hi + 0.45 * span)       # the legend's room above the data
+    ax.legend(handles, labels, loc="upper center", ncol=2, fontsize=8, frameon=False)
     ax.set_ylabel("axial growth ΔL [µm]")
-    ax.set_title(f"{ev.scenario.name}: q = {ev.metrics['q_W_m2']:g} W/m², "
-                 f"h = {ev.metrics['h_W_m2K']:g} W/(m²K), Δτ = {ev.scenario.dtau_s:g} s")
-    ax.legend(loc="upper right")
-    ax.grid(alpha=0.3)
-    bx.plot(th, ev.ar_growth_um - ev.fem_growth_um, "--", color="tab:blue", label="AR − FEM")
-    bx.plot(th, ev.ar_corrected_growth_um - ev.fem_growth_um, ":", color="tab:red",
-            label="corrected AR − FEM")
-    bx.axhline(0, color="k", lw=0.6)
-    bx.set_xlabel("time [h]")
-    bx.set_ylabel("difference [µm]")
-    bx.legend(loc="lower right")
-    bx.grid(alpha=0.3)
-    bx.set_xlim(th[0], th[-1])
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    ax.set_title(f"{ev.scenario.name}: h = {m['h_W_m2K']:g} W/(m²K), Bi = {m['biot']:.3f}, "
+                 f"Δτ = {ev.scenario.dtau_s:g} s, FEM {m['fem_model']} order {m['fem_order']}",
+                 fontsize=9)
+    ax.text(0.005, 0.98, "(a)", transform=ax.transAxes, va="top", fontsize=9)
+
+    d = ev.ar_growth_um - ev.fem_growth_um
+    thr = AR_TOLERANCE_PCT / 100.0 * m["fem_peak_um"]
+    bx.plot(th, d, "--", color=_C_AR, lw=1.4)
+    bx.axhline(0, color="0.5", lw=0.6)
+    if thr > 0:
+        for sgn, va in ((1, "bottom"), (-1, "top")):
+            bx.axhline(sgn * thr, color="0.25", lw=0.9, ls="-.")
+            bx.text(th[-1], sgn * thr, f"{'+' if sgn > 0 else '−'}{AR_TOLERANCE_PCT:g} % of FEM "
+                    "peak (CI tolerance) ", ha="right", va=va, fontsize=7, color="0.25",
+                    bbox=dict(facecolor="white", edgecolor="none", pad=0.5, alpha=0.85))
+    # room above the data and the tolerance lines for the panel's heading, below for a label
+    top = max(thr, float(np.max(d)))
+    bot = min(-thr, float(np.min(d)))
+    span = (top - bot) or 1.0
+    bx.set_ylim(bot - 0.15 * span, top + 0.3 * span)
+    bx.set_ylabel("paper AR(1) − FEM\n[µm]")
+    bx.text(0.005, 0.96, f"(b) max |AR − FEM| = {m['max_abs_diff_um']:.3f} µm "
+            f"({m['max_abs_diff_pct_of_peak']:.2f} % of peak)", transform=bx.transAxes,
+            va="top", fontsize=8)
+
+    dc = (ev.ar_corrected_growth_um - ev.fem_growth_um) * 1e3
+    cx.plot(th, dc, ":", color=_C_ARC, lw=1.8)
+    cx.axhline(0, color="0.5", lw=0.6)
+    amp = float(np.max(np.abs(dc))) or 1.0
+    cx.set_ylim(-1.6 * amp, 1.9 * amp)
+    cx.set_ylabel("corrected AR(1) − FEM\n[nm]")
+    cx.text(0.005, 0.96, f"(c) max |corrected AR − FEM| = {m['corrected_max_abs_diff_um'] * 1e3:.3g}"
+            f" nm ({m['corrected_max_abs_diff_pct_of_peak']:.2g} % of peak)",
+            transform=cx.transAxes, va="top", fontsize=8)
+    cx.set_xlabel("time t [h]")
+    cx.set_xlim(th[0], th[-1])
+    if th[-1] - th[0] <= 48:
+        from matplotlib.ticker import MultipleLocator
+        cx.xaxis.set_major_locator(MultipleLocator(2 if th[-1] - th[0] > 6 else 0.5))
+    for a in (ax, bx, cx):
+        a.grid(alpha=0.3)
+        a.tick_params(labelsize=8)
+    fig.align_ylabels([ax, bx, cx])
+    return fig
+
+
+def _figure(ev: Evaluation, path: Path) -> None:
+    from arfem.io import atomic_path
+    fig = growth_figure(ev)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
 
 
 def _summary_md(ev: Evaluation) -> str:
@@ -218,13 +299,16 @@ def _timeseries_columns(ev: Evaluation) -> dict:
     }
 
 
-def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False) -> list[str]:
-    """Write every output of one evaluation into ``out_dir`` (a staging directory).
+def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False,
+                  progress=None) -> list[str]:
+    """Write every output of one evaluation into ``out_dir`` (a staging directory);
+    ``progress`` as in :func:`evaluate`.
 
     ``fixed_precision`` (``arfem reproduce``): numbers with the fixed decimals of
     :mod:`arfem.scenarios.deterministic` and no wall times, so that a rerun writes the
     same bytes.
     """
+    progress = progress or _no_progress
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     cols = _timeseries_columns(ev)
@@ -233,16 +317,22 @@ def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False) 
     else:
         write_csv(out_dir / "timeseries.csv", cols)
     written = ["timeseries.csv"]
-    extra = _write_fields(ev, out_dir)
+    extra = _write_fields(ev, out_dir, progress)
     summary = {**ev.metrics, **extra}
     write_json(out_dir / "summary.json", det.fixed_metrics(summary) if fixed_precision
                else summary)
+    progress("figure")
     _figure(ev, out_dir / "figure.png")
     atomic_write_text(out_dir / "summary.md", _summary_md(ev))
-    return written + ["summary.json", "figure.png", "summary.md"]
+    written += ["summary.json", "figure.png", "summary.md"]
+    src = Path(ev.scenario.source)
+    if src.suffix == ".toml" and src.is_file():     # the input, for report.html and reruns
+        atomic_write_text(out_dir / "scenario.toml", read_text_utf8(src))
+        written.append("scenario.toml")
+    return written
 
 
-def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
+def _write_fields(ev: Evaluation, out_dir: Path, progress=_no_progress) -> dict:
     """FEM field time series and 3D picture (:mod:`arfem.fem.export`), where the scenario asks.
 
     The fields are solved again, with stored states, at every
@@ -262,6 +352,7 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
     peak_t = ev.metrics["fem_peak_time_h"] * 3600.0
     times = np.union1d(np.append(times, total), [peak_t])
     model = ev.model
+    progress("FEM fields and displacement")
     if sc.fem.theta is None:
         res = solve_modal(model, sc.schedule, output_times_s=times, store_fields=True)
     else:
@@ -282,23 +373,33 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
             "elastic_growth_axis_um_at_peak": float(axis) * 1e6,
             "reciprocity_rel_diff": abs(float(face) - vol) / abs(vol) if vol else 0.0,
         })
+    k = int(np.argmax(res.growth_m))
     if sc.outputs.fields:
-        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el)
+        progress("fields.xdmf + fields.h5")
+        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el,
+                            peak_index=k)
     if sc.outputs.picture:
-        k = int(np.argmax(res.growth_m))
+        progress("3D picture")
+        # the flux on the AR interval that ends at the FEM peak: the heating that made it
+        q_peak = float(ev.q_W_m2[int(np.argmax(np.abs(ev.fem_growth_um)))])
         export.render_png(model, np.asarray(res.fields[k]), out_dir / "temperature_3d.png",
-                          elastic=el, title=f"{sc.name}, t = {res.times_s[k] / 3600:.2f} h "
-                                            "(peak growth)")
+                          elastic=el, heat_flux_W_m2=q_peak,
+                          title=f"{sc.name}: temperature at peak growth, "
+                                f"t = {res.times_s[k] / 3600:.2f} h")
     return extra
 
 
-def run_scenario(path, out, force: bool = False) -> Evaluation:
-    """Load, evaluate and write one scenario into ``out`` (atomically)."""
+def run_scenario(path, out, force: bool = False, progress=None) -> Evaluation:
+    """Load, evaluate and write one scenario into ``out`` (atomically); ``progress`` as in
+    :func:`evaluate`."""
+    progress = progress or _no_progress
     scenario = load_scenario(path)
     prepare_out_dir(out, force)
-    ev = evaluate(scenario)
+    ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
-        write_outputs(ev, stage)
+        write_outputs(ev, stage, progress=progress)
+        progress("report.html")
+        write_html_report(stage)
     return ev
 
 
@@ -358,9 +459,9 @@ def _paper_readme(evs: list[Evaluation]) -> str:
         "(growths and differences in µm: 5 in timeseries.csv, 6 in summary.json, as are % of "
         "peak and hours; C1, C2, the Biot number and relative differences: 9; time_s and "
         "q_W_m2: 3), and wall times are printed, not written. `MANIFEST.json` holds the SHA-256 of every committed file. The FEM field "
-        "time series (`*/fields/fields.xdmf`) are regenerated but not committed (git "
-        "ignores them): the exporter writes every field value with 17 significant digits, so "
-        "a CPU whose BLAS kernels round differently changes their last digits.",
+        "time series (`*/fields/`: XDMF + HDF5) are regenerated but not committed (git "
+        "ignores them): their float64 values change in the last digits on a CPU whose BLAS "
+        "kernels round differently.",
         "",
         "`arfem reproduce --check` recomputes the numbers and compares them with these files "
         "instead of writing: it exits 1 and names the file, the key or column and the size "
@@ -398,7 +499,7 @@ def _own_files(out: Path) -> dict | None:
 
 
 #: Subdirectories reproduce writes but does not list for version control (see the README
-#: it writes): the XDMF field values are printed with 17 digits by the exporter.
+#: it writes): the field values (XDMF + HDF5, float64) differ in their last digits between CPUs.
 UNCOMMITTED_DIRS = ("fields",)
 
 
@@ -406,7 +507,7 @@ def _committed(rel: str) -> bool:
     return not any(part in UNCOMMITTED_DIRS for part in rel.split("/")[:-1])
 
 
-def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
+def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[Evaluation]:
     """Run every paper scenario into ``out``/<name>/ plus a README comparing with the paper.
 
     ``out`` may be updated without ``--force`` only if it holds an earlier
@@ -418,16 +519,21 @@ def reproduce(out="reports/paper", force: bool = False) -> list[Evaluation]:
     out = Path(out)
     own = _own_files(out)
     prepare_out_dir(out, force or own is not None)
+    progress = progress or _no_progress
 
     def unchanged(rel, path):
         rel = rel.as_posix()
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
     with det.one_blas_thread():
-        evs = [evaluate(load_scenario(builtin_scenario_path(n))) for n in PAPER_SCENARIOS]
+        evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=tagged(progress, n))
+               for n in PAPER_SCENARIOS]
         with staged_out_dir(out, force, may_replace=unchanged) as stage:
             for ev in evs:
-                write_outputs(ev, stage / ev.scenario.name, fixed_precision=True)
+                write_outputs(ev, stage / ev.scenario.name, fixed_precision=True,
+                              progress=tagged(progress, ev.scenario.name))
             atomic_write_text(stage / "README.md", _paper_readme(evs))
+            progress("report.html")
+            write_html_report(stage, file_sizes=False)      # byte-identical on a rerun
             rels = [p.relative_to(stage).as_posix() for p in sorted(stage.rglob("*"))
                     if p.is_file()]
             write_json(stage / MANIFEST, {
@@ -483,12 +589,15 @@ def _print_summary(ev: Evaluation, out) -> None:
 
 
 def _main_run(args) -> int:
-    ev = run_scenario(args.scenario, args.out, args.force)
+    from arfem.scenarios.progress import Progress
+    with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
+        ev = run_scenario(args.scenario, args.out, args.force, progress=progress)
     _print_summary(ev, args.out)
     return 0
 
 
 def _main_reproduce(args) -> int:
+    from arfem.scenarios.progress import Progress
     t0 = time.perf_counter()
     if args.check:
         drifts = check_reproduction(args.out)
@@ -499,7 +608,9 @@ def _main_reproduce(args) -> int:
                                  "every number within tolerance")
               + f" ({time.perf_counter() - t0:.1f} s)")
         return 1 if drifts else 0
-    evs = reproduce(args.out, args.force)
+    with Progress(7 * len(PAPER_SCENARIOS) + 1, "arfem reproduce",
+                  enabled=not args.no_progress) as progress:
+        evs = reproduce(args.out, args.force, progress=progress)
     for ev in evs:
         _print_summary(ev, Path(args.out) / ev.scenario.name)
     print(f"reproduced {len(evs)} paper scenarios into {args.out} in "
@@ -515,6 +626,7 @@ def add_parser(sub) -> None:
     p.add_argument("scenario", help="scenario TOML file (or a built-in name: paper_fig2, paper_fig3)")
     p.add_argument("--out", required=True, help="output directory (must be new or empty)")
     p.add_argument("--force", action="store_true", help="replace files in a non-empty --out")
+    add_progress_flag(p)
     p.set_defaults(func=_main_run)
     r = sub.add_parser("reproduce", help="regenerate the paper's Fig. 2 and 3 into reports/paper/",
                        description="Run every paper scenario into reports/paper/ with a README "
@@ -526,4 +638,5 @@ def add_parser(sub) -> None:
                    help="write nothing: recompute the numbers and compare them with the "
                         "committed summary.json and timeseries.csv files in --out; exit 1 "
                         "on a drift beyond 2 units in the last written decimal")
+    add_progress_flag(r)
     r.set_defaults(func=_main_reproduce)

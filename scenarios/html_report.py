@@ -1,0 +1,466 @@
+"""``arfem report DIR``: one self-contained ``report.html`` for any arfem output directory.
+
+Data flow: an output directory (of ``run``, ``reproduce``, ``diagnose``, ``sweep`` or
+``allocate``) → discovery of what is in it → ``DIR/report.html``. Nothing is assumed
+about which command wrote the directory:
+
+* every PNG is embedded as a ``data:`` URI (the page needs no other file to show
+  its figures);
+* every JSON file becomes tables of the same numbers (floats written with
+  ``repr``, exactly as in the JSON); a folder with many JSON files (a sweep's
+  ``points/``) is listed, not tabulated;
+* the inputs: TOML files in the directory (``scenario.toml``, a copied dataset
+  description) are shown verbatim, and any ``.toml`` / ``.csv`` file a JSON file
+  names (``"source"``, ``"dataset"``, ...) that exists is linked;
+* Markdown files (``summary.md``, ``README.md``) are rendered (headings, lists, pipe
+  tables; links only to files that exist), open for the top folder, collapsed below;
+* every other file (CSV, JSON, XDMF, HDF5) is linked by its relative path with its
+  size, so the links work wherever the directory is moved;
+* the versions of the software that wrote the report.
+
+The page is static (no script, no server, no network), every text is escaped with
+:func:`html.escape`, and it is written atomically. It holds no timestamp, so the same
+directory gives the same bytes.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import json
+import os
+import platform
+import re
+from pathlib import Path
+from urllib.parse import quote, unquote
+
+from arfem.io import atomic_write_text
+from arfem.params import InputError
+
+__all__ = ["write_html_report", "REPORT_NAME", "add_parser"]
+
+REPORT_NAME = "report.html"
+#: a folder with more JSON files than this is listed, not tabulated (a sweep's points/)
+MAX_JSON_TABLES = 12
+#: rows of a list-of-records table shown before the rest is cut (the JSON file has all)
+MAX_ROWS = 60
+#: a PNG above this size is linked instead of embedded [bytes]
+MAX_EMBED = 8_000_000
+#: JSON files above this size are linked, not tabulated [bytes]
+MAX_JSON = 2_000_000
+_PACKAGES = ("arfem", "numpy", "scipy", "scikit-fem", "matplotlib", "meshio", "h5py",
+             "pyvista", "vtk", "statsmodels", "pymoo", "dask", "tqdm")
+_INPUT_KEYS = (".toml", ".csv")
+
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2em auto;
+max-width:1100px;padding:0 1em;color:#222;line-height:1.4}
+h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
+margin-top:2em}h3{font-size:1.05em;margin-top:1.4em}
+table{border-collapse:collapse;margin:.5em 0 1em;font-size:.88em}
+th,td{border:1px solid #ccc;padding:.2em .5em;text-align:left;vertical-align:top}
+th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
+figure{margin:1em 0}figure img{max-width:100%;height:auto;border:1px solid #ddd}
+figcaption{font-size:.85em;color:#555}pre{background:#f7f7f7;padding:.6em;overflow-x:auto;
+font-size:.82em}details{margin:.4em 0}code{font-size:.9em}.note{color:#666;font-size:.85em}
+"""
+
+
+def _e(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _href(rel: Path) -> str:
+    return quote(rel.as_posix())
+
+
+def _size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000.0
+    return f"{n} B"  # pragma: no cover
+
+
+def _scalar(v) -> str:
+    """A JSON value as text: floats by repr (the JSON's own digits)."""
+    if isinstance(v, bool) or v is None:
+        return json.dumps(v)
+    if isinstance(v, float):
+        return repr(v)
+    if isinstance(v, (int, str)):
+        return str(v)
+    return json.dumps(v, ensure_ascii=False)
+
+
+def _is_scalar(v) -> bool:
+    return v is None or isinstance(v, (bool, int, float, str))
+
+
+def _cell(v) -> str:
+    cls = ' class="num"' if isinstance(v, (int, float)) and not isinstance(v, bool) else ""
+    return f"<td{cls}>{_e(_scalar(v))}</td>"
+
+
+def _flatten(obj: dict, prefix: str = "") -> tuple[list, list]:
+    """(dotted scalar rows, [(title, list of records)]) of a JSON object."""
+    rows, tables = [], []
+    for k, v in obj.items():
+        key = f"{prefix}{k}"
+        if _is_scalar(v):
+            rows.append((key, v))
+        elif isinstance(v, dict):
+            r, t = _flatten(v, key + ".")
+            rows += r
+            tables += t
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            tables.append((key, v))
+        elif isinstance(v, list) and all(_is_scalar(x) for x in v):
+            shown = ", ".join(_scalar(x) for x in v[:MAX_ROWS])
+            more = f" … ({len(v)} values in all)" if len(v) > MAX_ROWS else ""
+            rows.append((key, shown + more if v else "[]"))
+        else:
+            rows.append((key, json.dumps(v, ensure_ascii=False)[:2000]))
+    return rows, tables
+
+
+def _kv_table(rows) -> str:
+    body = "".join(f"<tr><th>{_e(k)}</th>{_cell(v)}</tr>" for k, v in rows)
+    return f'<table class="kv"><tr><th>key</th><th>value</th></tr>{body}</table>'
+
+
+def _records_table(records: list) -> str:
+    cols: list = []
+    for r in records[:MAX_ROWS]:
+        for k in r:
+            if k not in cols:
+                cols.append(k)
+    head = "".join(f"<th>{_e(c)}</th>" for c in cols)
+    body = ""
+    for r in records[:MAX_ROWS]:
+        cells = "".join("<td></td>" if c not in r else _cell(r[c]) if _is_scalar(r[c]) else
+                        f"<td>{_e(json.dumps(r[c], ensure_ascii=False)[:300])}</td>"
+                        for c in cols)
+        body += f"<tr>{cells}</tr>"
+    more = (f'<p class="note">first {MAX_ROWS} of {len(records)} rows; the JSON file '
+            "has all</p>" if len(records) > MAX_ROWS else "")
+    return f"<table><tr>{head}</tr>{body}</table>{more}"
+
+
+def _json_section(path: Path, rel: Path, inputs: dict, root: Path) -> str:
+    if path.stat().st_size > MAX_JSON:
+        return (f'<p class="note"><a href="{_href(rel)}">{_e(rel.as_posix())}</a> '
+                f"({_size(path.stat().st_size)}): too large to tabulate</p>")
+    try:
+        data = json.loads(path.read_text("utf-8"))
+    except (OSError, ValueError) as exc:
+        return f'<p class="note">{_e(rel.as_posix())}: not readable as JSON ({_e(exc)})</p>'
+    _find_inputs(data, path.parent, root, inputs)
+    out = f'<h3 id="{_e(_anchor(rel))}">{_e(rel.as_posix())}</h3>'
+    if isinstance(data, list) and data and all(isinstance(x, dict) for x in data):
+        return out + _records_table(data)
+    if not isinstance(data, dict):
+        return out + _kv_table([("value", data)]) if _is_scalar(data) else \
+            out + f"<pre>{_e(json.dumps(data, ensure_ascii=False, indent=1)[:5000])}</pre>"
+    rows, tables = _flatten(data)
+    if rows:
+        out += _kv_table(rows)
+    for title, recs in tables:
+        out += f"<p><b>{_e(title)}</b></p>" + _records_table(recs)
+    return out
+
+
+def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> None:
+    """Record files a JSON names that look like inputs (.toml, .csv) and exist."""
+    if depth > 3:
+        return
+    if isinstance(obj, dict):
+        for v in obj.values():
+            _find_inputs(v, base, root, inputs, depth + 1)
+    elif isinstance(obj, list):
+        for v in obj[:50]:
+            _find_inputs(v, base, root, inputs, depth + 1)
+    elif isinstance(obj, str) and obj.lower().endswith(_INPUT_KEYS) and len(obj) < 500:
+        for cand in (Path(obj), base / obj, root / obj):
+            try:
+                if cand.is_file():
+                    inputs.setdefault(str(cand.resolve()), cand.resolve())
+                    break
+            except OSError:
+                continue
+
+
+_INLINE = re.compile(r"`([^`]+)`|\[([^\]]+)\]\(([^)\s]+)\)|\*\*([^*]+)\*\*")
+
+
+def _md_inline(text: str, base: Path, root: Path) -> str:
+    """Escaped text with `code`, **bold** and [links](to files that exist) rendered."""
+    out, pos = [], 0
+    for m in _INLINE.finditer(text):
+        out.append(_e(text[pos:m.start()]))
+        code, label, target, bold = m.groups()
+        if code is not None:
+            out.append(f"<code>{_e(code)}</code>")
+        elif bold is not None:
+            out.append(f"<b>{_e(bold)}</b>")
+        else:
+            dest = base / unquote(target)
+            if "://" not in target and dest.is_file():
+                rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
+                out.append(f'<a href="{_href(rel)}">{_e(label)}</a>')
+            else:
+                out.append(_e(label))
+        pos = m.end()
+    out.append(_e(text[pos:]))
+    return "".join(out)
+
+
+def _markdown(text: str, base: Path, root: Path) -> str:
+    """The Markdown arfem writes (headings, paragraphs, lists, pipe tables) as HTML.
+
+    Everything is escaped; links are kept only to files that exist (made relative to
+    the report).
+    """
+    lines, out, i = text.splitlines(), [], 0
+    inl = lambda t: _md_inline(t, base, root)                       # noqa: E731
+    while i < len(lines):
+        ln = lines[i]
+        if ln.lstrip().startswith("```"):
+            code = []
+            i += 1
+            while i < len(lines) and not lines[i].lstrip().startswith("```"):
+                code.append(lines[i])
+                i += 1
+            out.append(f"<pre>{_e(chr(10).join(code))}</pre>")
+            i += 1
+            continue
+        if ln.lstrip().startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].lstrip().startswith("|"):
+                row = lines[i].strip().removeprefix("|").removesuffix("|")
+                # "\|" is a literal bar inside a cell
+                cells = [c.strip().replace("\0", "|")
+                         for c in row.replace("\\|", "\0").split("|")]
+                if not all(c and set(c) <= set("-: ") for c in cells):
+                    rows.append(cells)
+                i += 1
+            if rows:
+                head = "".join(f"<th>{inl(c)}</th>" for c in rows[0])
+                body = "".join("<tr>" + "".join(f"<td>{inl(c)}</td>" for c in r) + "</tr>"
+                               for r in rows[1:])
+                out.append(f"<table><tr>{head}</tr>{body}</table>")
+            continue
+        if ln.startswith("#"):
+            level = min(len(ln) - len(ln.lstrip("#")) + 2, 6)
+            out.append(f"<h{level}>{inl(ln.lstrip('#').strip())}</h{level}>")
+        elif ln.lstrip().startswith(("- ", "* ")):
+            items = []
+            while i < len(lines) and lines[i].strip():
+                if lines[i].lstrip().startswith(("- ", "* ")):
+                    items.append(lines[i].lstrip()[2:])
+                elif lines[i][:1].isspace():          # an item's continuation line
+                    items[-1] += " " + lines[i].strip()
+                else:
+                    break
+                i += 1
+            out.append("<ul>" + "".join(f"<li>{inl(t)}</li>" for t in items) + "</ul>")
+            continue
+        elif ln.startswith("    "):                    # indented code block
+            code = []
+            while i < len(lines) and (lines[i].startswith("    ") or not lines[i].strip()):
+                code.append(lines[i][4:])
+                i += 1
+            out.append(f"<pre>{_e(chr(10).join(code).rstrip())}</pre>")
+            continue
+        elif ln.strip():
+            para = [ln]
+            while (i + 1 < len(lines) and lines[i + 1].strip()
+                   and not lines[i + 1].lstrip().startswith(("|", "#", "- ", "* ", "```"))):
+                i += 1
+                para.append(lines[i])
+            out.append(f"<p>{inl(' '.join(p.strip() for p in para))}</p>")
+        i += 1
+    return "".join(out)
+
+
+def _anchor(rel: Path) -> str:
+    return "f-" + "".join(c if c.isalnum() else "-" for c in rel.as_posix())
+
+
+def _versions() -> list:
+    from importlib import metadata
+    rows = [("python", platform.python_version())]
+    for name in _PACKAGES:
+        try:
+            rows.append((name, metadata.version(name)))
+        except metadata.PackageNotFoundError:
+            continue
+    rows.append(("platform", f"{platform.system()} {platform.machine()}"))
+    return rows
+
+
+def _files(root: Path) -> list[Path]:
+    """Every file under ``root`` (relative), hidden files and staging folders excluded."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        for f in sorted(filenames):
+            if f.startswith(".") or f == REPORT_NAME:
+                continue
+            out.append((Path(dirpath) / f).relative_to(root))
+    return out
+
+
+def _title(root: Path, files: list[Path]) -> str:
+    for name in ("README.md", "summary.md", "report.md"):
+        p = root / name
+        if p.is_file():
+            for line in p.read_text("utf-8", errors="replace").splitlines():
+                if line.startswith("# "):
+                    return line[2:].strip().replace("`", "")
+    return root.resolve().name
+
+
+def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True) -> Path:
+    """Write ``out_dir/report.html`` from whatever arfem outputs ``out_dir`` holds.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        An arfem output directory (any command), or its staging directory.
+    title : str, optional
+        Page title; default: the first heading of ``README.md`` / ``summary.md`` /
+        ``report.md``, else the directory's name.
+    file_sizes : bool
+        List each file's size. ``arfem reproduce`` passes False: its report must be
+        byte-identical on a rerun, and the size of the compressed field file depends
+        on the last digits of the values, which depend on the CPU's BLAS kernels.
+
+    Returns
+    -------
+    Path
+        The report's path.
+
+    Raises
+    ------
+    InputError
+        If ``out_dir`` is not a directory.
+
+    Examples
+    --------
+    >>> import tempfile, json
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     _ = Path(d, "summary.json").write_text(json.dumps({"rmse_um": 0.25}))
+    ...     p = write_html_report(d)
+    ...     text = p.read_text("utf-8")
+    >>> "0.25" in text and "summary.json" in text
+    True
+    """
+    root = Path(out_dir)
+    if not root.is_dir():
+        raise InputError("is not a directory", str(out_dir))
+    files = _files(root)
+    title = title or _title(root, files)
+    by_dir: dict[Path, list[Path]] = {}
+    for rel in files:
+        by_dir.setdefault(rel.parent, []).append(rel)
+    inputs: dict = {}
+    sections = []
+    toc = []
+    for d in sorted(by_dir, key=lambda p: (len(p.parts), p.as_posix())):
+        rels = by_dir[d]
+        name = "outputs" if d == Path(".") else d.as_posix()
+        body = []
+        pngs = [r for r in rels if r.suffix.lower() == ".png"]
+        jsons = [r for r in rels if r.suffix.lower() == ".json"]
+        mds = [r for r in rels if r.suffix.lower() == ".md"]
+        tomls = [r for r in rels if r.suffix.lower() == ".toml"]
+        for r in pngs:
+            p = root / r
+            data = p.read_bytes()
+            if len(data) > MAX_EMBED or data[:8] != b"\x89PNG\r\n\x1a\n":
+                body.append(f'<p><a href="{_href(r)}">{_e(r.as_posix())}</a> '
+                            f"({_size(len(data))}, linked)</p>")
+                continue
+            uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+            body.append(f'<figure id="{_e(_anchor(r))}"><img src="{uri}" alt="{_e(r.name)}">'
+                        f'<figcaption><a href="{_href(r)}">{_e(r.as_posix())}</a>'
+                        "</figcaption></figure>")
+        if len(jsons) > MAX_JSON_TABLES:
+            body.append(f'<p class="note">{len(jsons)} JSON files in '
+                        f"<code>{_e(name)}/</code> (listed under Files, not tabulated)</p>")
+        else:
+            for r in jsons:
+                body.append(_json_section(root / r, r, inputs, root))
+        for r in tomls:
+            text = (root / r).read_text("utf-8", errors="replace")
+            body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
+                        f"<pre>{_e(text)}</pre>")
+        # the top folder's README (else its first Markdown file) is the page's lead text,
+        # open; every other Markdown file is collapsed
+        mds.sort(key=lambda r: (r.name != "README.md", r.name))
+        for k, r in enumerate(mds):
+            text = (root / r).read_text("utf-8", errors="replace")
+            opened = " open" if d == Path(".") and k == 0 else ""
+            body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
+                           f"{_e(r.as_posix())}</a></summary>"
+                           f"{_markdown(text, (root / r).parent, root)}</details>")
+        if body:
+            sid = "d-" + _anchor(d)
+            toc.append(f'<li><a href="#{_e(sid)}">{_e(name)}</a></li>')
+            sections.append(f'<h2 id="{_e(sid)}">{_e(name)}</h2>' + "".join(body))
+    # inputs named by the JSON files but living elsewhere: linked relative to the report
+    ext = []
+    for p in sorted(inputs.values()):
+        if p.is_relative_to(root.resolve()):
+            continue                                   # shown or listed with the outputs
+        rel = Path(os.path.relpath(p, root.resolve()))
+        ext.append(f'<li><a href="{_href(rel)}">{_e(rel.as_posix())}</a></li>')
+    listing = "".join(
+        f'<tr><td><a href="{_href(r)}">{_e(r.as_posix())}</a></td>'
+        + (f'<td class="num">{_e(_size((root / r).stat().st_size))}</td>' if file_sizes else "")
+        + "</tr>" for r in files)
+    versions = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _versions())
+    page = (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>"
+        f"<h1>{_e(title)}</h1>"
+        f'<p class="note">Generated by <code>arfem report</code> from the files in this '
+        "directory; the numbers are those of its JSON files, the figures are embedded, the "
+        "links are relative.</p>"
+        f'<ul>{"".join(toc)}<li><a href="#inputs">inputs</a></li>'
+        '<li><a href="#files">files</a></li><li><a href="#versions">software</a></li></ul>'
+        + "".join(sections)
+        + '<h2 id="inputs">inputs</h2>'
+        + (f"<ul>{''.join(ext)}</ul>" if ext else "")
+        + ('<p class="note">The input files copied into this directory are shown above '
+           "(<code>*.toml</code>).</p>" if any(r.suffix == ".toml" for r in files) else "")
+        + ("" if ext or any(r.suffix == ".toml" for r in files) else
+           '<p class="note">No input file is recorded in this directory.</p>')
+        + '<h2 id="files">files</h2><table><tr><th>file</th>'
+        + ("<th>size</th>" if file_sizes else "") + f"</tr>{listing}</table>"
+        + '<h2 id="versions">software</h2><p class="note">Versions installed where this '
+        f"report was written.</p><table>{versions}</table>"
+        "</body></html>\n")
+    path = root / REPORT_NAME
+    atomic_write_text(path, page)
+    return path
+
+
+# -- CLI -----------------------------------------------------------------------------------
+
+def _main(args) -> int:
+    p = write_html_report(args.dir)
+    print(p)
+    return 0
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("report", help="write DIR/report.html: one self-contained page of an "
+                                      "output directory",
+                       description="Write a self-contained report.html (figures embedded, the "
+                                   "JSON numbers as tables, inputs, software versions, links "
+                                   "to the data files) into an arfem output directory.")
+    p.add_argument("dir", help="an output directory of arfem run, reproduce, diagnose, sweep "
+                               "or allocate")
+    p.set_defaults(func=_main)
