@@ -11,6 +11,7 @@ NSGA-II allocation and writes, atomically:
 * ``convergence.png`` -- hypervolume against generations (every seed run)
 * ``stackup.png``, ``sensitivity.png`` (screw formula), ``thermal.png`` (with a spindle)
 * ``report.md``       -- conventions, chain, result, numbers behind every picture
+* ``report.html``     -- all of the above on one self-contained page (``arfem report``)
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from arfem.models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, MAX_EVA
                                              worst_case_over_cycle)
 from arfem.models.allocation.scenario import AllocationScenario, build_chain, parse_scenario
 from arfem.params import InputError
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["add_parser", "main", "run_allocation", "load_allocation_scenario"]
@@ -541,6 +543,7 @@ def main(args) -> int:
             alloc["thermal_fraction_of_cycle_over_delta_E"] = float(
                 np.mean(np.asarray(ts["worst_case_mm"]) > st.delta_E_mm))
         write_json(stage / "allocation.json", alloc)
+        write_html_report(stage)
     r = run["result"]
     if st.formula == "screw":
         print(f"allocate: {run['scenario'].name}: {'feasible' if r.feasible else 'INFEASIBLE'}, "

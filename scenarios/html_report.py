@@ -29,9 +29,10 @@ import html
 import json
 import os
 import platform
-import re
 from pathlib import Path
 from urllib.parse import quote, unquote
+
+from markdown_it import MarkdownIt
 
 from arfem.io import atomic_write_text
 from arfem.params import InputError
@@ -189,97 +190,32 @@ def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> N
                 continue
 
 
-_INLINE = re.compile(r"`([^`]+)`|\[([^\]]+)\]\(([^)\s]+)\)|\*\*([^*]+)\*\*")
-
-
-def _md_inline(text: str, base: Path, root: Path) -> str:
-    """Escaped text with `code`, **bold** and [links](to files that exist) rendered."""
-    out, pos = [], 0
-    for m in _INLINE.finditer(text):
-        out.append(_e(text[pos:m.start()]))
-        code, label, target, bold = m.groups()
-        if code is not None:
-            out.append(f"<code>{_e(code)}</code>")
-        elif bold is not None:
-            out.append(f"<b>{_e(bold)}</b>")
-        else:
-            dest = base / unquote(target)
-            if "://" not in target and dest.is_file():
-                rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
-                out.append(f'<a href="{_href(rel)}">{_e(label)}</a>')
-            else:
-                out.append(_e(label))
-        pos = m.end()
-    out.append(_e(text[pos:]))
-    return "".join(out)
-
-
 def _markdown(text: str, base: Path, root: Path) -> str:
-    """The Markdown arfem writes (headings, paragraphs, lists, pipe tables) as HTML.
+    """Markdown (CommonMark with pipe tables, by markdown-it-py) as HTML.
 
-    Everything is escaped; links are kept only to files that exist (made relative to
-    the report).
+    Raw HTML in the text is escaped, not passed through; a link is kept only where it
+    points to a file that exists (made relative to the report), else its text stays.
     """
-    lines, out, i = text.splitlines(), [], 0
-    inl = lambda t: _md_inline(t, base, root)                       # noqa: E731
-    while i < len(lines):
-        ln = lines[i]
-        if ln.lstrip().startswith("```"):
-            code = []
-            i += 1
-            while i < len(lines) and not lines[i].lstrip().startswith("```"):
-                code.append(lines[i])
-                i += 1
-            out.append(f"<pre>{_e(chr(10).join(code))}</pre>")
-            i += 1
-            continue
-        if ln.lstrip().startswith("|"):
-            rows = []
-            while i < len(lines) and lines[i].lstrip().startswith("|"):
-                row = lines[i].strip().removeprefix("|").removesuffix("|")
-                # "\|" is a literal bar inside a cell
-                cells = [c.strip().replace("\0", "|")
-                         for c in row.replace("\\|", "\0").split("|")]
-                if not all(c and set(c) <= set("-: ") for c in cells):
-                    rows.append(cells)
-                i += 1
-            if rows:
-                head = "".join(f"<th>{inl(c)}</th>" for c in rows[0])
-                body = "".join("<tr>" + "".join(f"<td>{inl(c)}</td>" for c in r) + "</tr>"
-                               for r in rows[1:])
-                out.append(f"<table><tr>{head}</tr>{body}</table>")
-            continue
-        if ln.startswith("#"):
-            level = min(len(ln) - len(ln.lstrip("#")) + 2, 6)
-            out.append(f"<h{level}>{inl(ln.lstrip('#').strip())}</h{level}>")
-        elif ln.lstrip().startswith(("- ", "* ")):
-            items = []
-            while i < len(lines) and lines[i].strip():
-                if lines[i].lstrip().startswith(("- ", "* ")):
-                    items.append(lines[i].lstrip()[2:])
-                elif lines[i][:1].isspace():          # an item's continuation line
-                    items[-1] += " " + lines[i].strip()
-                else:
-                    break
-                i += 1
-            out.append("<ul>" + "".join(f"<li>{inl(t)}</li>" for t in items) + "</ul>")
-            continue
-        elif ln.startswith("    "):                    # indented code block
-            code = []
-            while i < len(lines) and (lines[i].startswith("    ") or not lines[i].strip()):
-                code.append(lines[i][4:])
-                i += 1
-            out.append(f"<pre>{_e(chr(10).join(code).rstrip())}</pre>")
-            continue
-        elif ln.strip():
-            para = [ln]
-            while (i + 1 < len(lines) and lines[i + 1].strip()
-                   and not lines[i + 1].lstrip().startswith(("|", "#", "- ", "* ", "```"))):
-                i += 1
-                para.append(lines[i])
-            out.append(f"<p>{inl(' '.join(p.strip() for p in para))}</p>")
-        i += 1
-    return "".join(out)
+    md = MarkdownIt("commonmark", {"html": False}).enable("table")
+
+    def link_open(renderer, tokens, idx, options, env):
+        href = tokens[idx].attrGet("href") or ""
+        dest = base / unquote(href)
+        if "://" not in href and not href.startswith("#") and dest.is_file():
+            rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
+            tokens[idx].attrSet("href", _href(rel))
+            return renderer.renderToken(tokens, idx, options, env)
+        env["dropped_link"] = True
+        return ""
+
+    def link_close(renderer, tokens, idx, options, env):
+        if env.pop("dropped_link", False):
+            return ""
+        return renderer.renderToken(tokens, idx, options, env)
+
+    md.add_render_rule("link_open", link_open)
+    md.add_render_rule("link_close", link_close)
+    return md.render(text, {})
 
 
 def _anchor(rel: Path) -> str:

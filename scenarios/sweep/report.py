@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.io import atomic_write_text, write_json
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import staged_out_dir
 from arfem.scenarios.sweep.figures import write_figures
 from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, _canonical
@@ -190,7 +191,9 @@ def _runs_lines(runs: list[dict]) -> list[str]:
 def _files_line(summary: dict) -> str:
     """The files of the sweep folder, by the names actually written."""
     figs = ", ".join(f"`{f}`" for f in summary.get("plots") or [])
-    return ("Files: `README.md` (this page), `results.csv` (one row per point; inputs then "
+    return ("Files: `README.md` (this page), `report.html` (this page with the figures and "
+            "the numbers of `summary.json`, one self-contained file), "
+            "`results.csv` (one row per point; inputs then "
             "outputs, units in the column names, `pct` = % of the FEM peak growth), "
             "`summary.json` (the figures of this page, machine-readable)"
             + (f", the figures {figs}" if figs else "") +
@@ -296,6 +299,7 @@ def write_outputs(sweep: Sweep, out: Path, store, rep, runs: list | None = None)
         summary["plots"] = write_figures(sweep, rows, stage) if has_core else []
         write_json(stage / "summary.json", summary)
         atomic_write_text(stage / "README.md", render_readme(sweep, rows, summary))
+        write_html_report(stage)
     for name in old_plots - set(summary["plots"]):   # the README lists only what is there
         if isinstance(name, str) and name.endswith(".png") and "/" not in name:
             (out / name).unlink(missing_ok=True)
