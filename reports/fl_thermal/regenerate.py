@@ -137,6 +137,210 @@ def _verdict(wins):
                              if wins < 5 else "."))
 
 
+#: rolling-origin evaluation (rolling.md): origins at every speed step from 16 h on (the
+#: first origin has the 0-2500 rpm program to fit on), each block scored up to the next
+#: origin; an origin whose block would be shorter than 1 h is dropped (the last step, at
+#: 46.13 h, leaves 11 min) and the block before it runs to the end of the record
+ROLL_START_S = 16 * 3600.0
+ROLL_MIN_BLOCK_S = 3600.0
+#: the three models scored at every origin, as named in rolling.json
+ROLL_MODELS = ("paper_ar", "mlr", "extended")
+_DS_CACHE: dict = {}
+
+
+def _dataset(toml):
+    from arfem.scenarios.dataset import load_dataset
+    if toml not in _DS_CACHE:
+        _DS_CACHE[toml] = load_dataset(toml)
+    return _DS_CACHE[toml]
+
+
+def _roll_fit(toml, search, n_train, y_train):
+    """One origin of the rolling evaluation: ``arfem diagnose``'s procedure fitted on the
+    first ``n_train`` rows, given only their growth ``y_train``.
+
+    The record's growth from the origin on is replaced by the last value before it (so
+    no fitted number can depend on it) and its outlier flags are recomputed from
+    ``y_train`` alone; the inputs (speed, temperatures) stay, since the models predict
+    from them. Returns the three models' predictions over the record and what the
+    procedure chose."""
+    import dataclasses
+
+    import numpy as np
+
+    from arfem.models.diagnosis.dataset import hampel_outliers
+    from arfem.models.diagnosis.engine import diagnose
+
+    ds = _dataset(str(toml))
+    t = np.asarray(ds.time_s)
+    yt = np.asarray(y_train, float)
+    steps = np.abs(np.diff(yt))
+    steps = steps[steps > 1e-9]
+    out = np.zeros(t.size, bool)
+    out[:n_train] = hampel_outliers(yt, floor=float(steps.min()) if steps.size else 0.0)
+    ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n_train,
+                                                                         yt[-1])]),
+                               outliers=out)
+    d = diagnose(ds_o, float(t[n_train]), search)
+    s = d.series
+    fs = d.summary["selection"].get("frame_structure") or {}
+    return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},
+            {"cause": d.summary["cause"], "frame_structure": fs.get("label")})
+
+
+def rolling_scores(data, channels=range(1, 6), search="narrow", jobs=2, origins=None):
+    """Rolling-origin evaluation of ``arfem diagnose``'s procedure (frame search
+    ``search``) on the whole record: per channel, the list of
+    :class:`~arfem.models.diagnosis.rolling.OriginScore` and the summary."""
+    from concurrent.futures import ProcessPoolExecutor
+    from functools import partial
+
+    from arfem.models.diagnosis.rolling import rolling_origin, speed_step_origins, summarize
+
+    import contextlib
+
+    out = {}
+    with (ProcessPoolExecutor(jobs) if jobs > 1 else contextlib.nullcontext()) as ex:
+        for ch in channels:
+            toml = str(Path(data) / f"fl_thermal_ch{ch}.toml")
+            ds = _dataset(toml)
+            org = origins if origins is not None else speed_step_origins(
+                ds.time_s, ds.speed_rpm, ROLL_START_S, ROLL_MIN_BLOCK_S)
+            sc = rolling_origin(ds.time_s, ds.growth_um, org, partial(_roll_fit, toml, search),
+                                valid=~ds.outliers, mapper=ex.map if ex else map)
+            out[ch] = (sc, summarize(sc, "extended", ("paper_ar", "mlr")))
+    return out
+
+
+#: procedures compared in rolling.md: (label, frame search); the first is the published one
+ROLL_VARIANTS = (("published", "narrow"),)
+
+
+def _run_rolling(data, jobs, variants=ROLL_VARIANTS) -> int:
+    import time
+
+    t0 = time.time()
+    res = {label: rolling_scores(data, search=search, jobs=jobs) for label, search in variants}
+    wall = time.time() - t0
+    pub = variants[0][0]
+    out = {"procedure": "arfem diagnose fitted on every row before each origin (its growth "
+                        "only), scored on the block up to the next origin; hold-out RMSE [µm]",
+           "origin_rule": f"every speed step from {ROLL_START_S / 3600:g} h on; an origin "
+                          f"whose block is shorter than {ROLL_MIN_BLOCK_S / 3600:g} h is "
+                          "dropped (its block joins the one before)",
+           "variants": {lab: {"frame_search": se, "post_hoc": i > 0}
+                        for i, (lab, se) in enumerate(variants)},
+           "wall_time_s": wall, "jobs": jobs, "channels": {}}
+    for ch in res[pub]:
+        out["channels"][f"ch{ch}"] = {
+            lab: {"summary": res[lab][ch][1],
+                  "per_origin": [{"origin_s": s.origin_s, "block_end_s": s.block_end_s,
+                                  "n_scored": s.n, **{f"{k}_rmse_um": v
+                                                      for k, v in s.rmse_um.items()},
+                                  **s.info} for s in res[lab][ch][0]]}
+            for lab, _ in variants}
+    atomic_write_text(HERE / "rolling.json", json.dumps(out, indent=1) + "\n")
+    text = _rolling_text(out, variants)
+    atomic_write_text(HERE / "rolling.md", text)
+    _rolling_figure(out, variants, HERE / "rolling.png")
+    print(text)
+    return 0
+
+
+def _rolling_text(out, variants):
+    pub = variants[0][0]
+    chans = list(out["channels"])
+    first = out["channels"][chans[0]][pub]["per_origin"]
+    n_or = len(first)
+    lines = ["# Rolling-origin evaluation on the whole record", "",
+             f"{out['procedure']}. Origins: {out['origin_rule']} -- {n_or} origins, at "
+             + ", ".join(f"{o['origin_s'] / 3600:.2f}" for o in first) + " h. "
+             f"Run time {out['wall_time_s'] / 60:.1f} min on {out['jobs']} processes.", "",
+             "Median [interquartile range] of the hold-out RMSE [µm] over the origins, and at "
+             "how many origins the extended model beats both the paper AR(1) and the MLR "
+             "(a channel whose named cause is `none` has extended = paper AR(1): a tie, not "
+             "a win).", "",
+             "| channel | procedure | paper AR(1) | MLR (eq. 18) | extended | extended beats "
+             "both | beats AR(1) | beats MLR | causes named |",
+             "|---|---|---|---|---|---|---|---|---|"]
+
+    def q(d):
+        return f"{d['median_um']:.2f} [{d['q25_um']:.2f}–{d['q75_um']:.2f}]"
+    tot = {lab: 0 for lab, _ in variants}
+    for ch in chans:
+        for lab, _ in variants:
+            d = out["channels"][ch][lab]
+            sm = d["summary"]
+            tot[lab] += sm["beats_all"]
+            causes = {}
+            for o in d["per_origin"]:
+                causes[o["cause"]] = causes.get(o["cause"], 0) + 1
+            lines.append(f"| {ch} | {lab} | {q(sm['rmse']['paper_ar'])} | {q(sm['rmse']['mlr'])} | "
+                         f"{q(sm['rmse']['extended'])} | **{sm['beats_all']} / {sm['n_origins']}** | "
+                         f"{sm['beats']['paper_ar']} | {sm['beats']['mlr']} | "
+                         + ", ".join(f"{c} ×{k}" for c, k in causes.items()) + " |")
+    lines += ["", "Extended beats both, all channels: " + "; ".join(
+        f"{lab}: {k} of {n_or * len(chans)} (channel, origin) pairs" for lab, k in tot.items())
+        + ".", "", "## Per origin", "",
+        "Hold-out RMSE [µm] of paper AR(1) / MLR / extended"
+        + (" / extended (" + ", ".join(lab for lab, _ in variants[1:]) + ")"
+           if len(variants) > 1 else "") + "; ✓ where the (first) extended model beats both.",
+        "", "| origin [h] | block end [h] | " + " | ".join(chans) + " |",
+        "|---|---|" + "---|" * len(chans)]
+    for i, o in enumerate(first):
+        cells = []
+        for ch in chans:
+            ps = [out["channels"][ch][lab]["per_origin"][i] for lab, _ in variants]
+            p = ps[0]
+            win = p["extended_rmse_um"] < min(p["paper_ar_rmse_um"], p["mlr_rmse_um"])
+            cells.append(f"{p['paper_ar_rmse_um']:.2f} / {p['mlr_rmse_um']:.2f} / "
+                         + " / ".join(f"{x['extended_rmse_um']:.2f}" for x in ps)
+                         + (" ✓" if win else ""))
+        lines.append(f"| {o['origin_s'] / 3600:.2f} | {o['block_end_s'] / 3600:.2f} | "
+                     + " | ".join(cells) + " |")
+    lines += ["", "![hold-out RMSE per origin](rolling.png)", ""]
+    return "\n".join(lines)
+
+
+def _rolling_figure(out, variants, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    chans = list(out["channels"])
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.8), sharex=True, constrained_layout=True)
+    styles = {"paper_ar": ("paper AR(1)", "#0072B2", "o", "-"),
+              "mlr": ("MLR (eq. 18)", "#E69F00", "s", "-")}
+    for ax, ch in zip(axes.flat, chans):
+        d = out["channels"][ch]
+        po = d[variants[0][0]]["per_origin"]
+        x = [o["origin_s"] / 3600 for o in po]
+        for k, (lab, c, m, ls) in styles.items():
+            ax.plot(x, [o[f"{k}_rmse_um"] for o in po], ls, color=c, marker=m, ms=4, label=lab)
+        for i, (lab, _) in enumerate(variants):
+            ax.plot(x, [o["extended_rmse_um"] for o in d[lab]["per_origin"]],
+                    "-" if i == 0 else "--", color=("#009E73", "#CC79A7", "#000000")[i],
+                    marker=("^", "v", "d")[i], ms=5,
+                    label="extended" + ("" if i == 0 else f" ({lab})"))
+        ax.set_yscale("log")
+        ax.set_title(ch)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_ylabel("hold-out RMSE [µm]")
+    for ax in axes[-1]:
+        ax.set_xlabel("origin (end of the fit window) [h]")
+    leg = axes.flat[len(chans)]
+    leg.axis("off")
+    h, l = axes.flat[0].get_legend_handles_labels()
+    leg.legend(h, l, loc="center", frameon=False, title="model (refit at each origin)")
+    above = axes[0][len(chans) - 3] if len(chans) == 5 else axes.flat[len(chans) - 1]
+    above.xaxis.set_tick_params(labelbottom=True)
+    above.set_xlabel("origin (end of the fit window) [h]")
+    fig.suptitle("FL_THERMAL, rolling origin: hold-out RMSE of the block after each origin "
+                 "(log scale)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
@@ -145,7 +349,12 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--preregistered", metavar="FULL.csv", nargs="?", const="",
                     help="run only the pre-registered test (default record: the whole one)")
+    ap.add_argument("--rolling", action="store_true",
+                    help="run only the rolling-origin evaluation on the whole record "
+                         "(rolling.md/json/png)")
     a = ap.parse_args(argv)
+    if a.rolling:
+        return _run_rolling(a.data, a.jobs)
     if a.preregistered is not None:
         from arfem.params import InputError
         csv = a.preregistered or str(Path(a.data) / WHOLE_CSV)
