@@ -352,7 +352,11 @@ def main(argv=None) -> int:
     ap.add_argument("--rolling", action="store_true",
                     help="run only the rolling-origin evaluation on the whole record "
                          "(rolling.md/json/png)")
+    ap.add_argument("--readme", action="store_true",
+                    help="only rebuild README.md from the stored results (no diagnosis run)")
     a = ap.parse_args(argv)
+    if a.readme:
+        return _run_readme()
     if a.rolling:
         return _run_rolling(a.data, a.jobs)
     if a.preregistered is not None:
@@ -373,9 +377,30 @@ def main(argv=None) -> int:
         with ProcessPoolExecutor(a.jobs) as ex:
             res = dict(ex.map(_one, jobs))
 
+    exp = {}
+    for hs in (HOLDOUT_S, HOLDOUT2_S):
+        for ch in chans:
+            n, w = res[(ch, hs, "narrow")], res[(ch, hs, "wide")]
+            ar, ml, en = _scores(n)
+            exp[f"ch{ch}@{hs:g}s"] = {
+                "paper_ar_rmse_um": ar, "mlr_rmse_um": ml, "extended_narrow_rmse_um": en,
+                "extended_wide_rmse_um": w["holdout"]["extended_rmse_um"],
+                "wide_structure": w["selection"]["frame_structure"]["label"].replace(",", ", "),
+                "narrow_structure": n["selection"]["frame_structure"]["label"],
+                "cause_narrow": n["cause"], "cause_wide": w["cause"]}
+    text = _readme_text({ch: res[(ch, HOLDOUT_S, "narrow")] for ch in chans}, exp)
+    atomic_write_text(HERE / "experiments.json", json.dumps(exp, indent=1) + "\n")
+    atomic_write_text(HERE / "README.md", text)
+    print(text)
+    return 0
+
+
+def _readme_text(published: dict, exp: dict) -> str:
+    """README.md from the published runs (``{channel: diagnosis summary}``, t >= 20 h),
+    the experiments (experiments.json) and, where they exist, preregistered.json and
+    rolling.json -- so ``--readme`` can rebuild it from the stored results alone."""
     rows, wins = [], 0
-    for ch in chans:
-        s = res[(ch, HOLDOUT_S, "narrow")]
+    for ch, s in published.items():
         ar, ml, ext = _scores(s)
         beats = ext < ar and ext < ml
         wins += beats
@@ -384,12 +409,10 @@ def main(argv=None) -> int:
                     f"{s['ar_form']['ar_output_error']['baseline_holdout_rmse_um']:.2f} | "
                     f"{ext:.2f} | {fs['label'].replace(',', ', ') if fs else '–'} | "
                     f"{'yes' if beats else '**no**'} |")
-    text = (HERE / "README.head.md").read_text()
+    text = (HERE / "README.head.md").read_text(encoding="utf-8")
     text += ("\n| channel | cause | paper AR(1) | MLR (eq. 18) | AR(1) output-error | extended | "
              "frame structure | extended beats AR and MLR |\n|---|---|---|---|---|---|---|---|\n"
              + "\n".join(rows) + "\n\n" + _verdict(wins) + "\n")
-
-    exp = {}
     text += ("\n## Experiments after the first result (not the published procedure)\n\n"
              "Hold-out RMSE [µm]; *narrow* is the published procedure, *wide* the wider "
              "structure search (`--frame-search wide`); the selected wide structure in "
@@ -398,25 +421,27 @@ def main(argv=None) -> int:
              "(structure) |\n|---|---|---|---|---|---|\n")
     tallies = {}
     for hs, name in ((HOLDOUT_S, "t ≥ 20 h"), (HOLDOUT2_S, "t ≥ 16.13 h")):
-        for ch in chans:
-            n, w = res[(ch, hs, "narrow")], res[(ch, hs, "wide")]
-            ar, ml, en = _scores(n)
-            ew = w["holdout"]["extended_rmse_um"]
-            for se, e in (("narrow", en), ("wide", ew)):
-                tallies[(name, se)] = tallies.get((name, se), 0) + (e < ar and e < ml)
-            lab = w["selection"]["frame_structure"]["label"].replace(",", ", ")
-            text += f"| ch{ch} | {name} | {ar:.2f} | {ml:.2f} | {en:.2f} | {ew:.2f} ({lab}) |\n"
-            exp[f"ch{ch}@{hs:g}s"] = {"paper_ar_rmse_um": ar, "mlr_rmse_um": ml,
-                                      "extended_narrow_rmse_um": en,
-                                      "extended_wide_rmse_um": ew, "wide_structure": lab,
-                                      "narrow_structure": n["selection"]["frame_structure"]["label"],
-                                      "cause_narrow": n["cause"], "cause_wide": w["cause"]}
+        for ch in published:
+            e = exp[f"ch{ch}@{hs:g}s"]
+            ar, ml = e["paper_ar_rmse_um"], e["mlr_rmse_um"]
+            en, ew = e["extended_narrow_rmse_um"], e["extended_wide_rmse_um"]
+            for se, x in (("narrow", en), ("wide", ew)):
+                tallies[(name, se)] = tallies.get((name, se), 0) + (x < ar and x < ml)
+            text += (f"| ch{ch} | {name} | {ar:.2f} | {ml:.2f} | {en:.2f} | {ew:.2f} "
+                     f"({e['wide_structure']}) |\n")
     text += "\nChannels where the extended model beats both: " + "; ".join(
         f"{name}, {se}: {k} of 5" for (name, se), k in tallies.items()) + ".\n"
-    text += (HERE / "README.tail.md").read_text()
-    atomic_write_text(HERE / "experiments.json", json.dumps(exp, indent=1) + "\n")
-    atomic_write_text(HERE / "README.md", text)
-    print(text)
+    text += (HERE / "README.tail.md").read_text(encoding="utf-8")
+    return text
+
+
+def _run_readme() -> int:
+    """Rebuild README.md from the stored results (ch*/diagnosis.json, experiments.json,
+    preregistered.json, rolling.json); no diagnosis is run."""
+    published = {ch: json.loads((HERE / f"ch{ch}" / "diagnosis.json").read_text(encoding="utf-8"))
+                 for ch in range(1, 6)}
+    exp = json.loads((HERE / "experiments.json").read_text(encoding="utf-8"))
+    atomic_write_text(HERE / "README.md", _readme_text(published, exp))
     return 0
 
 
