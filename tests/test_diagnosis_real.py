@@ -67,6 +67,25 @@ def test_preregistered_runner_is_the_published_procedure(first28h):
         == [True] * 3
 
 
+def test_preregistered_result_matches_fresh_run_ch2():
+    """The committed pre-registered result (reports/fl_thermal/preregistered.json: the
+    published procedure fitted on t < 100 800 s of the whole record, scored on the
+    rest) is what the code gives now for ch2 -- cause, frame structure, the three
+    hold-out RMSEs and the verdict. If the procedure's numbers ever change, the
+    pre-registered row is no longer reproducible and this fails; tolerance 0.01 µm =
+    the published table's rounding."""
+    import json
+    regen = _regenerate()
+    pub = json.loads((REPO / "reports/fl_thermal/preregistered.json").read_text())["ch2"]
+    ar, ml, ext, s = regen.preregistered_scores(DATA / regen.WHOLE_CSV, DATA,
+                                                channels=[2])[2]
+    assert s["cause"] == pub["cause"]
+    assert s["selection"]["frame_structure"]["label"] == pub["frame_structure"]
+    for key, v in (("paper_ar_rmse_um", ar), ("mlr_rmse_um", ml), ("extended_rmse_um", ext)):
+        assert abs(pub[key] - v) <= 0.01, key
+    assert pub["beats_both"] == bool(ext < ar and ext < ml)
+
+
 # --- rolling-origin evaluation (arfem.models.diagnosis.rolling), on synthetic data ---
 
 import numpy as np
