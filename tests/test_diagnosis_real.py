@@ -30,8 +30,11 @@ def first28h(tmp_path_factory):
 
 
 def _table_row(ch):
-    row = next(l for l in (REPO / "reports/fl_thermal/README.md").read_text().splitlines()
-               if l.startswith(f"| ch{ch} |"))
+    """Channel ``ch``'s row of the published 28 h table (README Part 2: the first table
+    after its "Published result" heading)."""
+    lines = (REPO / "reports/fl_thermal/README.md").read_text().splitlines()
+    start = next(i for i, l in enumerate(lines) if l.startswith("### Published result"))
+    row = next(l for l in lines[start:] if l.startswith(f"| ch{ch} |"))
     return [c.strip() for c in row.strip("|").split("|")]
 
 
@@ -174,3 +177,21 @@ def test_block_scores_are_the_rmse_on_each_block_and_wins_are_counted():
     valid[np.flatnonzero(m)[m.sum() // 2:]] = False
     s0 = rolling_origin(t, y, org, fit, valid=valid)[0]
     assert s0.n == m.sum() // 2
+
+
+def test_subset_of_origins_keeps_the_full_run_blocks():
+    """``only`` (a cheaper subset of origins) scores each kept origin on the same block
+    as the full evaluation -- ending at the next origin of the full list, not of the
+    subset -- so the subset's scores equal the full run's at those origins exactly."""
+    t, sp = _program()
+    y = np.cos(t / 7000.0)
+    org = speed_step_origins(t, sp, start_s=2 * 3600.0, min_block_s=3600.0)
+
+    def fit(n, yt):
+        return {"persist": np.full(t.size, yt[-1])}
+    full = rolling_origin(t, y, org, fit)
+    sub = rolling_origin(t, y, org, fit, only=org[::2])
+    assert [s.origin_s for s in sub] == org[::2]
+    for s in sub:
+        f = next(x for x in full if x.origin_s == s.origin_s)
+        assert (s.block_end_s, s.n, s.rmse_um) == (f.block_end_s, f.n, f.rmse_um)
