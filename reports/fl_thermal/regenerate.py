@@ -18,6 +18,17 @@ not kept (numbers in experiments.json). About 10 min on 2 cores (``--jobs``).
 runs instead the one test fixed in PREREGISTRATION.md, on the rest of the record
 (t >= 100 800 s): the published procedure, fitted on t < 100 800 s, scored on
 t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole record.
+
+    python reports/fl_thermal/regenerate.py --rolling [--every K]
+    python reports/fl_thermal/regenerate.py --rolling-only average [--every K]
+    python reports/fl_thermal/regenerate.py --posthoc-split
+    python reports/fl_thermal/regenerate.py --readme
+
+the rolling-origin evaluation of the published procedure and of the post hoc one
+(``--frame-search average``) on the whole record (rolling.json/md/png; ~35 min and ~15 min
+at every 2nd origin on the shared 2-core machine), the post hoc procedure on the
+pre-registered split (posthoc_split.json, never into preregistered.json), and README.md
+rebuilt from the stored results.
 """
 from __future__ import annotations
 
