@@ -587,7 +587,10 @@ def _part1_text() -> str:
                                                         for o in first)
           + " h), the last step (46.13 h, 11 min before the end) dropped — on everything "
           "before it (its growth only; `models/diagnosis/rolling.py`), and scored on the "
-          "block up to the next origin (the last to the end of the record). Cells: median "
+          "block up to the next origin (the last to the end of the record). The growth "
+          "outlier flags are recomputed from the growth before each origin, so at the same "
+          "origin a number can differ slightly from a plain `arfem diagnose` (ch4 fitted on "
+          "t < 28 h: paper AR(1) 17.92 µm here, 17.93 µm in 1.1). Cells: median "
           "[interquartile range] of the hold-out RMSE [µm] over the origins. Per origin: "
           "[rolling.md](rolling.md).", ""] + hdr
     r, tot = rows(labs[0])
