@@ -27,10 +27,11 @@ def add_parser(subparsers):
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--holdout-start", type=float, default=None, metavar="SECONDS",
                    help="start of the hold-out [s]; default: the last third of the record")
-    p.add_argument("--frame-search", choices=("narrow", "wide"), default="narrow",
+    p.add_argument("--frame-search", choices=("narrow", "wide", "average"), default="narrow",
                    help="speed-only records: frame structures compared by validation -- "
                         "thermometer components only (narrow, default) or also speed-to-heat "
-                        "laws n^p and a slow frame response (wide, ~5x slower)")
+                        "laws n^p and a slow frame response (wide, ~5x slower), or no choice: "
+                        "the average of every narrow structure (average)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
     return p

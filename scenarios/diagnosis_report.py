@@ -128,10 +128,12 @@ def _markdown(diag) -> str:
               + ", ".join(_fmt(v) for v in sel["baseline_cv_per_block_um"]) + " µm.", ""]
         if "frame_structure" in sel:
             fs = sel["frame_structure"]
-            L += [f"Thermometer frame structure chosen by the same validation: "
-                  f"{fs['components']} principal components, sensor lag {fs['sensor_lag_h']:g} h "
-                  "(validation RMSE of every structure tried, µm: " + ", ".join(
-                      f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").", ""]
+            L += [(f"Thermometer frame structure chosen by the same validation: "
+                   f"{fs['components']} principal components, sensor lag {fs['sensor_lag_h']:g} h "
+                   "(validation RMSE of every structure tried, µm: " + ", ".join(
+                       f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").")
+                  if isinstance(fs["components"], int) else       # FrameEnsemble: no choice
+                  f"Thermometer frame: no structure chosen, the {fs['label']} structures.", ""]
         L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
               "|---|---|---|---|---|---|"]
         for c in j["candidates"]:

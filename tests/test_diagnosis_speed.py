@@ -112,3 +112,53 @@ def test_diagnose_names_frame_and_gains_on_unseen_speed(tmp_path):
     assert s["cause"] == "frame_expansion"
     assert s["parameters"]["frame_time_constant_h"] >= 2.0
     assert s["holdout"]["gain_pct"] > 50
+
+
+def test_frame_ensemble_is_the_equal_weight_mean_of_its_members():
+    """--frame-search average (post hoc): no structure is chosen; the candidate's
+    prediction is exactly the mean of the "narrow" structures' predictions (1e-9 of the
+    growth range: the members are the same deterministic fits), its contract parameters
+    the members' medians, and select_frame_structure returns it with no table."""
+    from arfem.models.diagnosis.speed import FrameEnsemble
+    t, speed, y, temps = _record()
+    rows = t < HOLDOUT_S
+    folds = forward_folds(t, speed, rows)
+    maps = [(np.unique(speed[tr]), {}) for tr, _ in folds]
+    ens, table = select_frame_structure(t, y, speed, temps, rows, folds, maps, "average")
+    assert isinstance(ens, FrameEnsemble) and table == {}
+    assert list(ens.members) == frame_structures(2, "narrow")
+    seen = np.unique(speed[rows])
+    W = {4000.0: {3000.0: 4 / 3, 0.0: -1 / 3}}
+    f = fit_frame_thermometers(t, y, speed, rows, seen, W, temps, ens)
+    fits = [fit_frame_thermometers(t, y, speed, rows, seen, W, temps, m) for m in ens.members]
+    mean = np.mean([g.prediction for g in fits], axis=0)
+    assert np.max(np.abs(f.prediction - mean)) <= 1e-9 * np.ptp(y)
+    assert f.parameters["frame_gain"] == pytest.approx(
+        np.median([g.parameters["frame_gain"] for g in fits]), rel=1e-12)
+    assert f.parameters["frame_members"] == len(ens.members)
+
+
+def test_average_search_end_to_end_uses_the_median_block_ratio_rule(tmp_path):
+    """From the files with --frame-search average: the run completes (report included),
+    the frame structure is reported as the average, and every candidate is named
+    'significant' exactly when its median per-block validation RMSE ratio to the
+    baseline is <= 1 - MIN_GAIN -- the post hoc naming rule of that search; the named
+    cause has the least ratio among the significant ones."""
+    from arfem.models.diagnosis.engine import MIN_GAIN
+    t, speed, y, temps = _record()
+    toml = _write(tmp_path, t, speed, y, temps)
+    rc = cli(["diagnose", str(toml), "--out", str(tmp_path / "out"),
+              "--holdout-start", str(HOLDOUT_S), "--frame-search", "average"])
+    assert rc == 0
+    s = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert s["selection"]["frame_structure"]["label"].startswith("average of 6")
+    assert "no structure chosen" in (tmp_path / "out" / "report.md").read_text()
+    tests = [c for c in s["candidates"] if "median_block_ratio" in c]
+    assert tests
+    for c in tests:
+        assert c["significant"] == (c["median_block_ratio"] <= 1 - MIN_GAIN)
+    sig = [c for c in tests if c["significant"]]
+    if sig:
+        assert s["cause"] == min(sig, key=lambda c: c["median_block_ratio"])["cause"]
+    else:
+        assert s["cause"] == "none"

@@ -34,7 +34,7 @@ from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
                                          fit_candidate)
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
-                                    fit_speed_candidate,
+                                    fit_speed_candidate, median_block_ratio,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
 from arfem.params import InputError
@@ -156,7 +156,7 @@ def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
                                               base_rmse / noise_um if noise_um > 0 else None)}
 
 
-def _select_cv(fits: dict, cvs: dict, folds, t):
+def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False):
     """Speed-only records: the cause with the least forward-chaining validation RMSE on
     the fit window is named only if it cuts the baseline's by >= ``MIN_GAIN`` *and* wins
     on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed.forward_folds`);
@@ -178,6 +178,11 @@ def _select_cv(fits: dict, cvs: dict, folds, t):
                     "rmse_cut_pct": 100 * cut,
                     "significant": bool(cut >= MIN_GAIN and won > len(per) / 2)}
     named = [c for c in order if c != "none"]
+    if robust:    # frame_search "average" (post hoc): speed.median_block_ratio decides
+        for c in named:
+            r = median_block_ratio(tests[c]["cv_per_block_um"], base_per)
+            tests[c].update(median_block_ratio=r, significant=bool(r <= 1.0 - MIN_GAIN))
+        named.sort(key=lambda c: tests[c]["median_block_ratio"])
     top = named[0] if named else "none"
     cause = top if top != "none" and tests[top]["significant"] else "none"
     runner = next((c for c in order if c != cause), None)
@@ -187,7 +192,10 @@ def _select_cv(fits: dict, cvs: dict, folds, t):
     return cause, runner, scores, tests, {
         "n": n, "rho1": rho, "n_eff": st.effective_n(n, rho),
         "validation_blocks_s": blocks, "baseline_cv_rmse_um": base_cv,
-        "baseline_cv_per_block_um": base_per}
+        "baseline_cv_per_block_um": base_per,
+        **({"naming": f"post hoc rule of --frame-search average: the cause with the least "
+                      f"median per-block RMSE ratio to the baseline, named if that is <= "
+                      f"{1 - MIN_GAIN:g}"} if robust else {})}
 
 
 def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
@@ -308,7 +316,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         for c in CAUSES:
             fits.setdefault(c, None)
         base = fits["none"]   # output-error AR: the reference the candidates are tested against
-        cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t)
+        cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
+                                                        robust=frame_search == "average")
         if frame_struct is not None:
             neff["frame_structure"] = {"components": frame_struct.components,
                                        "sensor_lag_h": frame_struct.sensor_lag_h,
