@@ -32,16 +32,18 @@ import numpy as np
 
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
-                                         fit_candidate)
+                                         compatible, fit_candidate, fit_causes,
+                                         parameter_ci95)
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
                                     fit_speed_candidate,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
-from arfem.params import InputError
+from arfem.params import PLAUSIBLE_RANGES, InputError
 from arfem.io import json_text
 
 __all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR",
-           "MISFIT_CUT", "CONTRACT_PARAMETERS"]
+           "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN",
+           "INFORMATIVE_NOISE_LEVELS"]
 
 #: family-wise significance level of the test against the baseline
 ALPHA = 1e-3
@@ -51,6 +53,14 @@ MIN_GAIN = 0.05
 MISFIT_FACTOR = 10.0
 #: ... whose best cause removes at least this fraction of its fit-window RMSE
 MISFIT_CUT = 0.5
+#: parsimony: a cause with more parameters is named over one with fewer only if the
+#: nested F test of the extra parameters (on N_eff) has p below this
+PARSIMONY_P = 0.01
+#: a second cause is listed only if the pair cuts the single cause's fit-window RMSE by
+#: at least this fraction (and its F test is significant at ALPHA)
+PAIR_MIN_GAIN = 0.15
+#: a hold-out whose growth varies (std) by less than this many noise σ is not informative
+INFORMATIVE_NOISE_LEVELS = 3.0
 #: the ``parameters`` of diagnosis.json, by cause, exactly as the measured-data contract
 #: names them; anything else a fit reports goes under ``parameters_detail``
 CONTRACT_PARAMETERS = {
@@ -92,14 +102,45 @@ def _metrics(y, pred, mask):
             "fit_pct": st.fit_percent(y[mask], pred[mask])}
 
 
-def _holdout_start(t, holdout_start_s, where):
-    """The hold-out start [s] -- as given, or 2/3 of the record -- and how it was chosen.
+def _default_holdout(t, u):
+    """The default hold-out start [s] and how it was chosen: the last third of the record
+    if it contains a change of the input ``u`` (heating or cooling) whose response it
+    sees for at least an hour; else the last such change that still leaves 40 % of the
+    record to fit (the hold-out starts at the sample before it); else the last third."""
+    t0, t1 = float(t[0]), float(t[-1])
+    span = t1 - t0
+    hs = t0 + span * 2.0 / 3.0
+    u = np.asarray(u, float)
+    idx = np.flatnonzero(u[1:] != u[:-1]) + 1          # first sample with the new input
+    seen = idx[t[idx] <= t1 - max(3600.0, 0.05 * span)]
+    late = seen[t[seen] >= hs]
+    if late.size:
+        return hs, (f"not given: the last third of the record (from 2/3 of its duration), "
+                    f"which contains {late.size} change(s) of the input")
+    early = seen[t[seen] >= t0 + 0.4 * span]
+    if early.size:
+        i = int(early[-1])
+        kind = "heating" if u[i] > u[i - 1] else "cooling"
+        start = float(t[i - 1])
+        return start, (f"not given: the last third of the record (from {hs:g} s) holds no "
+                       f"change of the input, so the hold-out starts at the last change that "
+                       f"leaves >= 40 % of the record to fit ({kind} at {t[i - 1]:g} s)")
+    return hs, ("not given: the last third of the record (from 2/3 of its duration); the "
+                "record has no change of the input it could start at instead")
+
+
+def _holdout_start(t, holdout_start_s, where, u=None):
+    """The hold-out start [s] -- as given, or chosen by :func:`_default_holdout` -- and
+    how it was chosen.
 
     Fitting uses the samples with t < start and scoring those with t >= start, so the
     given value is kept as it is (not moved to the next sample time)."""
     if holdout_start_s is None:
-        hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
-        how = "not given: the last third of the record (from 2/3 of its duration)"
+        if u is None:
+            hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
+            how = "not given: the last third of the record (from 2/3 of its duration)"
+        else:
+            hs, how = _default_holdout(t, u)
     else:
         hs = float(holdout_start_s)
         how = "given by --holdout-start"
@@ -111,10 +152,71 @@ def _holdout_start(t, holdout_start_s, where):
         span = (f"{n_before} samples to fit and {n_after} to score (record {t[0]:g}..{t[-1]:g} s); "
                 "need >= 20 and >= 5")
         if holdout_start_s is None:
-            raise InputError(f"record too short: its last third from {hs:g} s leaves {span}",
+            raise InputError(f"record too short: its hold-out from {hs:g} s leaves {span}",
                              where)
         raise InputError(f"{hs:g} s leaves {span}", f"--holdout-start (for {where})")
     return hs, how
+
+
+def _holdout_warning(y, hold, noise_um):
+    """A warning if the hold-out's growth varies by less than a few noise levels."""
+    yh = np.asarray(y, float)[hold]
+    yh = yh[np.isfinite(yh)]
+    if yh.size < 2 or not np.isfinite(noise_um) or noise_um <= 0:
+        return None
+    sd = float(np.std(yh))
+    if sd < INFORMATIVE_NOISE_LEVELS * noise_um:
+        return (f"hold-out not informative: its growth varies by {sd:.3g} µm (std), less "
+                f"than {INFORMATIVE_NOISE_LEVELS:g} noise levels (σ ≈ {noise_um:.3g} µm); "
+                "the gain there says little -- choose a --holdout-start before a change of "
+                "the input")
+    return None
+
+
+def _refuse_dead_sensor(ds):
+    """One clear error for a growth column that never changes (a dead sensor)."""
+    y = np.asarray(ds.growth_um, float)
+    if y.size and float(np.ptp(y)) == 0.0:
+        raise InputError(f"is {y[0]:g} µm on every row: a dead or disconnected sensor? "
+                         "There is nothing to diagnose",
+                         f"{ds.csv_path or ds.source}: column growth_um")
+
+
+def _observations(ds):
+    """Time, growth (NaN where not observed), observed mask and the inputs over every row
+    the record has an input for: rows with an empty ``growth_um`` keep their input
+    (dropping it would merge its interval into the next one's) -- see
+    ``Dataset.unobserved``. Speed-only records use the observed rows only."""
+    t = np.asarray(ds.time_s, float)
+    y = np.asarray(ds.growth_um, float)
+    un = getattr(ds, "unobserved", None)
+    cols = {"q_W_m2": ds.q_W_m2, "speed_rpm": ds.speed_rpm, "ambient_C": ds.ambient_C,
+            **ds.temperatures}
+    cols = {k: None if v is None else np.asarray(v, float) for k, v in cols.items()}
+    outl = np.asarray(ds.outliers, bool)
+    if ds.input_kind != "q_W_m2" or not un or not np.size(un.get("time_s", [])):
+        return t, y, np.ones(t.size, bool), outl, cols
+    tu = np.asarray(un["time_s"], float)
+    order = np.argsort(np.concatenate([t, tu]), kind="stable")
+    t2 = np.concatenate([t, tu])[order]
+    obs = np.concatenate([np.ones(t.size, bool), np.zeros(tu.size, bool)])[order]
+    y2 = np.concatenate([y, np.full(tu.size, np.nan)])[order]
+    out2 = np.concatenate([outl, np.zeros(tu.size, bool)])[order]
+    if np.any(np.diff(t2) <= 0):         # an unobserved row repeats a time: leave them out
+        return t, y, np.ones(t.size, bool), outl, cols
+    cols2 = {}
+    for k, v in cols.items():
+        if v is None:
+            cols2[k] = None
+            continue
+        w = un.get(k)
+        w = np.full(tu.size, np.nan) if w is None else np.asarray(w, float)
+        v2 = np.concatenate([v, w])[order]
+        if k == "ambient_C" and np.isnan(v2).any():      # an ambient is needed on every interval
+            ok = np.isfinite(v2)
+            v2 = np.interp(t2, t2[ok], v2[ok])
+        cols2[k] = v2
+    return t2, y2, obs, out2, cols2
 
 
 def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
@@ -190,6 +292,196 @@ def _select_cv(fits: dict, cvs: dict, folds, t):
         "baseline_cv_per_block_um": base_per}
 
 
+#: the plausible range (arfem.params.PLAUSIBLE_RANGES key) of each fitted magnitude
+_PLAUSIBLE_KEY = {"scale": "heat_input_scale", "h_W_m2K": "fitted_h_W_m2K",
+                  "h_running_W_m2K": "fitted_h_W_m2K", "h_stopped_W_m2K": "fitted_h_W_m2K",
+                  "h_at_10K_W_m2K": "fitted_h_W_m2K",
+                  "ambient_gain_um_per_K": "ambient_gain_um_per_K",
+                  "drift_um_per_h": "drift_um_per_h"}
+
+
+def _implausible(fit: CandidateFit):
+    """Why a fit is not a physical cause (a magnitude outside the project's plausible
+    ranges, or a search parameter stuck at its bound), or None."""
+    for k, v in fit.parameters.items():
+        key = _PLAUSIBLE_KEY.get(k)
+        if key is None:
+            continue
+        lo, hi, unit = PLAUSIBLE_RANGES[key]
+        if k == "ambient_gain_um_per_K" or k == "drift_um_per_h":
+            ok = abs(v) <= hi
+        else:
+            ok = lo <= v <= hi
+        if not ok:
+            return f"{k} = {v:.3g} is outside the plausible range [{lo:g}, {hi:g}] {unit}"
+    if fit.extra.get("at_bound"):
+        names = ", ".join(fit.extra["at_bound"])
+        return f"the fit ran to the edge of its search range ({names}): no physical optimum"
+    return None
+
+
+def _units_warning(fits, rod):
+    """A warning if the data's overall magnitude is implausible against the nominal
+    simulation: the heat-input scale that best maps the nominal growth onto the record
+    lies outside the plausible range -- wrong units, not a cause."""
+    f = fits.get("heat_input_scale")
+    if f is None:
+        return None
+    sc = f.parameters["scale"]
+    lo, hi, _ = PLAUSIBLE_RANGES["heat_input_scale"]
+    if lo <= sc <= hi:
+        return None
+    hint = ("growth_um recorded in mm (1000x too small)?" if 0 < sc < 0.01 else
+            "growth_um in nm or a [rod] value in the wrong unit?" if sc > hi else
+            f"a [rod] value in the wrong unit (convection_W_m2K = {rod.convection_W_m2K:g} "
+            "given in kW/(m²K)?) or growth_um in mm?")
+    return (f"the measured growth is {sc:.3g} x what the nominal simulation predicts "
+            f"(plausible {lo:g}-{hi:g}): check the units -- {hint} No cause is named")
+
+
+def _parsimony(cause, fits, tests, neff):
+    """Where a cause with fewer parameters fits as well (the extra parameters are not
+    significant at PARSIMONY_P in a nested F test on N_eff), name that one. Returns
+    (cause, the equivalent alternative or None)."""
+    if cause == "none" or cause not in fits:
+        return cause, None
+    top = fits[cause]
+    r = top.extra.get("_res")
+    n_eff = st.effective_n(top.n, st.lag1(r)) if r is not None else neff["n_eff"]
+    best = None
+    for c, t in tests.items():
+        f = fits.get(c)
+        if c == cause or f is None or f.k >= top.k:
+            continue
+        if not (t.get("significant") or t.get("rmse_cut_pct", 0) >= 100 * MISFIT_CUT):
+            continue
+        p = st.f_test_p(f.rss, top.rss, top.k - f.k, n_eff)
+        if p >= PARSIMONY_P and (best is None or f.rss < fits[best[0]].rss):
+            best = (c, p)
+    if best is None:
+        return cause, None
+    c, p = best
+    tests[c]["named_by"] = "parsimony"
+    return c, {"cause": cause, "parameters": top.parameters, "p_value": p,
+               "why": (f"{cause} ({top.k} parameters) fits no better than {c} ({fits[c].k}): "
+                       f"nested F test of the extra parameters p = {p:.3g} >= {PARSIMONY_P:g} "
+                       f"on N_eff = {n_eff:.1f}; the one with fewer parameters is named")}
+
+
+def _second_cause(cause, fits, phys, args, refused):
+    """The best pair of causes, if it is significant against the named single cause on
+    the fit window (nested F test on the pair's N_eff at ALPHA / pairs, and a cut of the
+    fit-window RMSE of at least PAIR_MIN_GAIN). Pairs are formed within the named cause
+    and the two other best-fitting single causes (a single cause that ran to the edge of
+    its search range may be half of a pair). Returns (pair fit or None, the pairs tried),
+    the pair's causes ordered by how much each explains alone."""
+    t, q, y, rows, initial_known, amb_K, frame = args
+    others = sorted((c for c, f in fits.items()
+                     if c not in ("none", cause) and f is not None
+                     and (c not in refused or f.extra.get("at_bound"))),
+                    key=lambda c: fits[c].rss)[:2]
+    pool = [cause] + others
+    pairs = [(a, b) for i, a in enumerate(pool) for b in pool[i + 1:] if compatible((a, b))]
+    tried = []
+    best = None
+    for pair in pairs:
+        start = {}
+        for c in pair[::-1]:
+            if not fits[c].extra.get("at_bound"):
+                start.update(fits[c].extra.get("theta", {}))
+        f = fit_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
+        if f is None:
+            continue
+        res = (y - f.prediction)[rows]
+        n_eff = st.effective_n(f.n, st.lag1(res))
+        k_extra = max(f.k - fits[cause].k, 1)
+        p = st.f_test_p(fits[cause].rss, f.rss, k_extra, n_eff)
+        cut = 1.0 - np.sqrt(f.rss / fits[cause].rss) if fits[cause].rss > 0 else 0.0
+        why_not = _implausible(f)
+        sig = bool(p < ALPHA / max(len(pairs), 1) and cut >= PAIR_MIN_GAIN and why_not is None)
+        tried.append({"causes": list(pair), "p_value": p, "rmse_cut_pct": 100 * cut,
+                      "n_eff": n_eff, "significant": sig, "parameters": f.parameters,
+                      **({"refused": why_not} if why_not else {})})
+        if sig and (best is None or f.rss < best.rss):
+            best = f
+    if best is not None:
+        best.extra["causes"] = tuple(sorted(best.extra["causes"], key=lambda c: fits[c].rss))
+    return best, tried
+
+
+def _cause_entries(fit, causes, y, rows):
+    """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
+    intervals from the (joint) fit."""
+    ci = parameter_ci95(fit, y, rows) if fit is not None else {}
+    out = []
+    for c in causes:
+        names = CONTRACT_PARAMETERS[c]
+        out.append({"cause": c,
+                    "parameters": {k: fit.parameters[k] for k in names if k in fit.parameters},
+                    "ci95": {k: ci[k] for k in names if k in ci}})
+    return out, ci
+
+
+def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings):
+    """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
+    (selection rules, parsimony, a second cause) and the AR(1) realisation."""
+    rod = ds.rod
+    fem = FemPhysics(rod)
+    frame = temps.get("T_frame_C")
+    args = (t, q, y, rows, ds.initial_known, amb_K, frame)
+    fits = {}
+    for c in CAUSES:
+        # the h models nest convection_mismatch: they start from its optimum
+        h = fits.get("convection_mismatch")
+        start = None if h is None or c not in ("speed_dependent_convection",
+                                                "nonlinear_convection") else {
+            "log_h_running": h.extra["theta"]["log_h"], "log_h_stopped": h.extra["theta"]["log_h"],
+            "log_h_ref": h.extra["theta"]["log_h"], "exponent": 0.0}
+        f = fit_causes(() if c == "none" else (c,), fem, *args, start=start)
+        if f is not None:
+            f.cause = c
+            f.extra["_res"] = (y - f.prediction)[rows]
+        fits[c] = f
+    refused = {c: why for c, f in fits.items()
+               if c != "none" and f is not None and (why := _implausible(f))}
+    unit_warning = _units_warning(fits, rod)
+    if unit_warning:
+        warnings.append(unit_warning)
+        refused.update({c: "the record's magnitude is implausible (see warnings)"
+                        for c, f in fits.items() if c != "none" and f is not None})
+    noise = st.noise_sigma(y[rows])
+    n_tests = sum(f is not None for f in fits.values()) - 1
+    if refused and not unit_warning:
+        # a refusal is worth a warning where the refused fit would have been named
+        would = _select(fits, fits["none"], n_tests, noise)[0]
+        if would in refused:
+            bound = fits[would].extra.get("at_bound")
+            warnings.append(f"{would} fits best but is refused as a cause: {refused[would]}; "
+                            + ("two causes at once, or one outside the vocabulary?" if bound
+                               else "check the units of growth_um and the [rod] values"))
+    valid = {c: (None if c in refused else f) for c, f in fits.items()}
+    cause, runner, scores, tests, neff = _select(
+        valid, fits["none"], sum(f is not None for f in valid.values()) - 1, noise)
+    cause, equivalent = _parsimony(cause, valid, tests, neff)
+    if equivalent is not None:
+        runner = equivalent["cause"]
+    pair, pairs_tried = (None, [])
+    if cause != "none":
+        pair, pairs_tried = _second_cause(cause, fits, fem, args, refused)
+    causes = [] if cause == "none" else ([cause] if pair is None else list(pair.extra["causes"]))
+    if pair is not None and causes[0] != cause:
+        cause = causes[0]
+    ext = fits[cause] if pair is None else pair
+    ar = ArPhysics(rod)
+    ar_base = fit_candidate("none", ar, *args)
+    ar_ext = ar_base if cause == "none" else fit_causes(tuple(causes), ar, *args)
+    return {"fits": fits, "cause": cause, "causes": causes, "runner": runner,
+            "scores": scores, "tests": tests, "neff": neff, "ext": ext, "base": fits["none"],
+            "refused": refused, "equivalent": equivalent, "pairs_tried": pairs_tried,
+            "tau_s": 1.0 / fem.slowest_rate(),
+            "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}}}
+
+
 def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
     r = (y - pred)
     rm = r[mask]
@@ -212,9 +504,36 @@ def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
             continue
         xc[name] = st.xcorr(r[ok], x[ok])
     out["cross_correlation"] = xc
-    out["cross_correlation_bound_white"] = 1.96 / np.sqrt(n)
-    out["cross_correlation_bound_neff"] = 1.96 / np.sqrt(n_eff)
+    out["cross_correlation_bound_white"] = st.corr_bound(n)
+    out["cross_correlation_bound_neff"] = st.corr_bound(n_eff)
+    out["n_eff"] = n_eff
     return out
+
+
+def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
+    """The contract's version-2 fields: ``causes`` (with 95 % intervals),
+    ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
+    if v2:
+        entries, _ = _cause_entries(ext, v2["causes"], y, rows)
+        if v2["equivalent"] is not None:
+            summary["equivalent_alternative"] = v2["equivalent"]
+        summary["second_cause_tests"] = v2["pairs_tried"]
+        for c, why in v2["refused"].items():
+            summary["candidates"].append({"cause": c, "refused": why,
+                                          "parameters": v2["fits"][c].parameters})
+    else:       # speed-only records: one cause, intervals not computed for this branch
+        entries = [] if cause == "none" else [{"cause": cause,
+                                               "parameters": dict(summary["parameters"]),
+                                               "ci95": {}}]
+    summary["contract_version"] = 2
+    summary["causes"] = entries
+    summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
+    if len(entries) > 1:
+        summary["extended"]["model"] = ext.model
+    w = _holdout_warning(y, hold, st.noise_sigma(np.asarray(y, float)[good]))
+    if w:
+        warnings.append(w)
+    summary["warnings"] = list(warnings)
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
@@ -230,49 +549,38 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         Speed-only records: the frame structures compared by forward-chaining
         validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
     """
-    t = np.asarray(ds.time_s, float)
-    y = np.asarray(ds.growth_um, float)
-    good = ~np.asarray(ds.outliers, bool)
-    hs, how = _holdout_start(t, holdout_start_s, str(ds.source))
+    _refuse_dead_sensor(ds)
+    t, y, observed, outl, cols = _observations(ds)
+    good = observed & ~outl
+    u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
+    hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)
     rows = good & (t < hs)
     hold = good & (t >= hs)
     rod = ds.rod
-    amb_K = None if ds.ambient_C is None else np.asarray(ds.ambient_C, float) - rod.ambient_C
-    temps = {k: np.asarray(v, float) for k, v in ds.temperatures.items()}
+    amb_K = None if cols["ambient_C"] is None else cols["ambient_C"] - rod.ambient_C
+    temps = {k: cols[k] for k in ds.temperatures}
     signals = {}
     if ds.input_kind == "q_W_m2":
-        signals["q_W_m2"] = np.asarray(ds.q_W_m2, float)
+        signals["q_W_m2"] = cols["q_W_m2"]
     else:
-        signals["speed_rpm"] = np.asarray(ds.speed_rpm, float)
-    if ds.ambient_C is not None:
-        signals["ambient_C"] = np.asarray(ds.ambient_C, float)
+        signals["speed_rpm"] = cols["speed_rpm"]
+    if cols["ambient_C"] is not None:
+        signals["ambient_C"] = cols["ambient_C"]
     signals.update(temps)
     text = []
+    warnings = []
     extra_models = {}
+    v2 = {}
 
     if ds.input_kind == "q_W_m2":
-        q = np.asarray(ds.q_W_m2, float)
+        q = cols["q_W_m2"]
         running = q > 0
-        fem = FemPhysics(rod)
-        tau_s = 1.0 / fem.slowest_rate()
-        frame = temps.get("T_frame_C")
-        fits = {}
-        for c in CAUSES:
-            f = fit_candidate(c, fem, t, q, y, rows, ds.initial_known, amb_K, frame)
-            if f is not None:
-                f.extra["_res"] = (y - f.prediction)[rows]
-            fits[c] = f
-        base = fits["none"]
-        cause, runner, scores, tests, neff = _select(
-            fits, base, sum(f is not None for f in fits.values()) - 1, st.noise_sigma(y[rows]))
-        ext = fits[cause]
-        ar = ArPhysics(rod)
-        ar_base = fit_candidate("none", ar, t, q, y, rows, ds.initial_known, amb_K, frame)
-        ar_ext = ar_base if cause == "none" else fit_candidate(cause, ar, t, q, y, rows,
-                                                               ds.initial_known, amb_K, frame)
+        v2 = _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings)
+        fits, cause, runner = v2["fits"], v2["cause"], v2["runner"]
+        scores, tests, neff, ext = v2["scores"], v2["tests"], v2["neff"], v2["ext"]
+        base, tau_s, extra_models = v2["base"], v2["tau_s"], v2["extra_models"]
         base_model = "fem"
         ar_label = "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"
-        extra_models["ar"] = {"baseline": ar_base, "extended": ar_ext}
     else:
         sp = np.asarray(ds.speed_rpm, float)
         running = sp > 0
@@ -374,6 +682,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                                f"of the validation blocks"),
                       **neff},
         "not_applicable": [c for c in CAUSES if fits.get(c) is None],
+        "refused": dict(v2.get("refused", {})),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
@@ -403,8 +712,10 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                        "parameters": ee.parameters}
     summary["ar_form"] = ar_out
     summary["ar_form_description"] = ar_label
+    _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
+    series.update({k: v for k, v in signals.items() if k not in series})
     if temps:
         pm, names = mlr(y, temps, rows)
         if pm is not None:
