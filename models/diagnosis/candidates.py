@@ -569,15 +569,27 @@ _COORD = {"h_W_m2K": ("log_h", True), "h_running_W_m2K": ("log_h_running", True)
           "drift_um_per_h": ("drift_um_per_h", False)}
 
 
+#: contiguous blocks of the fit window for the block-sandwich covariance
+CI_BLOCKS = 10
+
+
 def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     """95 % intervals of a fit's physical parameters [their units].
 
-    Nonlinear least squares: cov = s² (JᵀJ)⁻¹ with s² = RSS/(N − p), J the Jacobian of
-    the prediction in all p parameters on the N fit rows. The residual of a thermal
-    model is autocorrelated, so the covariance is inflated by N/N_eff, N_eff =
-    N(1 − ρ1)/(1 + ρ1) from its lag-1 autocorrelation, and the quantile is Student's t
-    on N_eff − p degrees of freedom. Parameters searched as ln(value) (h, τ) get the
-    interval of the logarithm, exponentiated (positive, asymmetric).
+    Two covariances of the nonlinear least-squares estimate, each respecting the
+    residual's autocorrelation, and the wider interval of the two is reported:
+
+    * effective sample size: s² (JᵀJ)⁻¹ · N/N_eff with s² = RSS/(N − p), J the Jacobian of
+      the prediction in all p parameters on the N fit rows and N_eff = N(1 − ρ1)/(1 + ρ1)
+      from the residual's lag-1 autocorrelation; Student's t on N_eff − p degrees of freedom;
+    * block sandwich (the linearised delete-a-block jackknife): (JᵀJ)⁻¹ [Σ_b g_b g_bᵀ]
+      (JᵀJ)⁻¹ · B/(B − 1) with g_b = J_bᵀ r_b summed over B = ``CI_BLOCKS`` contiguous
+      blocks of the fit window; Student's t on B − 1 degrees of freedom. Where the model
+      fits some stretches of the record differently from others (model error, not
+      noise) the block scores disagree and the interval widens accordingly.
+
+    Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
+    exponentiated (positive, asymmetric).
     """
     from arfem.models.diagnosis import stats as st
     from scipy import stats as _sst
@@ -592,17 +604,23 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0
     Js = J / scale
-    cov = np.linalg.pinv(Js.T @ Js) / np.outer(scale, scale) * s2 * (n / n_eff)
-    tq = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
+    A = np.linalg.pinv(Js.T @ Js)
+    cov_ess = A / np.outer(scale, scale) * s2 * (n / n_eff)
+    B = int(min(CI_BLOCKS, max(n // 20, 2)))
+    G = np.array([Js[ix].T @ r[ix] for ix in np.array_split(np.arange(n), B)])
+    cov_blk = (A @ (G.T @ G) @ A) / np.outer(scale, scale) * B / (B - 1.0)
+    t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
+    t_blk = float(_sst.t.ppf(0.975, B - 1))
     idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
     vals = {**fit.extra["theta"], **fit.extra["linear"]}
     out = {}
     for k in fit.parameters:
         coord, log = _COORD[k]
         i = idx[coord]
-        se = float(np.sqrt(max(cov[i, i], 0.0)))
+        half = max(t_ess * np.sqrt(max(cov_ess[i, i], 0.0)),
+                   t_blk * np.sqrt(max(cov_blk[i, i], 0.0)))
         v = vals[coord]
-        lo, hi = v - tq * se, v + tq * se
+        lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
     fit.extra["n_eff_ci"] = n_eff
     return out
