@@ -49,7 +49,8 @@ def _figures(diag, out: Path):
     ax[0].axvline(hs, color="k", ls="--", lw=0.8, label="hold-out start")
     ax[0].set_ylabel("growth [µm]")
     ax[0].legend(fontsize=8)
-    ax[0].set_title(_plain(f"{j['dataset']}: cause = {j['cause']}"))
+    named = " + ".join(c["cause"] for c in j.get("causes", [])) or j["cause"]
+    ax[0].set_title(_plain(f"{j['dataset']}: cause = {named}"))
     ax[1].plot(th[good], (s["growth_um"] - s["baseline_um"])[good], lw=0.7, label="residual, baseline")
     ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7, label="residual, extended")
     ax[1].axvline(hs, color="k", ls="--", lw=0.8)
@@ -223,6 +224,18 @@ def _markdown(diag) -> str:
             L.append(f"| {c['cause']} | {_fmt(c['score'])} | {per} | {_fmt(c.get('rmse_cut_pct'))} | "
                      f"{c.get('blocks_won', '')} | " + ", ".join(
                          f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    pairs = j.get("second_cause_tests") or []
+    if pairs:
+        L += ["", "Second cause: each partner fitted together with the first cause "
+              "(significant = F test against the first alone at the rule's level, RMSE cut "
+              "large enough, and plausible):", "",
+              "| pair | F-test p | fit-RMSE cut [%] | N_eff | significant | parameters |",
+              "|---|---|---|---|---|---|"]
+        for t in pairs:
+            L.append(f"| {' + '.join(t['causes'])} | {_fmt(t['p_value'])} | "
+                     f"{_fmt(t['rmse_cut_pct'])} | {t['n_eff']:.1f} | "
+                     f"{'yes' if t['significant'] else 'no' + (' (refused)' if 'refused' in t else '')} | "
+                     + ", ".join(f"{k}={_fmt(v, 4)}" for k, v in t["parameters"].items()) + " |")
     if j["not_applicable"]:
         L.append("")
         L.append("Not applicable to this record: " + ", ".join(j["not_applicable"]) +
