@@ -569,8 +569,11 @@ _COORD = {"h_W_m2K": ("log_h", True), "h_running_W_m2K": ("log_h_running", True)
           "drift_um_per_h": ("drift_um_per_h", False)}
 
 
-#: contiguous blocks of the fit window for the block-sandwich covariance
+#: contiguous blocks of the fit window for the block-sandwich covariance: at most this
+#: many, at least CI_MIN_BLOCKS, each at least CI_BLOCK_CORR residual correlation times long
 CI_BLOCKS = 10
+CI_MIN_BLOCKS = 4
+CI_BLOCK_CORR = 5
 
 
 def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
@@ -583,8 +586,10 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
       the prediction in all p parameters on the N fit rows and N_eff = N(1 − ρ1)/(1 + ρ1)
       from the residual's lag-1 autocorrelation; Student's t on N_eff − p degrees of freedom;
     * block sandwich (the linearised delete-a-block jackknife): (JᵀJ)⁻¹ [Σ_b g_b g_bᵀ]
-      (JᵀJ)⁻¹ · B/(B − 1) with g_b = J_bᵀ r_b summed over B = ``CI_BLOCKS`` contiguous
-      blocks of the fit window; Student's t on B − 1 degrees of freedom. Where the model
+      (JᵀJ)⁻¹ · B/(B − 1) with g_b = J_bᵀ r_b summed over B contiguous blocks of the fit
+      window, each at least ``CI_BLOCK_CORR`` correlation times of the residual long (the
+      lag where its autocorrelation falls below 1/e), 4 <= B <= 10; Student's t on B − 1
+      degrees of freedom. Where the model
       fits some stretches of the record differently from others (model error, not
       noise) the block scores disagree and the interval widens accordingly.
 
@@ -606,7 +611,10 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     Js = J / scale
     A = np.linalg.pinv(Js.T @ Js)
     cov_ess = A / np.outer(scale, scale) * s2 * (n / n_eff)
-    B = int(min(CI_BLOCKS, max(n // 20, 2)))
+    a = st.acf(r, min(n // 2, 5000))
+    below = np.flatnonzero(a < np.exp(-1.0))
+    corr = int(below[0]) if below.size else n
+    B = int(np.clip(n // max(CI_BLOCK_CORR * corr, 1), CI_MIN_BLOCKS, CI_BLOCKS))
     G = np.array([Js[ix].T @ r[ix] for ix in np.array_split(np.arange(n), B)])
     cov_blk = (A @ (G.T @ G) @ A) / np.outer(scale, scale) * B / (B - 1.0)
     t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
