@@ -94,24 +94,34 @@ def _correlation_figure(plt, diag, out: Path):
     colours = ["#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"]
     shown = 0
     ar = st.acf(r, max_lag)
+    curves = []
     for name in j["baseline"]["cross_correlation"]:
         if name == "time_s" or name not in s:
             continue
         x = np.asarray(s[name], float)[good]
         if not np.all(np.isfinite(x)) or np.std(x) == 0:
             continue
-        col = colours[shown % len(colours)]
         c = st.ccf(r, x, max_lag)
-        ax[1].plot(lags, c, color=col, label=_plain(name))
         # Bartlett: both series autocorrelated -> var(ccf) ≈ (1 + 2 Σ ρ_r(k) ρ_x(k)) / N
         ax_ = st.acf(x, max_lag)
         m = min(ar.size, ax_.size)
         v = (1.0 + 2.0 * float(np.sum(ar[1:m] * ax_[1:m]))) / max(r.size, 1)
         b = min(1.96 * np.sqrt(max(v, 0.0)), 1.0)
+        curves.append((name, c, b))
+    # the input and the ambient always; of the other sensors the two that stand out most
+    first = [cv for cv in curves if not cv[0].startswith("T_")]
+    temps = sorted((cv for cv in curves if cv[0].startswith("T_")),
+                   key=lambda cv: -np.max(np.abs(cv[1])) / max(cv[2], 1e-9))[:2]
+    shown = 0
+    for name, c, b in first + temps:
+        col = colours[shown % len(colours)]
+        ax[1].plot(lags, c, color=col, label=f"{_plain(name)} (95 % bound ±{b:.2f}, dashed)")
         ax[1].axhline(b, color=col, ls="--", lw=0.8)
-        ax[1].axhline(-b, color=col, ls="--", lw=0.8,
-                      label=f"95 % bound for {_plain(name)} (Bartlett, ±{b:.2f})")
+        ax[1].axhline(-b, color=col, ls="--", lw=0.8)
         shown += 1
+    if len(curves) > shown:
+        ax[1].text(0.01, 0.02, f"{len(curves) - shown} more temperature sensors not drawn "
+                   "(values in report.md)", transform=ax[1].transAxes, fontsize=7)
     if not shown:
         ax[1].text(0.5, 0.5, "no recorded input varies", ha="center", transform=ax[1].transAxes)
     ax[1].axvline(0.0, color="k", lw=0.6)
@@ -119,11 +129,31 @@ def _correlation_figure(plt, diag, out: Path):
     ax[1].set_ylabel("cross-correlation with baseline residual [-]")
     ax[1].set_ylim(-1.05, 1.05)
     ax[1].set_title("what the baseline misfit follows", fontsize=9)
-    ax[1].legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2)
+    ax[1].legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=1)
     ax[1].set_xlim(lags[0], lags[-1])
     fig.tight_layout()
     fig.savefig(out / "correlations.png", dpi=110)
     plt.close(fig)
+
+
+def _words(v, depth: int = 0) -> str:
+    """A JSON value as plain words: numbers rounded, lists and tables comma-separated.
+
+    >>> _words({"500.0": {"ref_rpm": 1250.0, "how": "speed ratio"}, "x": []})
+    '500.0 (ref rpm 1250, how speed ratio), x none'
+    """
+    if v is None or v == [] or v == {} or v == "":
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return ", ".join(_words(x, depth + 1) for x in v)
+    if isinstance(v, dict):
+        inner = ", ".join(f"{str(k).replace('_', ' ')} {_words(x, depth + 1)}" for k, x in v.items())
+        return f"({inner})" if depth else inner
+    return str(v)
 
 
 def _sentences(item: str) -> list[str]:
@@ -136,16 +166,7 @@ def _sentences(item: str) -> list[str]:
         except ValueError:
             d = None
         if isinstance(d, dict):
-            parts = []
-            for k, v in d.items():
-                if isinstance(v, dict):
-                    v = ", ".join(f"{kk} {_fmt(vv) if isinstance(vv, float) else vv}"
-                                  for kk, vv in v.items())
-                elif isinstance(v, float):
-                    v = _fmt(v, 4)
-                elif isinstance(v, list):
-                    v = ", ".join(_fmt(x) if isinstance(x, float) else str(x) for x in v)
-                parts.append(f"{str(k).replace('_', ' ')} = {v}")
+            parts = [f"{str(k).replace('_', ' ')} = {_words(v)}" for k, v in d.items()]
             return [f"{head[:1].upper()}{head[1:]}: " + "; ".join(parts) + "."]
     text = str(item).strip()
     return [text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")]
