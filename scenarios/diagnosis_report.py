@@ -220,9 +220,10 @@ def _markdown(diag) -> str:
     if j["input_kind"] == "q_W_m2":
         L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
               "|---|---|---|---|---|"]
-        for c in j["candidates"]:
+        for c in j["candidates"] + j.get("refused_candidates", []):
             if "refused" in c:
-                L.append(f"| {c['cause']} | refused | – | – | {c['refused']} |")
+                L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
+                    f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
                 continue
             L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
                      f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(

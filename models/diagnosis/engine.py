@@ -736,9 +736,9 @@ def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
         if eq is not None:
             summary["equivalent_alternative"] = eq
         summary["second_cause_tests"] = v2["pairs_tried"]
-        for c, why in v2["refused"].items():
-            summary["candidates"].append({"cause": c, "refused": why,
-                                          "parameters": v2["fits"][c].parameters})
+        summary["refused_candidates"] = [{"cause": c, "refused": why,
+                                          "parameters": v2["fits"][c].parameters}
+                                         for c, why in v2["refused"].items()]
     else:       # speed-only records: one cause, intervals not computed for this branch
         entries = [] if cause == "none" else [{"cause": cause,
                                                "parameters": dict(summary["parameters"]),
