@@ -516,6 +516,15 @@ def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_
     if causes:
         fit.extra["jac"] = _jacobian(build, x, names, coef, pred, cols, rows)
         fit.extra["names"] = names + cn
+    if "ambient_drift" in causes:
+        def refit_with_ambient(amb, x=x):
+            """The linear coefficients at the same θ with another recorded ambient."""
+            _, b2 = _design(causes, phys, t, q, initial_known, amb)
+            base, cols2, cn2 = b2(x)
+            c2, _ = project(cols2, yr - base, rows)
+            return dict(zip(cn2, c2.tolist()))
+        fit.extra["_refit_with_ambient"] = refit_with_ambient
+        fit.extra["_ambient_K"] = ambient_K
     return fit
 
 
@@ -576,6 +585,28 @@ CI_MIN_BLOCKS = 4
 CI_BLOCK_CORR = 5
 
 
+#: draws of the recorded ambient's own noise propagated into the intervals
+CI_AMBIENT_DRAWS = 8
+
+
+def _ambient_noise_var(fit) -> dict:
+    """Variance [unit²] of each linear coefficient caused by the noise of the recorded
+    ambient, an input of the model (errors in the regressor): the ambient's noise σ is
+    estimated from its second differences, the ambient is perturbed by that much again
+    ``CI_AMBIENT_DRAWS`` times, and the coefficients refitted at the same θ."""
+    from arfem.models.diagnosis import stats as st
+    refit = fit.extra.get("_refit_with_ambient")
+    amb = fit.extra.get("_ambient_K")
+    if refit is None or amb is None:
+        return {}
+    sig = st.noise_sigma(amb)
+    if not np.isfinite(sig) or sig <= 0:
+        return {}
+    rng = np.random.default_rng(12345)
+    draws = [refit(amb + rng.normal(0.0, sig, amb.size)) for _ in range(CI_AMBIENT_DRAWS)]
+    return {k: float(np.var([d[k] for d in draws], ddof=1)) for k in draws[0]}
+
+
 def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     """95 % intervals of a fit's physical parameters [their units].
 
@@ -593,6 +624,8 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
       fits some stretches of the record differently from others (model error, not
       noise) the block scores disagree and the interval widens accordingly.
 
+    Where the model takes a recorded ambient as input, the variance its sensor noise
+    causes in the linear coefficients (:func:`_ambient_noise_var`) is added to both.
     Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
     exponentiated (positive, asymmetric).
     """
@@ -621,12 +654,14 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     t_blk = float(_sst.t.ppf(0.975, B - 1))
     idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
     vals = {**fit.extra["theta"], **fit.extra["linear"]}
+    eiv = _ambient_noise_var(fit)
     out = {}
     for k in fit.parameters:
         coord, log = _COORD[k]
         i = idx[coord]
-        half = max(t_ess * np.sqrt(max(cov_ess[i, i], 0.0)),
-                   t_blk * np.sqrt(max(cov_blk[i, i], 0.0)))
+        add = eiv.get(coord, 0.0)
+        half = max(t_ess * np.sqrt(max(cov_ess[i, i], 0.0) + add),
+                   t_blk * np.sqrt(max(cov_blk[i, i], 0.0) + add))
         v = vals[coord]
         lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
