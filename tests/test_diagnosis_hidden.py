@@ -79,6 +79,10 @@ def test_two_causes_at_once_are_both_named(tmp_path):
     for k, true in (("scale", case.parameters["scale"]), ("h_W_m2K", 55.0)):
         assert ci[k][0] <= true <= ci[k][1], (k, ci[k], true)
     assert "speed_dependent_convection" in got["equivalent_alternative"]["cause"]
+    # the pair is also realised in the paper's AR(1) (fin physics: h within 5 % of 55)
+    ar = got["ar_form"]["ar"]
+    assert ar["extended_model"] == "ar+heat_input_scale+convection_mismatch"
+    assert abs(ar["parameters"]["h_W_m2K"] - 55.0) < 0.05 * 55.0 and ar["gain_pct"] > 90.0
     assert "Second cause: `convection_mismatch`" in (out / "report.md").read_text()
     assert got["holdout"]["gain_pct"] > 90.0
 
