@@ -67,11 +67,18 @@ PLAUSIBLE_RANGES = {
     "specific_heat_J_kgK": (10.0, 20000.0, "J/(kg·K) (a value in kJ/(kg·K)?)"),
     "expansion_1_K": (1e-8, 1e-3, "1/K (a value in µm/(m·K) or ppm/K?)"),
     "youngs_modulus_Pa": (1e6, 2e12, "Pa (a modulus in GPa?)"),
-    "convection_W_m2K": (0.01, 1e5, "W/(m²·K)"),
+    "convection_W_m2K": (1.0, 2000.0, "W/(m²·K) (a value in kW/(m²·K)?)"),
     "ambient_C": (-60.0, 150.0, "°C (a temperature in K?)"),
     "q_W_m2": (0.0, 1e7, "W/m²"),
     "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
     "speed_rpm": (0.0, 1e6, "1/min (a speed in rad/s or Hz?)"),
+    # fitted magnitudes of the diagnosis (arfem.models.diagnosis): outside these the fit
+    # points at wrong units or a wrong [rod], not at a physical cause
+    "heat_input_scale": (0.2, 5.0, "times the nominal heat input (growth_um in mm, or a "
+                                   "[rod] value in the wrong unit?)"),
+    "fitted_h_W_m2K": (1.0, 2000.0, "W/(m²·K) (a [rod] value in the wrong unit?)"),
+    "ambient_gain_um_per_K": (0.05, 500.0, "µm/K (growth_um in mm?)"),
+    "drift_um_per_h": (-100.0, 100.0, "µm/h (growth_um in nm?)"),
 }
 
 

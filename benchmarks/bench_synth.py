@@ -38,6 +38,17 @@ def main():
             io_s = time.perf_counter() - t0
         warm_all[cause] = float(np.median(warm))
         print(f"{cause:28s} {case.time_s.size:6d} {cold:7.2f} {warm_all[cause]:7.2f} {io_s:12.2f}")
+    # the contract-v2 record kinds (72 h, one seed each, after the caches are warm)
+    from arfem.params import Rod
+    for label, cause, kw in (("two causes", "ambient_drift+sensor_drift", {}),
+                             ("warm start", "convection_mismatch", {"warm_start_h": 3.0}),
+                             ("coloured noise", "none", {"noise_ar1": 0.8}),
+                             ("other rod", "heat_input_scale",
+                              {"rod": Rod(radius_m=0.05, length_m=0.5)}),
+                             ("growth in mm", "sensor_drift", {"growth_unit_factor": 1e-3})):
+        t0 = time.perf_counter()
+        case = generate(cause, 104, duration_h=72, **kw)
+        print(f"{label:28s} {case.time_s.size:6d} {'':>7s} {time.perf_counter() - t0:7.2f}")
     lin = np.median([v for k, v in warm_all.items() if k != "nonlinear_convection"])
     print(f"nonlinear / median linear warm time: {warm_all['nonlinear_convection'] / lin:.1f}x")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

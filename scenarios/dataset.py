@@ -264,7 +264,14 @@ def load_dataset(toml_path) -> Dataset:
         shown = ", ".join(str(x) for x in lines[missing][:10])
         notes.append(f"dropped {n_missing} of {n_all} rows ({100 * n_missing / n_all:.2f} %) "
                      f"with an empty time_s or growth_um: CSV lines {shown}"
-                     + (" ..." if n_missing > 10 else ""))
+                     + (" ..." if n_missing > 10 else "")
+                     + "; where only growth_um is empty the row's input is kept")
+    # rows with a time and an input but no growth: the observation is dropped, the input kept
+    inp = "q_W_m2" if "q_W_m2" in values else "speed_rpm"
+    unobs = (np.isnan(values["growth_um"]) & ~np.isnan(values["time_s"])
+             & np.isfinite(values[inp]) & (values[inp] >= 0))
+    unobserved = {k: v[unobs].copy() for k, v in values.items()
+                  if k in ("time_s", inp, "ambient_C") or _TEMP_RE.match(k)}
     keep = ~missing
     lines = lines[keep]
     values = {k: v[keep] for k, v in values.items()}
@@ -376,4 +383,5 @@ def load_dataset(toml_path) -> Dataset:
         ambient_C=frozen(amb) if amb is not None else None,
         temperatures={k: frozen(v) for k, v in temps.items()}, rod=rod,
         initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
-        sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols)
+        sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols,
+        unobserved=unobserved)

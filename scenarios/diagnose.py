@@ -26,7 +26,8 @@ def add_parser(subparsers):
     p.add_argument("case", help="dataset TOML (measured-data contract)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--holdout-start", type=float, default=None, metavar="SECONDS",
-                   help="start of the hold-out [s]; default: the last third of the record")
+                   help="start of the hold-out [s]; default: the last third of the record "
+                        "if it holds a change of the input, else from the last such change")
     p.add_argument("--frame-search", choices=("narrow", "wide", "average"), default="narrow",
                    help="speed-only records: frame structures compared by validation -- "
                         "thermometer components only (narrow, default) or also speed-to-heat "
@@ -50,6 +51,10 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
 def main(args) -> int:
     s = run_diagnosis(args.case, args.out, args.holdout_start, args.force, args.frame_search)
     h = s["holdout"]
-    print(f"{s['dataset']}: cause = {s['cause']}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
+    named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
+    print(f"{s['dataset']}: cause = {named}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
           f"{h['extended_rmse_um']:.3g} µm (gain {h['gain_pct']:.1f} %); wrote {args.out}")
+    print(f"hold-out: from {h['start_s']:g} s; {h['how_chosen']}")
+    for w in s.get("warnings", []):
+        print(f"warning: {w}")
     return 0

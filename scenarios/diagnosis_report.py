@@ -49,64 +49,167 @@ def _figures(diag, out: Path):
     ax[0].axvline(hs, color="k", ls="--", lw=0.8, label="hold-out start")
     ax[0].set_ylabel("growth [µm]")
     ax[0].legend(fontsize=8)
-    ax[0].set_title(_plain(f"{j['dataset']}: cause = {j['cause']}"))
+    named = " + ".join(c["cause"] for c in j.get("causes", [])) or j["cause"]
+    ax[0].set_title(_plain(f"{j['dataset']}: cause = {named}"))
     ax[1].plot(th[good], (s["growth_um"] - s["baseline_um"])[good], lw=0.7, label="residual, baseline")
     ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7, label="residual, extended")
     ax[1].axvline(hs, color="k", ls="--", lw=0.8)
     ax[1].set_xlabel("time [h]")
-    ax[1].set_ylabel("residual [µm]")
+    ax[1].set_ylabel("residual = measured − model [µm]")
     ax[1].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "growth_residual.png", dpi=110)
     plt.close(fig)
 
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for key, lab in (("baseline_um", "baseline"), ("extended_um", "extended")):
+    _correlation_figure(plt, diag, out)
+
+
+def _correlation_figure(plt, diag, out: Path):
+    """Residual diagnostics an engineer can read: left, the autocorrelation of each
+    residual against lag [h] (how long a misfit persists); right, the cross-correlation
+    of the baseline residual with each recorded input against lag [h] (what the misfit
+    follows, and how late). Bands: the 95 % significance bound of a correlation on the
+    effective number of independent samples (always <= 1)."""
+    s, j = diag.series, diag.summary
+    good = s["outlier"] == 0
+    good = good & np.isfinite(s["growth_um"])
+    t = s["time_s"][good]
+    dt_h = float(np.median(np.diff(t))) / 3600.0 if t.size > 1 else 1.0
+    max_lag = int(min(max(1, round(12.0 / dt_h)), max(t.size // 3, 1)))
+    white = st.corr_bound(int(good.sum()))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 5.2))
+    for key, lab, col in (("baseline_um", "baseline", "#0072B2"),
+                          ("extended_um", "extended", "#D55E00")):
         r = (s["growth_um"] - s[key])[good]
-        a = st.acf(r, min(200, r.size - 1))
-        ax[0].plot(np.arange(a.size), a, label=lab)
-    n = int(good.sum())
-    ax[0].axhline(1.96 / np.sqrt(n), color="k", ls=":", lw=0.8)
-    ax[0].axhline(-1.96 / np.sqrt(n), color="k", ls=":", lw=0.8, label="±1.96/√N")
-    ax[0].set_xlabel("lag [samples]")
-    ax[0].set_ylabel("autocorrelation of residual")
-    ax[0].legend(fontsize=8)
-    xc = j["baseline"]["cross_correlation"]
-    names = list(xc)
-    ax[1].bar(range(len(names)), [xc[k] for k in names])
-    for b, ls in ((j["baseline"]["cross_correlation_bound_white"], ":"),
-                  (j["baseline"]["cross_correlation_bound_neff"], "--")):
-        ax[1].axhline(b, color="k", ls=ls, lw=0.8)
-        ax[1].axhline(-b, color="k", ls=ls, lw=0.8)
-    ax[1].set_xticks(range(len(names)))
-    ax[1].set_xticklabels([_plain(k) for k in names], rotation=70, fontsize=7)
-    ax[1].set_ylabel("xcorr(baseline residual, signal)")
-    ax[1].set_title("bounds: ±1.96/√N (dotted), ±1.96/√N_eff (dashed)", fontsize=8)
+        a = st.acf(r, max_lag)
+        ax[0].plot(np.arange(a.size) * dt_h, a, color=col, label=f"residual, {lab}")
+    ax[0].axhspan(-white, white, color="0.85", label=f"95 % band of a white residual (±{white:.2f})")
+    ax[0].set_xlabel("lag [h]")
+    ax[0].set_ylabel("autocorrelation [-]")
+    ax[0].set_ylim(-1.05, 1.05)
+    ax[0].set_title("residual = measured − model: how long a misfit lasts", fontsize=9)
+    ax[0].legend(fontsize=8, loc="upper right")
+    r = (s["growth_um"] - s["baseline_um"])[good]
+    lags = np.arange(-max_lag, max_lag + 1) * dt_h
+    colours = ["#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#000000"]
+    shown = 0
+    ar = st.acf(r, max_lag)
+    curves = []
+    for name in j["baseline"]["cross_correlation"]:
+        if name == "time_s" or name not in s:
+            continue
+        x = np.asarray(s[name], float)[good]
+        if not np.all(np.isfinite(x)) or np.std(x) == 0:
+            continue
+        c = st.ccf(r, x, max_lag)
+        # Bartlett: both series autocorrelated -> var(ccf) ≈ (1 + 2 Σ ρ_r(k) ρ_x(k)) / N
+        ax_ = st.acf(x, max_lag)
+        m = min(ar.size, ax_.size)
+        v = (1.0 + 2.0 * float(np.sum(ar[1:m] * ax_[1:m]))) / max(r.size, 1)
+        b = min(1.96 * np.sqrt(max(v, 0.0)), 1.0)
+        curves.append((name, c, b))
+    # the input and the ambient always; of the other sensors the two that stand out most
+    first = [cv for cv in curves if not cv[0].startswith("T_")]
+    temps = sorted((cv for cv in curves if cv[0].startswith("T_")),
+                   key=lambda cv: -np.max(np.abs(cv[1])) / max(cv[2], 1e-9))[:2]
+    shown = 0
+    for name, c, b in first + temps:
+        col = colours[shown % len(colours)]
+        ax[1].plot(lags, c, color=col, label=f"{_plain(name)} (95 % bound ±{b:.2f}, dashed)")
+        ax[1].axhline(b, color=col, ls="--", lw=0.8)
+        ax[1].axhline(-b, color=col, ls="--", lw=0.8)
+        shown += 1
+    if len(curves) > shown:
+        ax[1].text(0.01, 0.02, f"{len(curves) - shown} more temperature sensors not drawn "
+                   "(values in report.md)", transform=ax[1].transAxes, fontsize=7)
+    if not shown:
+        ax[1].text(0.5, 0.5, "no recorded input varies", ha="center", transform=ax[1].transAxes)
+    ax[1].axvline(0.0, color="k", lw=0.6)
+    ax[1].set_xlabel("lag [h] (> 0: the residual follows the signal)")
+    ax[1].set_ylabel("cross-correlation with baseline residual [-]")
+    ax[1].set_ylim(-1.05, 1.05)
+    ax[1].set_title("what the baseline misfit follows", fontsize=9)
+    ax[1].legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=1)
+    ax[1].set_xlim(lags[0], lags[-1])
     fig.tight_layout()
     fig.savefig(out / "correlations.png", dpi=110)
     plt.close(fig)
 
 
+def _words(v, depth: int = 0) -> str:
+    """A JSON value as plain words: numbers rounded, lists and tables comma-separated.
+
+    >>> _words({"500.0": {"ref_rpm": 1250.0, "how": "speed ratio"}, "x": []})
+    '500.0 (ref rpm 1250, how speed ratio), x none'
+    """
+    if v is None or v == [] or v == {} or v == "":
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list):
+        return ", ".join(_words(x, depth + 1) for x in v)
+    if isinstance(v, dict):
+        inner = ", ".join(f"{str(k).replace('_', ' ')} {_words(x, depth + 1)}" for k, x in v.items())
+        return f"({inner})" if depth else inner
+    return str(v)
+
+
+def _sentences(item: str) -> list[str]:
+    """A data note as sentences: ``label: {json}`` becomes "label: key = value; ..."."""
+    import json
+    head, sep, rest = str(item).partition(": ")
+    if sep and rest.lstrip().startswith("{"):
+        try:
+            d = json.loads(rest)
+        except ValueError:
+            d = None
+        if isinstance(d, dict):
+            parts = [f"{str(k).replace('_', ' ')} = {_words(v)}" for k, v in d.items()]
+            return [f"{head[:1].upper()}{head[1:]}: " + "; ".join(parts) + "."]
+    text = str(item).strip()
+    return [text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")]
+
+
 def _markdown(diag) -> str:
     j = diag.summary
     b, e, h = j["baseline"], j["extended"], j["holdout"]
-    L = [f"# Diagnosis of `{j['dataset']}`", "",
-         f"**Cause: `{j['cause']}`**" + (f" — parameters: " + ", ".join(
-             f"`{k}` = {_fmt(v, 4)}" for k, v in j["parameters"].items()) if j["parameters"] else ""),
-         "", "## What the nominal simulation gets wrong", "",
+    L = [f"# Diagnosis of `{j['dataset']}`", ""]
+    for w in j.get("warnings", []):
+        L += [f"> **Warning:** {w}", ""]
+    causes = j.get("causes")
+    if causes:
+        for i, c in enumerate(causes):
+            ci = c.get("ci95", {})
+            L.append(f"**{'Cause' if i == 0 else 'Second cause'}: `{c['cause']}`** — " + ", ".join(
+                f"`{k}` = {_fmt(v, 4)}" + (f" (95 % interval {_fmt(ci[k][0], 4)} to "
+                                           f"{_fmt(ci[k][1], 4)})" if k in ci else "")
+                for k, v in c["parameters"].items()))
+            L.append("")
+    else:
+        L += [f"**Cause: `{j['cause']}`**" + (f" — parameters: " + ", ".join(
+            f"`{k}` = {_fmt(v, 4)}" for k, v in j["parameters"].items()) if j["parameters"] else ""), ""]
+    eq = j.get("equivalent_alternative")
+    if eq:
+        L += [f"Equivalent alternative: `{eq['cause']}` (" + ", ".join(
+            f"`{k}` = {_fmt(v, 4)}" for k, v in eq["parameters"].items()) + f"). {eq['why']}.", ""]
+    L += ["## What the nominal simulation gets wrong", "",
          f"Baseline model: **{b['model']}** ({j['ar_form_description'] if b['model'] == 'ar' else 'FEM with the [rod] values, exact modal integration at the sample times'}).",
          "", "| measure | baseline | extended |", "|---|---|---|"]
-    for k, lab in (("rmse_um", "RMSE [µm]"), ("max_abs_um", "max |error| [µm]"),
+    for k, lab in (("rmse_um", "RMSE [µm]"), ("max_abs_um", r"max \|error\| [µm]"),
                    ("fit_pct", "fit [%]"), ("ljung_box_p", "Ljung–Box p (eq. 19)")):
         L.append(f"| {lab} | {_fmt(b.get(k))} | {_fmt(e.get(k))} |")
     for p in ("heating", "cooling", "standing"):
         bp, ep = b["per_phase"].get(p), e["per_phase"].get(p)
         L.append(f"| RMSE {p} [µm] | {_fmt(bp and bp['rmse_um'])} | {_fmt(ep and ep['rmse_um'])} |")
     L += ["", "Phases: heating = input on; cooling = within 3 time constants after it stops; "
-          "standing = otherwise. Outliers flagged by the loader are excluded everywhere.", "",
+          "standing = otherwise. Outliers flagged by the loader are excluded everywhere. "
+          "Residual = measured − model (positive: the rod grew more than the model says).", "",
           "Cross-correlation of the baseline residual with every recorded signal "
-          f"(bounds ±{b['cross_correlation_bound_white']:.3f} for white noise, "
-          f"±{b['cross_correlation_bound_neff']:.3f} with the effective sample size):", "",
+          f"(95 % significance bounds of a correlation: ±{b['cross_correlation_bound_white']:.3f} "
+          f"for white noise, ±{b['cross_correlation_bound_neff']:.3f} on the effective sample "
+          "size; lags in hours in `correlations.png`):", "",
           "| signal | xcorr | beyond N_eff bound |", "|---|---|---|"]
     for k, v in b["cross_correlation"].items():
         L.append(f"| {k} | {v:+.3f} | {'yes' if abs(v) > b['cross_correlation_bound_neff'] else 'no'} |")
@@ -117,7 +220,11 @@ def _markdown(diag) -> str:
     if j["input_kind"] == "q_W_m2":
         L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
               "|---|---|---|---|---|"]
-        for c in j["candidates"]:
+        for c in j["candidates"] + j.get("refused_candidates", []):
+            if "refused" in c:
+                L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
+                    f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+                continue
             L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
                      f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
                          f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
@@ -141,6 +248,18 @@ def _markdown(diag) -> str:
             L.append(f"| {c['cause']} | {_fmt(c['score'])} | {per} | {_fmt(c.get('rmse_cut_pct'))} | "
                      f"{c.get('blocks_won', '')} | " + ", ".join(
                          f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    pairs = j.get("second_cause_tests") or []
+    if pairs:
+        L += ["", "Second cause: each partner fitted together with the first cause "
+              "(significant = F test against the first alone at the rule's level, RMSE cut "
+              "large enough, and plausible):", "",
+              "| pair | F-test p | fit-RMSE cut [%] | N_eff | significant | parameters |",
+              "|---|---|---|---|---|---|"]
+        for t in pairs:
+            L.append(f"| {' + '.join(t['causes'])} | {_fmt(t['p_value'])} | "
+                     f"{_fmt(t['rmse_cut_pct'])} | {t['n_eff']:.1f} | "
+                     f"{'yes' if t['significant'] else 'no' + (' (refused)' if 'refused' in t else '')} | "
+                     + ", ".join(f"{k}={_fmt(v, 4)}" for k, v in t["parameters"].items()) + " |")
     if j["not_applicable"]:
         L.append("")
         L.append("Not applicable to this record: " + ", ".join(j["not_applicable"]) +
@@ -175,8 +294,11 @@ def _markdown(diag) -> str:
     L += ["", f"**gain_pct = {h['gain_pct']:.1f} %** (100·(1 − extended/baseline) on the hold-out)."]
     for key, a in j.get("ar_form", {}).items():
         L.append(f"AR form ({key}): gain {a['gain_pct']:.1f} %.")
-    L += ["", "## Data notes", ""] + [f"- {n}" for n in j["data_notes"]] + \
-         [f"- {t}" for t in diag.text] + ["", "Figures: `growth_residual.png`, `correlations.png`."]
+    L += ["", "## Data notes", ""] + [f"- {x}" for n in j["data_notes"] for x in _sentences(n)] + \
+         [f"- {x}" for t in diag.text for x in _sentences(t)] + \
+         ["", "Figures: `growth_residual.png` (the record, both models, and their residuals), "
+          "`correlations.png` (residual autocorrelation, and cross-correlation with each "
+          "input, against lag in hours)."]
     return "\n".join(L) + "\n"
 
 

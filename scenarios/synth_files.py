@@ -34,17 +34,20 @@ def write_case(case: SynthCase, directory) -> Path:
         The TOML file.
     """
     directory = Path(directory)
-    cols = {"time_s": _fmt(case.time_s, 0), "growth_um": _fmt(case.growth_um, 3),
+    factor = float(case.settings.get("growth_unit_factor", 1.0))
+    digits = 3 + max(0, int(np.ceil(-np.log10(factor)))) if factor > 0 else 3
+    cols = {"time_s": _fmt(case.time_s, 0), "growth_um": _fmt(case.growth_um, digits),
             "q_W_m2": _fmt(case.q_W_m2, 1), "ambient_C": _fmt(case.ambient_C, 3)}
     for k, v in case.temperatures.items():
         cols[k] = _fmt(v, 3)
     lines = [",".join(cols)] + [",".join(row) for row in zip(*cols.values())]
     atomic_write_text(directory / f"{case.name}.csv", "\n".join(lines) + "\n")
-    r = case.rod
+    r = case.declared_rod or case.rod
     toml = [
         "[dataset]",
         f'name = "{case.name}"',
         f'csv = "{case.name}.csv"',
+        *([] if case.initial_known else ['initial = "unknown"']),
         "",
         "[rod]",
         *(f"{k} = {getattr(r, k)!r}" for k in (

@@ -218,3 +218,56 @@ def test_same_seed_same_record_and_bad_overrides():
         generate("aliens", 1)
     with pytest.raises(InputError, match="scale"):
         generate("none", 1, scale=1.2)
+
+
+def test_two_causes_add_up_physically():
+    """A two-cause record is both effects in one simulation: heat x1.3 and a drift of
+    0.2 µm/h give exactly 1.3 x nominal + 0.2 t (linear physics, to round-off); both
+    magnitudes are in ``parameters``; pairs that cannot act together are refused."""
+    c = generate("heat_input_scale+sensor_drift", 2, duration_h=24, scale=1.3,
+                 drift_um_per_h=0.2)
+    assert c.causes == ("heat_input_scale", "sensor_drift") and c.cause == "heat_input_scale+sensor_drift"
+    assert c.parameters == {"scale": 1.3, "drift_um_per_h": 0.2}
+    np.testing.assert_allclose(c.clean_growth_um, 1.3 * c.nominal_growth_um + 0.2 * c.time_s / 3600,
+                               atol=1e-9)
+    with pytest.raises(InputError, match="together"):
+        generate("convection_mismatch+nonlinear_convection", 2)
+
+
+def test_warm_start_and_file_say_initial_unknown(tmp_path):
+    """warm_start_h heats the rod before t = 0: the record starts away from equilibrium
+    (growth at t = 0 > 5 µm after 3 h at 2500 W/m²), and the TOML says initial = "unknown",
+    which the loader reads back."""
+    c = generate("none", 3, duration_h=24, warm_start_h=3.0)
+    assert not c.initial_known and c.time_s[0] == 0.0 and c.clean_growth_um[0] > 5.0
+    ds = load_dataset(write_case(c, tmp_path))
+    assert not ds.initial_known
+
+
+def test_coloured_noise_and_wrong_units(tmp_path):
+    """noise_ar1 = 0.9 makes the sensor noise an AR(1) with lag-1 correlation 0.9 (±0.05
+    on ~1600 samples) and the drawn σ (±15 %); growth_unit_factor = 1e-3 writes growth in
+    mm with enough decimals to keep the 0.1 µm steps; declared_rod writes a wrong [rod]."""
+    c = generate("none", 4, duration_h=24, noise_ar1=0.9, n_outliers=0, quantum_um=0.0)
+    e = c.growth_um - c.clean_growth_um
+    e = e[np.isfinite(e)]
+    assert np.corrcoef(e[1:], e[:-1])[0, 1] == pytest.approx(0.9, abs=0.05)
+    assert np.std(e) == pytest.approx(c.settings["noise_um"], rel=0.15)
+    m = generate("none", 4, duration_h=24, growth_unit_factor=1e-3,
+                 declared_rod={"convection_W_m2K": 80.0})
+    text = write_case(m, tmp_path).read_text()
+    assert "convection_W_m2K = 80.0" in text
+    ds = load_dataset(tmp_path / f"{m.name}.toml")
+    np.testing.assert_allclose(ds.growth_um, m.growth_um[np.isfinite(m.growth_um)], atol=6e-7)
+
+
+def test_other_rod_geometry_is_simulated_and_written(tmp_path):
+    """A smaller rod through ``rod=``: its nominal growth is the FEM of that rod (the steady
+    growth at 2000 W/m² scales with the radius, ~R/2h·αq per unit length, so a rod of half
+    the radius and ~60 % of the length grows less), and [rod] carries its values."""
+    small = Rod(radius_m=0.05, length_m=0.5)
+    c = generate("none", 5, duration_h=24, rod=small, phases=[(24.0, 2000.0)])
+    n = generate("none", 5, duration_h=24, phases=[(24.0, 2000.0)])
+    assert c.nominal_growth_um[-1] < 0.8 * n.nominal_growth_um[-1]
+    ds = load_dataset(write_case(c, tmp_path))
+    assert ds.rod == small

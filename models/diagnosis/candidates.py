@@ -23,12 +23,13 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
+from scipy.optimize import least_squares, minimize_scalar
 
 from arfem.models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
 from arfem.params import Rod
 
-__all__ = ["CAUSES", "CandidateFit", "FemPhysics", "ArPhysics", "fit_candidate", "project"]
+__all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "FemPhysics", "ArPhysics", "fit_candidate",
+           "fit_causes", "compatible", "parameter_ci95", "project"]
 
 #: the contract's vocabulary, in the order candidates are tried
 CAUSES = ("none", "ambient_drift", "convection_mismatch", "speed_dependent_convection",
@@ -284,132 +285,397 @@ def _nuisance(t, initial_known: bool, rate_1_s: float) -> list[np.ndarray]:
     return [np.ones_like(t), np.exp(-rate_1_s * np.asarray(t, float))]
 
 
-def fit_candidate(cause: str, phys, t, q, y, rows, initial_known: bool = True,
-                  ambient_K=None, frame_C=None) -> CandidateFit | None:
-    """Fit one cause with physics back-end ``phys`` on ``rows``; None if not applicable.
+#: causes that change the convection coefficient: at most one of them in a combination
+H_CAUSES = ("convection_mismatch", "speed_dependent_convection", "nonlinear_convection")
+#: the nonlinear parameters θ of each cause (searched), with their search bounds as
+#: functions of the nominal h0; ln h is searched in [ln(h0/8), ln(8 h0)]
+_THETA = {
+    "convection_mismatch": ("log_h",),
+    "speed_dependent_convection": ("log_h_running", "log_h_stopped"),
+    "nonlinear_convection": ("exponent", "log_h_ref"),
+    "frame_expansion": ("log_tau_h",),
+}
+#: finite-difference step of each θ for the Jacobian (the natural-convection model
+#: quantises ln h to 0.25 % steps, so its steps are several of those)
+_FD_STEP = {"log_h": 1e-3, "log_h_running": 1e-3, "log_h_stopped": 1e-3, "exponent": 0.02,
+            "log_h_ref": 0.02, "log_tau_h": 1e-3}
+
+
+def compatible(causes) -> bool:
+    """True if ``causes`` can be realised together (at most one h-changing cause).
+
+    >>> compatible(("ambient_drift", "sensor_drift")), compatible(("convection_mismatch", "nonlinear_convection"))
+    (True, False)
+    """
+    causes = tuple(causes)
+    return (len(set(causes)) == len(causes) and "none" not in causes
+            and sum(c in H_CAUSES for c in causes) <= 1)
+
+
+def _bounds(name, h0):
+    if name.startswith("log_h"):
+        return np.log(h0 / 8), np.log(h0 * 8)
+    if name == "exponent":
+        return -0.5, 1.5
+    if name == "log_tau_h":
+        return np.log(2.0), np.log(200.0)
+    raise KeyError(name)
+
+
+def _design(causes, phys, t, q, initial_known, ambient_K):
+    """θ names and ``build(θ) -> (base, columns, column names)`` of a set of causes.
+
+    The forward model of the combination: the h-changing cause (if any) sets the
+    convection of the physics run; ``heat_input_scale`` turns that run into a column
+    (its coefficient is the scale); ``ambient_drift``, ``sensor_drift`` and
+    ``frame_expansion`` add columns; an unknown initial state adds the nuisance columns.
+    """
+    rod = phys.rod
+    t = np.asarray(t, float)
+    q = np.asarray(q, float)
+    running = q > 0
+    names = [n for c in causes for n in _THETA.get(c, ())]
+    hc = next((c for c in causes if c in H_CAUSES), None)
+    cache = {}
+
+    def nominal():
+        if "base0" not in cache:
+            cache["base0"] = phys.response(t, q)
+        return cache["base0"]
+
+    def build(x):
+        d = dict(zip(names, np.asarray(x, float)))
+        h = None
+        if hc is None:
+            g, rate = nominal(), phys.slowest_rate()
+        elif hc == "convection_mismatch":
+            h = float(np.exp(d["log_h"]))
+            g, rate = phys.response(t, q, h=h), phys.slowest_rate(h)
+        elif hc == "speed_dependent_convection":
+            hr, hs = float(np.exp(d["log_h_running"])), float(np.exp(d["log_h_stopped"]))
+            h = np.where(running, hr, hs)
+            g, rate = phys.response(t, q, h=h), phys.slowest_rate(min(hr, hs))
+        else:
+            href = float(np.exp(d["log_h_ref"]))
+            g = phys.nonlinear(t, q, float(d["exponent"]), href)
+            h, rate = href, phys.slowest_rate(href)
+        cols, cn = [], []
+        base = g
+        if "heat_input_scale" in causes:
+            cols.append(g)
+            cn.append("scale")
+            base = np.zeros_like(g)
+        if "ambient_drift" in causes:
+            key = ("amb", None if h is None else np.asarray(h).tobytes())
+            if key not in cache:
+                cache.clear() if len(cache) > 64 else None
+                cache[key] = (phys.response(t, np.zeros_like(t), h=h, ambient_K=ambient_K)
+                              / phys.ambient_gain_um_per_K())
+            cols.append(cache[key])
+            cn.append("ambient_gain_um_per_K")
+        if "sensor_drift" in causes:
+            cols.append(t / 3600.0)
+            cn.append("drift_um_per_h")
+        if "frame_expansion" in causes:
+            # the frame is a slower body heated by the same source: its growth is a
+            # first-order lag of the rod's steady growth target (q times the rod's
+            # steady gain), so the coefficient is the frame's steady growth per unit of
+            # rod growth
+            tau_s = float(np.exp(d["log_tau_h"])) * 3600.0
+            cols.append(first_order_lag(t, q * phys.steady_gain_um_per_W_m2(), tau_s))
+            cn.append("frame_gain")
+        nu = _nuisance(t, initial_known, rate)
+        cols += nu
+        cn += ["_initial_offset_um", "_initial_decay_um"][:len(nu)]
+        return base, cols, cn
+
+    return names, build
+
+
+def _starts(causes, names, h0, start):
+    """Starting points of the θ search: the given single-cause optima where known."""
+    base = {"log_h": np.log(h0), "log_h_running": np.log(h0), "log_h_stopped": np.log(h0),
+            "exponent": 0.25, "log_h_ref": np.log(h0), "log_tau_h": np.log(4.0)}
+    base.update(start or {})
+    x0 = [np.array([base[n] for n in names])]
+    if "speed_dependent_convection" in causes and not start:
+        for fr in (1.6, 1 / 1.5):
+            v = dict(base, log_h_running=np.log(h0 * fr))
+            x0.append(np.array([v[n] for n in names]))
+    return x0
+
+
+def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_K=None,
+               frame_C=None, start: dict | None = None) -> CandidateFit | None:
+    """Fit a set of causes together (``()`` = the baseline) by variable projection.
+
+    Returns None if a cause does not apply to the record (``ambient_drift`` without
+    ``ambient_C``; ``speed_dependent_convection`` when the input never or always runs)
+    or the causes cannot act together (:func:`compatible`). The fit carries the
+    covariance of all its parameters (θ and the linear coefficients) in
+    ``extra["cov"]`` -- the nonlinear-least-squares covariance s²(JᵀJ)⁻¹ on the fit rows,
+    inflated by N/N_eff for the residual's autocorrelation (:func:`parameter_ci95`).
 
     Parameters
     ----------
-    cause : str
-        One of :data:`CAUSES`.
+    causes : tuple of str
+        Causes of :data:`CAUSES` (not ``none``).
     phys : FemPhysics or ArPhysics
     t, q, y : ndarray
-        Sample times [s], heat flux [W/m²], measured growth [µm].
+        Sample times [s], heat flux [W/m²], measured growth [µm] (NaN where not observed).
     rows : ndarray of bool
-        Fit rows (before the hold-out, not outliers).
+        Fit rows (before the hold-out, observed, not outliers).
     initial_known : bool
         False adds nuisance columns (offset, slowest-mode decay) to every candidate.
     ambient_K : ndarray, optional
         Recorded ambient minus the nominal ambient [K] (``ambient_drift`` needs it).
     frame_C : ndarray, optional
-        Recorded frame temperature [°C] (used by ``frame_expansion`` when present).
+        Recorded frame temperature [°C] (reported only).
+    start : dict, optional
+        Starting θ values (e.g. the single-cause optima for a pair).
     """
-    rod = phys.rod
-    h0 = rod.convection_W_m2K
+    causes = tuple(c for c in causes if c != "none")
+    if causes and not compatible(causes):
+        return None
     t = np.asarray(t, float)
-    tag = f"{phys.label}+{cause}" if cause != "none" else phys.label
-
-    def lin(base, extra_cols, rate=None):
-        cols = list(extra_cols) + _nuisance(t, initial_known, rate or phys.slowest_rate())
-        coef, fit = project(cols, y - base, rows) if cols else (np.zeros(0), np.zeros_like(y))
-        pred = base + fit
-        r = (y - pred)[rows]
-        return float(r @ r), coef, pred
-
-    def done(params, pred, k, rss, **extra):
-        return CandidateFit(cause, tag, params, pred, k, rss, int(rows.sum()), extra)
-
-    base0 = phys.response(t, q)
-    if cause == "none":
-        rss, coef, pred = lin(base0, [])
-        return done({}, pred, 0, rss)
-
-    if cause == "heat_input_scale":
-        # y ≈ s·base0 (+ nuisance): s enters linearly
-        cols = [base0] + _nuisance(t, initial_known, phys.slowest_rate())
-        coef, pred = project(cols, y, rows)
-        r = (y - pred)[rows]
-        return done({"scale": float(coef[0])}, pred, 1, float(r @ r))
-
-    if cause == "sensor_drift":
-        rss, coef, pred = lin(base0, [t / 3600.0])
-        return done({"drift_um_per_h": float(coef[0])}, pred, 1, rss)
-
-    if cause == "ambient_drift":
-        if ambient_K is None:
-            return None
-        gain = phys.ambient_gain_um_per_K()
-        col = phys.response(t, np.zeros_like(t), ambient_K=ambient_K) / gain
-        rss, coef, pred = lin(base0, [col])
-        return done({"ambient_gain_um_per_K": float(coef[0])}, pred, 1, rss,
-                    physical_gain_um_per_K=gain)
-
-    if cause == "convection_mismatch":
-        def run(logh):
-            h = float(np.exp(logh))
-            return lin(phys.response(t, q, h=h), [], phys.slowest_rate(h))
-        res = minimize_scalar(lambda x: run(x)[0], bounds=(np.log(h0 / 8), np.log(h0 * 8)),
-                              method="bounded", options={"xatol": 1e-4})
-        rss, coef, pred = run(res.x)
-        return done({"h_W_m2K": float(np.exp(res.x))}, pred, 1, rss)
-
-    if cause == "speed_dependent_convection":
-        running = np.asarray(q) > 0
+    q = np.asarray(q, float)
+    if "ambient_drift" in causes and ambient_K is None:
+        return None
+    if "speed_dependent_convection" in causes:
+        running = q > 0
         if running.all() or not running.any():
             return None
+    rod = phys.rod
+    h0 = rod.convection_W_m2K
+    names, build = _design(causes, phys, t, q, initial_known, ambient_K)
+    yr = np.where(rows, y, 0.0)
 
-        def run(x):
-            hr, hs = np.exp(x)
-            h = np.where(running, hr, hs)
-            return lin(phys.response(t, q, h=h), [], phys.slowest_rate(min(hr, hs)))
-        best = None
-        for start in ([np.log(h0), np.log(h0)], [np.log(h0 * 1.6), np.log(h0)],
-                      [np.log(h0 / 1.5), np.log(h0)]):
-            r = minimize(lambda x: run(np.clip(x, np.log(h0 / 8), np.log(h0 * 8)))[0],
-                         np.array(start), method="Nelder-Mead",
-                         options={"xatol": 1e-4, "fatol": 1e-10, "maxiter": 400})
-            if best is None or r.fun < best.fun:
-                best = r
-        x = np.clip(best.x, np.log(h0 / 8), np.log(h0 * 8))
-        rss, coef, pred = run(x)
-        return done({"h_running_W_m2K": float(np.exp(x[0])),
-                     "h_stopped_W_m2K": float(np.exp(x[1]))}, pred, 2, rss)
+    def solve(x):
+        base, cols, cn = build(x)
+        coef, fit = project(cols, yr - base, rows) if cols else (np.zeros(0), np.zeros_like(y))
+        pred = base + fit
+        r = (y - pred)[rows]
+        return float(r @ r), coef, pred, cols, cn
 
-    if cause == "frame_expansion":
-        # the frame is a slower body heated by the same source: its growth is a first-order
-        # lag of the rod's steady growth target (q times the rod's steady gain), so the
-        # coefficient is directly the frame's steady growth per unit of rod growth
-        target = np.asarray(q, float) * phys.steady_gain_um_per_W_m2()
-
-        def run(log_tau_h):
-            tau_s = float(np.exp(log_tau_h)) * 3600.0
-            col = first_order_lag(t, target, tau_s)
-            return lin(base0, [col])
-        res = minimize_scalar(lambda x: run(x)[0], bounds=(np.log(2.0), np.log(200.0)),
+    lo = np.array([_bounds(n, h0)[0] for n in names])
+    hi = np.array([_bounds(n, h0)[1] for n in names])
+    if not names:
+        x = np.zeros(0)
+    elif len(names) == 1:
+        res = minimize_scalar(lambda v: solve([v])[0], bounds=(lo[0], hi[0]),
                               method="bounded", options={"xatol": 1e-4})
-        rss, coef, pred = run(res.x)
-        params = {"frame_time_constant_h": float(np.exp(res.x)), "frame_gain": float(coef[0])}
-        extra = {}
-        if frame_C is not None and np.all(np.isfinite(frame_C)):
-            extra["frame_sensor"] = "T_frame_C recorded; the frame state is the lag of the "\
-                                    "rod's own growth, T_frame_C is reported in the cross-correlations"
-        return done(params, pred, 2, rss, **extra)
+        x = np.array([res.x])
+    else:
+        # Gauss-Newton (trust-region reflective) on the projected residual, a forward-
+        # difference Jacobian with the steps of _FD_STEP (the natural-convection model
+        # is piecewise constant below its 0.25 % quantisation of ln h)
+        steps = np.array([_FD_STEP[n] for n in names])
 
-    if cause == "nonlinear_convection":
-        def run(x):
-            n, logh = x
-            g = phys.nonlinear(t, q, float(n), float(np.exp(logh)))
-            return lin(g, [], phys.slowest_rate(float(np.exp(logh))))
+        last = {}
+
+        def resid(v):
+            r = (y - solve(v)[2])[rows]
+            last["x"], last["r"] = np.array(v, float), r
+            return r
+
+        def jac(v):
+            r0 = last["r"] if "x" in last and np.array_equal(last["x"], v) else resid(v)
+            v = np.array(v, float)
+            J = np.empty((r0.size, v.size))
+            for i in range(v.size):
+                vi = v.copy()
+                vi[i] += steps[i] if vi[i] + steps[i] <= hi[i] else -steps[i]
+                J[:, i] = (resid(vi) - r0) / (vi[i] - v[i])
+            return J
+
         best = None
-        for start in ([0.25, np.log(h0)],):
-            r = minimize(lambda x: run(np.clip(x, [-0.5, np.log(h0 / 8)], [1.5, np.log(h0 * 8)]))[0],
-                         np.array(start), method="Nelder-Mead",
-                         options={"xatol": 2e-3, "fatol": 1e-9, "maxiter": 90})
-            if best is None or r.fun < best.fun:
+        for x0 in _starts(causes, names, h0, start):
+            x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+            r = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf",
+                              x_scale=steps * 100, max_nfev=25 * len(names))
+            if best is None or r.cost < best.cost:
                 best = r
-        x = np.clip(best.x, [-0.5, np.log(h0 / 8)], [1.5, np.log(h0 * 8)])
-        rss, coef, pred = run(x)
-        return done({"exponent": float(x[0]), "h_at_10K_W_m2K": float(np.exp(x[1]))},
-                    pred, 2, rss)
+        x = np.clip(best.x, lo, hi)
+    rss, coef, pred, cols, cn = solve(x)
+    theta = dict(zip(names, x.tolist()))
+    lin = dict(zip(cn, coef.tolist()))
+    at_bound = [n for n, v, a, b in zip(names, x, lo, hi)
+                if min(v - a, b - v) < 1e-3 * (b - a)]
+    params = _physical(causes, theta, lin)
+    tag = f"{phys.label}+" + "+".join(causes) if causes else phys.label
+    k = len(names) + sum(not n.startswith("_") for n in cn)
+    extra = {"theta": theta, "linear": lin, "at_bound": at_bound, "causes": causes}
+    if "ambient_drift" in causes:
+        extra["physical_gain_um_per_K"] = phys.ambient_gain_um_per_K()
+    if "frame_expansion" in causes and frame_C is not None and np.all(np.isfinite(frame_C)):
+        extra["frame_sensor"] = ("T_frame_C recorded; the frame state is the lag of the "
+                                 "rod's own growth, T_frame_C is reported in the "
+                                 "cross-correlations")
+    fit = CandidateFit("+".join(causes) or "none", tag, params, pred, k, rss,
+                       int(rows.sum()), extra)
+    if causes:
+        fit.extra["jac"] = _jacobian(build, x, names, coef, pred, cols, rows)
+        fit.extra["names"] = names + cn
+    if "ambient_drift" in causes:
+        def refit_with_ambient(amb, x=x):
+            """The linear coefficients at the same θ with another recorded ambient."""
+            _, b2 = _design(causes, phys, t, q, initial_known, amb)
+            base, cols2, cn2 = b2(x)
+            c2, _ = project(cols2, yr - base, rows)
+            return dict(zip(cn2, c2.tolist()))
+        fit.extra["_refit_with_ambient"] = refit_with_ambient
+        fit.extra["_ambient_K"] = ambient_K
+    return fit
 
-    raise ValueError(f"unknown cause {cause!r}")
+
+def _jacobian(build, x, names, coef, pred, cols, rows):
+    """∂prediction/∂(θ, c) on the fit rows: central differences in θ (the linear
+    coefficients held), the columns themselves for c."""
+    J = []
+    for i, n in enumerate(names):
+        step = _FD_STEP[n]
+        out = []
+        for sgn in (1.0, -1.0):
+            xi = np.array(x, float)
+            xi[i] += sgn * step
+            b, c, _ = build(xi)
+            out.append(b + (np.column_stack(c) @ coef if c else 0.0))
+        J.append((out[0] - out[1]) / (2 * step))
+    J += list(cols)
+    return np.column_stack(J)[rows] if J else np.zeros((int(rows.sum()), 0))
+
+
+def _physical(causes, theta, lin) -> dict:
+    """The contract's parameter names from θ and the linear coefficients."""
+    p = {}
+    for c in causes:
+        if c == "convection_mismatch":
+            p["h_W_m2K"] = float(np.exp(theta["log_h"]))
+        elif c == "speed_dependent_convection":
+            p["h_running_W_m2K"] = float(np.exp(theta["log_h_running"]))
+            p["h_stopped_W_m2K"] = float(np.exp(theta["log_h_stopped"]))
+        elif c == "nonlinear_convection":
+            p["exponent"] = float(theta["exponent"])
+            p["h_at_10K_W_m2K"] = float(np.exp(theta["log_h_ref"]))
+        elif c == "frame_expansion":
+            p["frame_time_constant_h"] = float(np.exp(theta["log_tau_h"]))
+            p["frame_gain"] = float(lin["frame_gain"])
+        elif c == "heat_input_scale":
+            p["scale"] = float(lin["scale"])
+        elif c == "ambient_drift":
+            p["ambient_gain_um_per_K"] = float(lin["ambient_gain_um_per_K"])
+        elif c == "sensor_drift":
+            p["drift_um_per_h"] = float(lin["drift_um_per_h"])
+    return p
+
+
+#: which (θ or linear) coordinate each physical parameter is, and whether it is ln(value)
+_COORD = {"h_W_m2K": ("log_h", True), "h_running_W_m2K": ("log_h_running", True),
+          "h_stopped_W_m2K": ("log_h_stopped", True), "exponent": ("exponent", False),
+          "h_at_10K_W_m2K": ("log_h_ref", True), "frame_time_constant_h": ("log_tau_h", True),
+          "frame_gain": ("frame_gain", False), "scale": ("scale", False),
+          "ambient_gain_um_per_K": ("ambient_gain_um_per_K", False),
+          "drift_um_per_h": ("drift_um_per_h", False)}
+
+
+#: contiguous blocks of the fit window for the block-sandwich covariance: at most this
+#: many, at least CI_MIN_BLOCKS, each at least CI_BLOCK_CORR residual correlation times long
+CI_BLOCKS = 10
+CI_MIN_BLOCKS = 4
+CI_BLOCK_CORR = 5
+
+
+#: draws of the recorded ambient's own noise propagated into the intervals
+CI_AMBIENT_DRAWS = 8
+
+
+def _ambient_noise_var(fit) -> dict:
+    """Variance [unit²] of each linear coefficient caused by the noise of the recorded
+    ambient, an input of the model (errors in the regressor): the ambient's noise σ is
+    estimated from its second differences, the ambient is perturbed by that much again
+    ``CI_AMBIENT_DRAWS`` times, and the coefficients refitted at the same θ."""
+    from arfem.models.diagnosis import stats as st
+    refit = fit.extra.get("_refit_with_ambient")
+    amb = fit.extra.get("_ambient_K")
+    if refit is None or amb is None:
+        return {}
+    sig = st.noise_sigma(amb)
+    if not np.isfinite(sig) or sig <= 0:
+        return {}
+    rng = np.random.default_rng(12345)
+    draws = [refit(amb + rng.normal(0.0, sig, amb.size)) for _ in range(CI_AMBIENT_DRAWS)]
+    return {k: float(np.var([d[k] for d in draws], ddof=1)) for k in draws[0]}
+
+
+def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
+    """95 % intervals of a fit's physical parameters [their units].
+
+    Two covariances of the nonlinear least-squares estimate, each respecting the
+    residual's autocorrelation, and the wider interval of the two is reported:
+
+    * effective sample size: s² (JᵀJ)⁻¹ · N/N_eff with s² = RSS/(N − p), J the Jacobian of
+      the prediction in all p parameters on the N fit rows and N_eff = N(1 − ρ1)/(1 + ρ1)
+      from the residual's lag-1 autocorrelation; Student's t on N_eff − p degrees of freedom;
+    * block sandwich (the linearised delete-a-block jackknife): (JᵀJ)⁻¹ [Σ_b g_b g_bᵀ]
+      (JᵀJ)⁻¹ · B/(B − 1) with g_b = J_bᵀ r_b summed over B contiguous blocks of the fit
+      window, each at least ``CI_BLOCK_CORR`` correlation times of the residual long (the
+      lag where its autocorrelation falls below 1/e), 4 <= B <= 10; Student's t on B − 1
+      degrees of freedom. Where the model
+      fits some stretches of the record differently from others (model error, not
+      noise) the block scores disagree and the interval widens accordingly.
+
+    Where the model takes a recorded ambient as input, the variance its sensor noise
+    causes in the linear coefficients (:func:`_ambient_noise_var`) is added to both.
+    Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
+    exponentiated (positive, asymmetric).
+    """
+    from arfem.models.diagnosis import stats as st
+    from scipy import stats as _sst
+    J = fit.extra.get("jac")
+    if J is None or J.shape[1] == 0:
+        return {}
+    n, p = J.shape
+    r = (np.asarray(y, float) - fit.prediction)[rows]
+    rho = st.lag1(r)
+    n_eff = st.effective_n(n, rho)
+    s2 = float(r @ r) / max(n - p, 1)
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    Js = J / scale
+    A = np.linalg.pinv(Js.T @ Js)
+    cov_ess = A / np.outer(scale, scale) * s2 * (n / n_eff)
+    a = st.acf(r, min(n // 2, 5000))
+    below = np.flatnonzero(a < np.exp(-1.0))
+    corr = int(below[0]) if below.size else n
+    B = int(np.clip(n // max(CI_BLOCK_CORR * corr, 1), CI_MIN_BLOCKS, CI_BLOCKS))
+    G = np.array([Js[ix].T @ r[ix] for ix in np.array_split(np.arange(n), B)])
+    cov_blk = (A @ (G.T @ G) @ A) / np.outer(scale, scale) * B / (B - 1.0)
+    t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
+    t_blk = float(_sst.t.ppf(0.975, B - 1))
+    idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
+    vals = {**fit.extra["theta"], **fit.extra["linear"]}
+    eiv = _ambient_noise_var(fit)
+    out = {}
+    for k in fit.parameters:
+        coord, log = _COORD[k]
+        i = idx[coord]
+        add = eiv.get(coord, 0.0)
+        half = max(t_ess * np.sqrt(max(cov_ess[i, i], 0.0) + add),
+                   t_blk * np.sqrt(max(cov_blk[i, i], 0.0) + add))
+        v = vals[coord]
+        lo, hi = v - half, v + half
+        out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
+    fit.extra["n_eff_ci"] = n_eff
+    return out
+
+
+def fit_candidate(cause: str, phys, t, q, y, rows, initial_known: bool = True,
+                  ambient_K=None, frame_C=None) -> CandidateFit | None:
+    """Fit one cause (``none`` = the baseline) -- :func:`fit_causes` of one cause."""
+    if cause not in CAUSES:
+        raise ValueError(f"unknown cause {cause!r}")
+    f = fit_causes(() if cause == "none" else (cause,), phys, t, q, y, rows, initial_known,
+                   ambient_K, frame_C)
+    if f is not None:
+        f.cause = cause
+    return f

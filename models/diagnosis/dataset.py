@@ -61,6 +61,11 @@ class Dataset:
     extra_columns : dict of str to ndarray
         Columns the contract does not know, carried as text over the kept rows (ignored
         by the models).
+    unobserved : dict of str to ndarray
+        Rows with a time and an input but an empty ``growth_um``: their ``time_s`` and
+        inputs (``q_W_m2``/``speed_rpm``, ``ambient_C``, ``T_<name>_C``). The observation
+        is missing, the input is not: a model runs over these rows too (dropping them
+        would hold the next row's input over their interval).
     """
 
     name: str
@@ -80,6 +85,7 @@ class Dataset:
     csv_path: Path | None = None
     line_numbers: np.ndarray | None = field(default=None, repr=False)
     extra_columns: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    unobserved: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def input_kind(self) -> str:

@@ -22,7 +22,27 @@ Selection rule (documented in every report):
    named though the F test is not significant (``named_by = "misfit"``). This happens
    when one cause explains most of a large misfit but leaves a correlated residual that
    shrinks N_eff to a handful -- typically two causes at once, or one outside the
-   vocabulary; the report says so.
+   vocabulary; the report says so;
+5. a fit outside the project's plausible ranges (``arfem.params.PLAUSIBLE_RANGES``: a
+   heat scale outside 0.2-5, an h outside 1-2000 W/(m²K), ...) or stuck at the edge of
+   its search range is refused as a cause; if the record's own magnitude is implausible
+   against the nominal simulation (wrong units) no cause is named and a warning says
+   what to check;
+6. parsimony: where a cause with fewer parameters fits as well (the extra parameters'
+   nested F test on N_eff has p >= ``PARSIMONY_P``) it is named, and the report gives the
+   equivalent alternative;
+7. a second cause is listed (contract v2) where the first leaves more than
+   ``PAIR_MISFIT`` noise σ and the pair is significant against the first alone (F test
+   on the pair's N_eff at ``ALPHA``/pairs, RMSE cut >= ``PAIR_MIN_GAIN``); parsimony
+   applies within the pair. Where no single cause is named though the baseline is off by
+   ``MISFIT_FACTOR`` σ, a pair that removes ``MISFIT_CUT`` of the misfit is named;
+8. every named parameter has a 95 % interval from the joint fit
+   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`).
+
+Without ``--holdout-start`` the hold-out is the last third of the record if it holds a
+change of the input, else it starts at the last such change (:func:`_default_holdout`);
+a hold-out whose growth varies by less than ``INFORMATIVE_NOISE_LEVELS`` noise σ gets a
+warning.
 """
 from __future__ import annotations
 
@@ -32,16 +52,18 @@ import numpy as np
 
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
-                                         fit_candidate)
+                                         compatible, fit_candidate, fit_causes,
+                                         parameter_ci95)
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
                                     fit_speed_candidate, median_block_ratio,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
-from arfem.params import InputError
+from arfem.params import PLAUSIBLE_RANGES, InputError
 from arfem.io import json_text
 
 __all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR",
-           "MISFIT_CUT", "CONTRACT_PARAMETERS"]
+           "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
+           "INFORMATIVE_NOISE_LEVELS"]
 
 #: family-wise significance level of the test against the baseline
 ALPHA = 1e-3
@@ -51,6 +73,22 @@ MIN_GAIN = 0.05
 MISFIT_FACTOR = 10.0
 #: ... whose best cause removes at least this fraction of its fit-window RMSE
 MISFIT_CUT = 0.5
+#: parsimony: a cause with more parameters is named over one with fewer only if the
+#: nested F test of the extra parameters (on N_eff) has p below this and they cut the
+#: fit-window RMSE by at least MIN_GAIN
+PARSIMONY_P = 0.01
+#: a second cause is listed only if the pair cuts the single cause's fit-window RMSE by
+#: at least this fraction (and its F test is significant at ALPHA)
+PAIR_MIN_GAIN = 0.15
+#: ... and only if the single cause leaves more than this many noise σ (fit-window RMSE):
+#: a cause that explains the record to within a few σ leaves nothing a second cause
+#: could be told from the first one's model error by
+PAIR_MISFIT = 4.0
+#: a record whose spread is below this fraction (or above its inverse) of the nominal
+#: simulation's, with an implausible heat scale, is in the wrong units
+UNITS_RATIO = 0.05
+#: a hold-out whose growth varies (std) by less than this many noise σ is not informative
+INFORMATIVE_NOISE_LEVELS = 3.0
 #: the ``parameters`` of diagnosis.json, by cause, exactly as the measured-data contract
 #: names them; anything else a fit reports goes under ``parameters_detail``
 CONTRACT_PARAMETERS = {
@@ -92,14 +130,45 @@ def _metrics(y, pred, mask):
             "fit_pct": st.fit_percent(y[mask], pred[mask])}
 
 
-def _holdout_start(t, holdout_start_s, where):
-    """The hold-out start [s] -- as given, or 2/3 of the record -- and how it was chosen.
+def _default_holdout(t, u):
+    """The default hold-out start [s] and how it was chosen: the last third of the record
+    if it contains a change of the input ``u`` (heating or cooling) whose response it
+    sees for at least an hour; else the last such change that still leaves 40 % of the
+    record to fit (the hold-out starts at the sample before it); else the last third."""
+    t0, t1 = float(t[0]), float(t[-1])
+    span = t1 - t0
+    hs = t0 + span * 2.0 / 3.0
+    u = np.asarray(u, float)
+    idx = np.flatnonzero(u[1:] != u[:-1]) + 1          # first sample with the new input
+    seen = idx[t[idx] <= t1 - max(3600.0, 0.05 * span)]
+    late = seen[t[seen] >= hs]
+    if late.size:
+        return hs, (f"not given: the last third of the record (from 2/3 of its duration), "
+                    f"which contains {late.size} change(s) of the input")
+    early = seen[t[seen] >= t0 + 0.4 * span]
+    if early.size:
+        i = int(early[-1])
+        kind = "heating" if u[i] > u[i - 1] else "cooling"
+        start = float(t[i - 1])
+        return start, (f"not given: the last third of the record (from {hs:g} s) holds no "
+                       f"change of the input, so the hold-out starts at the last change that "
+                       f"leaves >= 40 % of the record to fit ({kind} at {t[i - 1]:g} s)")
+    return hs, ("not given: the last third of the record (from 2/3 of its duration); the "
+                "record has no change of the input it could start at instead")
+
+
+def _holdout_start(t, holdout_start_s, where, u=None):
+    """The hold-out start [s] -- as given, or chosen by :func:`_default_holdout` -- and
+    how it was chosen.
 
     Fitting uses the samples with t < start and scoring those with t >= start, so the
     given value is kept as it is (not moved to the next sample time)."""
     if holdout_start_s is None:
-        hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
-        how = "not given: the last third of the record (from 2/3 of its duration)"
+        if u is None:
+            hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
+            how = "not given: the last third of the record (from 2/3 of its duration)"
+        else:
+            hs, how = _default_holdout(t, u)
     else:
         hs = float(holdout_start_s)
         how = "given by --holdout-start"
@@ -111,10 +180,71 @@ def _holdout_start(t, holdout_start_s, where):
         span = (f"{n_before} samples to fit and {n_after} to score (record {t[0]:g}..{t[-1]:g} s); "
                 "need >= 20 and >= 5")
         if holdout_start_s is None:
-            raise InputError(f"record too short: its last third from {hs:g} s leaves {span}",
+            raise InputError(f"record too short: its hold-out from {hs:g} s leaves {span}",
                              where)
         raise InputError(f"{hs:g} s leaves {span}", f"--holdout-start (for {where})")
     return hs, how
+
+
+def _holdout_warning(y, hold, noise_um):
+    """A warning if the hold-out's growth varies by less than a few noise levels."""
+    yh = np.asarray(y, float)[hold]
+    yh = yh[np.isfinite(yh)]
+    if yh.size < 2 or not np.isfinite(noise_um) or noise_um <= 0:
+        return None
+    sd = float(np.std(yh))
+    if sd < INFORMATIVE_NOISE_LEVELS * noise_um:
+        return (f"hold-out not informative: its growth varies by {sd:.3g} µm (std), less "
+                f"than {INFORMATIVE_NOISE_LEVELS:g} noise levels (σ ≈ {noise_um:.3g} µm); "
+                "the gain there says little -- choose a --holdout-start before a change of "
+                "the input")
+    return None
+
+
+def _refuse_dead_sensor(ds):
+    """One clear error for a growth column that never changes (a dead sensor)."""
+    y = np.asarray(ds.growth_um, float)
+    if y.size and float(np.ptp(y)) == 0.0:
+        raise InputError(f"is {y[0]:g} µm on every row: a dead or disconnected sensor? "
+                         "There is nothing to diagnose",
+                         f"{ds.csv_path or ds.source}: column growth_um")
+
+
+def _observations(ds):
+    """Time, growth (NaN where not observed), observed mask and the inputs over every row
+    the record has an input for: rows with an empty ``growth_um`` keep their input
+    (dropping it would merge its interval into the next one's) -- see
+    ``Dataset.unobserved``. Speed-only records use the observed rows only."""
+    t = np.asarray(ds.time_s, float)
+    y = np.asarray(ds.growth_um, float)
+    un = getattr(ds, "unobserved", None)
+    cols = {"q_W_m2": ds.q_W_m2, "speed_rpm": ds.speed_rpm, "ambient_C": ds.ambient_C,
+            **ds.temperatures}
+    cols = {k: None if v is None else np.asarray(v, float) for k, v in cols.items()}
+    outl = np.asarray(ds.outliers, bool)
+    if ds.input_kind != "q_W_m2" or not un or not np.size(un.get("time_s", [])):
+        return t, y, np.ones(t.size, bool), outl, cols
+    tu = np.asarray(un["time_s"], float)
+    order = np.argsort(np.concatenate([t, tu]), kind="stable")
+    t2 = np.concatenate([t, tu])[order]
+    obs = np.concatenate([np.ones(t.size, bool), np.zeros(tu.size, bool)])[order]
+    y2 = np.concatenate([y, np.full(tu.size, np.nan)])[order]
+    out2 = np.concatenate([outl, np.zeros(tu.size, bool)])[order]
+    if np.any(np.diff(t2) <= 0):         # an unobserved row repeats a time: leave them out
+        return t, y, np.ones(t.size, bool), outl, cols
+    cols2 = {}
+    for k, v in cols.items():
+        if v is None:
+            cols2[k] = None
+            continue
+        w = un.get(k)
+        w = np.full(tu.size, np.nan) if w is None else np.asarray(w, float)
+        v2 = np.concatenate([v, w])[order]
+        if k == "ambient_C" and np.isnan(v2).any():      # an ambient is needed on every interval
+            ok = np.isfinite(v2)
+            v2 = np.interp(t2, t2[ok], v2[ok])
+        cols2[k] = v2
+    return t2, y2, obs, out2, cols2
 
 
 def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
@@ -198,6 +328,308 @@ def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False):
                       f"{1 - MIN_GAIN:g}"} if robust else {})}
 
 
+#: the plausible range (arfem.params.PLAUSIBLE_RANGES key) of each fitted magnitude
+_PLAUSIBLE_KEY = {"scale": "heat_input_scale", "h_W_m2K": "fitted_h_W_m2K",
+                  "h_running_W_m2K": "fitted_h_W_m2K", "h_stopped_W_m2K": "fitted_h_W_m2K",
+                  "h_at_10K_W_m2K": "fitted_h_W_m2K",
+                  "ambient_gain_um_per_K": "ambient_gain_um_per_K",
+                  "drift_um_per_h": "drift_um_per_h"}
+
+
+def _implausible(fit: CandidateFit):
+    """Why a fit is not a physical cause (a magnitude outside the project's plausible
+    ranges, or a search parameter stuck at its bound), or None."""
+    for k, v in fit.parameters.items():
+        key = _PLAUSIBLE_KEY.get(k)
+        if key is None:
+            continue
+        lo, hi, unit = PLAUSIBLE_RANGES[key]
+        if k == "ambient_gain_um_per_K" or k == "drift_um_per_h":
+            ok = abs(v) <= hi
+        else:
+            ok = lo <= v <= hi
+        if not ok:
+            return f"{k} = {v:.3g} is outside the plausible range [{lo:g}, {hi:g}] {unit}"
+    if fit.extra.get("at_bound"):
+        names = ", ".join(fit.extra["at_bound"])
+        return f"the fit ran to the edge of its search range ({names}): no physical optimum"
+    return None
+
+
+def _units_warning(fits, rod):
+    """A warning if the data's overall magnitude is implausible against the nominal
+    simulation: the heat-input scale that best maps the nominal growth onto the record
+    lies outside the plausible range -- wrong units, not a cause."""
+    f = fits.get("heat_input_scale")
+    if f is None:
+        return None
+    sc = f.parameters["scale"]
+    lo, hi, _ = PLAUSIBLE_RANGES["heat_input_scale"]
+    # a wrong unit is a factor of ~1000: the record's own spread against the nominal
+    # simulation's must also be far off (an ambient swing or a drift can make the best
+    # heat scale small while the magnitudes agree)
+    base = fits["none"]
+    rows = np.isfinite(base.extra["_res"])
+    y_fit = base.extra["_res"][rows]            # measured − nominal, on the fit rows
+    spread = float(np.std(y_fit + base.extra["_nominal"]))
+    nominal = float(np.std(base.extra["_nominal"]))
+    ratio = spread / nominal if nominal > 0 else 1.0
+    if lo <= sc <= hi or UNITS_RATIO < ratio < 1.0 / UNITS_RATIO:
+        return None
+    hint = ("growth_um recorded in mm (1000x too small)?" if 0 < sc < 0.01 else
+            "growth_um in nm or a [rod] value in the wrong unit?" if sc > hi else
+            f"a [rod] value in the wrong unit (convection_W_m2K = {rod.convection_W_m2K:g} "
+            "given in kW/(m²K)?) or growth_um in mm?")
+    return (f"the measured growth is {sc:.3g} x what the nominal simulation predicts "
+            f"(plausible {lo:g}-{hi:g}): check the units -- {hint} No cause is named")
+
+
+def _parsimony(cause, fits, tests, neff):
+    """Where a cause with fewer parameters fits as well (the extra parameters are not
+    significant at PARSIMONY_P in a nested F test on N_eff), name that one. Returns
+    (cause, the equivalent alternative or None)."""
+    if cause == "none" or cause not in fits:
+        return cause, None
+    top = fits[cause]
+    r = top.extra.get("_res")
+    n_eff = st.effective_n(top.n, st.lag1(r)) if r is not None else neff["n_eff"]
+    best = None
+    for c, t in tests.items():
+        f = fits.get(c)
+        if c == cause or f is None or f.k >= top.k:
+            continue
+        if not (t.get("significant") or t.get("rmse_cut_pct", 0) >= 100 * MISFIT_CUT):
+            continue
+        p = st.f_test_p(f.rss, top.rss, top.k - f.k, n_eff)
+        gain = 1.0 - np.sqrt(top.rss / f.rss) if f.rss > 0 else 0.0
+        if (p >= PARSIMONY_P or gain < MIN_GAIN) and (best is None or f.rss < fits[best[0]].rss):
+            best = (c, p, gain)
+    if best is None:
+        return cause, None
+    c, p, gain = best
+    tests[c]["named_by"] = "parsimony"
+    return c, {"cause": cause, "parameters": top.parameters, "p_value": p,
+               "why": (f"{cause} ({top.k} parameters) fits no better than {c} ({fits[c].k}): "
+                       f"the extra parameters cut the fit-window RMSE by {100 * gain:.1f} % "
+                       f"(named only from {100 * MIN_GAIN:g} %), nested F test p = {p:.3g} "
+                       f"(named only below {PARSIMONY_P:g}) on N_eff = {n_eff:.1f}; the one "
+                       "with fewer parameters is named")}
+
+
+#: the partners tried for a second cause (one fit each); a constant h stands in for the
+#: two-parameter h models, which are tried only as upgrades of a winning constant h
+_PARTNERS = ("ambient_drift", "convection_mismatch", "heat_input_scale", "frame_expansion",
+             "sensor_drift")
+
+
+#: pairs not tried: the diagnosis's natural-convection model takes h from the mean
+#: surface temperature, where the truth of a real rod (and of the generator) applies it
+#: point by point; the difference is mostly a change of steady gain, which a heat scale
+#: would take up -- a pair that cannot be told from the first cause's model error
+_UNPAIRED = ({"nonlinear_convection", "heat_input_scale"},)
+
+
+def _pair_test(f, lead_fit, y, rows, n_pairs):
+    """F test of a pair against its lead cause alone, on the pair's N_eff."""
+    res = (y - f.prediction)[rows]
+    n_eff = st.effective_n(f.n, st.lag1(res))
+    p = st.f_test_p(lead_fit.rss, f.rss, max(f.k - lead_fit.k, 1), n_eff)
+    cut = 1.0 - np.sqrt(f.rss / lead_fit.rss) if lead_fit.rss > 0 else 0.0
+    why_not = _implausible(f)
+    sig = bool(p < ALPHA / max(n_pairs, 1) and cut >= PAIR_MIN_GAIN and why_not is None)
+    return {"causes": list(f.extra["causes"]), "p_value": p, "rmse_cut_pct": 100 * cut,
+            "n_eff": n_eff, "significant": sig, "parameters": f.parameters,
+            **({"refused": why_not} if why_not else {})}
+
+
+def _second_cause(cause, fits, phys, args, refused):
+    """The best pair of causes with ``cause`` as its lead, if it is significant against
+    the lead alone on the fit window (nested F test on the pair's N_eff at ALPHA / pairs,
+    and a cut of the fit-window RMSE of at least PAIR_MIN_GAIN). Each partner of
+    ``_PARTNERS`` is tried; a winning constant h is then tried as running/stopped h and
+    as natural convection, kept only if significantly better (PARSIMONY_P). Returns
+    (pair fit or None, the pairs tried), the causes ordered by how much each explains
+    alone."""
+    t, q, y, rows, initial_known, amb_K, frame = args
+    lead = fits[cause]
+
+    def fit_pair(pair, extra_start=None):
+        start = {}
+        for c in pair[::-1]:
+            f = fits.get(c)
+            if f is not None and not f.extra.get("at_bound"):
+                start.update(f.extra.get("theta", {}))
+        start.update(extra_start or {})
+        return fit_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
+
+    pairs = [(cause, c) for c in _PARTNERS
+             if c != cause and fits.get(c) is not None and compatible((cause, c))
+             and {cause, c} not in _UNPAIRED]
+    tried, best = [], None
+    for pair in pairs:
+        f = fit_pair(pair)
+        if f is None:
+            continue
+        rec = _pair_test(f, lead, y, rows, len(pairs))
+        tried.append(rec)
+        if rec["significant"] and (best is None or f.rss < best.rss):
+            best = f
+    if best is not None and "convection_mismatch" in best.extra["causes"] \
+            and cause != "convection_mismatch":
+        log_h = best.extra["theta"]["log_h"]
+        for m in ("speed_dependent_convection", "nonlinear_convection"):
+            if fits.get(m) is None or not compatible((cause, m)):
+                continue
+            g = fit_pair((cause, m), {"log_h_running": log_h, "log_h_stopped": log_h,
+                                      "log_h_ref": log_h, "exponent": 0.0})
+            if g is None or _implausible(g) is not None:
+                continue
+            r = (y - g.prediction)[rows]
+            p = st.f_test_p(best.rss, g.rss, max(g.k - best.k, 1),
+                            st.effective_n(g.n, st.lag1(r)))
+            tried.append({**_pair_test(g, lead, y, rows, len(pairs)),
+                          "p_value_against_constant_h": p})
+            gain = 1.0 - np.sqrt(g.rss / best.rss) if best.rss > 0 else 0.0
+            if p < PARSIMONY_P and gain >= MIN_GAIN:
+                best = g
+            elif "equivalent" not in best.extra:
+                best.extra["equivalent"] = {
+                    "cause": f"{cause}+{m}", "parameters": g.parameters, "p_value": p,
+                    "why": (f"{m} fits no better than convection_mismatch alongside {cause}: "
+                            f"RMSE cut {100 * gain:.1f} % (named only from "
+                            f"{100 * MIN_GAIN:g} %), nested F test p = {p:.3g} (named only "
+                            f"below {PARSIMONY_P:g}); the pair with fewer parameters is named")}
+    if best is not None:
+        best = _pair_parsimony(best, fits, phys, args)
+        best.extra["causes"] = tuple(sorted(best.extra["causes"], key=lambda c: fits[c].rss))
+    return best, tried
+
+
+def _pair_parsimony(pair, fits, phys, args):
+    """Parsimony within a pair: where its h-cause with two parameters (running/stopped h,
+    or h and an exponent) fits no better than one constant h (nested F test on N_eff,
+    p >= PARSIMONY_P), the pair with ``convection_mismatch`` in its place is named."""
+    t, q, y, rows, initial_known, amb_K, frame = args
+    for m in pair.extra["causes"]:
+        if m not in ("speed_dependent_convection", "nonlinear_convection"):
+            continue
+        other = next(c for c in pair.extra["causes"] if c != m)
+        th = pair.extra["theta"]
+        log_h = (0.5 * (th["log_h_running"] + th["log_h_stopped"])
+                 if m == "speed_dependent_convection" else th["log_h_ref"])
+        start = {k: v for k, v in th.items() if not k.startswith("log_h") and k != "exponent"}
+        start["log_h"] = log_h
+        g = fit_causes((other, "convection_mismatch"), phys, t, q, y, rows, initial_known,
+                       amb_K, frame, start=start)
+        if g is None or _implausible(g) is not None:
+            continue
+        r = (y - pair.prediction)[rows]
+        p = st.f_test_p(g.rss, pair.rss, max(pair.k - g.k, 1), st.effective_n(pair.n, st.lag1(r)))
+        gain = 1.0 - np.sqrt(pair.rss / g.rss) if g.rss > 0 else 0.0
+        if p >= PARSIMONY_P or gain < MIN_GAIN:
+            g.extra["equivalent"] = {
+                "cause": "+".join(pair.extra["causes"]), "parameters": pair.parameters,
+                "p_value": p,
+                "why": (f"{m} fits no better than convection_mismatch alongside {other}: "
+                        f"RMSE cut {100 * gain:.1f} % (named only from {100 * MIN_GAIN:g} %), "
+                        f"nested F test p = {p:.3g} (named only below {PARSIMONY_P:g}); the "
+                        "pair with fewer parameters is named")}
+            if "convection_mismatch" not in fits or fits["convection_mismatch"] is None:
+                return pair
+            return g
+    return pair
+
+
+def _cause_entries(fit, causes, y, rows):
+    """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
+    intervals from the (joint) fit."""
+    ci = parameter_ci95(fit, y, rows) if fit is not None else {}
+    out = []
+    for c in causes:
+        names = CONTRACT_PARAMETERS[c]
+        out.append({"cause": c,
+                    "parameters": {k: fit.parameters[k] for k in names if k in fit.parameters},
+                    "ci95": {k: ci[k] for k in names if k in ci}})
+    return out, ci
+
+
+def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings):
+    """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
+    (selection rules, parsimony, a second cause) and the AR(1) realisation."""
+    rod = ds.rod
+    fem = FemPhysics(rod)
+    frame = temps.get("T_frame_C")
+    args = (t, q, y, rows, ds.initial_known, amb_K, frame)
+    fits = {}
+    for c in CAUSES:
+        # the h models nest convection_mismatch: they start from its optimum
+        h = fits.get("convection_mismatch")
+        start = None if h is None or c not in ("speed_dependent_convection",
+                                                "nonlinear_convection") else {
+            "log_h_running": h.extra["theta"]["log_h"], "log_h_stopped": h.extra["theta"]["log_h"],
+            "log_h_ref": h.extra["theta"]["log_h"], "exponent": 0.0}
+        f = fit_causes(() if c == "none" else (c,), fem, *args, start=start)
+        if f is not None:
+            f.cause = c
+            if c == "none":
+                f.extra["_nominal"] = f.prediction[rows]
+            f.extra["_res"] = (y - f.prediction)[rows]
+        fits[c] = f
+    refused = {c: why for c, f in fits.items()
+               if c != "none" and f is not None and (why := _implausible(f))}
+    unit_warning = _units_warning(fits, rod)
+    if unit_warning:
+        warnings.append(unit_warning)
+        refused.update({c: "the record's magnitude is implausible (see warnings)"
+                        for c, f in fits.items() if c != "none" and f is not None})
+    noise = st.noise_sigma(y[rows])
+    n_tests = sum(f is not None for f in fits.values()) - 1
+    if refused and not unit_warning:
+        # a refusal is worth a warning where the refused fit would have been named
+        would = _select(fits, fits["none"], n_tests, noise)[0]
+        if would in refused:
+            bound = fits[would].extra.get("at_bound")
+            warnings.append(f"{would} fits best but is refused as a cause: {refused[would]}; "
+                            + ("two causes at once, or one outside the vocabulary?" if bound
+                               else "check the units of growth_um and the [rod] values"))
+    valid = {c: (None if c in refused else f) for c, f in fits.items()}
+    cause, runner, scores, tests, neff = _select(
+        valid, fits["none"], sum(f is not None for f in valid.values()) - 1, noise)
+    cause, equivalent = _parsimony(cause, valid, tests, neff)
+    if equivalent is not None:
+        runner = equivalent["cause"]
+    pair, pairs_tried = (None, [])
+    # the lead of a pair: the named cause; or, where nothing is named though the baseline
+    # is off by many noise σ (rule 4 not met by any single cause), the best-scoring one
+    lead = cause
+    misfit = (neff.get("baseline_rmse_over_noise") or 0.0) > MISFIT_FACTOR
+    if cause == "none" and misfit:
+        lead = next((c for c in sorted(scores, key=scores.get) if c != "none"), "none")
+    single_rmse = np.sqrt(fits[lead].rss / max(fits[lead].n, 1)) if lead != "none" else 0.0
+    if lead != "none" and np.isfinite(noise) and single_rmse > PAIR_MISFIT * noise:
+        pair, pairs_tried = _second_cause(lead, fits, fem, args, refused)
+        base = fits["none"]
+        if cause == "none" and pair is not None:
+            cut = 1.0 - np.sqrt(pair.rss / base.rss) if base.rss > 0 else 0.0
+            if cut < MISFIT_CUT:
+                pair = None
+            else:
+                cause = lead
+                tests.setdefault(lead, {})["named_by"] = "misfit, as one of two causes"
+    causes = [] if cause == "none" else ([cause] if pair is None else list(pair.extra["causes"]))
+    if pair is not None and causes[0] != cause:
+        cause = causes[0]
+    ext = fits[cause] if pair is None else pair
+    ar = ArPhysics(rod)
+    ar_base = fit_candidate("none", ar, *args)
+    ar_ext = ar_base if cause == "none" else fit_causes(tuple(causes), ar, *args)
+    return {"fits": fits, "cause": cause, "causes": causes, "runner": runner,
+            "scores": scores, "tests": tests, "neff": neff, "ext": ext, "base": fits["none"],
+            "refused": refused, "equivalent": equivalent, "pairs_tried": pairs_tried,
+            "tau_s": 1.0 / fem.slowest_rate(),
+            "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}}}
+
+
 def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
     r = (y - pred)
     rm = r[mask]
@@ -220,9 +652,114 @@ def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
             continue
         xc[name] = st.xcorr(r[ok], x[ok])
     out["cross_correlation"] = xc
-    out["cross_correlation_bound_white"] = 1.96 / np.sqrt(n)
-    out["cross_correlation_bound_neff"] = 1.96 / np.sqrt(n_eff)
+    out["cross_correlation_bound_white"] = st.corr_bound(n)
+    out["cross_correlation_bound_neff"] = st.corr_bound(n_eff)
+    out["n_eff"] = n_eff
     return out
+
+
+def _signals(input_kind, cols, temps):
+    """The recorded signals the residual is correlated with: the input, the ambient and
+    every temperature sensor."""
+    signals = {}
+    if input_kind == "q_W_m2":
+        signals["q_W_m2"] = cols["q_W_m2"]
+    else:
+        signals["speed_rpm"] = cols["speed_rpm"]
+    if cols["ambient_C"] is not None:
+        signals["ambient_C"] = cols["ambient_C"]
+    signals.update(temps)
+    return signals
+
+
+def _holdout_scores(y, base_pred, ext_pred, hold):
+    """Hold-out RMSE of the baseline and the extended model [µm], and the gain [%]."""
+    b_hold = st.rmse((y - base_pred)[hold])
+    e_hold = st.rmse((y - ext_pred)[hold])
+    return b_hold, e_hold, 100.0 * (1.0 - e_hold / b_hold) if b_hold > 0 else 0.0
+
+
+_FEM_RULE = (f"BIC on N_eff samples; named only if nested F test p < {ALPHA:g}/candidates "
+             f"and fit-window RMSE cut >= {100 * MIN_GAIN:g} %, or, where the baseline is off "
+             f"by more than {MISFIT_FACTOR:g} noise σ, if it removes >= {100 * MISFIT_CUT:g} % "
+             f"of that misfit; fits outside the plausible ranges are refused; of two causes "
+             f"that fit equally well (extra parameters not significant at p < "
+             f"{PARSIMONY_P:g}) the one with fewer parameters is named; a second cause is "
+             f"listed where the first leaves more than {PAIR_MISFIT:g} noise σ and adding it "
+             f"is significant (p < {ALPHA:g}/pairs) and cuts the fit-window RMSE by >= "
+             f"{100 * PAIR_MIN_GAIN:g} %")
+
+
+def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
+    """The best cause not named and why it lost, or None."""
+    if runner is None or fits.get(runner) is None:
+        return None
+    if input_kind == "q_W_m2":
+        why = (f"BIC {scores[runner]:.1f} vs {scores.get(cause, float('nan')):.1f}"
+               + (f"; F-test p = {tests[runner]['p_value']:.3g}, fit-RMSE cut "
+                  f"{tests[runner]['rmse_cut_pct']:.1f} %" if runner in tests else ""))
+    else:
+        why = (f"validation RMSE {scores[runner]:.3g} vs {scores.get(cause, float('nan')):.3g} µm"
+               + (f"; cut {tests[runner]['rmse_cut_pct']:.1f} % of the baseline's, "
+                  f"{tests[runner]['blocks_won']}/{len(tests[runner]['cv_per_block_um'])} "
+                  f"blocks won" if runner in tests else ""))
+    return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
+            "parameters": fits[runner].parameters, "why_lost": why}
+
+
+def _ar_form(extra_models, y, hold):
+    """Hold-out scores of the AR-form realisations of the baseline and extended model."""
+    ar_out = {}
+    for key, d in extra_models.items():
+        bb, ee = d["baseline"], d["extended"]
+        if bb is None or ee is None:
+            continue
+        bh = st.rmse((y - bb.prediction)[hold])
+        eh = st.rmse((y - ee.prediction)[hold])
+        ar_out[key] = {"baseline_model": bb.model, "extended_model": ee.model,
+                       "baseline_holdout_rmse_um": bh, "extended_holdout_rmse_um": eh,
+                       "gain_pct": 100.0 * (1.0 - eh / bh) if bh > 0 else 0.0,
+                       "parameters": ee.parameters}
+    return ar_out
+
+
+def _add_mlr(summary, series, y, temps, rows, hold):
+    """Paper eq. 18 on the recorded temperatures, as a reference on the hold-out."""
+    if not temps:
+        return
+    pm, names = mlr(y, temps, rows)
+    if pm is not None:
+        summary["mlr"] = {"sensors": names, "holdout_rmse_um": st.rmse((y - pm)[hold]),
+                          "note": "growth = β0 + Σ β_i T_i fitted before the hold-out "
+                                  "(paper eq. 18)"}
+        series["mlr_um"] = pm
+
+
+def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
+    """The contract's version-2 fields: ``causes`` (with 95 % intervals),
+    ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
+    if v2:
+        entries, _ = _cause_entries(ext, v2["causes"], y, rows)
+        eq = v2["ext"].extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
+        if eq is not None:
+            summary["equivalent_alternative"] = eq
+        summary["second_cause_tests"] = v2["pairs_tried"]
+        summary["refused_candidates"] = [{"cause": c, "refused": why,
+                                          "parameters": v2["fits"][c].parameters}
+                                         for c, why in v2["refused"].items()]
+    else:       # speed-only records: one cause, intervals not computed for this branch
+        entries = [] if cause == "none" else [{"cause": cause,
+                                               "parameters": dict(summary["parameters"]),
+                                               "ci95": {}}]
+    summary["contract_version"] = 2
+    summary["causes"] = entries
+    summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
+    if len(entries) > 1:
+        summary["extended"]["model"] = ext.model
+    w = _holdout_warning(y, hold, st.noise_sigma(np.asarray(y, float)[good]))
+    if w:
+        warnings.append(w)
+    summary["warnings"] = list(warnings)
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
@@ -238,49 +775,31 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         Speed-only records: the frame structures compared by forward-chaining
         validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
     """
-    t = np.asarray(ds.time_s, float)
-    y = np.asarray(ds.growth_um, float)
-    good = ~np.asarray(ds.outliers, bool)
-    hs, how = _holdout_start(t, holdout_start_s, str(ds.source))
+    _refuse_dead_sensor(ds)
+    t, y, observed, outl, cols = _observations(ds)
+    good = observed & ~outl
+    u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
+    hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)
     rows = good & (t < hs)
     hold = good & (t >= hs)
     rod = ds.rod
-    amb_K = None if ds.ambient_C is None else np.asarray(ds.ambient_C, float) - rod.ambient_C
-    temps = {k: np.asarray(v, float) for k, v in ds.temperatures.items()}
-    signals = {}
-    if ds.input_kind == "q_W_m2":
-        signals["q_W_m2"] = np.asarray(ds.q_W_m2, float)
-    else:
-        signals["speed_rpm"] = np.asarray(ds.speed_rpm, float)
-    if ds.ambient_C is not None:
-        signals["ambient_C"] = np.asarray(ds.ambient_C, float)
-    signals.update(temps)
+    amb_K = None if cols["ambient_C"] is None else cols["ambient_C"] - rod.ambient_C
+    temps = {k: cols[k] for k in ds.temperatures}
+    signals = _signals(ds.input_kind, cols, temps)
     text = []
+    warnings = []
     extra_models = {}
+    v2 = {}
 
     if ds.input_kind == "q_W_m2":
-        q = np.asarray(ds.q_W_m2, float)
+        q = cols["q_W_m2"]
         running = q > 0
-        fem = FemPhysics(rod)
-        tau_s = 1.0 / fem.slowest_rate()
-        frame = temps.get("T_frame_C")
-        fits = {}
-        for c in CAUSES:
-            f = fit_candidate(c, fem, t, q, y, rows, ds.initial_known, amb_K, frame)
-            if f is not None:
-                f.extra["_res"] = (y - f.prediction)[rows]
-            fits[c] = f
-        base = fits["none"]
-        cause, runner, scores, tests, neff = _select(
-            fits, base, sum(f is not None for f in fits.values()) - 1, st.noise_sigma(y[rows]))
-        ext = fits[cause]
-        ar = ArPhysics(rod)
-        ar_base = fit_candidate("none", ar, t, q, y, rows, ds.initial_known, amb_K, frame)
-        ar_ext = ar_base if cause == "none" else fit_candidate(cause, ar, t, q, y, rows,
-                                                               ds.initial_known, amb_K, frame)
+        v2 = _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings)
+        fits, cause, runner = v2["fits"], v2["cause"], v2["runner"]
+        scores, tests, neff, ext = v2["scores"], v2["tests"], v2["neff"], v2["ext"]
+        base, tau_s, extra_models = v2["base"], v2["tau_s"], v2["extra_models"]
         base_model = "fem"
         ar_label = "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"
-        extra_models["ar"] = {"baseline": ar_base, "extended": ar_ext}
     else:
         sp = np.asarray(ds.speed_rpm, float)
         running = sp > 0
@@ -337,9 +856,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
 
     bres = _residual_analysis(t, y, base.prediction, good, signals, running, tau_s)
     eres = _residual_analysis(t, y, ext.prediction, good, signals, running, tau_s)
-    b_hold = st.rmse((y - base.prediction)[hold])
-    e_hold = st.rmse((y - ext.prediction)[hold])
-    gain = 100.0 * (1.0 - e_hold / b_hold) if b_hold > 0 else 0.0
+    b_hold, e_hold, gain = _holdout_scores(y, base.prediction, ext.prediction, hold)
 
     # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
     # forward-chaining validation RMSE [µm] for speed-only ones
@@ -371,54 +888,25 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
                         "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                        for c in sorted(scores, key=scores.get)],
         "runner_up": None,
-        "selection": {"rule": (f"BIC on N_eff samples; named only if nested F test p < "
-                               f"{ALPHA:g}/candidates and fit-window RMSE cut >= "
-                               f"{100 * MIN_GAIN:g} %, or, where the baseline is off by more "
-                               f"than {MISFIT_FACTOR:g} noise σ, if it removes >= "
-                               f"{100 * MISFIT_CUT:g} % of that misfit")
-                      if ds.input_kind == "q_W_m2" else
+        "selection": {"rule": _FEM_RULE if ds.input_kind == "q_W_m2" else
                               (f"score = forward-chaining validation RMSE [µm] on the fit "
                                f"window; the best cause is named only if it cuts the "
                                f"baseline's by >= {100 * MIN_GAIN:g} % and wins on a majority "
                                f"of the validation blocks"),
                       **neff},
         "not_applicable": [c for c in CAUSES if fits.get(c) is None],
+        "refused": dict(v2.get("refused", {})),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
-    if runner is not None and fits.get(runner) is not None:
-        if ds.input_kind == "q_W_m2":
-            why = (f"BIC {scores[runner]:.1f} vs {scores.get(cause, float('nan')):.1f}"
-                   + (f"; F-test p = {tests[runner]['p_value']:.3g}, fit-RMSE cut "
-                      f"{tests[runner]['rmse_cut_pct']:.1f} %" if runner in tests else ""))
-        else:
-            why = (f"validation RMSE {scores[runner]:.3g} vs {scores.get(cause, float('nan')):.3g} µm"
-                   + (f"; cut {tests[runner]['rmse_cut_pct']:.1f} % of the baseline's, "
-                      f"{tests[runner]['blocks_won']}/{len(tests[runner]['cv_per_block_um'])} "
-                      f"blocks won" if runner in tests else ""))
-        summary["runner_up"] = {"cause": runner, "score": scores[runner], "score_kind": score_kind,
-                                "parameters": fits[runner].parameters, "why_lost": why}
-    # AR-form results
-    ar_out = {}
-    for key, d in extra_models.items():
-        bb, ee = d["baseline"], d["extended"]
-        if bb is None or ee is None:
-            continue
-        bh = st.rmse((y - bb.prediction)[hold])
-        eh = st.rmse((y - ee.prediction)[hold])
-        ar_out[key] = {"baseline_model": bb.model, "extended_model": ee.model,
-                       "baseline_holdout_rmse_um": bh, "extended_holdout_rmse_um": eh,
-                       "gain_pct": 100.0 * (1.0 - eh / bh) if bh > 0 else 0.0,
-                       "parameters": ee.parameters}
+    summary["runner_up"] = _runner_up(ds.input_kind, cause, runner, fits, scores, tests,
+                                      score_kind)
+    ar_out = _ar_form(extra_models, y, hold)
     summary["ar_form"] = ar_out
     summary["ar_form_description"] = ar_label
+    _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
-    if temps:
-        pm, names = mlr(y, temps, rows)
-        if pm is not None:
-            summary["mlr"] = {"sensors": names, "holdout_rmse_um": st.rmse((y - pm)[hold]),
-                              "note": "growth = β0 + Σ β_i T_i fitted before the hold-out "
-                                      "(paper eq. 18)"}
-            series["mlr_um"] = pm
+    series.update({k: v for k, v in signals.items() if k not in series})
+    _add_mlr(summary, series, y, temps, rows, hold)
     return Diagnosis(summary, series, text)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy import stats as _st
 
 __all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr", "noise_sigma",
-           "bic", "f_test_p"]
+           "bic", "f_test_p", "corr_bound", "ccf"]
 
 
 def rmse(r) -> float:
@@ -159,3 +159,44 @@ def f_test_p(rss0: float, rss1: float, k: int, n_eff: float) -> float:
     dof = max(n_eff - k, 1.0)
     F = max(rss0 - rss1, 0.0) / k / (rss1 / dof)
     return float(_st.f.sf(F, k, dof))
+
+
+def corr_bound(n_eff: float, level: float = 0.95) -> float:
+    """Two-sided significance bound of a correlation coefficient on ``n_eff`` independent
+    samples [-]: r* = t*/√(N_eff − 2 + t*²), t* the Student quantile on N_eff − 2 degrees
+    of freedom (the exact test of a Pearson correlation); always <= 1, and 1 (nothing
+    is significant) when N_eff <= 3. For large N it tends to 1.96/√N.
+
+    Examples
+    --------
+    >>> round(corr_bound(10000), 4), corr_bound(2.5)
+    (0.0196, 1.0)
+    """
+    dof = float(n_eff) - 2.0
+    if dof < 1.0:
+        return 1.0
+    tq = float(_st.t.ppf(0.5 + level / 2.0, dof))
+    return float(tq / np.sqrt(dof + tq * tq))
+
+
+def ccf(r, x, max_lag: int) -> np.ndarray:
+    """Normalised cross-correlation of residual ``r`` with signal ``x`` at lags
+    −max_lag..max_lag [samples]: entry k is corr(r_t, x_{t−lag}) (positive lag: the
+    residual follows the signal), over the samples where both are finite.
+
+    Examples
+    --------
+    >>> x = np.sin(np.arange(400) / 10.0)
+    >>> c = ccf(np.roll(x, 5), x, 10)
+    >>> int(np.argmax(c)) - 10
+    5
+    """
+    r, x = np.asarray(r, float), np.asarray(x, float)
+    out = np.zeros(2 * max_lag + 1)
+    for k, lag in enumerate(range(-max_lag, max_lag + 1)):
+        if lag >= 0:
+            a, b = r[lag:], x[:x.size - lag]
+        else:
+            a, b = r[:r.size + lag], x[-lag:]
+        out[k] = xcorr(a, b)
+    return out

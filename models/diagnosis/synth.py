@@ -122,6 +122,10 @@ class SynthCase:
     outlier_rows, empty_rows : ndarray of int
     gaps : list of (start_s, end_s), the missing stretches
     sensors : dict, ``[sensors]`` descriptions
+    causes : tuple of str, the injected causes (one or two; ``()`` for ``none``)
+    initial_known : bool, False when the record starts warm (``initial = "unknown"``)
+    declared_rod : Rod or None, the ``[rod]`` written to the file when it differs from
+        the true ``rod`` (a wrong-unit record)
     """
 
     name: str
@@ -145,6 +149,9 @@ class SynthCase:
     empty_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     gaps: list = field(default_factory=list)
     sensors: dict = field(default_factory=dict)
+    causes: tuple = ()
+    initial_known: bool = True
+    declared_rod: Rod | None = None
 
 
 # -- physics helpers ------------------------------------------------------------------
@@ -318,6 +325,12 @@ def _common_settings(rng) -> dict:
         "frame_noise_K": 0.05,
         "frame_sensor": bool(rng.random() < 0.5),
         "phases": None,                     # drawn on the grid below unless overridden
+        # not drawn (the draws above stay the same for every seed): the v2 record kinds
+        "noise_ar1": 0.0,                   # lag-1 correlation of coloured (AR(1)) noise
+        "growth_unit_factor": 1.0,          # written growth = reading x this (1e-3: in mm)
+        "warm_start_h": 0.0,                # > 0: heated this long before t = 0 (initial unknown)
+        "warm_q_W_m2": 2500.0,              # the flux of that warm-up
+        "declared_rod": {},                 # [rod] values written instead of the true ones
     }
 
 
@@ -394,22 +407,45 @@ def _modal_growth(model: HeatFEM, t, q, amb=None, h=None):
     return solve_modal(model, sched, t, mode_cache=_mode_cache(model))
 
 
-def generate(cause: str, seed: int, name: str | None = None, **overrides) -> SynthCase:
+def _parse_causes(cause) -> tuple:
+    """``"a"``, ``"a+b"`` or ``("a", "b")`` -> a tuple of known causes (``()`` for none)."""
+    parts = tuple(cause.split("+")) if isinstance(cause, str) else tuple(cause)
+    for c in parts:
+        if c not in CAUSES:
+            raise InputError(f"must be one of {', '.join(CAUSES)}, got {c!r}", "cause")
+    parts = tuple(c for c in parts if c != "none")
+    if len(parts) > 2 or len(set(parts)) != len(parts):
+        raise InputError("at most two different causes", "cause")
+    h_like = {"convection_mismatch", "speed_dependent_convection", "nonlinear_convection"}
+    if len(parts) == 2 and (len(h_like & set(parts)) > 1 or (
+            "nonlinear_convection" in parts and "ambient_drift" in parts)):
+        raise InputError(f"{parts[0]} and {parts[1]} cannot be simulated together", "cause")
+    return parts
+
+
+def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
+             **overrides) -> SynthCase:
     """Simulate one measured dataset whose truth differs from nominal by ``cause``.
 
     Parameters
     ----------
-    cause : str
-        One of :data:`CAUSES`.
+    cause : str or tuple of str
+        One of :data:`CAUSES`, or two of them (``"a+b"`` or ``("a", "b")``; at most one
+        that changes h, and not natural convection with ambient drift).
     seed : int
         Seed of the random draws (same seed -> same record for every cause).
     name : str, optional
         Dataset name; default ``synth-<seed>`` (carries no hint of the cause).
+    rod : Rod, optional
+        The true rod (geometry, material, nominal h); default the seed paper's.
     **overrides
         Replace any drawn setting: the common ones (``duration_h``, ``interval_s``,
         ``jitter_s``, ``noise_um``, ``quantum_um``, ``n_outliers``, ``n_gaps``,
         ``empty_fraction``, ``ambient_noise_K``, ``frame_noise_K``, ``frame_sensor``,
-        ``phases`` = [(duration_h, q_W_m2), ...]) and the cause's own (e.g. ``scale``,
+        ``phases`` = [(duration_h, q_W_m2), ...], ``noise_ar1`` (coloured noise),
+        ``growth_unit_factor`` (1e-3 writes growth in mm), ``warm_start_h`` and
+        ``warm_q_W_m2`` (a warm start: ``initial = "unknown"``), ``declared_rod`` (a dict
+        of [rod] values written instead of the true ones)) and the cause's own (e.g. ``scale``,
         ``h_W_m2K``, ``frame_time_constant_h``, ``exponent``; see :data:`CAUSE_RANGES`
         and ``case.settings``). Quantities in [h], [s], [µm], [K], [W/m²], [W/(m²K)].
 
@@ -425,12 +461,13 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
     >>> bool(np.allclose(c.q_true_W_m2, 1.3 * c.q_W_m2))
     True
     """
-    if cause not in CAUSES:
-        raise InputError(f"must be one of {', '.join(CAUSES)}, got {cause!r}", "cause")
-    rod = Rod()
+    causes = _parse_causes(cause)
+    cause = "+".join(causes) or "none"
+    rod = Rod() if rod is None else rod
     rng = np.random.default_rng(seed)
     s = _common_settings(rng)
-    s.update(_cause_settings(cause, np.random.default_rng([seed, 1 + CAUSES.index(cause)]), rod))
+    for c in causes:
+        s.update(_cause_settings(c, np.random.default_rng([seed, 1 + CAUSES.index(c)]), rod))
     for k, v in overrides.items():
         if k not in s:
             raise InputError(f"unknown setting for cause {cause!r}; allowed: "
@@ -441,6 +478,15 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
 
     t, q_rec, phases, gaps = _grid(rng, s)
     s["phases"] = [(d / 3600.0, qq) for d, qq in phases]
+    warm_s = float(s["warm_start_h"]) * 3600.0
+    n_pre = 0
+    if warm_s > 0:          # heated before the record starts: simulate the warm-up, then cut
+        tp = np.arange(0.0, warm_s, 300.0)
+        n_pre = tp.size
+        t = np.concatenate([tp, warm_s + t])
+        q_rec = np.concatenate([np.full(n_pre, float(s["warm_q_W_m2"])), q_rec])
+        q_rec[0] = 0.0
+        q_rec[n_pre] = q_rec[n_pre - 1]
     n = t.size
     model = rod_model(rod)
     h0 = rod.convection_W_m2K
@@ -449,30 +495,30 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
     amb = np.full(n, rod.ambient_C)
     h = np.full(n, h0)
     params: dict = {}
-    if cause == "ambient_drift":
+    if "ambient_drift" in causes:
         tm = np.concatenate([[0.0], 0.5 * (t[1:] + t[:-1])])       # interval midpoints
         w = 2 * np.pi / (s["ambient_period_h"] * 3600.0)
         amb = (rod.ambient_C + s["ambient_amplitude_K"]
                * (np.sin(w * tm + s["ambient_phase_rad"]) - np.sin(s["ambient_phase_rad"]))
                + s["ambient_ramp_K_per_h"] * tm / 3600.0)
-        params = {"ambient_gain_um_per_K": ambient_gain_um_per_K(rod)}
-    elif cause == "convection_mismatch":
+        params["ambient_gain_um_per_K"] = ambient_gain_um_per_K(rod)
+    if "convection_mismatch" in causes:
         h[:] = float(s["h_W_m2K"])
-        params = {"h_W_m2K": float(s["h_W_m2K"])}
-    elif cause == "speed_dependent_convection":
+        params["h_W_m2K"] = float(s["h_W_m2K"])
+    if "speed_dependent_convection" in causes:
         h = np.where(q_rec > 0, float(s["h_running_W_m2K"]), float(s["h_stopped_W_m2K"]))
-        params = {"h_running_W_m2K": float(s["h_running_W_m2K"]),
-                  "h_stopped_W_m2K": float(s["h_stopped_W_m2K"])}
-    elif cause == "heat_input_scale":
+        params.update({"h_running_W_m2K": float(s["h_running_W_m2K"]),
+                       "h_stopped_W_m2K": float(s["h_stopped_W_m2K"])})
+    if "heat_input_scale" in causes:
         q_true = float(s["scale"]) * q_rec
-        params = {"scale": float(s["scale"])}
-    elif cause == "sensor_drift":
-        params = {"drift_um_per_h": float(s["drift_um_per_h"])}
-    elif cause == "nonlinear_convection":
-        params = {"exponent": float(s["exponent"])}
+        params["scale"] = float(s["scale"])
+    if "sensor_drift" in causes:
+        params["drift_um_per_h"] = float(s["drift_um_per_h"])
+    if "nonlinear_convection" in causes:
+        params["exponent"] = float(s["exponent"])
 
     # the rod
-    if cause == "nonlinear_convection":
+    if "nonlinear_convection" in causes:
         sched = Schedule(np.diff(t), q_true[1:])
         dt = float(s["nonlinear_dt_s"])
         src = _nonlinear_source(model, sched, dt, h0, float(s["exponent"]),
@@ -490,19 +536,20 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
     frame_growth = np.zeros(n)
     temps: dict = {}
     sensors = {"ambient_C": "ambient air temperature beside the machine"}
-    if cause == "frame_expansion" or s["frame_sensor"]:
+    framed = "frame_expansion" in causes
+    if framed or s["frame_sensor"]:
         tau_target = float(s.get("frame_time_constant_h", 4.0))
         fmodel, hf, tau = _frame_for_time_constant(tau_target, rod.ambient_C)
         frod = fmodel.rod
-        beta = float(s.get("frame_heat_fraction", 0.0)) if cause == "frame_expansion" else 0.0
+        beta = float(s.get("frame_heat_fraction", 0.0)) if framed else 0.0
         qf = beta * q_true * rod.area_m2 / frod.area_m2
         fres = _modal_growth(fmodel, t, qf, amb, np.full(n, hf))
-        if cause == "frame_expansion":
+        if framed:
             gr = _steady_growth_per_flux(model, h0)
             gf = _steady_growth_per_flux(fmodel, hf) * beta * rod.area_m2 / frod.area_m2
             k = float(s["frame_gain"]) * gr / gf
             frame_growth = k * fres.growth_um
-            params = {"frame_time_constant_h": tau, "frame_gain": float(s["frame_gain"])}
+            params.update({"frame_time_constant_h": tau, "frame_gain": float(s["frame_gain"])})
             s["frame_h_W_m2K"], s["frame_reading_gain"] = hf, k
         if s["frame_sensor"]:
             rhoc = frod.density_kg_m3 * frod.specific_heat_J_kgK
@@ -512,20 +559,31 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
             sensors["T_frame_C"] = "machine frame, mid-length"
 
     drift = np.zeros(n)
-    if cause == "sensor_drift":
-        drift = float(s["drift_um_per_h"]) * t / 3600.0
+    if "sensor_drift" in causes:
+        drift = float(s["drift_um_per_h"]) * np.maximum(t - warm_s, 0.0) / 3600.0
     clean = rod_growth + frame_growth + drift
+    if n_pre:               # the record starts at the end of the warm-up
+        cut = slice(n_pre, None)
+        t = t[cut] - warm_s
+        q_rec, q_true, amb, h_rec = q_rec[cut], q_true[cut], amb[cut], h_rec[cut]
+        clean, rod_growth, nominal = clean[cut], rod_growth[cut], nominal[cut]
+        temps = {k: v[cut] for k, v in temps.items()}
+        q_rec[0] = q_true[0] = 0.0
+        n = t.size
 
-    # measurement
-    meas = clean + rng.normal(0.0, s["noise_um"], n)
+    # measurement: white or coloured (AR(1), stationary σ = noise_um) sensor noise
+    white = rng.normal(0.0, s["noise_um"], n)
+    rho = float(s["noise_ar1"])
+    if rho:
+        from scipy.signal import lfilter
+        c = np.sqrt(1.0 - rho * rho)
+        white = lfilter([c], [1.0, -rho], white, zi=[(1.0 - c) * white[0]])[0]
+    meas = clean + white
     cand = np.flatnonzero((np.arange(n) >= 1) & (np.arange(n) < n - 1))
-    same_next = np.zeros(n, bool)
-    # an empty growth cell merges its interval with the next one when the loader drops the
-    # row: only where both carry the same q (and so the same h) is that merge exact
-    same_next[:-1] = q_rec[:-1] == q_rec[1:]
+    # an empty growth cell may fall anywhere, also where the input switches: the loader
+    # keeps the row's input and drops only the observation
     n_empty = int(math.floor(s["empty_fraction"] * n))
-    empty = np.sort(rng.choice(cand[same_next[cand]], size=min(n_empty, int(same_next[cand].sum())),
-                               replace=False))
+    empty = np.sort(rng.choice(cand, size=min(n_empty, cand.size), replace=False))
     rest = np.setdiff1d(cand, empty)
     outl = np.sort(rng.choice(rest, size=min(int(s["n_outliers"]), rest.size), replace=False))
     lo, hi = COMMON_RANGES["outlier_um"]
@@ -534,6 +592,7 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
     if qs > 0:
         meas = np.round(meas / qs) * qs
     meas[empty] = np.nan
+    meas = meas * float(s["growth_unit_factor"])
     amb_rec = amb + rng.normal(0.0, s["ambient_noise_K"], n)
 
     return SynthCase(
@@ -542,7 +601,8 @@ def generate(cause: str, seed: int, name: str | None = None, **overrides) -> Syn
         ambient_true_C=amb, h_true_W_m2K=h_rec, clean_growth_um=clean,
         rod_growth_um=rod_growth, nominal_growth_um=nominal, growth_um=meas,
         ambient_C=amb_rec, temperatures=temps, outlier_rows=outl, empty_rows=empty,
-        gaps=gaps, sensors=sensors)
+        gaps=gaps, sensors=sensors, causes=causes, initial_known=not warm_s > 0,
+        declared_rod=rod.with_(**s["declared_rod"]) if s["declared_rod"] else None)
 
 
 def random_case(seed: int, name: str | None = None) -> SynthCase:
