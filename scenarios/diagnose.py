@@ -2,20 +2,26 @@
 measured record, the physical cause, and the hold-out gain of the extended model.
 
 Writes ``diagnosis.json`` (the measured-data contract's keys and more), ``report.md``,
-``series.csv`` and figures, atomically. Bad input: one line, exit 2, ``--out`` untouched.
+``series.csv``, figures and ``report.html``, atomically. Bad input: one line, exit 2, ``--out`` untouched.
 """
 from __future__ import annotations
 
 from arfem.models.diagnosis.engine import Diagnosis, diagnose
 from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+from arfem.scenarios.progress import Progress, add_progress_flag
 
 __all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
 
 
-def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
-    """Load a contract dataset (TOML + CSV) and diagnose it."""
-    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search)
+def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
+                  progress=None) -> Diagnosis:
+    """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` as in
+    :func:`arfem.models.diagnosis.engine.diagnose`."""
+    if progress is not None:
+        progress("reading the dataset")
+    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search, progress)
 
 
 def add_parser(subparsers):
@@ -34,22 +40,30 @@ def add_parser(subparsers):
                         "laws n^p and a slow frame response (wide, ~5x slower), or no choice: "
                         "the average of every narrow structure (average)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+    add_progress_flag(p)
     p.set_defaults(func=main)
     return p
 
 
-def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow"):
-    """Diagnose ``case`` (TOML path) and write every output into ``out``; returns the summary."""
+def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
+                  progress=None):
+    """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
+    ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
     prepare_out_dir(out, force)           # refuse early, before any work
-    diag = diagnose_file(case, holdout_start_s, frame_search)
+    diag = diagnose_file(case, holdout_start_s, frame_search, progress)
+    if progress is not None:
+        progress("writing outputs")
     with staged_out_dir(out, force) as stage:
         write_all(diag, stage)
+        write_html_report(stage)
     return diag.summary
 
 
 def main(args) -> int:
-    s = run_diagnosis(args.case, args.out, args.holdout_start, args.force, args.frame_search)
+    with Progress(12, "arfem diagnose", enabled=not args.no_progress) as progress:
+        s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
+                          args.frame_search, progress)
     h = s["holdout"]
     named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
     print(f"{s['dataset']}: cause = {named}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "

@@ -553,7 +553,7 @@ def _cause_entries(fit, causes, y, rows):
     return out, ci
 
 
-def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings):
+def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress=None):
     """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
     (selection rules, parsimony, a second cause) and the AR(1) realisation."""
     rod = ds.rod
@@ -562,6 +562,8 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings):
     args = (t, q, y, rows, ds.initial_known, amb_K, frame)
     fits = {}
     for c in CAUSES:
+        if progress is not None:
+            progress(f"FEM fit: {c}")
         # the h models nest convection_mismatch: they start from its optimum
         h = fits.get("convection_mismatch")
         start = None if h is None or c not in ("speed_dependent_convection",
@@ -762,7 +764,8 @@ def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
     summary["warnings"] = list(warnings)
 
 
-def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
+def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
+             progress=None) -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
@@ -774,7 +777,10 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
     frame_search : {"narrow", "wide"}
         Speed-only records: the frame structures compared by forward-chaining
         validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
+    progress : callable, optional
+        Called with a step's name as each slow step starts (the command shows it).
     """
+    step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
     t, y, observed, outl, cols = _observations(ds)
     good = observed & ~outl
@@ -794,7 +800,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
     if ds.input_kind == "q_W_m2":
         q = cols["q_W_m2"]
         running = q > 0
-        v2 = _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings)
+        v2 = _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, step)
         fits, cause, runner = v2["fits"], v2["cause"], v2["runner"]
         scores, tests, neff, ext = v2["scores"], v2["tests"], v2["neff"], v2["ext"]
         base, tau_s, extra_models = v2["base"], v2["tau_s"], v2["extra_models"]
@@ -811,6 +817,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         fold_maps = [speed_to_heat_map(t, sp, temps, tr)[1:3] for tr, _ in folds]
         frame_struct, frame_table = None, {}
         if temps:
+            step(f"frame structure search ({frame_search})")
             frame_struct, frame_table = select_frame_structure(t, y, sp, temps, rows, folds,
                                                                fold_maps, frame_search)
 
@@ -821,6 +828,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
 
         fits, cvs = {}, {}
         for c in SPEED_CAUSES:
+            step(f"AR fit and validation: {c}")
             f = fit_c(c, rows, seen, W)
             fits[c] = f
             if f is None:
@@ -854,6 +862,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosi
         text.append(f"speed-to-heat mapping: {json_text(map_info)}")
         text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
 
+    step("residuals and hold-out")
     bres = _residual_analysis(t, y, base.prediction, good, signals, running, tau_s)
     eres = _residual_analysis(t, y, ext.prediction, good, signals, running, tau_s)
     b_hold, e_hold, gain = _holdout_scores(y, base.prediction, ext.prediction, hold)
