@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from arfem import __version__
-from arfem.params import InputError
+from arfem.params import InputError, one_line
 
 #: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
 COMMANDS = {
@@ -57,25 +58,47 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue
         mod.add_parser(sub)
+    for sp in sub.choices.values():            # one flag, the same on every subcommand
+        if not any("--allow-large" in a.option_strings for a in sp._actions):
+            sp.add_argument("--allow-large", action="store_true",
+                            help="lift arfem's size limits (mesh, time steps, samples, "
+                                 "memory estimate, CSV size and rows); see README, "
+                                 "'Safety of your files and limits'")
+    if "diagnose" in sub.choices:
+        sub.choices["diagnose"].add_argument(
+            "--allow-csv-outside", action="store_true",
+            help="read a dataset CSV outside the TOML's folder (its cells are then never "
+                 "shown in error messages)")
     return p
+
+
+def _error(message: str) -> int:
+    print(f"arfem: error: {one_line(message)}", file=sys.stderr)
+    return 2
 
 
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "allow_large", False):
+        os.environ["ARFEM_ALLOW_LARGE"] = "1"  # worker processes inherit it
+    if getattr(args, "allow_csv_outside", False):
+        os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = "1"
     try:
         rc = args.func(args)
     except InputError as exc:
-        print(f"arfem: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc))
+    except OSError as exc:                     # disk full, permissions, name too long...
+        what = exc.strerror or str(exc)
+        return _error(f"{exc.filename}: {what}" if exc.filename else what)
+    except (OverflowError, RecursionError) as exc:
+        return _error(f"an input value is out of range ({exc})")
     except KeyboardInterrupt:
         print("arfem: interrupted", file=sys.stderr)
         return 130
     except MemoryError:
-        print("arfem: error: out of memory; the input asks for more than this machine has "
-              "(a finer mesh, more field snapshots or a bigger grid than it can hold)",
-              file=sys.stderr)
-        return 2
+        return _error("out of memory; the input asks for more than this machine has "
+                      "(a finer mesh, more field snapshots or a bigger grid than it can hold)")
     return int(rc or 0)
 
 

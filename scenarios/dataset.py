@@ -37,6 +37,9 @@ ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
             "specific_heat_J_kgK", "expansion_1_K", "convection_W_m2K", "ambient_C")
 #: Rows with an empty ``time_s``/``growth_um`` are dropped up to this fraction, refused above.
 MAX_MISSING_FRACTION = 0.05
+#: Largest record diagnosed without ``--allow-large`` (a week sampled every 3 s); the
+#: CSV's lines are counted before it is parsed. The file size limit is arfem.io's.
+MAX_ROWS = 200_000
 
 _TOP_TABLES = ("dataset", "rod", "columns", "sensors")
 _DATASET_KEYS = ("name", "csv", "initial")
@@ -123,17 +126,46 @@ def _parse_meta(path: Path, doc: dict):
             if not isinstance(v, str):
                 _fail(f"must be a string, got {v!r}", f"{where}: sensors.{key}.{k}")
         sensors[key] = table.get("description", "")
-    return name, path.parent / csv_name, initial == "unknown", rod, dict(columns), sensors
+    csv_path = path.parent / csv_name
+    if not _inside(csv_path, path.parent) and not _csv_anywhere():
+        _fail(f"{csv_name!r} is outside the dataset's folder; arfem reads only files beside "
+              "the TOML (pass --allow-csv-outside to read it anyway)", f"{where}: dataset.csv")
+    return name, csv_path, initial == "unknown", rod, dict(columns), sensors
+
+
+def _inside(p: Path, folder: Path) -> bool:
+    """True if ``p`` (symbolic links resolved) lies within ``folder``."""
+    try:
+        p.resolve().relative_to(folder.resolve())
+        return True
+    except (ValueError, OSError, RuntimeError):
+        return False
+
+
+def _csv_anywhere() -> bool:
+    import os
+    return os.environ.get("ARFEM_ALLOW_CSV_OUTSIDE", "") not in ("", "0")
 
 
 def _read_csv(path: Path, toml_path: Path):
     """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
+    from arfem.io import allow_large
     text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})")
+    n_lines = text.count("\n")
+    if n_lines > MAX_ROWS + 1 and not allow_large():
+        _fail(f"has about {n_lines:,} rows; arfem diagnoses at most {MAX_ROWS:,} (resample "
+              "the record, or pass --allow-large)", str(path))
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     rows, lines = [], []
     header = None
+    start = 1
     try:
-        for row in reader:
+        while True:
+            start = reader.line_num + 1           # where the next record begins
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
             if not row or (len(row) == 1 and not row[0].strip()):
                 continue          # blank line
             if header is None:
@@ -146,6 +178,10 @@ def _read_csv(path: Path, toml_path: Path):
             rows.append(row)
             lines.append(reader.line_num)
     except csv.Error as e:
+        if reader.line_num > start:               # e.g. a quote never closed
+            _fail(f"broken CSV: {e} (the record starting here runs on to line "
+                  f"{reader.line_num}: a quote opened here is never closed?)",
+                  f"{path}: line {start}")
         _fail(f"broken CSV: {e}", f"{path}: line {reader.line_num}")
     if header is None:
         _fail("is empty (no header row)", str(path))
@@ -159,23 +195,28 @@ def _read_csv(path: Path, toml_path: Path):
     return header, rows, np.asarray(lines, dtype=int)
 
 
-def _parse_column(csv_path: Path, rows, lines, j: int, label: str) -> np.ndarray:
-    """Numbers of column ``j``; empty cells -> NaN; text/NaN/inf -> InputError."""
+def _parse_column(csv_path: Path, rows, lines, j: int, label: str,
+                  echo: bool = True) -> np.ndarray:
+    """Numbers of column ``j``; empty cells -> NaN; text/NaN/inf -> InputError.
+
+    With ``echo`` False (a file outside the dataset's folder) a message never shows the
+    cell's content, only its place."""
     out = np.empty(len(rows))
     for i, row in enumerate(rows):
         cell = row[j].strip()
+        shown = repr(cell if len(cell) <= 40 else cell[:40] + "…") if echo else "the cell"
         if not cell:
             out[i] = np.nan
         elif _NUMBER_RE.match(cell):
             out[i] = float(cell)
         elif _NONFINITE_RE.match(cell):
-            _fail(f"{cell!r} is not a finite number (NaN/inf are refused; leave the cell "
+            _fail(f"{shown} is not a finite number (NaN/inf are refused; leave the cell "
                   f"empty for a missing value)", f"{csv_path}: line {lines[i]}, column {label}")
         else:
-            _fail(f"{cell!r} is not a number", f"{csv_path}: line {lines[i]}, column {label}")
+            _fail(f"{shown} is not a number", f"{csv_path}: line {lines[i]}, column {label}")
     if not np.all(np.isfinite(out[~np.isnan(out)])):      # e.g. 1e999
         i = int(np.flatnonzero(np.isinf(out))[0])
-        _fail(f"{rows[i][j].strip()!r} overflows to infinity",
+        _fail(f"{repr(rows[i][j].strip()) if echo else 'the cell'} overflows to infinity",
               f"{csv_path}: line {lines[i]}, column {label}")
     return out
 
@@ -250,7 +291,9 @@ def load_dataset(toml_path) -> Dataset:
         foreign = header[col[key]]
         return f"{key!r}" if foreign == key else f"{key!r} ({foreign!r})"
 
-    values = {key: _parse_column(csv_path, rows, lines, j, label(key)) for key, j in col.items()}
+    echo = _inside(csv_path, toml_path.parent)
+    values = {key: _parse_column(csv_path, rows, lines, j, label(key), echo)
+              for key, j in col.items()}
     n_all = len(rows)
 
     # rows with an empty time or growth: drop up to 5 %, else refuse
@@ -326,6 +369,10 @@ def load_dataset(toml_path) -> Dataset:
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
 
     g = values["growth_um"]
+    if g.size and np.isfinite(g).any():
+        i = int(np.nanargmax(np.abs(g)))
+        check_plausible("growth_um", float(g[i]),
+                        f"{csv_path}: line {lines[i]}, column {label('growth_um')}")
     # floor on σ: the quantisation step where the sensor is quantised
     steps = np.abs(np.diff(g))
     steps = steps[steps > 1e-9]

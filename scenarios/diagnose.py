@@ -12,6 +12,11 @@ from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
 
+#: The files ``write_all`` puts into --out (checked before the work: never an input or
+#: a file arfem did not write; see arfem.scenarios.outdir).
+WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
+          "correlations.png")
+
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow") -> Diagnosis:
     """Load a contract dataset (TOML + CSV) and diagnose it."""
@@ -39,7 +44,7 @@ def add_parser(subparsers):
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow"):
     """Diagnose ``case`` (TOML path) and write every output into ``out``; returns the summary."""
     from arfem.scenarios.diagnosis_report import write_all
-    prepare_out_dir(out, force)           # refuse early, before any work
+    prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
     diag = diagnose_file(case, holdout_start_s, frame_search)
     with staged_out_dir(out, force) as stage:
         write_all(diag, stage)

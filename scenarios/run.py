@@ -24,6 +24,11 @@ from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "PAPER_VALUES"]
 
+#: The files ``write_outputs`` puts into --out (checked before the work: never an input
+#: or a file arfem did not write; see arfem.scenarios.outdir).
+WRITES = ("timeseries.csv", "summary.json", "figure.png", "summary.md", "temperature_3d.png",
+          "fields/fields.xdmf", "fields/fields.h5")
+
 #: Values printed in the seed paper (Du et al. 2021, Sec. 2) at Δτ = 30 s.
 PAPER_VALUES = {"C1": 0.9909, "C2_um": {2000.0: 0.1985, 3000.0: 0.2977}}
 
@@ -279,7 +284,7 @@ def _write_fields(ev: Evaluation, out_dir: Path) -> dict:
 def run_scenario(path, out, force: bool = False) -> Evaluation:
     """Load, evaluate and write one scenario into ``out`` (atomically)."""
     scenario = load_scenario(path)
-    prepare_out_dir(out, force)
+    prepare_out_dir(out, force, writes=WRITES)
     ev = evaluate(scenario)
     with staged_out_dir(out, force) as stage:
         write_outputs(ev, stage)
