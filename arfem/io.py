@@ -47,11 +47,11 @@ def allow_large() -> bool:
 
 
 def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
-                   max_bytes: int = MAX_TEXT_BYTES) -> str:
+                   max_bytes: int | None = None) -> str:
     """The text of a UTF-8 file (a leading BOM dropped).
 
     A missing file, a directory, an unreadable file, a file larger than ``max_bytes``
-    [bytes] (unless :func:`allow_large`), a NUL byte (checked in the first 64 KiB
+    [bytes] (default :data:`MAX_TEXT_BYTES`; unless :func:`allow_large`), a NUL byte (checked in the first 64 KiB
     before the rest is read) or bytes that are not UTF-8 raise :class:`InputError`
     naming the file (and, for bad bytes, the line).
 
@@ -67,6 +67,7 @@ def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
     x.csv: line 2: is not UTF-8 (byte 6 of the file)
     """
     p = Path(path)
+    max_bytes = MAX_TEXT_BYTES if max_bytes is None else max_bytes
     NUL = b"\0"
     try:
         if not p.is_file():

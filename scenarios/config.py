@@ -140,7 +140,7 @@ class Scenario:
 def builtin_scenario_path(name: str) -> Path:
     """Path of a scenario file shipped with arfem (``paper_fig2`` …)."""
     stem = name[:-5] if name.endswith(".toml") else name
-    p = resources.files("scenarios").joinpath(f"{stem}.toml")
+    p = resources.files("arfem.scenarios").joinpath(f"{stem}.toml")
     if not p.is_file():
         raise InputError("no such built-in scenario", name)
     return Path(str(p))

@@ -18,9 +18,11 @@ equilibrium with the nominal ambient) or ``"unknown"``.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import math
+import os
 import re
 from pathlib import Path
 
@@ -30,7 +32,8 @@ from arfem.io import read_text_utf8, read_toml
 from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
 from arfem.params import InputError, Rod, check_plausible
 
-__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION"]
+__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
+           "allow_csv_outside"]
 
 #: ``[rod]`` keys of the contract (a subset of :class:`arfem.params.Rod`'s fields).
 ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
@@ -40,6 +43,9 @@ MAX_MISSING_FRACTION = 0.05
 #: Largest record diagnosed without ``--allow-large`` (a week sampled every 3 s); the
 #: CSV's lines are counted before it is parsed. The file size limit is arfem.io's.
 MAX_ROWS = 200_000
+#: Largest dataset CSV read without ``--allow-large`` [bytes]: MAX_ROWS rows of ~300
+#: characters; checked from the file's size before it is read.
+MAX_CSV_BYTES = 64 * 1024 ** 2
 
 _TOP_TABLES = ("dataset", "rod", "columns", "sensors")
 _DATASET_KEYS = ("name", "csv", "initial")
@@ -143,17 +149,33 @@ def _inside(p: Path, folder: Path) -> bool:
 
 
 def _csv_anywhere() -> bool:
-    import os
     return os.environ.get("ARFEM_ALLOW_CSV_OUTSIDE", "") not in ("", "0")
+
+
+@contextlib.contextmanager
+def allow_csv_outside():
+    """Within this block (and in processes it starts) a dataset TOML may name a CSV
+    outside its folder, as ``arfem diagnose --allow-csv-outside`` does; the cells of such
+    a file are still never shown in error messages."""
+    old = os.environ.get("ARFEM_ALLOW_CSV_OUTSIDE")
+    os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = "1"
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("ARFEM_ALLOW_CSV_OUTSIDE", None)
+        else:
+            os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = old
 
 
 def _read_csv(path: Path, toml_path: Path):
     """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
     from arfem.io import allow_large
-    text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})")
-    n_lines = text.count("\n")
-    if n_lines > MAX_ROWS + 1 and not allow_large():
-        _fail(f"has about {n_lines:,} rows; arfem diagnoses at most {MAX_ROWS:,} (resample "
+    text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})",
+                          max_bytes=MAX_CSV_BYTES)
+    n_rows = text.count("\n") - 1                 # minus the header
+    if n_rows > MAX_ROWS and not allow_large():
+        _fail(f"has about {n_rows:,} rows; arfem diagnoses at most {MAX_ROWS:,} (resample "
               "the record, or pass --allow-large)", str(path))
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     rows, lines = [], []
