@@ -347,3 +347,20 @@ def test_permission_errors_are_one_line_also_as_root(tmp_path, capsys, monkeypat
 def test_a_control_character_in_a_name_keeps_the_error_one_line(tmp_path, capsys, bad):
     assert main(["run", str(tmp_path / bad), "--out", str(tmp_path / "o")]) == 2
     assert "file not found" in one_line_error(capsys)
+
+
+def test_sweep_force_into_a_clone_keeps_its_readme(tmp_path, capsys, monkeypatch):
+    """`arfem sweep sw.toml --out . --force` in a clone: the hand-written README.md
+    (and every other file that was there) is unchanged; exit 2, one line."""
+    base = SCENARIO.replace("dtau_s = 60.0", "dtau_s = 600.0")
+    (tmp_path / "base.toml").write_text(base)
+    (tmp_path / "sw.toml").write_text('[sweep]\nname = "s"\nbase = "base.toml"\n'
+                                      "[sweep.grid]\ndtau_s = [600]\n")
+    (tmp_path / "README.md").write_text("# my project\n")
+    before = snapshot(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", "sw.toml", "--out", ".", "--force", "--workers", "1",
+                 "--no-progress"]) == 2
+    assert "README.md was not written by arfem" in one_line_error(capsys)
+    after = snapshot(tmp_path)
+    assert {k: after.get(k) for k in before} == before
