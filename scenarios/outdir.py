@@ -38,7 +38,7 @@ from arfem import io as _io
 from arfem.params import InputError
 
 __all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir", "check_replaceable",
-           "recover_out_dir", "owned_files", "OWNERSHIP_MANIFEST"]
+           "recover_out_dir", "owned_files", "adopt_outputs", "OWNERSHIP_MANIFEST"]
 
 #: The ownership manifest arfem keeps in every ``--out`` it writes: {file: sha256}.
 OWNERSHIP_MANIFEST = ".arfem-outputs.json"
@@ -227,6 +227,26 @@ def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = Tr
                 raise why
 
 
+def adopt_outputs(out: str | os.PathLike, names) -> None:
+    """Record existing files of ``out`` (relative ``names``) as arfem's in its ownership
+    manifest, e.g. results written by an arfem older than the manifest. Only for files
+    you know arfem wrote: from then on ``--force`` may replace them."""
+    out = Path(out)
+    own = {k: v for k, v in owned_files(out).items() if k != OWNERSHIP_MANIFEST}
+    for rel in names:
+        f = out / rel
+        if not f.is_file():
+            raise InputError("is not a file", str(f))
+        own[Path(rel).as_posix()] = _sha256(f)
+    _io.atomic_write_text(out / OWNERSHIP_MANIFEST, _manifest_text(own))
+
+
+def _manifest_text(files: dict) -> str:
+    return _io.json_text({"generator": "arfem", "note": "files arfem wrote here (SHA-256); "
+                          "arfem replaces no other file", "files": dict(sorted(files.items()))},
+                         indent=2) + "\n"
+
+
 # -- recovery ------------------------------------------------------------------------
 
 @contextlib.contextmanager
@@ -378,10 +398,7 @@ def _write_manifest(stage: Path, out: Path, own: dict, files: list) -> None:
             and ((out / k).is_file() or (out / k).is_symlink())}
     for src in files:
         keep[src.relative_to(stage).as_posix()] = _sha256(src)
-    text = _io.json_text({"generator": "arfem", "note": "files arfem wrote here "
-                          "(SHA-256); arfem replaces no other file", "files":
-                          dict(sorted(keep.items()))}, indent=2) + "\n"
-    (stage / OWNERSHIP_MANIFEST).write_text(text, encoding="utf-8")
+    (stage / OWNERSHIP_MANIFEST).write_text(_manifest_text(keep), encoding="utf-8")
 
 
 def _switch(txn: Path, out: Path, force: bool, may_replace, inputs) -> None:

@@ -364,3 +364,21 @@ def test_sweep_force_into_a_clone_keeps_its_readme(tmp_path, capsys, monkeypatch
     assert "README.md was not written by arfem" in one_line_error(capsys)
     after = snapshot(tmp_path)
     assert {k: after.get(k) for k in before} == before
+
+
+def test_adopted_outputs_of_an_older_arfem_may_be_replaced_with_force(tmp_path):
+    """Results written before the ownership manifest existed (reports/*, adopted with
+    adopt_outputs) are arfem's from then on: --force replaces them; a file not adopted
+    is still refused."""
+    out = tmp_path / "old_result"
+    out.mkdir()
+    (out / "summary.json").write_text("{}")
+    (out / "README.md").write_text("hand-written")
+    with pytest.raises(InputError, match="summary.json was not written by arfem"):
+        stage(out, {"summary.json": "{1}"}, force=True)
+    sio.adopt_outputs(out, ["summary.json"])
+    stage(out, {"summary.json": "{1}"}, force=True)
+    assert (out / "summary.json").read_text() == "{1}"
+    with pytest.raises(InputError, match="README.md was not written by arfem"):
+        stage(out, {"README.md": "generated"}, force=True)
+    assert (out / "README.md").read_text() == "hand-written"
