@@ -47,13 +47,17 @@ def allow_large() -> bool:
 
 
 def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
-                   max_bytes: int | None = None) -> str:
+                   max_bytes: int | None = None, record: bool = True) -> str:
     """The text of a UTF-8 file (a leading BOM dropped).
 
     A missing file, a directory, an unreadable file, a file larger than ``max_bytes``
     [bytes] (default :data:`MAX_TEXT_BYTES`; unless :func:`allow_large`), a NUL byte (checked in the first 64 KiB
     before the rest is read) or bytes that are not UTF-8 raise :class:`InputError`
     naming the file (and, for bad bytes, the line).
+
+    With ``record`` (the default) the file counts as an input of this process: no
+    output staged by ``scenarios/outdir.py`` may replace it (see :func:`files_read`).
+    Pass ``record=False`` to read an earlier output only to compare it.
 
     Examples
     --------
@@ -72,7 +76,8 @@ def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
     try:
         if not p.is_file():
             raise InputError(missing if not p.exists() else "is not a file", str(p))
-        _FILES_READ.add(os.path.abspath(p))
+        if record:
+            _FILES_READ.add(os.path.abspath(p))
         size = p.stat().st_size
         if size > max_bytes and not allow_large():
             raise InputError(f"is {size / 1024 ** 2:.0f} MiB; arfem reads at most "

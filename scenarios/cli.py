@@ -80,10 +80,22 @@ def _error(message: str) -> int:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "allow_large", False):
-        os.environ["ARFEM_ALLOW_LARGE"] = "1"  # worker processes inherit it
-    if getattr(args, "allow_csv_outside", False):
-        os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = "1"
+    flags = {"ARFEM_ALLOW_LARGE": getattr(args, "allow_large", False),
+             "ARFEM_ALLOW_CSV_OUTSIDE": getattr(args, "allow_csv_outside", False)}
+    saved = {k: os.environ.get(k) for k, on in flags.items() if on}
+    for k in saved:                            # for this command (and its worker processes)
+        os.environ[k] = "1"
+    try:
+        return _run(args)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _run(args) -> int:
     try:
         rc = args.func(args)
     except InputError as exc:

@@ -79,18 +79,23 @@ def test_allow_large_lifts_the_size_limits(monkeypatch):
 
 def test_the_cli_flag_sets_allow_large(tmp_path, monkeypatch):
     """`--allow-large` is accepted by every subcommand and exported to the environment
-    (local worker processes inherit it)."""
+    for the command's life (local worker processes inherit it), then restored."""
+    import os
+
+    import arfem.io
     monkeypatch.delenv("ARFEM_ALLOW_LARGE", raising=False)
     from arfem.scenarios.cli import build_parser
     p = build_parser()
     for argv in (["run", "x.toml", "--out", "o", "--allow-large"],
                  ["diagnose", "x.toml", "--out", "o", "--allow-large"],
-                 ["allocate", "x.toml", "--out", "o", "--allow-large"]):
+                 ["allocate", "x.toml", "--out", "o", "--allow-large"],
+                 ["sweep", "x.toml", "--out", "o", "--allow-large"]):
         assert p.parse_args(argv).allow_large
-    main(["run", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "o"),
-          "--allow-large"])
-    import os
-    assert os.environ.get("ARFEM_ALLOW_LARGE") == "1"
+    seen = []
+    monkeypatch.setattr(arfem.io, "read_text_utf8",
+                        lambda *a, **k: seen.append(arfem.io.allow_large()) or "")
+    main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"), "--allow-large"])
+    assert seen == [True] and "ARFEM_ALLOW_LARGE" not in os.environ
 
 
 def test_estimate_matches_the_built_models():
