@@ -35,7 +35,7 @@ class _Parser(argparse.ArgumentParser):
     usage block and then the error)."""
 
     def error(self, message):
-        self.exit(2, f"arfem: error: {message} (see '{self.prog} --help')\n")
+        self.exit(2, f"arfem: error: {one_line(message)} (see '{self.prog} --help')\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

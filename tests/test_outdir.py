@@ -345,8 +345,14 @@ def test_permission_errors_are_one_line_also_as_root(tmp_path, capsys, monkeypat
 
 @pytest.mark.parametrize("bad", ["new\nline.toml", "nul\x01.toml", "para\u2028.toml"])
 def test_a_control_character_in_a_name_keeps_the_error_one_line(tmp_path, capsys, bad):
+    """A newline (or another control character) in a file name or a flag value is shown
+    escaped: the error stays one line, from InputError and from argparse alike."""
     assert main(["run", str(tmp_path / bad), "--out", str(tmp_path / "o")]) == 2
     assert "file not found" in one_line_error(capsys)
+    with pytest.raises(SystemExit) as ei:
+        main(["diagnose", "x.toml", "--out", "o", "--frame-search", bad])
+    assert ei.value.code == 2
+    one_line_error(capsys)
 
 
 def test_sweep_force_into_a_clone_keeps_its_readme(tmp_path, capsys, monkeypatch):
