@@ -171,6 +171,8 @@ def owned_files(out: str | os.PathLike) -> dict:
             own.update({str(k): (v if isinstance(v, str) else None) for k, v in files.items()})
         elif isinstance(files, list) and name == _LEGACY_MANIFEST:
             own.update({str(k): None for k in files})
+        if name == _LEGACY_MANIFEST and isinstance(man.get("not_committed"), list):
+            own.update({str(k): None for k in man["not_committed"]})   # reproduce's fields/
         own[name] = None
     return own
 

@@ -388,3 +388,22 @@ def test_adopted_outputs_of_an_older_arfem_may_be_replaced_with_force(tmp_path):
     with pytest.raises(InputError, match="README.md was not written by arfem"):
         stage(out, {"README.md": "generated"}, force=True)
     assert (out / "README.md").read_text() == "hand-written"
+
+
+def test_reproduce_manifest_counts_as_arfem_files(tmp_path):
+    """An `arfem reproduce` result (its MANIFEST.json: "files" with SHA-256 and
+    "not_committed" names) is arfem's: owned_files lists both kinds, nothing else."""
+    out = tmp_path / "paper"
+    (out / "fields").mkdir(parents=True)
+    (out / "README.md").write_text("r")
+    (out / "fields" / "f.xdmf").write_text("x")
+    (out / "mine.txt").write_text("mine")
+    (out / "MANIFEST.json").write_text(json.dumps({
+        "generator": "arfem reproduce", "files": {"README.md": "0" * 64},
+        "not_committed": ["fields/f.xdmf"]}))
+    own = sio.owned_files(out)
+    assert {"README.md", "fields/f.xdmf", "MANIFEST.json"} <= set(own)
+    assert "mine.txt" not in own
+    stage(out, {"fields/f.xdmf": "y", "README.md": "r2"}, force=True)
+    with pytest.raises(InputError, match="mine.txt was not written by arfem"):
+        stage(out, {"mine.txt": "z"}, force=True)
