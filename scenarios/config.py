@@ -59,7 +59,7 @@ from arfem.strict import table as _table
 
 __all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
            "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
-           "PAPER_SCENARIOS", "estimate_cost", "check_size"]
+           "PAPER_SCENARIOS"]
 
 #: Built-in scenarios reproducing the paper's figures.
 PAPER_SCENARIOS = ("paper_fig2", "paper_fig3")
@@ -71,12 +71,6 @@ ALIASES = {"dtau_s": "ar.dtau_s", "h_W_m2K": "rod.convection_W_m2K", "q_W_m2": "
 #: clear refusal instead of an allocation failure minutes later.
 MAX_ELEMENTS_PER_DIRECTION = 4096
 MAX_FIELD_SNAPSHOTS = 5000
-#: Size limits checked on the estimate of :func:`estimate_cost` before any work; each
-#: is far above the paper's case (441 unknowns, 2880 steps, ~40 MB) and is lifted by
-#: ``--allow-large`` (or ``ARFEM_ALLOW_LARGE=1``).
-MAX_TIME_STEPS = 2_000_000          # AR samples or FEM θ-steps over the cycle
-MAX_MEMORY_BYTES = 2 * 1024 ** 3    # estimated peak of the arrays one run holds [bytes]
-MAX_WORK_FLOP = 5e11                # estimated floating-point operations (minutes)
 
 
 _TOP = {"scenario", "rod", "cycle", "ar", "fem", "outputs"}
@@ -163,7 +157,9 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     ``paper.toml: cycle.phases[2].duration_h: must be > 0, got -1``.
     """
     try:
-        return _from_dict(data, source)
+        sc = _from_dict(data, source)
+        check_size(sc)
+        return sc
     except InputError as exc:
         if exc.where and exc.where.startswith(source):
             raise
@@ -289,20 +285,74 @@ def _from_dict(data: dict, source: str) -> Scenario:
         field_interval_s=_number(out.get("field_interval_s", 1800.0), "outputs.field_interval_s",
                                  positive=True))
     n_snap = schedule.total_s / outputs.field_interval_s
-    # the snapshots are solved whenever fields, the picture or the elastic growth are on
-    if (outputs.fields or outputs.picture or elastic) and n_snap > MAX_FIELD_SNAPSHOTS:
-        raise InputError(f"{outputs.field_interval_s:g} s asks for {n_snap:.3g} field "
-                         f"snapshots over the {schedule.total_s:g} s cycle; at most "
-                         f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields, outputs.picture and "
-                         "fem.elastic to false)", "outputs.field_interval_s")
-    sc = Scenario(name=name, description=description, source=source, rod=rod,
-                  schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
-                  fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
-                                  elastic=elastic, mesh=mesh),
-                  outputs=outputs, data=copy.deepcopy(data))
-    check_size(sc)
-    return sc
+    if outputs.fields and n_snap > MAX_FIELD_SNAPSHOTS:
+        raise InputError(f"{outputs.field_interval_s:g} s asks for {n_snap:.3g} field snapshots "
+                         f"over the {schedule.total_s:g} s cycle; at most "
+                         f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
+                         "outputs.field_interval_s")
+    return Scenario(name=name, description=description, source=source, rod=rod,
+                    schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
+                    fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
+                                    elastic=elastic, mesh=mesh),
+                    outputs=outputs, data=copy.deepcopy(data))
 
+
+def apply_override(data: dict, key: str, value: Any) -> dict:
+    """Return a deep copy of scenario ``data`` with ``key`` set to ``value``.
+
+    ``key`` is a dotted path (``rod.convection_W_m2K``, ``fem.mesh.nz``) or an alias
+    from :data:`ALIASES`; ``q_W_m2`` / ``cycle.q_W_m2`` sets the flux of every
+    heated phase. Unknown keys are refused.
+
+    Examples
+    --------
+    >>> d = apply_override({"cycle": {"phases": [{"duration_h": 1, "q_W_m2": 5.0},
+    ...                                          {"duration_h": 1, "q_W_m2": 0.0}]}}, "q_W_m2", 7.0)
+    >>> [p["q_W_m2"] for p in d["cycle"]["phases"]]
+    [7.0, 0.0]
+    """
+    path = ALIASES.get(key, key)
+    out = copy.deepcopy(data)
+    if path == "cycle.q_W_m2":
+        phases = out.get("cycle", {}).get("phases")
+        if not isinstance(phases, list) or not any(
+                isinstance(p, dict) and p.get("q_W_m2", 0) > 0 for p in phases):
+            raise InputError("the base scenario has no heated phase to set", key)
+        for p in phases:
+            if isinstance(p, dict) and p.get("q_W_m2", 0) > 0:
+                p["q_W_m2"] = value
+        return out
+    parts = path.split(".")
+    allowed = {
+        (): _TOP, ("scenario",): _SCENARIO_KEYS, ("rod",): {f.name for f in fields(Rod)},
+        ("cycle",): {"total_h", "total_s"}, ("ar",): _AR_KEYS, ("fem",): _FEM_KEYS - {"mesh"},
+        ("fem", "mesh"): _MESH_KEYS["axisymmetric"] | _MESH_KEYS["3d"], ("outputs",): _OUT_KEYS,
+    }
+    parent = tuple(parts[:-1])
+    if parent not in allowed or parts[-1] not in allowed[parent]:
+        raise InputError("is not a scenario key that can be set (use a dotted path such as "
+                         "rod.convection_W_m2K, ar.dtau_s, fem.mesh.nz, or dtau_s, h_W_m2K, "
+                         "q_W_m2)", key)
+    node = out
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+        if not isinstance(node, dict):
+            raise InputError("cannot be set: its parent is not a table", key)
+    node[parts[-1]] = value
+    return out
+
+
+# -- size limits (issue 17): estimated before anything is built ---------------------
+
+__all__ += ["estimate_cost", "check_size", "MAX_TIME_STEPS", "MAX_MEMORY_BYTES",
+            "MAX_WORK_FLOP"]
+
+#: Size limits checked on the estimate of :func:`estimate_cost` before any work; each
+#: is far above the paper's case (441 unknowns, 2880 steps, ~70 MB) and is lifted by
+#: ``--allow-large`` (or ``ARFEM_ALLOW_LARGE=1``).
+MAX_TIME_STEPS = 2_000_000          # AR samples or FEM θ-steps over the cycle
+MAX_MEMORY_BYTES = 2 * 1024 ** 3    # estimated peak of the arrays one run holds [bytes]
+MAX_WORK_FLOP = 5e11                # estimated floating-point operations (minutes)
 
 _MESH_DEFAULTS = {"axisymmetric": {"nr": 4, "nz": 24}, "3d": {"n_core": 3, "n_ring": 2, "nz": 16}}
 
@@ -351,11 +401,19 @@ def estimate_cost(sc: Scenario) -> dict:
             "work_flop": work}
 
 
-def check_size(sc: Scenario, where: str = "") -> dict:
+def check_size(sc: Scenario) -> dict:
     """Refuse (one line) a scenario whose :func:`estimate_cost` exceeds the limits
     (:data:`MAX_TIME_STEPS`, :data:`MAX_MEMORY_BYTES`, :data:`MAX_WORK_FLOP`) unless
-    the user lifted them with ``--allow-large``. Returns the estimate."""
+    the user lifted them with ``--allow-large``, or that asks for more than
+    :data:`MAX_FIELD_SNAPSHOTS` snapshots (not lifted). Returns the estimate."""
     from arfem.io import allow_large
+    n_snap = sc.schedule.total_s / sc.outputs.field_interval_s
+    if (sc.outputs.picture or sc.fem.elastic) and n_snap > MAX_FIELD_SNAPSHOTS:
+        # the snapshots are solved for the picture and the elastic growth too
+        raise InputError(f"{sc.outputs.field_interval_s:g} s asks for {n_snap:.3g} field "
+                         f"snapshots over the {sc.schedule.total_s:g} s cycle; at most "
+                         f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields, outputs.picture and "
+                         "fem.elastic to false)", "outputs.field_interval_s")
     c = estimate_cost(sc)
     if allow_large():
         return c
@@ -379,48 +437,3 @@ def check_size(sc: Scenario, where: str = "") -> dict:
                          f"(many minutes); the limit is {MAX_WORK_FLOP:g} ({lift})",
                          "fem.mesh" if c["ndofs"] > 5000 else "fem")
     return c
-
-
-def apply_override(data: dict, key: str, value: Any) -> dict:
-    """Return a deep copy of scenario ``data`` with ``key`` set to ``value``.
-
-    ``key`` is a dotted path (``rod.convection_W_m2K``, ``fem.mesh.nz``) or an alias
-    from :data:`ALIASES`; ``q_W_m2`` / ``cycle.q_W_m2`` sets the flux of every
-    heated phase. Unknown keys are refused.
-
-    Examples
-    --------
-    >>> d = apply_override({"cycle": {"phases": [{"duration_h": 1, "q_W_m2": 5.0},
-    ...                                          {"duration_h": 1, "q_W_m2": 0.0}]}}, "q_W_m2", 7.0)
-    >>> [p["q_W_m2"] for p in d["cycle"]["phases"]]
-    [7.0, 0.0]
-    """
-    path = ALIASES.get(key, key)
-    out = copy.deepcopy(data)
-    if path == "cycle.q_W_m2":
-        phases = out.get("cycle", {}).get("phases")
-        if not isinstance(phases, list) or not any(
-                isinstance(p, dict) and p.get("q_W_m2", 0) > 0 for p in phases):
-            raise InputError("the base scenario has no heated phase to set", key)
-        for p in phases:
-            if isinstance(p, dict) and p.get("q_W_m2", 0) > 0:
-                p["q_W_m2"] = value
-        return out
-    parts = path.split(".")
-    allowed = {
-        (): _TOP, ("scenario",): _SCENARIO_KEYS, ("rod",): {f.name for f in fields(Rod)},
-        ("cycle",): {"total_h", "total_s"}, ("ar",): _AR_KEYS, ("fem",): _FEM_KEYS - {"mesh"},
-        ("fem", "mesh"): _MESH_KEYS["axisymmetric"] | _MESH_KEYS["3d"], ("outputs",): _OUT_KEYS,
-    }
-    parent = tuple(parts[:-1])
-    if parent not in allowed or parts[-1] not in allowed[parent]:
-        raise InputError("is not a scenario key that can be set (use a dotted path such as "
-                         "rod.convection_W_m2K, ar.dtau_s, fem.mesh.nz, or dtau_s, h_W_m2K, "
-                         "q_W_m2)", key)
-    node = out
-    for p in parts[:-1]:
-        node = node.setdefault(p, {})
-        if not isinstance(node, dict):
-            raise InputError("cannot be set: its parent is not a table", key)
-    node[parts[-1]] = value
-    return out
