@@ -166,6 +166,8 @@ KILLER = textwrap.dedent("""
         if n[0] == k:
             os._exit(9)            # as kill -9 would: no cleanup, no finally
         real(src, dst)
+        if k == -1 and str(dst).endswith("committed.json"):
+            os._exit(9)            # killed just after the commit, before cleaning up
     sio._rename = rename
     with sio.staged_out_dir(out, force=True) as st:
         for rel, text in files.items():
@@ -209,6 +211,11 @@ def test_a_kill_at_every_rename_leaves_the_old_or_the_new_set(tmp_path):
         stage(out, NEW, force=True)               # the rerun is not refused
         assert snapshot(out) == new
     assert outcomes == {"old"}          # every kill before the commit rename rolls back
+    out = tmp_path / "out_after_commit"
+    shutil_copy(ref_old, out)
+    assert _killed_switch(-1, out, NEW).returncode == 9
+    sio.check_out_path(out)
+    assert snapshot(out) == new         # committed: the backups are dropped, not restored
 
 
 def shutil_copy(src: Path, dst: Path) -> None:
