@@ -223,6 +223,9 @@ def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = Tr
     own, ids = owned_files(out), _inputs_set(inputs)
     for rel in names:
         dst = out / rel
+        if dst.is_dir() and not dst.is_symlink():
+            raise InputError(f"{rel} is a directory here, where arfem writes a file; "
+                             "move it away", str(out))
         if dst.is_file() or dst.is_symlink():
             why = _refusal(Path(rel).as_posix(), dst, own, force, ids, may_replace, out)
             if why is not None:
