@@ -288,8 +288,7 @@ def _report(run, alloc: dict, command: str) -> str:
 
 
 def main(args) -> int:
-    out = prepare_out_dir(args.out, args.force,       # refuse early, before computing
-                          writes=("pareto.csv", "allocation.json", "pareto.png", "report.md"))
+    out = prepare_out_dir(args.out, args.force)       # refuse early, before computing
     run = run_allocation(args.scenario)
     alloc = _allocation_json(run)
     command = f"arfem allocate {args.scenario} --out {args.out}" + (" --force" if args.force else "")
