@@ -254,17 +254,6 @@ def _manifest_text(files: dict) -> str:
 
 # -- recovery ------------------------------------------------------------------------
 
-@contextlib.contextmanager
-def _dir_lock(d: Path):
-    """Exclusive flock on directory ``d`` itself (serialises switches and recoveries)."""
-    fd = os.open(d, os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(fd)
-
-
 def _try_lock(txn: Path):
     """An open, exclusively locked fd of ``txn``'s lock file, or None if a live run holds
     it. A lock file that does not exist yields None unless the directory is old."""
@@ -302,7 +291,7 @@ def _rollback(txn: Path, out: Path) -> None:
             (out / rel).rmdir()
 
 
-def recover_out_dir(out: str | os.PathLike, _locked: bool = False, _skip=None) -> list[str]:
+def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
     """Finish what a killed arfem run left in ``out``; returns what was done.
 
     A committed switch has its backups deleted; an uncommitted one is rolled back (each
@@ -320,22 +309,20 @@ def recover_out_dir(out: str | os.PathLike, _locked: bool = False, _skip=None) -
                   if d.is_dir() and d != _skip]
     if not cands:
         return done
-    with (contextlib.nullcontext() if _locked
-          else _dir_lock(out if out.is_dir() else out.parent)):
-        for txn, target in cands:
-            fd = _try_lock(txn)
-            if fd is None:
-                continue
-            try:
-                if target is not None and (txn / _JOURNAL).exists() \
-                        and not (txn / _COMMITTED).exists():
-                    _rollback(txn, target)
-                    done.append(f"rolled back an interrupted switch into {target}")
-                else:
-                    done.append(f"removed {txn.name}")
-                shutil.rmtree(txn, ignore_errors=True)
-            finally:
-                os.close(fd)
+    for txn, target in cands:      # each one's own lock: one recoverer, never a live run
+        fd = _try_lock(txn)
+        if fd is None:
+            continue
+        try:
+            if target is not None and (txn / _JOURNAL).exists() \
+                    and not (txn / _COMMITTED).exists():
+                _rollback(txn, target)
+                done.append(f"rolled back an interrupted switch into {target}")
+            else:
+                done.append(f"removed {txn.name}")
+            shutil.rmtree(txn, ignore_errors=True)
+        finally:
+            os.close(fd)
     return done
 
 
@@ -423,41 +410,42 @@ def _switch(txn: Path, out: Path, force: bool, may_replace, inputs) -> None:
                 raise
             # someone created out meanwhile: switch file by file below
             (stage / OWNERSHIP_MANIFEST).unlink()
-    with _dir_lock(out):
-        recover_out_dir(out, _locked=True, _skip=txn)     # killed runs, never live ones
-        own, ids = owned_files(out), _inputs_set(inputs)
-        for src in entries:                               # every refusal before any move
-            rel = src.relative_to(stage)
-            dst = out / rel
-            if src.is_dir() and (dst.exists() or dst.is_symlink()) and not dst.is_dir():
-                raise InputError(f"{rel} is a file here, where arfem writes a directory; "
-                                 "move it away", str(out))
-            if not src.is_dir() and dst.is_dir():
-                raise InputError(f"{rel} is a directory here, where arfem writes a file; "
-                                 "move it away", str(out))
-            if not src.is_dir() and (dst.exists() or dst.is_symlink()):
-                why = _refusal(rel.as_posix(), dst, own, force, ids, may_replace, out)
-                if why is not None:
-                    raise why
-        _write_manifest(stage, out, own, files)
-        files.append(stage / OWNERSHIP_MANIFEST)          # moved last
-        dirs = [s.relative_to(stage).as_posix() for s in entries if s.is_dir()
-                and not (out / s.relative_to(stage)).is_dir()]
-        plan = [(s.relative_to(stage).as_posix(),
-                 (out / s.relative_to(stage)).exists()
-                 or (out / s.relative_to(stage)).is_symlink()) for s in files]
-        _io.atomic_write_text(txn / _JOURNAL, json.dumps({"files": plan, "dirs": dirs}))
-        old = txn / _OLD
-        try:
-            for rel in dirs:
-                (out / rel).mkdir()
-            for rel, had_old in plan:
-                if had_old:
-                    (old / rel).parent.mkdir(parents=True, exist_ok=True)
-                    _rename(out / rel, old / rel)
-                _rename(stage / rel, out / rel)
-            _rename(txn / _JOURNAL, txn / _COMMITTED)     # the commit point
-        except BaseException:
-            _rollback(txn, out)           # if this fails too, the next run finishes it
-            (txn / _JOURNAL).unlink()
-            raise
+    # no lock on --out itself: `arfem sweep` holds one on it for its whole run; each
+    # staging directory's own lock keeps recoveries apart
+    recover_out_dir(out, _skip=txn)                   # killed runs, never live ones
+    own, ids = owned_files(out), _inputs_set(inputs)
+    for src in entries:                               # every refusal before any move
+        rel = src.relative_to(stage)
+        dst = out / rel
+        if src.is_dir() and (dst.exists() or dst.is_symlink()) and not dst.is_dir():
+            raise InputError(f"{rel} is a file here, where arfem writes a directory; "
+                             "move it away", str(out))
+        if not src.is_dir() and dst.is_dir():
+            raise InputError(f"{rel} is a directory here, where arfem writes a file; "
+                             "move it away", str(out))
+        if not src.is_dir() and (dst.exists() or dst.is_symlink()):
+            why = _refusal(rel.as_posix(), dst, own, force, ids, may_replace, out)
+            if why is not None:
+                raise why
+    _write_manifest(stage, out, own, files)
+    files.append(stage / OWNERSHIP_MANIFEST)          # moved last
+    dirs = [s.relative_to(stage).as_posix() for s in entries if s.is_dir()
+            and not (out / s.relative_to(stage)).is_dir()]
+    plan = [(s.relative_to(stage).as_posix(),
+             (out / s.relative_to(stage)).exists()
+             or (out / s.relative_to(stage)).is_symlink()) for s in files]
+    _io.atomic_write_text(txn / _JOURNAL, json.dumps({"files": plan, "dirs": dirs}))
+    old = txn / _OLD
+    try:
+        for rel in dirs:
+            (out / rel).mkdir()
+        for rel, had_old in plan:
+            if had_old:
+                (old / rel).parent.mkdir(parents=True, exist_ok=True)
+                _rename(out / rel, old / rel)
+            _rename(stage / rel, out / rel)
+        _rename(txn / _JOURNAL, txn / _COMMITTED)     # the commit point
+    except BaseException:
+        _rollback(txn, out)           # if this fails too, the next run finishes it
+        (txn / _JOURNAL).unlink()
+        raise

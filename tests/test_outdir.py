@@ -414,3 +414,24 @@ def test_reproduce_manifest_counts_as_arfem_files(tmp_path):
     stage(out, {"fields/f.xdmf": "y", "README.md": "r2"}, force=True)
     with pytest.raises(InputError, match="mine.txt was not written by arfem"):
         stage(out, {"mine.txt": "z"}, force=True)
+
+
+def test_switch_into_a_directory_locked_by_its_own_process(tmp_path):
+    """`arfem sweep` holds an flock on --out itself for its whole run and then stages
+    its tables into it: the switch must not wait for that lock (it did: a deadlock).
+    Run in a subprocess with a timeout so that a regression fails instead of hanging."""
+    out = tmp_path / "store"
+    out.mkdir()
+    code = textwrap.dedent(f"""
+        import fcntl, os
+        import arfem.scenarios.outdir as sio
+        fd = os.open({str(out)!r}, os.O_RDONLY | os.O_DIRECTORY)
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with sio.staged_out_dir({str(out)!r}, force=True) as st:
+            (st / "results.csv").write_text("x")
+        print("done")
+    """)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120, cwd=ROOT)
+    assert r.returncode == 0 and "done" in r.stdout, r.stderr
+    assert (out / "results.csv").read_text() == "x"
