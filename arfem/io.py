@@ -23,14 +23,41 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = ["read_text_utf8", "read_toml", "json_text", "atomic_write_text",
-           "atomic_write_bytes", "atomic_path", "write_json", "write_csv"]
+           "atomic_write_bytes", "atomic_path", "write_json", "write_csv", "files_read",
+           "MAX_TEXT_BYTES"]
+
+#: Largest user text file (TOML, CSV) read whole [bytes]: 1 GiB would take minutes and
+#: ~10x its size in memory to parse; far above any record here (lifted by --allow-large).
+MAX_TEXT_BYTES = 256 * 1024 ** 2
+
+#: Every user file read in this process (absolute paths): the inputs that
+#: ``scenarios/outdir.py`` never lets an output replace.
+_FILES_READ: set = set()
 
 
-def read_text_utf8(path: str | os.PathLike, missing: str = "file not found") -> str:
+def files_read() -> frozenset:
+    """Absolute paths of every file read through :func:`read_text_utf8` so far."""
+    return frozenset(_FILES_READ)
+
+
+def allow_large() -> bool:
+    """True if the user lifted arfem's size limits (``--allow-large`` or
+    ``ARFEM_ALLOW_LARGE=1``, which local worker processes inherit)."""
+    return os.environ.get("ARFEM_ALLOW_LARGE", "") not in ("", "0")
+
+
+def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
+                   max_bytes: int | None = None, record: bool = True) -> str:
     """The text of a UTF-8 file (a leading BOM dropped).
 
-    A missing file, a directory, an unreadable file or bytes that are not UTF-8 raise
-    :class:`InputError` naming the file (and, for bad bytes, the line).
+    A missing file, a directory, an unreadable file, a file larger than ``max_bytes``
+    [bytes] (default :data:`MAX_TEXT_BYTES`; unless :func:`allow_large`), a NUL byte (checked in the first 64 KiB
+    before the rest is read) or bytes that are not UTF-8 raise :class:`InputError`
+    naming the file (and, for bad bytes, the line).
+
+    With ``record`` (the default) the file counts as an input of this process: no
+    output staged by ``scenarios/outdir.py`` may replace it (see :func:`files_read`).
+    Pass ``record=False`` to read an earlier output only to compare it.
 
     Examples
     --------
@@ -44,12 +71,29 @@ def read_text_utf8(path: str | os.PathLike, missing: str = "file not found") -> 
     x.csv: line 2: is not UTF-8 (byte 6 of the file)
     """
     p = Path(path)
-    if not p.is_file():
-        raise InputError(missing if not p.exists() else "is not a file", str(p))
+    max_bytes = MAX_TEXT_BYTES if max_bytes is None else max_bytes
+    NUL = b"\0"
     try:
-        raw = p.read_bytes()
+        if not p.is_file():
+            raise InputError(missing if not p.exists() else "is not a file", str(p))
+        if record:
+            _FILES_READ.add(os.path.abspath(p))
+        size = p.stat().st_size
+        if size > max_bytes and not allow_large():
+            raise InputError(f"is {size / 1024 ** 2:.0f} MiB; arfem reads at most "
+                             f"{max_bytes / 1024 ** 2:.0f} MiB (pass --allow-large to lift "
+                             "the limit)", str(p))
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 16)
+            if b"\0" in head:
+                raise InputError(f"holds a NUL byte (byte {head.index(NUL)} of the file): "
+                                 "a binary file, not text", str(p))
+            raw = head + fh.read()
     except OSError as e:
-        raise InputError(f"cannot be read ({e.strerror})", str(p)) from None
+        raise InputError(f"cannot be read ({e.strerror or e})", str(p)) from None
+    if b"\0" in raw:
+        raise InputError(f"holds a NUL byte (byte {raw.index(NUL)} of the file): "
+                         "a binary file, not text", str(p))
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:

@@ -26,6 +26,7 @@ import numpy as np
 
 __all__ = [
     "InputError",
+    "one_line",
     "PLAUSIBLE_RANGES",
     "check_plausible",
     "Rod",
@@ -33,6 +34,21 @@ __all__ = [
     "paper_cycle",
     "PAPER_PHASES_S",
 ]
+
+
+_LINE_BREAKING = {c: f"\\x{c:02x}" for c in list(range(0x20)) + [0x7f]} | {
+    ord("\n"): "\\n", ord("\r"): "\\r", ord("\t"): " ", 0x85: "\\x85",
+    0x2028: "\\u2028", 0x2029: "\\u2029"}
+
+
+def one_line(text) -> str:
+    """``text`` with every control character (a newline or NUL in a file name, say)
+    shown as an escape, so that an error message stays one line.
+
+    >>> print(one_line("a\\nb.toml\\x00"))
+    a\\nb.toml\\x00
+    """
+    return str(text).translate(_LINE_BREAKING)
 
 
 class InputError(ValueError):
@@ -47,9 +63,9 @@ class InputError(ValueError):
     """
 
     def __init__(self, message: str, where: str | None = None):
-        self.where = where
-        self.message = message
-        super().__init__(f"{where}: {message}" if where else message)
+        self.where = one_line(where) if where is not None else None
+        self.message = one_line(message)
+        super().__init__(f"{self.where}: {self.message}" if self.where else self.message)
 
     def at(self, where: str) -> "InputError":
         """Return a copy located at ``where`` (prefixing any existing location)."""
@@ -79,6 +95,9 @@ PLAUSIBLE_RANGES = {
     "fitted_h_W_m2K": (1.0, 2000.0, "W/(m²·K) (a [rod] value in the wrong unit?)"),
     "ambient_gain_um_per_K": (0.05, 500.0, "µm/K (growth_um in mm?)"),
     "drift_um_per_h": (-100.0, 100.0, "µm/h (growth_um in nm?)"),
+    # measured thermal growth of a spindle: tens of µm; 5 mm would be a value in nm or
+    # a broken sensor, and 1e300 ends in inf/nan scores
+    "growth_um": (-5000.0, 5000.0, "µm (a growth in nm?)"),
 }
 
 

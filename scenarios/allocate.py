@@ -37,6 +37,10 @@ __all__ = ["add_parser", "main", "run_allocation", "load_allocation_scenario"]
 OKABE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
 #: Monte Carlo draws for the yield of the picked design
 N_DRAWS = 100_000
+#: the files ``main`` may put into --out (checked before the work: never an input or a
+#: file arfem did not write; see arfem.scenarios.outdir)
+WRITES = ("pareto.csv", "allocation.json", "pareto.png", "convergence.png", "stackup.png",
+          "sensitivity.png", "thermal.png", "thermal.csv", "report.md", "report.html")
 #: seed offset of the report's Monte Carlo (independent of the optimiser's draws)
 MC_SEED = 1_000_003
 #: the converged run of the paper_literal model (the paper's own optimum)
@@ -518,7 +522,8 @@ def _report(run, a: dict, command: str) -> str:
 
 
 def main(args) -> int:
-    out = prepare_out_dir(args.out, args.force)       # refuse early, before computing
+    out = prepare_out_dir(args.out, args.force, inputs=[args.scenario],
+                          writes=WRITES)            # refuse early, before computing
     limit = None if getattr(args, "no_work_limit", False) else MAX_EVALUATIONS
     run = run_allocation(args.scenario, getattr(args, "seeds", None), limit)
     alloc = _allocation_json(run)

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from arfem import __version__
-from arfem.params import InputError
+from arfem.params import InputError, one_line
 
 #: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
 COMMANDS = {
@@ -36,7 +37,7 @@ class _Parser(argparse.ArgumentParser):
     usage block and then the error)."""
 
     def error(self, message):
-        self.exit(2, f"arfem: error: {message} (see '{self.prog} --help')\n")
+        self.exit(2, f"arfem: error: {one_line(message)} (see '{self.prog} --help')\n")
 
 
 def command_in(argv) -> str | None:
@@ -70,25 +71,59 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                 raise
             continue
         mod.add_parser(sub)
+    for sp in sub.choices.values():            # one flag, the same on every subcommand
+        if not any("--allow-large" in a.option_strings for a in sp._actions):
+            sp.add_argument("--allow-large", action="store_true",
+                            help="lift arfem's size limits (mesh, time steps, samples, "
+                                 "memory estimate, CSV size and rows); see README, "
+                                 "'Safety of your files and limits'")
+    if "diagnose" in sub.choices:
+        sub.choices["diagnose"].add_argument(
+            "--allow-csv-outside", action="store_true",
+            help="read a dataset CSV outside the TOML's folder (its cells are then never "
+                 "shown in error messages)")
     return p
+
+
+def _error(message: str) -> int:
+    print(f"arfem: error: {one_line(message)}", file=sys.stderr)
+    return 2
 
 
 def main(argv=None) -> int:
     parser = build_parser(command_in(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
+    flags = {"ARFEM_ALLOW_LARGE": getattr(args, "allow_large", False),
+             "ARFEM_ALLOW_CSV_OUTSIDE": getattr(args, "allow_csv_outside", False)}
+    saved = {k: os.environ.get(k) for k, on in flags.items() if on}
+    for k in saved:                            # for this command (and its worker processes)
+        os.environ[k] = "1"
+    try:
+        return _run(args)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _run(args) -> int:
     try:
         rc = args.func(args)
     except InputError as exc:
-        print(f"arfem: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc))
+    except OSError as exc:                     # disk full, permissions, name too long...
+        what = exc.strerror or str(exc)
+        return _error(f"{exc.filename}: {what}" if exc.filename else what)
+    except (OverflowError, RecursionError) as exc:
+        return _error(f"an input value is out of range ({exc})")
     except KeyboardInterrupt:
         print("arfem: interrupted", file=sys.stderr)
         return 130
     except MemoryError:
-        print("arfem: error: out of memory; the input asks for more than this machine has "
-              "(a finer mesh, more field snapshots or a bigger grid than it can hold)",
-              file=sys.stderr)
-        return 2
+        return _error("out of memory; the input asks for more than this machine has "
+                      "(a finer mesh, more field snapshots or a bigger grid than it can hold)")
     return int(rc or 0)
 
 

@@ -179,7 +179,9 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     ``paper.toml: cycle.phases[2].duration_h: must be > 0, got -1``.
     """
     try:
-        return _from_dict(data, source)
+        sc = _from_dict(data, source)
+        check_size(sc)
+        return sc
     except InputError as exc:
         if exc.where and exc.where.startswith(source):
             raise
@@ -306,7 +308,7 @@ def _from_dict(data: dict, source: str) -> Scenario:
                                  positive=True))
     n_snap = schedule.total_s / outputs.field_interval_s
     if outputs.fields and n_snap > MAX_FIELD_SNAPSHOTS:
-        raise InputError(f"{outputs.field_interval_s:g} s asks for {n_snap:.0f} field snapshots "
+        raise InputError(f"{outputs.field_interval_s:g} s asks for {n_snap:.3g} field snapshots "
                          f"over the {schedule.total_s:g} s cycle; at most "
                          f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
                          "outputs.field_interval_s")
@@ -397,3 +399,100 @@ def apply_override(data: dict, key: str, value: Any) -> dict:
             raise InputError("cannot be set: its parent is not a table", key)
     node[parts[-1]] = value
     return out
+
+
+# -- size limits (issue 17): estimated before anything is built ---------------------
+
+__all__ += ["estimate_cost", "check_size", "MAX_TIME_STEPS", "MAX_MEMORY_BYTES",
+            "MAX_WORK_FLOP"]
+
+#: Size limits checked on the estimate of :func:`estimate_cost` before any work; each
+#: is far above the paper's case (441 unknowns, 2880 steps, ~70 MB) and is lifted by
+#: ``--allow-large`` (or ``ARFEM_ALLOW_LARGE=1``).
+MAX_TIME_STEPS = 2_000_000          # AR samples or FEM θ-steps over the cycle
+MAX_MEMORY_BYTES = 2 * 1024 ** 3    # estimated peak of the arrays one run holds [bytes]
+MAX_WORK_FLOP = 5e11                # estimated floating-point operations (minutes)
+
+_MESH_DEFAULTS = {"axisymmetric": {"nr": 4, "nz": 24}, "3d": {"n_core": 3, "n_ring": 2, "nz": 16}}
+
+
+def estimate_cost(sc: Scenario) -> dict:
+    """What one run of ``sc`` will cost, from its inputs alone (nothing is built).
+
+    Returns ``ndofs`` (FEM unknowns, exact for these meshes), ``n_samples`` (AR(1)
+    samples), ``n_steps`` (θ-method steps, 0 for the modal solver), ``n_snapshots``,
+    ``memory_bytes`` (estimated peak of the arrays held [bytes]) and ``work_flop``
+    (estimated floating-point operations). The model: the modal solver holds dense
+    n×n matrices (eigh ~10 n³ flop) and (samples × n) modal blocks; the θ-method a
+    sparse LU with ~30x fill and, for fields, every step's state; the AR(1) and the
+    writers ~20 arrays per sample.
+    """
+    f = sc.fem
+    m = {**_MESH_DEFAULTS[f.model], **f.mesh}
+    o = f.order
+    if f.model == "axisymmetric":
+        n = (o * m["nr"] + 1) * (o * m["nz"] + 1)
+        row = 25 if o == 2 else 9
+    else:
+        nc, nr, nz = m["n_core"], m["n_ring"], m["nz"]
+        v = (nc + 1) ** 2 + 4 * nc * nr
+        e = v + nc * nc + 4 * nc * nr - 1
+        n = v * (nz + 1) if o == 1 else (v + e) * (nz + 1) + v * nz
+        row = 81 if o == 2 else 27
+    total = sc.schedule.total_s
+    n_samples = total / sc.dtau_s + len(sc.schedule.durations_s)
+    snaps = total / sc.outputs.field_interval_s + 3
+    any_fields = sc.outputs.fields or sc.outputs.picture or f.elastic
+    mem = 20.0 * 8 * n_samples
+    if f.theta is None:
+        n_steps = 0.0
+        mem += 8.0 * (4 * n * n + 4 * n_samples * n + (5 * snaps * n if any_fields else 0))
+        work = 10.0 * n ** 3 + 6.0 * n_samples * n + (2.0 * snaps * n * n if any_fields else 0)
+    else:
+        n_steps = total / f.dt_s
+        mem += 8.0 * (30 * row * n + (n_steps * n if any_fields else 0) + 10 * n_steps)
+        work = 4.0 * row * n * n_steps * (2 if any_fields else 1) + 30.0 * row * n * 50
+    if any_fields:                  # thermo-elastic solve: 3 unknowns per node, sparse LU
+        mem += 8.0 * 30 * 3 * row * 3 * n
+        work += 30.0 * (3 * n) * 3 * row * 50
+    return {"ndofs": int(n), "n_samples": n_samples, "n_steps": n_steps,
+            "n_snapshots": snaps if any_fields else 0.0, "memory_bytes": mem,
+            "work_flop": work}
+
+
+def check_size(sc: Scenario) -> dict:
+    """Refuse (one line) a scenario whose :func:`estimate_cost` exceeds the limits
+    (:data:`MAX_TIME_STEPS`, :data:`MAX_MEMORY_BYTES`, :data:`MAX_WORK_FLOP`) unless
+    the user lifted them with ``--allow-large``, or that asks for more than
+    :data:`MAX_FIELD_SNAPSHOTS` snapshots (not lifted). Returns the estimate."""
+    from arfem.io import allow_large
+    n_snap = sc.schedule.total_s / sc.outputs.field_interval_s
+    if (sc.outputs.picture or sc.fem.elastic) and n_snap > MAX_FIELD_SNAPSHOTS:
+        # the snapshots are solved for the picture and the elastic growth too
+        raise InputError(f"{sc.outputs.field_interval_s:g} s asks for {n_snap:.3g} field "
+                         f"snapshots over the {sc.schedule.total_s:g} s cycle; at most "
+                         f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields, outputs.picture and "
+                         "fem.elastic to false)", "outputs.field_interval_s")
+    c = estimate_cost(sc)
+    if allow_large():
+        return c
+    lift = "pass --allow-large to run it anyway"
+    if c["n_samples"] > MAX_TIME_STEPS:
+        raise InputError(f"{sc.dtau_s:g} s gives {c['n_samples']:.3g} AR samples over the "
+                         f"{sc.schedule.total_s:g} s cycle; at most {MAX_TIME_STEPS:g} ({lift})",
+                         "ar.dtau_s")
+    if c["n_steps"] > MAX_TIME_STEPS:
+        raise InputError(f"{sc.fem.dt_s:g} s gives {c['n_steps']:.3g} {sc.fem.solver} steps "
+                         f"over the {sc.schedule.total_s:g} s cycle; at most "
+                         f"{MAX_TIME_STEPS:g} ({lift})", "fem.dt_s")
+    what = (f"{c['ndofs']:,} FEM unknowns ({sc.fem.model}, order {sc.fem.order}, "
+            f"{sc.fem.solver}), {c['n_samples']:.3g} samples")
+    if c["memory_bytes"] > MAX_MEMORY_BYTES:
+        raise InputError(f"{what} need about {c['memory_bytes'] / 1024 ** 3:.3g} GiB of memory; "
+                         f"the limit is {MAX_MEMORY_BYTES / 1024 ** 3:g} GiB ({lift})",
+                         "fem.mesh" if c["ndofs"] > 5000 else "fem")
+    if c["work_flop"] > MAX_WORK_FLOP:
+        raise InputError(f"{what} need about {c['work_flop']:.2g} floating-point operations "
+                         f"(many minutes); the limit is {MAX_WORK_FLOP:g} ({lift})",
+                         "fem.mesh" if c["ndofs"] > 5000 else "fem")
+    return c

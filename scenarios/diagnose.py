@@ -14,6 +14,11 @@ from arfem.scenarios.progress import Progress, add_progress_flag
 
 __all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
 
+#: The files ``write_all`` puts into --out (checked before the work: never an input or
+#: a file arfem did not write; see arfem.scenarios.outdir).
+WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
+          "correlations.png", "report.html")
+
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
                   progress=None) -> Diagnosis:
@@ -50,7 +55,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
-    prepare_out_dir(out, force)           # refuse early, before any work
+    prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
     diag = diagnose_file(case, holdout_start_s, frame_search, progress)
     if progress is not None:
         progress("writing outputs")

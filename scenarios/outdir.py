@@ -1,101 +1,420 @@
 """Output directories for every ``arfem`` command: refuse an ``--out`` that cannot be
-written before any work, stage a whole result set, then move it into place all or
-nothing (nothing the user owns is overwritten without ``--force``)."""
+written before any work, stage a whole result set, then switch it into place all or
+nothing, and never replace a file that arfem did not write.
+
+The rules (they hold for ``run``, ``reproduce``, ``sweep``, ``diagnose``, ``allocate``):
+
+* **Ownership.** Every result set moved into ``--out`` also updates ``--out``'s
+  ownership manifest :data:`OWNERSHIP_MANIFEST` (``.arfem-outputs.json``: the SHA-256
+  of each file arfem wrote there). A file that exists in ``--out`` and is not in that
+  manifest was not written by arfem and is never replaced, ``--force`` or not.
+  ``--force`` only lets arfem replace its own files (also when changed since).
+* **Inputs.** A file read as an input of the same run (every file read through
+  :func:`arfem.io.read_text_utf8`, plus any the caller names) is never replaced.
+* **All or nothing.** A new ``--out`` appears by one ``rename`` of the staged
+  directory. In an existing ``--out`` the files are switched one by one under a journal
+  written before the first rename; the switch commits by one more rename of that
+  journal. A run killed at any point (kill -9, power cut after the journal is on disk)
+  is rolled back to the old files by the next arfem command that uses the same
+  ``--out`` (:func:`recover_out_dir`), so ``--out`` is always the old or the new set.
+* **Liveness by lock, not by PID.** Each staging directory holds a lock file locked
+  (``fcntl.flock``) for the run's whole life; a staging directory whose lock can be
+  taken belongs to a dead run (in any PID namespace) and is recovered or removed.
+"""
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
+import hashlib
+import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
+from arfem import io as _io
 from arfem.params import InputError
 
-__all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir"]
+__all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir", "check_replaceable",
+           "recover_out_dir", "owned_files", "adopt_outputs", "OWNERSHIP_MANIFEST"]
+
+#: The ownership manifest arfem keeps in every ``--out`` it writes: {file: sha256}.
+OWNERSHIP_MANIFEST = ".arfem-outputs.json"
+_STAGE = ".arfem-staging-"          # staging directories (inside --out, or beside a new one)
+_LOCK, _JOURNAL, _COMMITTED, _NEW, _OLD = "lock", "journal.json", "committed.json", "new", "old"
+#: A staging directory without its lock file is a run killed between mkdir and lock
+#: (microseconds); it is removed once it is older than this [s].
+_UNLOCKED_GRACE_S = 60.0
+#: Older arfem (before the ownership manifest): ``arfem reproduce``'s MANIFEST.json.
+_LEGACY_MANIFEST = "MANIFEST.json"
+
+
+def _rename(src, dst) -> None:
+    """The one rename primitive of the switch (tests inject kills here)."""
+    os.replace(src, dst)
+
+
+def _oserror(e: OSError, where) -> InputError:
+    return InputError(f"cannot be written ({e.strerror or e})", str(where))
+
+
+def _name_max(d: Path) -> int:
+    try:
+        return os.pathconf(d, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def _sibling_prefix(out: Path) -> str:
+    """Prefix of staging directories beside a new ``out``: fixed length, whatever the
+    length of ``out``'s name (a 250-character name still fits)."""
+    return f"{_STAGE}{hashlib.sha1(os.fsencode(out.name)).hexdigest()[:12]}-"
 
 
 def check_out_path(out: str | os.PathLike) -> Path:
-    """Refuse an output path that cannot become a writable directory. Creates nothing.
+    """Refuse an output path that cannot become a writable directory; recover a switch
+    interrupted in it (see :func:`recover_out_dir`). Creates nothing.
 
     Catches, before any work is done: an existing file or a broken symbolic link at
-    ``out``, a file where one of its parent directories should be, and a directory
-    (``out`` or its nearest existing parent) that cannot be written.
+    ``out``, a file where one of its parent directories should be, a name longer than
+    the file system allows, a directory that cannot be read or written, and the same
+    for the staging directory arfem will create.
     """
     p = Path(out)
-    if p.is_symlink() and not p.exists():
-        raise InputError("is a broken symbolic link", str(p))
-    if p.exists() and not p.is_dir():
-        raise InputError("exists and is not a directory", str(p))
-    anc = p.parent                        # Path("out").parent is Path(".")
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        raise InputError(f"cannot be created: {anc} is not a directory", str(p))
-    for d in ([p] if p.is_dir() else []) + [anc]:
-        try:
-            tempfile.TemporaryDirectory(prefix=".arfem-probe-", dir=d).cleanup()
-        except OSError as e:
-            raise InputError(f"cannot be written ({e.strerror or e})",
-                             str(p) if d is p else f"{p} (in {d})") from None
+    limit = _name_max(Path(p.anchor or "."))
+    for part in p.parts:
+        if len(os.fsencode(part)) > limit:
+            raise InputError(f"a name in it is {len(os.fsencode(part))} bytes long; the "
+                             f"file system allows at most {limit}", _short(p))
+    try:
+        if p.is_symlink() and not p.exists():
+            raise InputError("is a broken symbolic link", str(p))
+        if p.exists() and not p.is_dir():
+            raise InputError("exists and is not a directory", str(p))
+        anc = p.parent                        # Path("out").parent is Path(".")
+        while not anc.exists() and anc != anc.parent:
+            anc = anc.parent
+        if not anc.is_dir():
+            raise InputError(f"cannot be created: {anc} is not a directory", str(p))
+        if p.is_dir() or p.parent.is_dir():
+            recover_out_dir(p)
+        probe = [(p, _STAGE)] if p.is_dir() else [(anc, _sibling_prefix(p))]
+        for d, prefix in probe:
+            tempfile.TemporaryDirectory(prefix=prefix, dir=d).cleanup()
+    except InputError:
+        raise
+    except OSError as e:
+        raise InputError(f"cannot be used ({e.strerror or e})", _short(p)) from None
     return p
 
 
-def prepare_out_dir(out: str | os.PathLike, force: bool = False) -> Path:
-    """Check ``out`` may be written: absent, empty, or ``force``. Creates nothing."""
+def _short(p) -> str:
+    s = str(p)
+    return s if len(s) <= 120 else s[:60] + "…" + s[-40:]
+
+
+def prepare_out_dir(out: str | os.PathLike, force: bool = False, inputs=(),
+                    writes=()) -> Path:
+    """Check ``out`` may be written: absent, empty, or ``force``. Creates nothing.
+
+    ``writes`` (names relative to ``out`` that the command will write, as far as it
+    knows them before the work) and ``inputs`` (paths the command reads) let the
+    ownership and input rules refuse at once instead of after the work; the full check
+    is repeated on the actual files when they are moved (:func:`staged_out_dir`).
+    """
     p = check_out_path(out)
-    if p.is_dir() and any(p.iterdir()) and not force:
+    if p.is_dir() and not force and _user_entries(p):
         raise InputError("is not empty; choose another --out or pass --force to replace "
-                         "the files arfem writes there", str(p))
+                         "the files arfem wrote there", str(p))
+    check_replaceable(p, writes, inputs, force)
     return p
 
 
-def _stale_stages(out: Path):
-    """Staging directories of ``out`` left by an arfem process that no longer runs."""
-    for d in out.parent.glob(f".{out.name}.staging-*-*"):
-        try:
-            pid = int(d.name[len(f".{out.name}.staging-"):].split("-", 1)[0])
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            yield d
-        except (ValueError, PermissionError, OSError):
-            continue
+def _user_entries(out: Path) -> list[str]:
+    try:
+        return [e.name for e in out.iterdir()
+                if not e.name.startswith(_STAGE) and e.name != OWNERSHIP_MANIFEST]
+    except OSError as e:
+        raise InputError(f"cannot be read ({e.strerror or e})", str(out)) from None
 
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def owned_files(out: str | os.PathLike) -> dict:
+    """{relative posix path: sha256 or None} of the files arfem wrote into ``out``.
+
+    Read from ``out``'s ownership manifest; an older ``arfem reproduce`` result (its
+    ``MANIFEST.json``) counts too. Unreadable or foreign manifests own nothing.
+    """
+    out = Path(out)
+    own: dict = {}
+    for name in (_LEGACY_MANIFEST, OWNERSHIP_MANIFEST):
+        try:
+            with open(out / name, encoding="utf-8") as fh:   # not an input: not via arfem.io
+                man = json.load(fh)
+        except (OSError, ValueError):
+            continue
+        if not isinstance(man, dict):
+            continue
+        if name == _LEGACY_MANIFEST and man.get("generator") != "arfem reproduce":
+            continue
+        files = man.get("files")
+        if isinstance(files, dict):
+            own.update({str(k): (v if isinstance(v, str) else None) for k, v in files.items()})
+        elif isinstance(files, list) and name == _LEGACY_MANIFEST:
+            own.update({str(k): None for k in files})
+        if name == _LEGACY_MANIFEST and isinstance(man.get("not_committed"), list):
+            own.update({str(k): None for k in man["not_committed"]})   # reproduce's fields/
+        own[name] = None
+    return own
+
+
+def _inputs_set(inputs) -> set:
+    """(st_dev, st_ino) of every input: the caller's and every file arfem read."""
+    ids = set()
+    for f in list(inputs) + list(_io.files_read()):
+        with contextlib.suppress(OSError):
+            st = os.stat(f)
+            ids.add((st.st_dev, st.st_ino))
+    return ids
+
+
+def _refusal(rel: str, dst: Path, own: dict, force: bool, inputs: set, may_replace,
+             out) -> InputError | None:
+    """Why the existing ``dst`` may not be replaced, or None if it may."""
+    with contextlib.suppress(OSError):
+        st = os.stat(dst)
+        if (st.st_dev, st.st_ino) in inputs:
+            return InputError(f"{rel} is an input of this run; arfem never writes over "
+                              "its inputs, --force or not: choose another --out", str(out))
+    if rel in own:
+        if force or own[rel] is None:
+            return None
+        with contextlib.suppress(OSError):
+            if _sha256(dst) == own[rel]:
+                return None
+    if may_replace is not None and may_replace(Path(rel), dst):
+        return None
+    if rel in own:
+        return InputError(f"{rel} was changed since arfem wrote it; pass --force to "
+                          "replace it", str(out))
+    return InputError(f"{rel} was not written by arfem (it is not in {OWNERSHIP_MANIFEST}); "
+                      "arfem never replaces such a file, --force or not: move it away or "
+                      "choose another --out", str(out))
+
+
+def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = True,
+                      may_replace=None) -> None:
+    """Refuse (InputError) if writing ``names`` (relative to ``out``) would replace an
+    input or a file arfem did not write; nothing is changed. Call it before the work
+    with the names a command will write (e.g. a sweep's ``README.md``)."""
+    out = Path(out)
+    names = [str(n) for n in names]
+    if not names or not out.is_dir():
+        return
+    own, ids = owned_files(out), _inputs_set(inputs)
+    for rel in names:
+        dst = out / rel
+        if dst.is_dir() and not dst.is_symlink():
+            raise InputError(f"{rel} is a directory here, where arfem writes a file; "
+                             "move it away", str(out))
+        if dst.is_file() or dst.is_symlink():
+            why = _refusal(Path(rel).as_posix(), dst, own, force, ids, may_replace, out)
+            if why is not None:
+                raise why
+
+
+def adopt_outputs(out: str | os.PathLike, names) -> None:
+    """Record existing files of ``out`` (relative ``names``) as arfem's in its ownership
+    manifest, e.g. results written by an arfem older than the manifest. Only for files
+    you know arfem wrote: from then on ``--force`` may replace them."""
+    out = Path(out)
+    own = {k: v for k, v in owned_files(out).items() if k != OWNERSHIP_MANIFEST}
+    for rel in names:
+        f = out / rel
+        if not f.is_file():
+            raise InputError("is not a file", str(f))
+        own[Path(rel).as_posix()] = _sha256(f)
+    _io.atomic_write_text(out / OWNERSHIP_MANIFEST, _manifest_text(own))
+
+
+def _manifest_text(files: dict) -> str:
+    return _io.json_text({"generator": "arfem", "note": "files arfem wrote here (SHA-256); "
+                          "arfem replaces no other file", "files": dict(sorted(files.items()))},
+                         indent=2) + "\n"
+
+
+# -- recovery ------------------------------------------------------------------------
+
+def _try_lock(txn: Path):
+    """An open, exclusively locked fd of ``txn``'s lock file, or None if a live run holds
+    it. A lock file that does not exist yields None unless the directory is old."""
+    try:
+        fd = os.open(txn / _LOCK, os.O_RDWR)
+    except FileNotFoundError:
+        with contextlib.suppress(OSError):
+            if time.time() - txn.stat().st_mtime > _UNLOCKED_GRACE_S:
+                return os.open(txn, os.O_RDONLY)      # nothing to lock: stale
+        return None
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def _rollback(txn: Path, out: Path) -> None:
+    """Undo an uncommitted switch of ``txn`` into ``out`` (see :func:`_switch`)."""
+    with open(txn / _JOURNAL, encoding="utf-8") as fh:
+        j = json.load(fh)
+    new, old = txn / _NEW, txn / _OLD
+    for rel, had_old in reversed(j["files"]):
+        dst, bak, src = out / rel, old / rel, new / rel
+        if bak.exists() or bak.is_symlink():
+            _rename(bak, dst)                              # the old file back
+        elif not had_old and not (src.exists() or src.is_symlink()):
+            with contextlib.suppress(FileNotFoundError):   # the new file had been moved in
+                dst.unlink()
+    for rel in reversed(j["dirs"]):
+        with contextlib.suppress(OSError):
+            (out / rel).rmdir()
+
+
+def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
+    """Finish what a killed arfem run left in ``out``; returns what was done.
+
+    A committed switch has its backups deleted; an uncommitted one is rolled back (each
+    old file renamed back, each new one removed), so ``out`` holds the old result set;
+    a staging directory of a run killed while computing is removed. Directories of
+    live runs (their lock is held) are left alone.
+    """
+    out = Path(out)
+    done: list[str] = []
+    cands = []
+    if out.is_dir():
+        cands += [(d, out) for d in out.glob(_STAGE + "*") if d.is_dir() and d != _skip]
+    if out.parent.is_dir():
+        cands += [(d, None) for d in out.parent.glob(_sibling_prefix(out) + "*")
+                  if d.is_dir() and d != _skip]
+    if not cands:
+        return done
+    for txn, target in cands:      # each one's own lock: one recoverer, never a live run
+        fd = _try_lock(txn)
+        if fd is None:
+            continue
+        try:
+            if target is not None and (txn / _JOURNAL).exists() \
+                    and not (txn / _COMMITTED).exists():
+                _rollback(txn, target)
+                done.append(f"rolled back an interrupted switch into {target}")
+            else:
+                done.append(f"removed {txn.name}")
+            shutil.rmtree(txn, ignore_errors=True)
+        finally:
+            os.close(fd)
+    return done
+
+
+# -- staging and the switch ----------------------------------------------------------
 
 @contextlib.contextmanager
-def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None):
-    """Write a whole result set into a staging directory, then move it into ``out``.
+def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None, inputs=()):
+    """Write a whole result set into a staging directory, then switch it into ``out``.
 
     Yields the staging directory. On success each staged file replaces its namesake
-    in ``out`` by an atomic rename (other files already in ``out`` are left alone).
-    The move is all or nothing: every clash (a directory where a file goes, or the
-    reverse) is refused before the first rename, and if a rename still fails, the
-    files already moved are put back as they were. On any error ``out`` is as it was
-    and the staging directory is removed; one left by a killed run is removed by the
-    next run into the same ``out``.
+    in ``out`` (other files already in ``out`` are left alone) and ``out``'s ownership
+    manifest records the SHA-256 of every file arfem wrote. Refused before the first
+    rename (``out`` unchanged): a clash (a directory where a file goes, or the reverse),
+    replacing an input (``inputs`` or any file arfem read in this process), replacing a
+    file arfem did not write (``--force`` or not), or, without ``force``, one changed
+    since arfem wrote it. The switch is all or nothing, also across a kill -9 (the
+    next run rolls it back). On any error ``out`` is as it was and the staging
+    directory is removed; an error writing into the stage (e.g. disk full) is one
+    :class:`InputError`.
 
-    ``may_replace(rel, path)``, if given, lets ``out`` be non-empty and is asked before
-    each existing file is replaced (unless ``force``); a False refuses the whole set.
+    ``may_replace(rel, path)``, if given, lets ``out`` be non-empty without ``force``
+    and may vouch for an existing file the manifest does not list (an older result of
+    the same command); it can never allow replacing an input.
     """
     out = prepare_out_dir(out, force or may_replace is not None)
-    for d in _stale_stages(out):
-        shutil.rmtree(d, ignore_errors=True)
+    inside = out.is_dir()
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-{os.getpid()}-",
-                                      dir=out.parent))
+        if inside:
+            txn = Path(tempfile.mkdtemp(prefix=_STAGE, dir=out))
+        else:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            txn = Path(tempfile.mkdtemp(prefix=_sibling_prefix(out), dir=out.parent))
+        lock = os.open(txn / _LOCK, os.O_RDWR | os.O_CREAT, 0o600)
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        stage = txn / _NEW
+        stage.mkdir()
     except OSError as e:
-        raise InputError(f"cannot be written ({e.strerror or e})", str(out)) from None
+        raise _oserror(e, out) from None
     try:
-        yield stage
-        _move_all(stage, out, force, may_replace)
+        try:
+            yield stage
+        except OSError as e:                       # disk full, quota, ... while writing
+            if e.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS,
+                           errno.EACCES, errno.EPERM, errno.ENAMETOOLONG, errno.EIO):
+                raise InputError(f"cannot write the results ({e.strerror or e}); left as "
+                                 "it was", str(out)) from None
+            raise
+        try:
+            _switch(txn, out, force, may_replace, inputs)
+        except InputError:
+            raise
+        except OSError as e:
+            raise InputError(f"cannot be written ({e.strerror or e}); left as it was",
+                             str(out)) from None
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        if not (txn / _JOURNAL).exists():          # else a failed rollback: keep it
+            shutil.rmtree(txn, ignore_errors=True)   # for the next run to recover
+        os.close(lock)
 
 
-def _move_all(stage: Path, out: Path, force: bool, may_replace) -> None:
+def _write_manifest(stage: Path, out: Path, own: dict, files: list) -> None:
+    """Stage the updated ownership manifest: old entries whose file is still there,
+    plus every staged file with its SHA-256."""
+    keep = {k: v for k, v in own.items() if k != OWNERSHIP_MANIFEST
+            and ((out / k).is_file() or (out / k).is_symlink())}
+    for src in files:
+        keep[src.relative_to(stage).as_posix()] = _sha256(src)
+    (stage / OWNERSHIP_MANIFEST).write_text(_manifest_text(keep), encoding="utf-8")
+
+
+def _switch(txn: Path, out: Path, force: bool, may_replace, inputs) -> None:
+    stage = txn / _NEW
+    if (stage / OWNERSHIP_MANIFEST).exists():
+        raise InputError(f"{OWNERSHIP_MANIFEST} is arfem's own bookkeeping file; a command "
+                         "may not write it", str(out))
     entries = sorted(stage.rglob("*"))
     files = [s for s in entries if not s.is_dir()]
-    for src in entries:                                   # every clash, before any move
+    if not out.is_dir():                                  # a new --out: one rename
+        _write_manifest(stage, out, {}, files)
+        try:
+            _rename(stage, out)
+            return
+        except OSError as e:
+            if e.errno not in (errno.ENOTEMPTY, errno.EEXIST) or not out.is_dir():
+                raise
+            # someone created out meanwhile: switch file by file below
+            (stage / OWNERSHIP_MANIFEST).unlink()
+    # no lock on --out itself: `arfem sweep` holds one on it for its whole run; each
+    # staging directory's own lock keeps recoveries apart
+    recover_out_dir(out, _skip=txn)                   # killed runs, never live ones
+    own, ids = owned_files(out), _inputs_set(inputs)
+    for src in entries:                               # every refusal before any move
         rel = src.relative_to(stage)
         dst = out / rel
         if src.is_dir() and (dst.exists() or dst.is_symlink()) and not dst.is_dir():
@@ -104,38 +423,29 @@ def _move_all(stage: Path, out: Path, force: bool, may_replace) -> None:
         if not src.is_dir() and dst.is_dir():
             raise InputError(f"{rel} is a directory here, where arfem writes a file; "
                              "move it away", str(out))
-        if (not src.is_dir() and not force and may_replace is not None and dst.exists()
-                and not may_replace(rel, dst)):
-            raise InputError(f"{rel} was not written by arfem (or was changed since); "
-                             "pass --force to replace it", str(out))
-    backup = stage.with_name(stage.name + ".old")
-    done, made = [], []
+        if not src.is_dir() and (dst.exists() or dst.is_symlink()):
+            why = _refusal(rel.as_posix(), dst, own, force, ids, may_replace, out)
+            if why is not None:
+                raise why
+    _write_manifest(stage, out, own, files)
+    files.append(stage / OWNERSHIP_MANIFEST)          # moved last
+    dirs = [s.relative_to(stage).as_posix() for s in entries if s.is_dir()
+            and not (out / s.relative_to(stage)).is_dir()]
+    plan = [(s.relative_to(stage).as_posix(),
+             (out / s.relative_to(stage)).exists()
+             or (out / s.relative_to(stage)).is_symlink()) for s in files]
+    _io.atomic_write_text(txn / _JOURNAL, json.dumps({"files": plan, "dirs": dirs}))
+    old = txn / _OLD
     try:
-        for d in [out] + [out / s.relative_to(stage) for s in entries if s.is_dir()]:
-            if not d.is_dir():
-                d.mkdir(parents=True)
-                made.append(d)
-        for src in files:
-            rel = src.relative_to(stage)
-            dst = out / rel
-            bak = None
-            if dst.exists() or dst.is_symlink():
-                bak = backup / rel
-                bak.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(dst, bak)
-            done.append((dst, bak))
-            os.replace(src, dst)
-    except OSError as e:
-        for dst, bak in reversed(done):                   # put everything back
-            with contextlib.suppress(OSError):
-                if bak is not None and bak.exists():
-                    os.replace(bak, dst)
-                elif dst.exists():
-                    dst.unlink()
-        for d in reversed(made):
-            with contextlib.suppress(OSError):
-                d.rmdir()
-        raise InputError(f"cannot be written ({e.strerror or e}); left as it was",
-                         str(out)) from None
-    finally:
-        shutil.rmtree(backup, ignore_errors=True)
+        for rel in dirs:
+            (out / rel).mkdir()
+        for rel, had_old in plan:
+            if had_old:
+                (old / rel).parent.mkdir(parents=True, exist_ok=True)
+                _rename(out / rel, old / rel)
+            _rename(stage / rel, out / rel)
+        _rename(txn / _JOURNAL, txn / _COMMITTED)     # the commit point
+    except BaseException:
+        _rollback(txn, out)           # if this fails too, the next run finishes it
+        (txn / _JOURNAL).unlink()
+        raise

@@ -27,6 +27,12 @@ from arfem.scenarios.progress import add_progress_flag, tagged
 __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenario",
            "reproduce", "growth_figure", "PAPER_VALUES"]
 
+#: The files ``write_outputs`` puts into --out (checked before the work: never an input
+#: or a file arfem did not write; see arfem.scenarios.outdir).
+WRITES = ("timeseries.csv", "summary.json", "figure.png", "summary.md", "temperature_3d.png",
+          "scenario.toml", "report.html", "fields/fields.xdmf", "fields/fields.h5",
+          "fields/peak.xdmf")
+
 #: Values printed in the seed paper (Du et al. 2021, Sec. 2) at Δτ = 30 s.
 PAPER_VALUES = {"C1": 0.9909, "C2_um": {2000.0: 0.1985, 3000.0: 0.2977}}
 
@@ -394,7 +400,7 @@ def run_scenario(path, out, force: bool = False, progress=None) -> Evaluation:
     :func:`evaluate`."""
     progress = progress or _no_progress
     scenario = load_scenario(path)
-    prepare_out_dir(out, force)
+    prepare_out_dir(out, force, writes=WRITES)
     ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
         write_outputs(ev, stage, progress=progress)

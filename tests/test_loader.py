@@ -337,3 +337,83 @@ def test_implausible_columns(tmp_path):
     lines = good_csv().splitlines()
     lines = [lines[0] + ",ambient_C"] + [l + ",293.4" for l in lines[1:]]
     refuse(write(tmp_path, "\n".join(lines) + "\n"), "'ambient_C'", "median", "in K?")
+
+
+# -- safety: sizes, binary files, confinement, line numbers, ranges (issue 17) ---------
+
+def test_growth_um_has_a_plausible_range(tmp_path):
+    """growth_um = 1e300 used to end with RMSE inf and gain nan at exit 0: now refused at
+    its row, naming the unit expected (growth in µm; 5 mm is a value in nm)."""
+    lines = good_csv().splitlines()
+    lines[5] = "120,1e300,2000"
+    refuse(write(tmp_path, "\n".join(lines) + "\n"), "line 6", "'growth_um'", "plausible",
+           "µm")
+
+
+def test_unterminated_quote_is_reported_where_it_opens(tmp_path):
+    """A quote opened on line 12 and never closed makes the csv module read to the end
+    of the file; the error names line 12, not the last line."""
+    lines = good_csv(n=300).splitlines()
+    lines[11] = '330,"1.1,2000'
+    msg = refuse(write(tmp_path, "\n".join(lines) + "\n"), "line 12", "quote")
+    assert "line 301" in msg         # where the record ran to, said after line 12
+
+
+def test_nul_bytes_are_refused_before_reading_the_file_whole(tmp_path):
+    """A binary file (NUL bytes) is refused from its first 64 KiB, whatever its size."""
+    p = write(tmp_path, "")
+    (tmp_path / "case.csv").write_bytes(b"\0" * (1 << 20))
+    refuse(p, "case.csv", "NUL byte", "byte 0")
+
+
+def test_too_large_csv_is_refused_by_its_size(tmp_path, monkeypatch):
+    """Beyond MAX_CSV_BYTES (here lowered to 1 KiB) the file is refused from its size
+    alone, naming --allow-large; with it the same file loads."""
+    import arfem.scenarios.dataset as dsmod
+    monkeypatch.setattr(dsmod, "MAX_CSV_BYTES", 1024)
+    p = write(tmp_path, good_csv(n=200))
+    refuse(p, "case.csv", "MiB", "--allow-large")
+    monkeypatch.setenv("ARFEM_ALLOW_LARGE", "1")
+    assert load_dataset(p).time_s.size == 200
+
+
+def test_too_many_rows_are_refused_before_parsing(tmp_path, monkeypatch):
+    """More rows than MAX_ROWS (here lowered to 100) are refused by a line count before
+    any cell is parsed; --allow-large lifts it."""
+    import arfem.scenarios.dataset as dsmod
+    monkeypatch.setattr(dsmod, "MAX_ROWS", 100)
+    p = write(tmp_path, good_csv(n=200))
+    refuse(p, "case.csv", "200 rows", "at most 100", "--allow-large")
+    monkeypatch.setenv("ARFEM_ALLOW_LARGE", "1")
+    assert load_dataset(p).time_s.size == 200
+
+
+def test_csv_outside_the_dataset_folder_is_refused_and_never_echoed(tmp_path, monkeypatch):
+    """dataset.csv = "../secret/passwords.csv" is refused (paths are confined to the
+    TOML's folder); allowed by --allow-csv-outside, a bad cell there is located but
+    its content ('hunter2') is never printed."""
+    secret = tmp_path / "secret"
+    secret.mkdir()
+    (secret / "passwords.csv").write_text("time_s,growth_um,q_W_m2\n0,hunter2,0\n")
+    d = tmp_path / "case"
+    d.mkdir()
+    p = d / "case.toml"
+    p.write_text('[dataset]\ncsv = "../secret/passwords.csv"\n')
+    msg = refuse(p, "dataset.csv", "outside the dataset's folder", "--allow-csv-outside")
+    assert "hunter2" not in msg
+    monkeypatch.setenv("ARFEM_ALLOW_CSV_OUTSIDE", "1")
+    msg = refuse(p, "passwords.csv", "line 2", "is not a number")
+    assert "hunter2" not in msg
+    (d / "inside.csv").write_text("time_s,growth_um,q_W_m2\n0,oops,0\n")
+    p.write_text('[dataset]\ncsv = "inside.csv"\n')
+    refuse(p, "'oops' is not a number")            # inside: the cell is shown
+
+
+def test_symlink_out_of_the_folder_is_outside(tmp_path):
+    """A symbolic link beside the TOML that points elsewhere counts as outside."""
+    (tmp_path / "elsewhere.csv").write_text(good_csv())
+    d = tmp_path / "case"
+    d.mkdir()
+    (d / "case.csv").symlink_to(tmp_path / "elsewhere.csv")
+    (d / "case.toml").write_text('[dataset]\ncsv = "case.csv"\n')
+    refuse(d / "case.toml", "outside the dataset's folder")

@@ -113,8 +113,9 @@ def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1
     """
     from concurrent.futures import ProcessPoolExecutor
 
+    from arfem.scenarios.dataset import allow_csv_outside
     csv = Path(csv).resolve()
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, allow_csv_outside():   # csv is elsewhere
         retarget(data, csv, tmp, channels)
         args = [(tmp, ch, holdout_s, search, None) for ch in channels]
         if jobs == 1:

@@ -199,7 +199,8 @@ def _files_line(summary: dict) -> str:
             + (f", the figures {figs}" if figs else "") +
             "; the store: `sweep.json` (what was swept), `points/` (one JSON file per "
             "finished point; re-running the same command resumes it) and `runs.jsonl` "
-            "(one line per run).")
+            "(one line per run); `.arfem-outputs.json` lists the files arfem wrote here, with "
+            "their SHA-256 (`--force` replaces only those).")
 
 
 def _q_note(sweep: Sweep, rows: list[dict]) -> str:

@@ -10,7 +10,11 @@ from pathlib import Path
 
 from arfem.io import atomic_write_text, write_json
 from arfem.params import InputError
-from arfem.scenarios.outdir import check_out_path
+from arfem.scenarios.outdir import check_out_path, check_replaceable
+
+#: the report files a sweep writes into --out (its store, points/, sweep.json and
+#: runs.jsonl, is checked above by its manifest)
+SWEEP_WRITES = ("README.md", "results.csv", "summary.json", "report.html")
 
 __all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs"]
 
@@ -81,7 +85,8 @@ def open_store(out: Path, sweep, force: bool) -> str:
         old = None
     if isinstance(old, dict) and old.get("sweep_id") == sweep.sweep_id:
         return "resume"
-    if force:
+    if force:                 # --force never replaces a file arfem did not write: say so now
+        check_replaceable(out, SWEEP_WRITES, force=True)
         return "force"
     if isinstance(old, dict):
         raise InputError(f"holds a different sweep ({old.get('name')!r}, "
