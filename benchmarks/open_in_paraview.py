@@ -1,9 +1,9 @@
-"""Open an arfem ``fields.xdmf`` in ParaView itself and save a picture.
+"""Open an arfem ``fields.xdmf3`` in ParaView itself and save a picture.
 
 Run with ParaView's Python (Debian: ``apt-get install paraview``)::
 
     pvpython --force-offscreen-rendering benchmarks/open_in_paraview.py \\
-        OUT/fields/fields.xdmf OUT/paraview.png
+        OUT/fields/fields.xdmf3 OUT/paraview.png
 
 (without an X display: ``LIBGL_ALWAYS_SOFTWARE=1 xvfb-run -a -s "-screen 0 1600x1000x24
 +extension GLX" pvpython benchmarks/open_in_paraview.py ...``). It opens the file with each of

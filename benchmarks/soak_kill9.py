@@ -156,7 +156,7 @@ def parse_errors(d: Path, clean: Path) -> list[str]:
                 b = p.read_bytes()
                 if not (b.startswith(b"\x89PNG\r\n\x1a\n") and b"IEND" in b[-16:]):
                     errs.append(f"{rel}: not a whole PNG")
-            elif p.suffix == ".xdmf":
+            elif p.suffix in (".xdmf", ".xdmf3"):
                 ET.parse(p)
         except Exception as exc:                # noqa: BLE001 - any failure to parse
             errs.append(f"{rel}: {type(exc).__name__}: {exc}"[:160])

@@ -17,11 +17,12 @@ into place, so a reader never sees a half-written file.
   displacement vector ``displacement_m`` at every node, one XDMF 3 step per output
   time (``Time`` in seconds), heavy data in an HDF5 file beside it (gzip).
   Axisymmetric results are written in the plane y = 0 (x = r), displacement
-  (u_r, 0, u_z). Read it with ParaView ("Xdmf3 Reader" or "XDMF Reader"),
-  ``meshio.xdmf.TimeSeriesReader`` or :func:`read_fields`; **not** with
-  ``meshio.read``, which reads single-grid files only and, in meshio ≤ 5.3, ends
-  the interpreter (``sys.exit``) on a time series. ``peak.xdmf`` (one grid, same
-  HDF5 data) is the file for ``meshio.read``.
+  (u_r, 0, u_z). The series is named ``*.xdmf3``: ParaView opens it ("Xdmf3
+  Reader"), as do ``meshio.xdmf.TimeSeriesReader``, VTK's XDMF reader and
+  :func:`read_fields`, while ``meshio.read`` (single-grid files only; in meshio ≤ 5.3
+  it ends the interpreter with ``sys.exit`` on any ``.xdmf`` time series) raises a
+  normal ``ReadError`` on the extension. ``peak.xdmf`` (one grid, same HDF5 data) is
+  the file for ``meshio.read``.
 * :func:`render_png` -- an off-screen, orthographic pyvista rendering of the
   temperature on the rod deformed by an exaggerated displacement, annotated with
   matplotlib: a ruler along the axis in mm, the heated end, the undeformed and the
@@ -235,7 +236,9 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     result : HeatResult
         Must hold ``fields`` (solve with ``store_fields=True``).
     path : str or Path
-        Target ``.xdmf`` file (parent directories are created).
+        Target ``.xdmf3`` file (parent directories are created); ``.xdmf`` is
+        accepted too, but ``meshio.read`` of an ``.xdmf`` time series exits the
+        interpreter (meshio ≤ 5.3).
     elastic : ThermoElastic, optional
         If given, the vector ``displacement_m`` is written too.
     max_frames : int or None
@@ -258,7 +261,7 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     >>> hm = build_axisymmetric(Rod(), nr=2, nz=4)
     >>> res = solve_modal(hm, paper_cycle(2000.0), store_fields=True)
     >>> with tempfile.TemporaryDirectory() as d:
-    ...     p = write_fields(hm, res, Path(d) / "fields.xdmf")
+    ...     p = write_fields(hm, res, Path(d) / "fields.xdmf3")
     ...     with meshio.xdmf.TimeSeriesReader(p) as r:
     ...         pts, cells = r.read_points_cells()
     ...         t, pd, _ = r.read_data(r.num_steps - 1)
@@ -269,8 +272,8 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
 
     import h5py
     path = Path(path)
-    if path.suffix.lower() != ".xdmf":
-        raise InputError(f"must end in .xdmf, got {path.name!r}", "path")
+    if path.suffix.lower() not in (".xdmf3", ".xdmf"):
+        raise InputError(f"must end in .xdmf3 (or .xdmf), got {path.name!r}", "path")
     pts, kind, kind_x, cells = node_grid(model)
     idx = _frames(result, max_frames)
     if peak_index is not None:
@@ -312,7 +315,7 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
 
 
 def read_fields(path):
-    """Read an arfem ``fields.xdmf`` back: mesh and every step.
+    """Read an arfem ``fields.xdmf3`` back: mesh and every step.
 
     A thin wrapper of ``meshio.xdmf.TimeSeriesReader`` (the reader for time series).
 
@@ -587,7 +590,7 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
 def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=None,
                           max_frames: int | None = 200, title: str | None = None,
                           heat_flux_W_m2: float | None = None) -> dict:
-    """Field outputs of one scenario: ``fields.xdmf`` + ``fields.h5`` (+ ``peak.xdmf``)
+    """Field outputs of one scenario: ``fields.xdmf3`` + ``fields.h5`` (+ ``peak.xdmf``)
     and ``temperature_3d.png``.
 
     The picture shows the stored field with the largest growth (the peak).
@@ -620,7 +623,7 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         raise InputError("has no stored fields; solve with store_fields=True", "result")
     el = elastic if elastic is not None else ThermoElastic.build(model)
     k = int(np.argmax(result.growth_m))
-    xdmf = write_fields(model, result, out / "fields.xdmf", elastic=el, max_frames=max_frames,
+    xdmf = write_fields(model, result, out / "fields.xdmf3", elastic=el, max_frames=max_frames,
                         peak_index=k)
     t = float(result.times_s[k])
     cap = f"{title + ': ' if title else ''}temperature at peak growth, t = {t / 3600:.2f} h"

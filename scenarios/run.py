@@ -30,7 +30,7 @@ __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenar
 #: The files ``write_outputs`` puts into --out (checked before the work: never an input
 #: or a file arfem did not write; see arfem.scenarios.outdir).
 WRITES = ("timeseries.csv", "summary.json", "figure.png", "summary.md", "temperature_3d.png",
-          "scenario.toml", "report.html", "fields/fields.xdmf", "fields/fields.h5",
+          "scenario.toml", "report.html", "fields/fields.xdmf3", "fields/fields.h5",
           "fields/peak.xdmf")
 
 #: Values printed in the seed paper (Du et al. 2021, Sec. 2) at Δτ = 30 s.
@@ -381,8 +381,8 @@ def _write_fields(ev: Evaluation, out_dir: Path, progress=_no_progress) -> dict:
         })
     k = int(np.argmax(res.growth_m))
     if sc.outputs.fields:
-        progress("fields.xdmf + fields.h5")
-        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf", elastic=el,
+        progress("fields.xdmf3 + fields.h5")
+        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf3", elastic=el,
                             peak_index=k)
     if sc.outputs.picture:
         progress("3D picture")

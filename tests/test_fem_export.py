@@ -32,12 +32,12 @@ def test_xdmf_round_trip(case, tmp_path):
     Property: the quadratic cells are written as quadratic (every dof is a node,
     9-node quads / 20-node bricks), the times are the output times in seconds,
     T = θ + ambient and the displacement vector at every node survive the write
-    exactly (HDF5 float64, so 1e-12 relative), and only fields.xdmf + fields.h5
+    exactly (HDF5 float64, so 1e-12 relative), and only fields.xdmf3 + fields.h5
     remain (the temporary names were renamed).
     """
     kind, model, res, te = case
-    path = write_fields(model, res, tmp_path / "fields.xdmf", elastic=te)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fields.h5", "fields.xdmf"]
+    path = write_fields(model, res, tmp_path / "fields.xdmf3", elastic=te)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fields.h5", "fields.xdmf3"]
     pts, cells, steps = read_fields(path)
     assert pts.shape == (model.ndofs, 3)
     assert cells[0].type == CELLS[kind][0]
@@ -70,7 +70,7 @@ def test_vtk_reads_the_quadratic_cells(case, tmp_path):
     """
     pv = pytest.importorskip("pyvista")
     kind, model, res, te = case
-    path = write_fields(model, res, tmp_path / "fields.xdmf", elastic=te)
+    path = write_fields(model, res, tmp_path / "fields.xdmf3", elastic=te)
     r = pv.XdmfReader(str(path))
     assert r.time_values == pytest.approx(list(TIMES))
     r.set_active_time_value(TIMES[2])
@@ -96,10 +96,35 @@ def test_peak_file_is_what_meshio_read_reads(case, tmp_path):
     peak frame; ``meshio.read`` cannot read any XDMF time series (meshio issue 461), so
     the single-grid file is the one to give it."""
     kind, model, res, te = case
-    write_fields(model, res, tmp_path / "fields.xdmf", elastic=te, peak_index=2)
+    write_fields(model, res, tmp_path / "fields.xdmf3", elastic=te, peak_index=2)
     m = meshio.read(tmp_path / "peak.xdmf")
     assert m.cells[0].type == CELLS[kind][0]
     assert np.allclose(m.point_data["theta_K"], res.fields[2], rtol=1e-12, atol=1e-12)
+
+
+def test_meshio_read_of_the_series_raises_and_never_exits(tmp_path):
+    """Issue 15: ``meshio.read`` of the written time series must raise a normal exception
+    (or read it), never end the interpreter. meshio <= 5.3 calls ``sys.exit`` on an
+    ``.xdmf`` it cannot read, so the series is ``.xdmf3``, an extension meshio does not
+    guess. Run in a subprocess so that an exit would show as a failed child, not kill
+    pytest; the child must print the exception's name and exit 0."""
+    import subprocess
+    import sys
+
+    from arfem.fem.heat import build_axisymmetric, solve_modal
+    from arfem.params import Rod, paper_cycle
+    hm = build_axisymmetric(Rod(), nr=2, nz=4)
+    path = write_fields(hm, solve_modal(hm, paper_cycle(2000.0), store_fields=True),
+                        tmp_path / "fields.xdmf3")
+    code = ("import meshio, sys\n"
+            "try:\n    meshio.read(sys.argv[1])\n    print('read')\n"
+            "except Exception as e:\n    print('raised', type(e).__name__)\n")
+    r = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.split()[0] in ("raised", "read")
+    with meshio.xdmf.TimeSeriesReader(path) as rd:       # the series itself still reads
+        assert rd.num_steps == 5
 
 
 def test_max_frames_thins_evenly(tmp_path):
@@ -114,7 +139,7 @@ def test_max_frames_thins_evenly(tmp_path):
 
 
 def test_failed_write_leaves_nothing(case, tmp_path, monkeypatch):
-    """A write that fails half-way leaves neither fields.h5 nor fields.xdmf nor a temp file."""
+    """A write that fails half-way leaves neither fields.h5 nor fields.xdmf3 nor a temp file."""
     import h5py
     kind, model, res, te = case
 
@@ -122,7 +147,7 @@ def test_failed_write_leaves_nothing(case, tmp_path, monkeypatch):
         raise OSError("disk full")
     monkeypatch.setattr(h5py.Group, "create_dataset", boom)
     with pytest.raises(OSError):
-        write_fields(model, res, tmp_path / "fields.xdmf", elastic=te)
+        write_fields(model, res, tmp_path / "fields.xdmf3", elastic=te)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -157,7 +182,7 @@ def test_picture_is_drawn(case, tmp_path):
     assert img.shape[0] > 300 and img.shape[1] > 1000 and img[..., :3].std() > 0.05
     assert out["picture_time_s"] == pytest.approx(9.5 * 3600.0)
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
-        "fields.h5", "fields.xdmf", "peak.xdmf", "temperature_3d.png"]
+        "fields.h5", "fields.xdmf3", "peak.xdmf", "temperature_3d.png"]
     fig = picture_figure(model, res.fields[2], elastic=te, title="t = 9.50 h",
                          heat_flux_W_m2=2000.0)
     texts = " ".join(t.get_text() for ax in fig.axes for t in ax.texts)

@@ -112,7 +112,7 @@ def test_run_writes_a_self_contained_report(run_dir):
     summary = json.loads((run_dir / "summary.json").read_text("utf-8"))
     for key in ("fem_peak_um", "max_abs_diff_um", "C1", "C1_fitted", "rmse_um"):
         assert repr(summary[key]) in page.cells, key
-    for f in ("timeseries.csv", "summary.json", "fields/fields.xdmf", "fields/fields.h5",
+    for f in ("timeseries.csv", "summary.json", "fields/fields.xdmf3", "fields/fields.h5",
               "fields/peak.xdmf", "scenario.toml"):
         assert f in page.links, f
     text = report.read_text("utf-8")

@@ -34,7 +34,7 @@ def test_run_reports_every_slow_step_on_a_terminal(tmp_path):
     with Progress(7, "arfem run", file=buf, tty=True) as progress:
         run_scenario(case, tmp_path / "out", progress=progress)
     text = buf.getvalue()
-    for step in ("FEM solve", "AR(1)", "FEM fields", "fields.xdmf", "3D picture", "figure",
+    for step in ("FEM solve", "AR(1)", "FEM fields", "fields.xdmf3", "3D picture", "figure",
                  "report.html", "done (7/7 steps done)"):
         assert step in text, step
 

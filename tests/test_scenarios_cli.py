@@ -159,7 +159,7 @@ def test_reproduce_writes_both_figures_and_refuses_foreign_dir(tmp_path, capsys)
         s = json.loads((out / name / "summary.json").read_text())
         assert s["C1"] == pytest.approx(0.9909, abs=5e-5)
         assert (out / name / "temperature_3d.png").stat().st_size > 10_000
-        assert (out / name / "fields" / "fields.xdmf").is_file()
+        assert (out / name / "fields" / "fields.xdmf3").is_file()
         # the elastic growth at the peak equals the volume measure (reciprocity theorem)
         assert s["reciprocity_rel_diff"] < 1e-6
         assert s["elastic_growth_face_um_at_peak"] == pytest.approx(s["fem_peak_um"], rel=1e-6)
