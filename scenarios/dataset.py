@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.io import read_text_utf8, read_toml
+from arfem.strict import check_keys
 from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
 from arfem.params import InputError, Rod, check_plausible
 
@@ -75,17 +76,16 @@ def _is_number(v) -> bool:
 def _parse_meta(path: Path, doc: dict):
     """Validate the TOML tables; return (name, csv_path, initial_known, rod, columns, sensors)."""
     where = str(path)
+    try:
+        check_keys(doc, _TOP_TABLES, "")
+    except InputError as e:
+        raise e.at(where) from None
     for key in doc:
-        if key not in _TOP_TABLES:
-            _fail(f"unknown top-level table or key {key!r}; allowed: {', '.join(_TOP_TABLES)}",
-                  where)
         if not isinstance(doc[key], dict):
             _fail(f"must be a table, got {type(doc[key]).__name__}", f"{where}: {key}")
 
     ds = doc.get("dataset", {})
-    for key in ds:
-        if key not in _DATASET_KEYS:
-            _fail(f"unknown key; allowed: {', '.join(_DATASET_KEYS)}", f"{where}: dataset.{key}")
+    check_keys(ds, _DATASET_KEYS, f"{where}: dataset")
     name = ds.get("name", path.stem)
     if not isinstance(name, str) or not name.strip():
         _fail(f"must be a non-empty string, got {name!r}", f"{where}: dataset.name")
@@ -98,9 +98,8 @@ def _parse_meta(path: Path, doc: dict):
               f"{where}: dataset.initial")
 
     rod_doc = doc.get("rod", {})
+    check_keys(rod_doc, ROD_KEYS, f"{where}: rod")
     for key, value in rod_doc.items():
-        if key not in ROD_KEYS:
-            _fail(f"unknown key; allowed: {', '.join(ROD_KEYS)}", f"{where}: rod.{key}")
         if not _is_number(value):
             _fail(f"must be a number, got {value!r}", f"{where}: rod.{key}")
     try:
@@ -127,10 +126,8 @@ def _parse_meta(path: Path, doc: dict):
     for key, table in doc.get("sensors", {}).items():
         if not isinstance(table, dict):
             _fail("must be a table [sensors.<column>]", f"{where}: sensors.{key}")
+        check_keys(table, _SENSOR_KEYS, f"{where}: sensors.{key}")
         for k, v in table.items():
-            if k not in _SENSOR_KEYS:
-                _fail(f"unknown key; allowed: {', '.join(_SENSOR_KEYS)}",
-                      f"{where}: sensors.{key}.{k}")
             if not isinstance(v, str):
                 _fail(f"must be a string, got {v!r}", f"{where}: sensors.{key}.{k}")
         sensors[key] = table.get("description", "")

@@ -152,9 +152,9 @@ def test_malformed_toml(tmp_path):
 
 
 @pytest.mark.parametrize("toml,needle", [
-    ('[datset]\nname = "x"\n', "'datset'"),
+    ('[datset]\nname = "x"\n', "datset: unknown key (did you mean 'dataset'?)"),
     ('[dataset]\nname = "x"\nunits = "SI"\n', "dataset.units"),
-    ('[rod]\nradius = 0.1\n', "rod.radius"),
+    ('[rod]\nradius = 0.1\n', "rod.radius: unknown key (did you mean 'radius_m'?)"),
     ('[rod]\nyoungs_modulus_Pa = 2e11\n', "rod.youngs_modulus_Pa"),
     ('[dataset]\ninitial = "warm"\n', "dataset.initial"),
     ('[columns]\ngrowth = "g"\n', "columns.growth"),
