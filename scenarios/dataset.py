@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
-import math
 import os
 import re
 from pathlib import Path
@@ -250,6 +249,167 @@ def _fill_short_gaps(t, y):
     return y
 
 
+def _column_indices(mapping: dict, header: list, toml_path: Path, csv_path: Path):
+    """Contract name -> header index (mapped names first, then the contract's own names
+    found in the header), and the header names no contract column uses."""
+    for key, foreign in mapping.items():
+        if foreign not in header:
+            _fail(f"maps to column {foreign!r}, which is not in the header of {csv_path}",
+                  f"{toml_path}: columns.{key}")
+    col: dict[str, int] = {key: header.index(foreign) for key, foreign in mapping.items()}
+    mapped_foreign = set(mapping.values())
+    for j, h in enumerate(header):
+        if h in mapped_foreign or h in col:
+            continue
+        if h in _BASE_COLUMNS or _TEMP_RE.match(h):
+            col[h] = j
+    used = set(col.values())
+    extra = [h for j, h in enumerate(header) if j not in used]
+    for req in ("time_s", "growth_um"):
+        if req not in col:
+            _fail(f"required column {req!r} is missing"
+                  + (f" (map a column onto it under [columns] in {toml_path})" if mapping else ""),
+                  str(csv_path))
+    if "q_W_m2" not in col and "speed_rpm" not in col:
+        _fail("needs a q_W_m2 or a speed_rpm column; it has neither", str(csv_path))
+    return col, extra
+
+
+def _drop_missing_rows(values: dict, lines, csv_path: Path, notes: list):
+    """Drop the rows with an empty time or growth (up to 5 %, else refuse). Where only
+    the growth is empty, the row's input is kept aside as unobserved.
+
+    Returns (values, lines, keep, unobserved) over the kept rows."""
+    n_all = len(lines)
+    missing = np.isnan(values["time_s"]) | np.isnan(values["growth_um"])
+    n_missing = int(missing.sum())
+    if n_missing > MAX_MISSING_FRACTION * n_all:
+        _fail(f"{n_missing} of {n_all} rows ({100 * n_missing / n_all:.1f} %) have an empty "
+              f"time_s or growth_um; at most {100 * MAX_MISSING_FRACTION:g} % may be dropped "
+              f"(first at line {lines[missing][0]})", str(csv_path))
+    if n_missing:
+        shown = ", ".join(str(x) for x in lines[missing][:10])
+        notes.append(f"dropped {n_missing} of {n_all} rows ({100 * n_missing / n_all:.2f} %) "
+                     f"with an empty time_s or growth_um: CSV lines {shown}"
+                     + (" ..." if n_missing > 10 else "")
+                     + "; where only growth_um is empty the row's input is kept")
+    # rows with a time and an input but no growth: the observation is dropped, the input kept
+    inp = "q_W_m2" if "q_W_m2" in values else "speed_rpm"
+    unobs = (np.isnan(values["growth_um"]) & ~np.isnan(values["time_s"])
+             & np.isfinite(values[inp]) & (values[inp] >= 0))
+    unobserved = {k: v[unobs].copy() for k, v in values.items()
+                  if k in ("time_s", inp, "ambient_C") or _TEMP_RE.match(k)}
+    keep = ~missing
+    lines = lines[keep]
+    values = {k: v[keep] for k, v in values.items()}
+    if lines.size == 0:
+        _fail("no row has both time_s and growth_um", str(csv_path))
+    return values, lines, keep, unobserved
+
+
+def _check_time(t, lines, csv_path: Path, label) -> np.ndarray:
+    """time_s >= 0 and strictly increasing; returns its steps."""
+    if t[0] < 0:
+        _fail(f"time_s = {t[0]:g} is negative; time counts from the start of the record",
+              f"{csv_path}: line {lines[0]}, column {label('time_s')}")
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        i = int(np.flatnonzero(dt <= 0)[0]) + 1
+        _fail(f"time_s = {t[i]:g} does not increase (previous row, line {lines[i - 1]}, "
+              f"has {t[i - 1]:g})", f"{csv_path}: line {lines[i]}, column {label('time_s')}")
+    return dt
+
+
+def _check_input(values: dict, lines, csv_path: Path, label, notes: list) -> None:
+    """The input (q_W_m2 where given, else speed_rpm): complete, >= 0 and plausible."""
+    for key in ("q_W_m2", "speed_rpm")[:1 if "q_W_m2" in values else 2]:
+        if key not in values:
+            continue
+        v = values[key]
+        if np.any(np.isnan(v)):
+            i = int(np.flatnonzero(np.isnan(v))[0])
+            _fail("is empty; the input must be given on every row with a growth value",
+                  f"{csv_path}: line {lines[i]}, column {label(key)}")
+        if np.any(v < 0):
+            i = int(np.flatnonzero(v < 0)[0])
+            _fail(f"{v[i]:g} is negative; it must be >= 0",
+                  f"{csv_path}: line {lines[i]}, column {label(key)}")
+        i = int(np.argmax(v))
+        check_plausible(key, float(v[i]), f"{csv_path}: line {lines[i]}, column {label(key)}")
+    if "q_W_m2" in values and "speed_rpm" in values:
+        notes.append("both q_W_m2 and speed_rpm are given; the heat flux q_W_m2 is the input, "
+                     "speed_rpm is carried along")
+
+
+def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
+    """ambient_C with short gaps filled (None where absent or empty throughout)."""
+    amb = values.get("ambient_C")
+    if amb is not None and np.isnan(amb).all():
+        notes.append("ambient_C: the column has no value; treated as absent")
+        amb = None
+    if amb is not None:
+        med = float(np.nanmedian(amb))
+        check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
+        nan = np.isnan(amb)
+        if nan.sum() > MAX_MISSING_FRACTION * amb.size:
+            i = int(np.flatnonzero(nan)[0])
+            _fail(f"{int(nan.sum())} of {amb.size} cells are empty; at most "
+                  f"{100 * MAX_MISSING_FRACTION:g} % may be filled",
+                  f"{csv_path}: line {lines[i]}, column {label('ambient_C')}")
+        if nan.any():
+            amb = _fill_short_gaps(t, amb)
+            notes.append(f"filled {int(nan.sum())} empty ambient_C cells by linear "
+                         f"interpolation in time")
+    return amb
+
+
+def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> np.ndarray:
+    """The growth in a plausible range; its Hampel outlier flags (the σ floored at the
+    quantisation step where the sensor is quantised)."""
+    if g.size and np.isfinite(g).any():
+        i = int(np.nanargmax(np.abs(g)))
+        check_plausible("growth_um", float(g[i]),
+                        f"{csv_path}: line {lines[i]}, column {label('growth_um')}")
+    steps = np.abs(np.diff(g))
+    steps = steps[steps > 1e-9]
+    floor = float(steps.min()) if steps.size else 0.0
+    outliers = hampel_outliers(g, floor=floor)
+    if outliers.any():
+        shown = ", ".join(str(x) for x in lines[outliers][:10])
+        notes.append(f"flagged {int(outliers.sum())} growth outliers (Hampel, 6 robust σ from a "
+                     f"median of the 10 neighbouring samples): CSV lines {shown}"
+                     + (" ..." if outliers.sum() > 10 else ""))
+    return outliers
+
+
+def _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes: list) -> None:
+    """Notes on the sampling, the gaps, the carried columns and the sensor tables."""
+    if dt.size:
+        notes.append(f"{t.size} rows over {t[-1] - t[0]:g} s; sampling interval median "
+                     f"{np.median(dt):g} s, min {dt.min():g} s, max {dt.max():g} s")
+    if gaps:
+        total = sum(b - a for a, b in gaps)
+        notes.append(f"{len(gaps)} sampling gaps longer than {GAP_FACTOR:g}x the median interval, "
+                     f"{total:g} s in all, the longest {max(b - a for a, b in gaps):g} s "
+                     f"from {max(gaps, key=lambda ab: ab[1] - ab[0])[0]:g} s")
+    if extra:
+        notes.append(f"extra columns carried and ignored: {', '.join(extra)}")
+    for key in sensors:
+        if key in extra:
+            notes.append(f"[sensors.{key}] describes a column that is carried but not used: "
+                         "it is not a temperature T_<name>_C")
+        elif key not in col:
+            notes.append(f"[sensors.{key}] describes a column that is not in the CSV")
+    if initial_unknown:
+        notes.append('initial = "unknown": the record does not start at equilibrium')
+
+
+def _frozen(a) -> np.ndarray:
+    a = np.ascontiguousarray(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
 def load_dataset(toml_path) -> Dataset:
     """Load and validate a measured dataset per the measured-data contract.
 
@@ -283,30 +443,7 @@ def load_dataset(toml_path) -> Dataset:
     name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc)
     header, rows, lines = _read_csv(csv_path, toml_path)
     notes: list[str] = []
-
-    # resolve contract name -> header index
-    for key, foreign in mapping.items():
-        if foreign not in header:
-            _fail(f"maps to column {foreign!r}, which is not in the header of {csv_path}",
-                  f"{toml_path}: columns.{key}")
-    col: dict[str, int] = {}
-    mapped_foreign = set(mapping.values())
-    for key, foreign in mapping.items():
-        col[key] = header.index(foreign)
-    for j, h in enumerate(header):
-        if h in mapped_foreign or h in col:
-            continue
-        if h in _BASE_COLUMNS or _TEMP_RE.match(h):
-            col[h] = j
-    used = set(col.values())
-    extra = [h for j, h in enumerate(header) if j not in used]
-    for req in ("time_s", "growth_um"):
-        if req not in col:
-            _fail(f"required column {req!r} is missing"
-                  + (f" (map a column onto it under [columns] in {toml_path})" if mapping else ""),
-                  str(csv_path))
-    if "q_W_m2" not in col and "speed_rpm" not in col:
-        _fail("needs a q_W_m2 or a speed_rpm column; it has neither", str(csv_path))
+    col, extra = _column_indices(mapping, header, toml_path, csv_path)
 
     def label(key):
         foreign = header[col[key]]
@@ -315,126 +452,19 @@ def load_dataset(toml_path) -> Dataset:
     echo = _inside(csv_path, toml_path.parent)
     values = {key: _parse_column(csv_path, rows, lines, j, label(key), echo)
               for key, j in col.items()}
-    n_all = len(rows)
-
-    # rows with an empty time or growth: drop up to 5 %, else refuse
-    missing = np.isnan(values["time_s"]) | np.isnan(values["growth_um"])
-    n_missing = int(missing.sum())
-    if n_missing > MAX_MISSING_FRACTION * n_all:
-        _fail(f"{n_missing} of {n_all} rows ({100 * n_missing / n_all:.1f} %) have an empty "
-              f"time_s or growth_um; at most {100 * MAX_MISSING_FRACTION:g} % may be dropped "
-              f"(first at line {lines[missing][0]})", str(csv_path))
-    if n_missing:
-        shown = ", ".join(str(x) for x in lines[missing][:10])
-        notes.append(f"dropped {n_missing} of {n_all} rows ({100 * n_missing / n_all:.2f} %) "
-                     f"with an empty time_s or growth_um: CSV lines {shown}"
-                     + (" ..." if n_missing > 10 else "")
-                     + "; where only growth_um is empty the row's input is kept")
-    # rows with a time and an input but no growth: the observation is dropped, the input kept
-    inp = "q_W_m2" if "q_W_m2" in values else "speed_rpm"
-    unobs = (np.isnan(values["growth_um"]) & ~np.isnan(values["time_s"])
-             & np.isfinite(values[inp]) & (values[inp] >= 0))
-    unobserved = {k: v[unobs].copy() for k, v in values.items()
-                  if k in ("time_s", inp, "ambient_C") or _TEMP_RE.match(k)}
-    keep = ~missing
-    lines = lines[keep]
-    values = {k: v[keep] for k, v in values.items()}
-    if lines.size == 0:
-        _fail("no row has both time_s and growth_um", str(csv_path))
+    values, lines, keep, unobserved = _drop_missing_rows(values, lines, csv_path, notes)
     t = values["time_s"]
-
-    # time: >= 0 and strictly increasing
-    if t[0] < 0:
-        _fail(f"time_s = {t[0]:g} is negative; time counts from the start of the record",
-              f"{csv_path}: line {lines[0]}, column {label('time_s')}")
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        i = int(np.flatnonzero(dt <= 0)[0]) + 1
-        _fail(f"time_s = {t[i]:g} does not increase (previous row, line {lines[i - 1]}, "
-              f"has {t[i - 1]:g})", f"{csv_path}: line {lines[i]}, column {label('time_s')}")
-
-    # the input (q_W_m2 where given, else speed_rpm): complete and non-negative
-    for key in ("q_W_m2", "speed_rpm")[:1 if "q_W_m2" in values else 2]:
-        if key not in values:
-            continue
-        v = values[key]
-        if np.any(np.isnan(v)):
-            i = int(np.flatnonzero(np.isnan(v))[0])
-            _fail("is empty; the input must be given on every row with a growth value",
-                  f"{csv_path}: line {lines[i]}, column {label(key)}")
-        if np.any(v < 0):
-            i = int(np.flatnonzero(v < 0)[0])
-            _fail(f"{v[i]:g} is negative; it must be >= 0",
-                  f"{csv_path}: line {lines[i]}, column {label(key)}")
-        i = int(np.argmax(v))
-        check_plausible(key, float(v[i]), f"{csv_path}: line {lines[i]}, column {label(key)}")
-    if "q_W_m2" in values and "speed_rpm" in values:
-        notes.append("both q_W_m2 and speed_rpm are given; the heat flux q_W_m2 is the input, "
-                     "speed_rpm is carried along")
-
-    # ambient: fill short gaps
-    amb = values.get("ambient_C")
-    if amb is not None and np.isnan(amb).all():
-        notes.append("ambient_C: the column has no value; treated as absent")
-        amb = None
-    if amb is not None:
-        med = float(np.nanmedian(amb))
-        check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
-        nan = np.isnan(amb)
-        if nan.sum() > MAX_MISSING_FRACTION * amb.size:
-            i = int(np.flatnonzero(nan)[0])
-            _fail(f"{int(nan.sum())} of {amb.size} cells are empty; at most "
-                  f"{100 * MAX_MISSING_FRACTION:g} % may be filled",
-                  f"{csv_path}: line {lines[i]}, column {label('ambient_C')}")
-        if nan.any():
-            amb = _fill_short_gaps(t, amb)
-            notes.append(f"filled {int(nan.sum())} empty ambient_C cells by linear "
-                         f"interpolation in time")
-
+    dt = _check_time(t, lines, csv_path, label)
+    _check_input(values, lines, csv_path, label, notes)
+    amb = _ambient(values, t, lines, csv_path, label, notes)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
-
     g = values["growth_um"]
-    if g.size and np.isfinite(g).any():
-        i = int(np.nanargmax(np.abs(g)))
-        check_plausible("growth_um", float(g[i]),
-                        f"{csv_path}: line {lines[i]}, column {label('growth_um')}")
-    # floor on σ: the quantisation step where the sensor is quantised
-    steps = np.abs(np.diff(g))
-    steps = steps[steps > 1e-9]
-    floor = float(steps.min()) if steps.size else 0.0
-    outliers = hampel_outliers(g, floor=floor)
-    if outliers.any():
-        shown = ", ".join(str(x) for x in lines[outliers][:10])
-        notes.append(f"flagged {int(outliers.sum())} growth outliers (Hampel, 6 robust σ from a "
-                     f"median of the 10 neighbouring samples): CSV lines {shown}"
-                     + (" ..." if outliers.sum() > 10 else ""))
+    outliers = _growth_outliers(g, lines, csv_path, label, notes)
     gaps = sampling_gaps(t)
-    if dt.size:
-        notes.append(f"{t.size} rows over {t[-1] - t[0]:g} s; sampling interval median "
-                     f"{np.median(dt):g} s, min {dt.min():g} s, max {dt.max():g} s")
-    if gaps:
-        total = sum(b - a for a, b in gaps)
-        notes.append(f"{len(gaps)} sampling gaps longer than {GAP_FACTOR:g}x the median interval, "
-                     f"{total:g} s in all, the longest {max(b - a for a, b in gaps):g} s "
-                     f"from {max(gaps, key=lambda ab: ab[1] - ab[0])[0]:g} s")
-    if extra:
-        notes.append(f"extra columns carried and ignored: {', '.join(extra)}")
-    for key in sensors:
-        if key in extra:
-            notes.append(f"[sensors.{key}] describes a column that is carried but not used: "
-                         "it is not a temperature T_<name>_C")
-        elif key not in col:
-            notes.append(f"[sensors.{key}] describes a column that is not in the CSV")
-    if initial_unknown:
-        notes.append('initial = "unknown": the record does not start at equilibrium')
-
-    def frozen(a):
-        a = np.ascontiguousarray(a, dtype=float)
-        a.setflags(write=False)
-        return a
+    _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes)
 
     extra_cols = {}
     for h in extra:
@@ -445,11 +475,11 @@ def load_dataset(toml_path) -> Dataset:
     outliers.setflags(write=False)
     lines.setflags(write=False)
     return Dataset(
-        name=name, source=toml_path, time_s=frozen(t), growth_um=frozen(g),
-        q_W_m2=frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
-        speed_rpm=frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
-        ambient_C=frozen(amb) if amb is not None else None,
-        temperatures={k: frozen(v) for k, v in temps.items()}, rod=rod,
+        name=name, source=toml_path, time_s=_frozen(t), growth_um=_frozen(g),
+        q_W_m2=_frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
+        speed_rpm=_frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
+        ambient_C=_frozen(amb) if amb is not None else None,
+        temperatures={k: _frozen(v) for k, v in temps.items()}, rod=rod,
         initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
         sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols,
         unobserved=unobserved)
