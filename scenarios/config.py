@@ -53,12 +53,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from arfem.params import (InputError, Rod, Schedule, check_finite, check_plausible,
-                           steps_per_segment)
+from arfem.params import InputError, Rod, Schedule, check_plausible, steps_per_segment
 from arfem.io import read_toml
 from arfem.strict import boolean as _bool
 from arfem.strict import check_keys as _unknown
-from arfem.strict import join as _join
 from arfem.strict import number as _number
 from arfem.strict import string as _string
 from arfem.strict import table as _table
@@ -188,16 +186,8 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
         raise exc.at(source) from None
 
 
-def _from_dict(data: dict, source: str) -> Scenario:
-    if not isinstance(data, dict):
-        raise InputError("a scenario must be a TOML document (a table)")
-    _unknown(data, _TOP, "")
-    sc = _table(data, "scenario", "")
-    _unknown(sc, _SCENARIO_KEYS, "scenario")
-    name = _string(sc.get("name", Path(source).stem), "scenario.name")
-    description = _string(sc.get("description", ""), "scenario.description")
-
-    # rod
+def _rod_from(data: dict) -> Rod:
+    """The ``[rod]`` table: the paper's values where a key is not given."""
     rod_d = _table(data, "rod", "")
     rod_fields = {f.name for f in fields(Rod)}
     _unknown(rod_d, rod_fields, "rod")
@@ -211,8 +201,11 @@ def _from_dict(data: dict, source: str) -> Scenario:
         rod = Rod(**rod_kw)
     except InputError as exc:
         raise exc.at("rod") from None
+    return rod
 
-    # cycle
+
+def _schedule_from(data: dict, rod: Rod):
+    """The ``[cycle]`` table: (schedule, phase labels, phase durations [s])."""
     cyc = _table(data, "cycle", "")
     _unknown(cyc, _CYCLE_KEYS, "cycle")
     phases = cyc.get("phases")
@@ -259,14 +252,11 @@ def _from_dict(data: dict, source: str) -> Scenario:
         raise InputError("no phase heats the rod (every q_W_m2 is 0) and the ambient is "
                          "constant: the growth is zero and AR(1) cannot be identified",
                          "cycle.phases")
+    return schedule, labels, durations
 
-    # ar
-    ar = _table(data, "ar", "")
-    _unknown(ar, _AR_KEYS, "ar")
-    dtau = _number(ar.get("dtau_s", 30.0), "ar.dtau_s", positive=True)
-    steps_per_segment(durations, dtau, where="ar.dtau_s", what="phase")
 
-    # fem
+def _fem_from(data: dict, dtau: float) -> FemSettings:
+    """The ``[fem]`` table (model, order, solver, time step, elastic, mesh)."""
     fem_d = _table(data, "fem", "")
     _unknown(fem_d, _FEM_KEYS, "fem")
     model = _string(fem_d.get("model", "axisymmetric"), "fem.model", ("axisymmetric", "3d"))
@@ -298,7 +288,12 @@ def _from_dict(data: dict, source: str) -> Scenario:
                                  f"is built for (at most {MAX_ELEMENTS_PER_DIRECTION})",
                                  f"fem.mesh.{k}")
             mesh[k] = int(n)
+    return FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
+                       elastic=elastic, mesh=mesh)
 
+
+def _outputs_from(data: dict, schedule: Schedule) -> OutputSettings:
+    """The ``[outputs]`` table, with the number of field snapshots bounded."""
     out = _table(data, "outputs", "")
     _unknown(out, _OUT_KEYS, "outputs")
     outputs = OutputSettings(
@@ -312,11 +307,28 @@ def _from_dict(data: dict, source: str) -> Scenario:
                          f"over the {schedule.total_s:g} s cycle; at most "
                          f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields = false)",
                          "outputs.field_interval_s")
+    return outputs
+
+
+def _from_dict(data: dict, source: str) -> Scenario:
+    if not isinstance(data, dict):
+        raise InputError("a scenario must be a TOML document (a table)")
+    _unknown(data, _TOP, "")
+    sc = _table(data, "scenario", "")
+    _unknown(sc, _SCENARIO_KEYS, "scenario")
+    name = _string(sc.get("name", Path(source).stem), "scenario.name")
+    description = _string(sc.get("description", ""), "scenario.description")
+    rod = _rod_from(data)
+    schedule, labels, durations = _schedule_from(data, rod)
+    ar = _table(data, "ar", "")
+    _unknown(ar, _AR_KEYS, "ar")
+    dtau = _number(ar.get("dtau_s", 30.0), "ar.dtau_s", positive=True)
+    steps_per_segment(durations, dtau, where="ar.dtau_s", what="phase")
+    fem = _fem_from(data, dtau)
+    outputs = _outputs_from(data, schedule)
     check = _check_limits(_table(data, "check", ""), rod)
     return Scenario(name=name, description=description, source=source, rod=rod,
-                    schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau,
-                    fem=FemSettings(model=model, order=int(order), solver=solver, dt_s=dt,
-                                    elastic=elastic, mesh=mesh),
+                    schedule=schedule, phase_labels=tuple(labels), dtau_s=dtau, fem=fem,
                     outputs=outputs, data=copy.deepcopy(data), check=check)
 
 
