@@ -12,7 +12,7 @@ from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import staged_out_dir
 from arfem.scenarios.sweep.figures import write_figures
-from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, _canonical
+from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, canonical
 
 __all__ = ["results_rows", "rows_to_csv", "biot_threshold", "thresholds", "render_readme",
            "write_outputs"]
@@ -210,7 +210,7 @@ def _q_note(sweep: Sweep, rows: list[dict]) -> str:
         return ""
     groups: dict = {}
     for r in rows:
-        k = _canonical({c: r[c] for c in sweep.grid if c != "q_W_m2"})
+        k = canonical({c: r[c] for c in sweep.grid if c != "q_W_m2"})
         groups.setdefault(k, []).append(r)
     d = max(((max(r[c] for r in g) - min(r[c] for r in g))
              for g in groups.values() if len(g) > 1

@@ -17,8 +17,8 @@ from arfem.io import write_json
 from arfem.scenarios.sweep.executors import (DaskExecutor, LocalExecutor, blas_threads,
                                             evaluate_point)
 from arfem.scenarios.sweep.report import write_outputs
-from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, _canonical
-from arfem.scenarios.sweep.store import (_STORE_MANIFEST, DirLock, PointStore,
+from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, canonical
+from arfem.scenarios.sweep.store import (STORE_MANIFEST, DirLock, PointStore,
                                          append_run_log, open_store)
 
 __all__ = ["RunReport", "run_sweep", "usable_cores", "check_wait", "check_workers",
@@ -137,7 +137,7 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
             store = PointStore(out)
             store.dir.mkdir(parents=True, exist_ok=True)
             store.remove_temporaries()
-            man = out / _STORE_MANIFEST
+            man = out / STORE_MANIFEST
             if mode != "resume" or not man.is_file():
                 write_json(man, sweep.manifest())
             stored = store.keys()
@@ -149,7 +149,7 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
                     unique.append(p)
             # points that share everything but Δτ and q share the FEM model and its
             # eigen-decomposition: submit them together so worker caches hit
-            unique.sort(key=lambda p: _canonical({k: v for k, v in p.inputs.items()
+            unique.sort(key=lambda p: canonical({k: v for k, v in p.inputs.items()
                                                   if k not in ("dtau_s", "q_W_m2")}))
             rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
             if unique:

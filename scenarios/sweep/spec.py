@@ -83,13 +83,15 @@ class Sweep:
                 "grid": self.grid, "n_points": len(self.points)}
 
 
-def _canonical(obj) -> str:
+def canonical(obj) -> str:
+    """Canonical JSON text of ``obj`` (sorted keys, no spaces, ASCII): the key of a point
+    and of a sweep in the store."""
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True,
                       allow_nan=False)
 
 
 def _sha256(obj) -> str:
-    return hashlib.sha256(_canonical(obj).encode("ascii")).hexdigest()
+    return hashlib.sha256(canonical(obj).encode("ascii")).hexdigest()
 
 
 def point_key(data: dict) -> str:

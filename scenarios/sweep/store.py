@@ -18,7 +18,7 @@ SWEEP_WRITES = ("README.md", "results.csv", "summary.json", "report.html")
 
 __all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs"]
 
-_STORE_MANIFEST = "sweep.json"
+STORE_MANIFEST = "sweep.json"
 _POINTS = "points"
 _RUNS_LOG = "runs.jsonl"
 
@@ -61,7 +61,7 @@ class PointStore:
                 if p.is_file():
                     p.unlink(missing_ok=True)
                     n += 1
-        for name in (_STORE_MANIFEST, _RUNS_LOG):     # atomic writes beside the store
+        for name in (STORE_MANIFEST, _RUNS_LOG):     # atomic writes beside the store
             for p in self.dir.parent.glob(f".{name}.*"):
                 if p.is_file():
                     p.unlink(missing_ok=True)
@@ -78,7 +78,7 @@ def open_store(out: Path, sweep, force: bool) -> str:
     check_out_path(out)
     if not out.is_dir() or not any(out.iterdir()):
         return "new"
-    man = out / _STORE_MANIFEST
+    man = out / STORE_MANIFEST
     try:
         old = json.loads(man.read_text("utf-8"))
     except (OSError, ValueError):
