@@ -29,7 +29,7 @@ from arfem.io import atomic_write_bytes, read_toml, write_json
 from arfem.models.checks import C1_TOL, MAX_DEV_OF_PEAK, check_ar_tracks_fem
 from arfem.models.ar1 import ar1_on_schedule, c1_paper, corrected_coefficients
 from arfem.params import InputError, Rod
-from arfem.scenarios.deterministic import one_blas_thread
+from arfem.scenarios.deterministic import blas_threads
 from arfem.scenarios.config import (CHECK_MODELS, PAPER_SCENARIOS, Scenario,
                                     builtin_scenario_path, check_limit, scenario_from_dict)
 
@@ -221,7 +221,7 @@ def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print
         echo(f"SKIP {s.path}: {s.reason}")
     cache: dict = {}
     results = []
-    with one_blas_thread():             # small FEMs: threads only contend on a CI machine
+    with blas_threads():             # small FEMs: threads only contend on a CI machine
         for sc in scenarios:
             r = check_scenario(sc, max_abs_pct, max_c1_diff, model, cache)
             results.append(r)

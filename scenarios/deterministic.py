@@ -36,25 +36,29 @@ far less.
 """
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["one_blas_thread", "CSV_DECIMALS", "WALL_KEYS", "json_decimals", "fixed_metrics", "csv_formats",
+__all__ = ["blas_threads", "CSV_DECIMALS", "WALL_KEYS", "json_decimals", "fixed_metrics", "csv_formats",
            "fixed_columns",
            "compare_summary", "compare_timeseries", "TOLERANCE_UNITS"]
 
-@contextlib.contextmanager
-def one_blas_thread():
-    """One BLAS/OpenMP thread (threadpoolctl): the round-off no longer depends on the
-    machine's core count, and the small dense eigenproblems here (a few hundred dofs) do
-    not slow down 10-100x when threads contend with other jobs on a busy CI machine."""
+def blas_threads(n: int = 1):
+    """Hold the BLAS/OpenMP thread count of this process at ``n`` (threadpoolctl; a
+    context manager whose limit applies at once, so it may also be kept for a worker's
+    life; the previous counts come back on exit).
+
+    One thread: the round-off no longer depends on the machine's core count, and the
+    small dense eigenproblems here (a few hundred dofs) do not slow down 10-100x when
+    threads contend with other jobs on a busy machine. SciPy's own OpenBLAS (used by
+    ``eigh``) is loaded first so that the limit reaches it too.
+    """
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
-    with threadpool_limits(limits=1):
-        yield
+    return threadpool_limits(limits=n)
 
 
 #: Keys holding wall times: printed by the commands, kept out of committed files.

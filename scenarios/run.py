@@ -6,7 +6,6 @@ writers (:func:`write_outputs`: CSV, JSON, PNG, Markdown, XDMF).
 """
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from dataclasses import dataclass, field
@@ -530,7 +529,7 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
     def unchanged(rel, path):
         rel = rel.as_posix()
         return own is not None and rel in own and own[rel] in (None, _sha256(path))
-    with det.one_blas_thread():
+    with det.blas_threads():
         evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=tagged(progress, n))
                for n in PAPER_SCENARIOS]
         with staged_out_dir(out, force, may_replace=unchanged) as stage:
@@ -568,7 +567,7 @@ def check_reproduction(out="reports/paper") -> list[str]:
         raise InputError("holds no arfem reproduce output (its MANIFEST.json) to check "
                          "against; run arfem reproduce first", str(out))
     drifts = []
-    with det.one_blas_thread(), tempfile.TemporaryDirectory() as tmp:
+    with det.blas_threads(), tempfile.TemporaryDirectory() as tmp:
         for name in PAPER_SCENARIOS:
             sc = load_scenario(builtin_scenario_path(name))
             sc = dataclasses.replace(sc, outputs=dataclasses.replace(

@@ -15,6 +15,7 @@ import numpy as np
 
 from arfem.params import InputError
 from arfem.scenarios.config import scenario_from_dict
+from arfem.scenarios.deterministic import blas_threads
 
 __all__ = ["evaluate_point", "blas_threads", "LocalExecutor", "DaskExecutor",
            "clear_worker_cache", "ClusterLost"]
@@ -79,18 +80,6 @@ _WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THR
 
 #: BLAS limits kept for the life of a worker process.
 _LIMITED = []
-
-
-def blas_threads(n: int = 1):
-    """Hold the BLAS/OpenMP thread count of this process at ``n`` (a context manager;
-    the previous counts come back on exit; applied at once, so it may also be kept).
-
-    Small dense eigen-decompositions are much faster on one thread, and far slower
-    on several when the machine is loaded; workers run single-threaded.
-    """
-    import scipy.linalg  # noqa: F401  (loads SciPy's own OpenBLAS, used by eigh)
-    from threadpoolctl import threadpool_limits
-    return threadpool_limits(limits=n)
 
 
 def clear_worker_cache() -> None:
