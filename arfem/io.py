@@ -7,6 +7,7 @@ arfem but :mod:`arfem.params` (for :class:`~arfem.params.InputError`).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
@@ -22,7 +23,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["read_text_utf8", "read_toml", "json_text", "atomic_write_text",
+__all__ = ["sha256_file", "read_text_utf8", "read_toml", "json_text", "atomic_write_text",
            "atomic_write_bytes", "atomic_path", "write_json", "write_csv", "files_read",
            "MAX_TEXT_BYTES"]
 
@@ -113,6 +114,15 @@ def read_toml(path: str | os.PathLike) -> dict:
         raise InputError("malformed TOML: nested too deeply", str(path)) from None
     except ValueError as e:             # e.g. an integer of more than 4300 digits
         raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a file's bytes, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def _umask() -> int:

@@ -140,14 +140,6 @@ def _user_entries(out: Path) -> list[str]:
         raise InputError(f"cannot be read ({e.strerror or e})", str(out)) from None
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def owned_files(out: str | os.PathLike) -> dict:
     """{relative posix path: sha256 or None} of the files arfem wrote into ``out``.
 
@@ -187,7 +179,7 @@ def _inputs_set(inputs) -> set:
     return ids
 
 
-def _refusal(rel: str, dst: Path, own: dict, force: bool, inputs: set, may_replace,
+def _refusal(rel: str, dst: Path, own: dict, force: bool, inputs: set,
              out) -> InputError | None:
     """Why the existing ``dst`` may not be replaced, or None if it may."""
     with contextlib.suppress(OSError):
@@ -199,10 +191,8 @@ def _refusal(rel: str, dst: Path, own: dict, force: bool, inputs: set, may_repla
         if force or own[rel] is None:
             return None
         with contextlib.suppress(OSError):
-            if _sha256(dst) == own[rel]:
+            if _io.sha256_file(dst) == own[rel]:
                 return None
-    if may_replace is not None and may_replace(Path(rel), dst):
-        return None
     if rel in own:
         return InputError(f"{rel} was changed since arfem wrote it; pass --force to "
                           "replace it", str(out))
@@ -211,8 +201,7 @@ def _refusal(rel: str, dst: Path, own: dict, force: bool, inputs: set, may_repla
                       "choose another --out", str(out))
 
 
-def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = True,
-                      may_replace=None) -> None:
+def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = True) -> None:
     """Refuse (InputError) if writing ``names`` (relative to ``out``) would replace an
     input or a file arfem did not write; nothing is changed. Call it before the work
     with the names a command will write (e.g. a sweep's ``README.md``)."""
@@ -227,7 +216,7 @@ def check_replaceable(out: str | os.PathLike, names, inputs=(), force: bool = Tr
             raise InputError(f"{rel} is a directory here, where arfem writes a file; "
                              "move it away", str(out))
         if dst.is_file() or dst.is_symlink():
-            why = _refusal(Path(rel).as_posix(), dst, own, force, ids, may_replace, out)
+            why = _refusal(Path(rel).as_posix(), dst, own, force, ids, out)
             if why is not None:
                 raise why
 
@@ -242,7 +231,7 @@ def adopt_outputs(out: str | os.PathLike, names) -> None:
         f = out / rel
         if not f.is_file():
             raise InputError("is not a file", str(f))
-        own[Path(rel).as_posix()] = _sha256(f)
+        own[Path(rel).as_posix()] = _io.sha256_file(f)
     _io.atomic_write_text(out / OWNERSHIP_MANIFEST, _manifest_text(own))
 
 
@@ -329,7 +318,8 @@ def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
 # -- staging and the switch ----------------------------------------------------------
 
 @contextlib.contextmanager
-def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None, inputs=()):
+def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = False,
+                   inputs=()):
     """Write a whole result set into a staging directory, then switch it into ``out``.
 
     Yields the staging directory. On success each staged file replaces its namesake
@@ -343,11 +333,11 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None
     directory is removed; an error writing into the stage (e.g. disk full) is one
     :class:`InputError`.
 
-    ``may_replace(rel, path)``, if given, lets ``out`` be non-empty without ``force``
-    and may vouch for an existing file the manifest does not list (an older result of
-    the same command); it can never allow replacing an input.
+    ``update``: ``out`` may hold this command's earlier results, so it may be non-empty
+    without ``force``; the rules above still hold (only arfem's own files, unchanged
+    since, are replaced; never an input).
     """
-    out = prepare_out_dir(out, force or may_replace is not None)
+    out = prepare_out_dir(out, force or update)
     inside = out.is_dir()
     try:
         if inside:
@@ -371,7 +361,7 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, may_replace=None
                                  "it was", str(out)) from None
             raise
         try:
-            _switch(txn, out, force, may_replace, inputs)
+            _switch(txn, out, force, inputs)
         except InputError:
             raise
         except OSError as e:
@@ -389,11 +379,11 @@ def _write_manifest(stage: Path, out: Path, own: dict, files: list) -> None:
     keep = {k: v for k, v in own.items() if k != OWNERSHIP_MANIFEST
             and ((out / k).is_file() or (out / k).is_symlink())}
     for src in files:
-        keep[src.relative_to(stage).as_posix()] = _sha256(src)
+        keep[src.relative_to(stage).as_posix()] = _io.sha256_file(src)
     (stage / OWNERSHIP_MANIFEST).write_text(_manifest_text(keep), encoding="utf-8")
 
 
-def _switch(txn: Path, out: Path, force: bool, may_replace, inputs) -> None:
+def _switch(txn: Path, out: Path, force: bool, inputs) -> None:
     stage = txn / _NEW
     if (stage / OWNERSHIP_MANIFEST).exists():
         raise InputError(f"{OWNERSHIP_MANIFEST} is arfem's own bookkeeping file; a command "
@@ -424,7 +414,7 @@ def _switch(txn: Path, out: Path, force: bool, may_replace, inputs) -> None:
             raise InputError(f"{rel} is a directory here, where arfem writes a file; "
                              "move it away", str(out))
         if not src.is_dir() and (dst.exists() or dst.is_symlink()):
-            why = _refusal(rel.as_posix(), dst, own, force, ids, may_replace, out)
+            why = _refusal(rel.as_posix(), dst, own, force, ids, out)
             if why is not None:
                 raise why
     _write_manifest(stage, out, own, files)

@@ -6,7 +6,6 @@ writers (:func:`write_outputs`: CSV, JSON, PNG, Markdown, XDMF).
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,9 +16,9 @@ from arfem.fem.heat import HeatFEM, build_3d, build_axisymmetric, solve_modal, s
 from arfem.models.ar1 import (ar1_on_schedule, c1_paper, c2_paper, corrected_coefficients, fit_ar1)
 from arfem.params import InputError
 from arfem.scenarios.config import PAPER_SCENARIOS, Scenario, builtin_scenario_path, load_scenario
-from arfem.io import atomic_write_text, read_text_utf8, write_csv, write_json
+from arfem.io import atomic_write_text, read_text_utf8, sha256_file, write_csv, write_json
 from arfem.scenarios.html_report import write_html_report
-from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+from arfem.scenarios.outdir import owned_files, prepare_out_dir, staged_out_dir
 from arfem.scenarios import deterministic as det
 from arfem.scenarios.progress import add_progress_flag, tagged
 
@@ -480,29 +479,6 @@ def _paper_readme(evs: list[Evaluation]) -> str:
 MANIFEST = "MANIFEST.json"
 
 
-def _sha256(path: Path) -> str:
-    import hashlib
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def _own_files(out: Path) -> dict | None:
-    """{file: sha256 or None} that an earlier ``arfem reproduce`` wrote into ``out``
-    (from its MANIFEST.json), or None if ``out`` holds no such manifest."""
-    try:
-        man = json.loads((out / MANIFEST).read_text("utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(man, dict) or man.get("generator") != "arfem reproduce":
-        return None
-    files = man.get("files")
-    extra = {str(k): None for k in man.get("not_committed", []) if isinstance(k, str)}
-    if isinstance(files, dict):
-        return {str(k): v for k, v in files.items()} | extra | {MANIFEST: None}
-    if isinstance(files, list):             # older manifests: names only
-        return {str(k): None for k in files} | {MANIFEST: None}
-    return None
-
-
 #: Subdirectories reproduce writes but does not list for version control (see the README
 #: it writes): the field values (XDMF + HDF5, float64) differ in their last digits between CPUs.
 UNCOMMITTED_DIRS = ("fields",)
@@ -522,17 +498,13 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
     the same bytes.
     """
     out = Path(out)
-    own = _own_files(out)
-    prepare_out_dir(out, force or own is not None)
+    earlier = MANIFEST in owned_files(out)          # an earlier reproduce result
+    prepare_out_dir(out, force or earlier)
     progress = progress or _no_progress
-
-    def unchanged(rel, path):
-        rel = rel.as_posix()
-        return own is not None and rel in own and own[rel] in (None, _sha256(path))
     with det.blas_threads():
         evs = [evaluate(load_scenario(builtin_scenario_path(n)), progress=tagged(progress, n))
                for n in PAPER_SCENARIOS]
-        with staged_out_dir(out, force, may_replace=unchanged) as stage:
+        with staged_out_dir(out, force, update=earlier) as stage:
             for ev in evs:
                 write_outputs(ev, stage / ev.scenario.name, fixed_precision=True,
                               progress=tagged(progress, ev.scenario.name))
@@ -544,7 +516,7 @@ def reproduce(out="reports/paper", force: bool = False, progress=None) -> list[E
             write_json(stage / MANIFEST, {
                 "generator": "arfem reproduce",
                 "scenarios": list(PAPER_SCENARIOS),
-                "files": {r: _sha256(stage / r) for r in rels if _committed(r)},
+                "files": {r: sha256_file(stage / r) for r in rels if _committed(r)},
                 "not_committed": [r for r in rels if not _committed(r)]})
     return evs
 
@@ -563,7 +535,7 @@ def check_reproduction(out="reports/paper") -> list[str]:
     import tempfile
 
     out = Path(out)
-    if _own_files(out) is None:
+    if MANIFEST not in owned_files(out):
         raise InputError("holds no arfem reproduce output (its MANIFEST.json) to check "
                          "against; run arfem reproduce first", str(out))
     drifts = []

@@ -101,7 +101,7 @@ def test_force_replaces_arfem_own_files_and_records_them(tmp_path):
     (out / "notes.txt").write_text("mine")
     (out / "a.txt").write_text("edited by the user")
     with pytest.raises(InputError, match="a.txt was changed since arfem wrote it"):
-        stage(out, {"a.txt": "2"}, may_replace=lambda rel, p: False)
+        stage(out, {"a.txt": "2"}, update=True)
     stage(out, {"a.txt": "2", "sub/b.txt": "2"}, force=True)
     assert (out / "a.txt").read_text() == "2" and (out / "notes.txt").read_text() == "mine"
     man = json.loads((out / sio.OWNERSHIP_MANIFEST).read_text())["files"]
