@@ -19,8 +19,8 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
-from typing import Iterable, Sequence
+from dataclasses import dataclass, fields, replace
+from typing import Iterable
 
 import numpy as np
 

@@ -487,7 +487,6 @@ def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
         z0, zL = to_px(below), to_px(below + [0, 0, L])
         px_per_m = (zL[0] - z0[0]) / L
         heat_c, heat_top = to_px((0, 0, 0)), to_px(R * up)
-        far_c = to_px((0, 0, L))
         far_top, far_bot = to_px(1.15 * R * up + [0, 0, L]), to_px(-1.15 * R * up + [0, 0, L])
     finally:
         pl.close()

@@ -27,7 +27,7 @@ see :mod:`arfem.fem.elastic`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 import scipy.linalg

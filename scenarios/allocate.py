@@ -15,7 +15,6 @@ NSGA-II allocation and writes, atomically:
 """
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ import numpy as np
 from arfem.io import read_toml, write_csv, write_json
 from arfem.models.allocation import tolerance
 from arfem.models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, MAX_EVALUATIONS,
-                                             ROTATIONS, allocate, evaluate_design, unit_values,
+                                             ROTATIONS, allocate, unit_values,
                                              with_settings, work_estimate,
                                              worst_case_over_cycle)
 from arfem.models.allocation.scenario import AllocationScenario, build_chain, parse_scenario

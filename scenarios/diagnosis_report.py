@@ -188,7 +188,7 @@ def _markdown(diag) -> str:
                 for k, v in c["parameters"].items()))
             L.append("")
     else:
-        L += [f"**Cause: `{j['cause']}`**" + (f" — parameters: " + ", ".join(
+        L += [f"**Cause: `{j['cause']}`**" + (" — parameters: " + ", ".join(
             f"`{k}` = {_fmt(v, 4)}" for k, v in j["parameters"].items()) if j["parameters"] else ""), ""]
     eq = j.get("equivalent_alternative")
     if eq:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from arfem.models.allocation import paper, screw, tolerance
+from arfem.models.allocation import paper, tolerance
 
 __all__ = ["COMPONENTS", "TWIST_INDEX", "Unit", "Chain", "Thermal", "Settings", "Evaluation",
            "AllocationResult", "tolerance_cost", "unit_values", "evaluate_design", "allocate",

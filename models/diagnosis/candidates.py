@@ -20,7 +20,6 @@ Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
@@ -330,7 +329,6 @@ def _design(causes, phys, t, q, initial_known, ambient_K):
     (its coefficient is the scale); ``ambient_drift``, ``sensor_drift`` and
     ``frame_expansion`` add columns; an unknown initial state adds the nuisance columns.
     """
-    rod = phys.rod
     t = np.asarray(t, float)
     q = np.asarray(q, float)
     running = q > 0

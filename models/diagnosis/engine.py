@@ -250,7 +250,6 @@ def _observations(ds):
 def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
     """Scores, the named cause and the runner-up (see module docstring)."""
     valid = {c: f for c, f in fits.items() if f is not None}
-    best_rss = min(f.rss for f in valid.values())
     best_fit = min(valid.values(), key=lambda f: f.rss)
     r_best = best_fit.extra.get("_res")
     n = base.n
