@@ -552,7 +552,7 @@ def _cause_entries(fit, causes, y, rows):
     return out, ci
 
 
-def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress=None):
+def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
     """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
     (selection rules, parsimony, a second cause) and the AR(1) realisation."""
     rod = ds.rod
@@ -561,8 +561,7 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress=None):
     args = (t, q, y, rows, ds.initial_known, amb_K, frame)
     fits = {}
     for c in CAUSES:
-        if progress is not None:
-            progress(f"FEM fit: {c}")
+        progress(f"FEM fit: {c}")
         # the h models nest convection_mismatch: they start from its optimum
         h = fits.get("convection_mismatch")
         start = None if h is None or c not in ("speed_dependent_convection",
