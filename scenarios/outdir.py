@@ -20,6 +20,11 @@ The rules (they hold for ``run``, ``reproduce``, ``sweep``, ``diagnose``, ``allo
 * **Liveness by lock, not by PID.** Each staging directory holds a lock file locked
   (``fcntl.flock``) for the run's whole life; a staging directory whose lock can be
   taken belongs to a dead run (in any PID namespace) and is recovered or removed.
+* **One writer at a time.** The switch into an existing ``--out`` holds an exclusive
+  ``flock`` on the directory itself (:func:`lock_out_dir`; no lock file is left, and the
+  OS drops it on kill -9), so two commands finishing at once switch one after the
+  other instead of interleaving their files and manifests; the later one waits, saying
+  so. ``arfem sweep`` holds the same lock for its whole run.
 """
 from __future__ import annotations
 
@@ -38,7 +43,8 @@ from arfem import io as _io
 from arfem.params import InputError
 
 __all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir", "check_replaceable",
-           "recover_out_dir", "owned_files", "adopt_outputs", "OWNERSHIP_MANIFEST"]
+           "recover_out_dir", "owned_files", "adopt_outputs", "lock_out_dir",
+           "OWNERSHIP_MANIFEST"]
 
 #: The ownership manifest arfem keeps in every ``--out`` it writes: {file: sha256}.
 OWNERSHIP_MANIFEST = ".arfem-outputs.json"
@@ -318,8 +324,36 @@ def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
 # -- staging and the switch ----------------------------------------------------------
 
 @contextlib.contextmanager
+def lock_out_dir(out: str | os.PathLike, wait: bool = True, who: str = "arfem command"):
+    """Hold an exclusive advisory lock (``flock``) on the directory ``out`` itself.
+
+    No lock file is written and the OS releases the lock when the process dies, kill -9
+    included. With ``wait`` a busy directory is waited for (one line on stderr says
+    so); without, it is one :class:`InputError`. The lock is per open directory, so a
+    process must not take it twice on the same ``out`` (it would wait for itself):
+    a caller that already holds it passes ``out_locked=True`` to :func:`staged_out_dir`.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            if not wait:
+                raise InputError(f"another {who} is writing to this directory; wait for it "
+                                 "to finish", str(out)) from None
+            import sys
+            print(f"arfem: note: {_short(out)}: another arfem command is writing there; "
+                  "waiting for it to finish", file=sys.stderr, flush=True)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield out
+    finally:
+        os.close(fd)                                 # releases the lock
+
+@contextlib.contextmanager
 def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = False,
-                   inputs=()):
+                   inputs=(), out_locked: bool = False):
     """Write a whole result set into a staging directory, then switch it into ``out``.
 
     Yields the staging directory. On success each staged file replaces its namesake
@@ -329,7 +363,8 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = F
     replacing an input (``inputs`` or any file arfem read in this process), replacing a
     file arfem did not write (``--force`` or not), or, without ``force``, one changed
     since arfem wrote it. The switch is all or nothing, also across a kill -9 (the
-    next run rolls it back). On any error ``out`` is as it was and the staging
+    next run rolls it back), and holds :func:`lock_out_dir` on an existing ``out``
+    (``out_locked``: the caller holds it already, as ``arfem sweep`` does). On any error ``out`` is as it was and the staging
     directory is removed; an error writing into the stage (e.g. disk full) is one
     :class:`InputError`.
 
@@ -361,7 +396,7 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = F
                                  "it was", str(out)) from None
             raise
         try:
-            _switch(txn, out, force, inputs)
+            _switch(txn, out, force, inputs, out_locked)
         except InputError:
             raise
         except OSError as e:
@@ -383,7 +418,7 @@ def _write_manifest(stage: Path, out: Path, own: dict, files: list) -> None:
     (stage / OWNERSHIP_MANIFEST).write_text(_manifest_text(keep), encoding="utf-8")
 
 
-def _switch(txn: Path, out: Path, force: bool, inputs) -> None:
+def _switch(txn: Path, out: Path, force: bool, inputs, out_locked: bool = False) -> None:
     stage = txn / _NEW
     if (stage / OWNERSHIP_MANIFEST).exists():
         raise InputError(f"{OWNERSHIP_MANIFEST} is arfem's own bookkeeping file; a command "
@@ -400,8 +435,12 @@ def _switch(txn: Path, out: Path, force: bool, inputs) -> None:
                 raise
             # someone created out meanwhile: switch file by file below
             (stage / OWNERSHIP_MANIFEST).unlink()
-    # no lock on --out itself: `arfem sweep` holds one on it for its whole run; each
-    # staging directory's own lock keeps recoveries apart
+    with (contextlib.nullcontext() if out_locked else lock_out_dir(out)):
+        _switch_into(txn, stage, out, force, inputs, entries, files)
+
+
+def _switch_into(txn, stage, out, force, inputs, entries, files) -> None:
+    """The file-by-file switch into an existing ``out`` (its lock held)."""
     recover_out_dir(out, _skip=txn)                   # killed runs, never live ones
     own, ids = owned_files(out), _inputs_set(inputs)
     for src in entries:                               # every refusal before any move

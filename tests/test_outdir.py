@@ -417,21 +417,59 @@ def test_reproduce_manifest_counts_as_arfem_files(tmp_path):
 
 
 def test_switch_into_a_directory_locked_by_its_own_process(tmp_path):
-    """`arfem sweep` holds an flock on --out itself for its whole run and then stages
-    its tables into it: the switch must not wait for that lock (it did: a deadlock).
-    Run in a subprocess with a timeout so that a regression fails instead of hanging."""
+    """`arfem sweep` holds the lock on --out itself for its whole run and then stages
+    its tables into it, saying so (out_locked=True): the switch must not wait for that
+    lock (it did once: a deadlock). Run in a subprocess with a timeout so that a
+    regression fails instead of hanging."""
     out = tmp_path / "store"
     out.mkdir()
     code = textwrap.dedent(f"""
-        import fcntl, os
         import arfem.scenarios.outdir as sio
-        fd = os.open({str(out)!r}, os.O_RDONLY | os.O_DIRECTORY)
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        with sio.staged_out_dir({str(out)!r}, force=True) as st:
-            (st / "results.csv").write_text("x")
+        with sio.lock_out_dir({str(out)!r}, wait=False):
+            with sio.staged_out_dir({str(out)!r}, force=True, out_locked=True) as st:
+                (st / "results.csv").write_text("x")
         print("done")
     """)
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        timeout=120, cwd=ROOT)
     assert r.returncode == 0 and "done" in r.stdout, r.stderr
     assert (out / "results.csv").read_text() == "x"
+
+
+def test_two_commands_switch_one_after_the_other(tmp_path):
+    """Two commands finishing into the same existing --out must not interleave their
+    files and ownership manifests: while one holds the directory's lock, the other's
+    switch waits (and says so on stderr), then completes with both results recorded.
+    The waiting process is a real second process, as two shell commands would be."""
+    from arfem.scenarios.outdir import OWNERSHIP_MANIFEST, lock_out_dir
+    out = tmp_path / "out"
+    out.mkdir()
+    code = textwrap.dedent(f"""
+        import arfem.scenarios.outdir as sio
+        with sio.staged_out_dir({str(out)!r}, force=True) as st:
+            (st / "b.csv").write_text("b")
+        print("done", flush=True)
+    """)
+    with lock_out_dir(out, wait=False):
+        (out / "a.csv").write_text("a")            # what the lock holder is writing
+        p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, cwd=ROOT)
+        note = p.stderr.readline()                 # blocks until the child waits
+        assert "waiting for it to finish" in note, note
+        assert p.poll() is None and not (out / "b.csv").exists()
+    out_text, err = p.communicate(timeout=120)
+    assert p.returncode == 0 and "done" in out_text, err
+    assert (out / "b.csv").read_text() == "b" and (out / "a.csv").read_text() == "a"
+    assert "b.csv" in json.loads((out / OWNERSHIP_MANIFEST).read_text())["files"]
+
+
+def test_a_second_sweep_is_refused_while_the_directory_is_locked(tmp_path):
+    """A sweep does not wait for a busy --out (it could be hours): one InputError."""
+    from arfem.scenarios.outdir import lock_out_dir
+    from arfem.scenarios.sweep.store import DirLock
+    with lock_out_dir(tmp_path, wait=False):
+        with pytest.raises(InputError, match="another arfem command"):
+            with DirLock(tmp_path):
+                pass
+    with DirLock(tmp_path):                        # free again once released
+        pass

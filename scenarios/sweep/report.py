@@ -295,7 +295,7 @@ def write_outputs(sweep: Sweep, out: Path, store, rep, runs: list | None = None)
                         or [])
     except (OSError, ValueError, AttributeError):
         old_plots = set()
-    with staged_out_dir(out, force=True) as stage:
+    with staged_out_dir(out, force=True, out_locked=True) as stage:   # DirLock held
         atomic_write_text(stage / "results.csv", rows_to_csv(rows))
         summary["plots"] = write_figures(sweep, rows, stage) if has_core else []
         write_json(stage / "summary.json", summary)

@@ -2,15 +2,13 @@
 manifest and run log beside it, and the lock that keeps two sweeps out of one folder."""
 from __future__ import annotations
 
-import fcntl
 import json
-import os
 import time
 from pathlib import Path
 
 from arfem.io import atomic_write_text, write_json
 from arfem.params import InputError
-from arfem.scenarios.outdir import check_out_path, check_replaceable
+from arfem.scenarios.outdir import check_out_path, check_replaceable, lock_out_dir
 
 #: the report files a sweep writes into --out (its store, points/, sweep.json and
 #: runs.jsonl, is checked above by its manifest)
@@ -98,30 +96,25 @@ def open_store(out: Path, sweep, force: bool) -> str:
 
 
 class DirLock:
-    """Exclusive advisory lock on the directory ``DIR`` itself (``flock`` on its file
-    descriptor): no lock file is left behind, and the OS releases it even on kill -9."""
+    """Exclusive advisory lock on the directory ``DIR`` itself for a sweep's whole run
+    (:func:`arfem.scenarios.outdir.lock_out_dir`, not waiting): no lock file is left
+    behind, and the OS releases it even on kill -9. A second sweep, or any other arfem
+    command switching its results into ``DIR``, is kept out meanwhile."""
 
     def __init__(self, out: Path):
         self.dir = Path(out)
-        self.fd = None
+        self._cm = None
 
     def __enter__(self):
-        self.dir.mkdir(parents=True, exist_ok=True)
-        self.fd = os.open(self.dir, os.O_RDONLY | os.O_DIRECTORY)
-        try:
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(self.fd)
-            raise InputError("another arfem sweep is writing to this directory",
-                             str(self.dir)) from None
+        self._cm = lock_out_dir(self.dir, wait=False, who="arfem command (a sweep?)")
+        self._cm.__enter__()
         legacy = self.dir / ".lock"          # the lock file of arfem <= 0.1.0 (issue 16)
         if legacy.is_file() and legacy.stat().st_size == 0:
             legacy.unlink(missing_ok=True)
         return self
 
     def __exit__(self, *exc):
-        fcntl.flock(self.fd, fcntl.LOCK_UN)
-        os.close(self.fd)
+        return self._cm.__exit__(*exc)
 
 
 def read_runs(out: Path) -> list[dict]:
