@@ -1,6 +1,5 @@
 """Core checks of the diagnosis forward model and CLI error path."""
 import numpy as np
-import pytest
 
 from arfem.fem.heat import build_axisymmetric, solve_modal
 from arfem.models.diagnosis.forward import RodModel

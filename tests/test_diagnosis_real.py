@@ -1,7 +1,6 @@
 """The committed reports/fl_thermal/README.md table agrees with a fresh run on the
 shipped real record (scenarios/fl_thermal/), through regenerate.py's own helpers."""
 import importlib.util
-import re
 from pathlib import Path
 
 import pytest

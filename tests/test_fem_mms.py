@@ -69,7 +69,6 @@ def _weight(x, axi):
 def weak_load(model: HeatFEM, phi, coef_rate: float, coef_value: float):
     """ℓ(v) = coef_rate ∫ρc φ v + coef_value (λ∫∇φ·∇v + h∫_lat φ v)."""
     axi = model.axisymmetric
-    mesh = model.basis.mesh
 
     @LinearForm
     def vol(v, w):

@@ -19,23 +19,9 @@ import pytest
 
 from arfem.scenarios.cli import main
 from arfem.scenarios.html_report import write_html_report
+from scenario_texts import small_scenario
 
-SMALL = """
-[scenario]
-name = "small <&> run"
-[cycle]
-phases = [ { duration_h = 1.0, q_W_m2 = 2000.0 }, { duration_h = 1.0, q_W_m2 = 0.0 } ]
-[ar]
-dtau_s = 60.0
-[fem]
-[fem.mesh]
-nr = 2
-nz = 8
-[outputs]
-fields = true
-picture = true
-field_interval_s = 1800.0
-"""
+SMALL = small_scenario("small <&> run", fields=True, picture=True, field_interval_s=1800.0)
 
 
 class _Page(HTMLParser):

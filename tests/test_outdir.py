@@ -20,23 +20,11 @@ import pytest
 import arfem.scenarios.outdir as sio
 from arfem.params import InputError
 from arfem.scenarios.cli import main
+from scenario_texts import small_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 
-SCENARIO = """
-[scenario]
-name = "small"
-[cycle]
-phases = [ { duration_h = 1.0, q_W_m2 = 2000.0 }, { duration_h = 1.0, q_W_m2 = 0.0 } ]
-[ar]
-dtau_s = 60.0
-[fem.mesh]
-nr = 2
-nz = 8
-[outputs]
-fields = false
-picture = false
-"""
+SCENARIO = small_scenario()
 
 DATASET_CSV = "time_s,growth_um,q_W_m2\n" + "".join(
     f"{30 * i},{0.01 * i if i < 200 else 0.01 * (400 - i):.4f},{2000 if i < 200 else 0}\n"

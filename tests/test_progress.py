@@ -6,23 +6,9 @@ import io
 from arfem.scenarios.cli import main
 from arfem.scenarios.progress import Progress
 from arfem.scenarios.run import run_scenario
+from scenario_texts import small_scenario
 
-SMALL = """
-[scenario]
-name = "small"
-[cycle]
-phases = [ { duration_h = 1.0, q_W_m2 = 2000.0 }, { duration_h = 1.0, q_W_m2 = 0.0 } ]
-[ar]
-dtau_s = 60.0
-[fem]
-[fem.mesh]
-nr = 2
-nz = 8
-[outputs]
-fields = true
-picture = true
-field_interval_s = 1800.0
-"""
+SMALL = small_scenario(fields=True, picture=True, field_interval_s=1800.0)
 
 
 def test_run_reports_every_slow_step_on_a_terminal(tmp_path):

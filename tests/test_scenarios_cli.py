@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from arfem.scenarios.cli import main
-from arfem.scenarios.config import load_scenario, scenario_from_dict, builtin_scenario_path
-from arfem.io import read_toml
+from arfem.scenarios.config import load_scenario, builtin_scenario_path
+from scenario_texts import small_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
@@ -27,21 +27,7 @@ def _write(tmp_path: Path, text: str, name="case.toml") -> Path:
     return p
 
 
-GOOD = """
-[scenario]
-name = "small"
-[cycle]
-phases = [ { duration_h = 1.0, q_W_m2 = 2000.0 }, { duration_h = 1.0, q_W_m2 = 0.0 } ]
-[ar]
-dtau_s = 60.0
-[fem]
-[fem.mesh]
-nr = 2
-nz = 8
-[outputs]
-fields = false
-picture = false
-"""
+GOOD = small_scenario()
 
 
 @pytest.mark.parametrize("text, where, what", [
