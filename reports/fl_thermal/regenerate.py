@@ -214,7 +214,8 @@ def _roll_fit(toml, search, n_train, y_train):
     ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n_train,
                                                                          yt[-1])]),
                                outliers=out)
-    d = diagnose(ds_o, float(t[n_train]), search)
+    fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
+    d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last")
     s = d.series
     fs = d.summary["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},
@@ -249,8 +250,11 @@ def rolling_scores(data, channels=range(1, 6), search="narrow", jobs=2, origins=
     return out
 
 
-#: procedures compared in rolling.md: (label, frame search); the first is the published one
-ROLL_VARIANTS = (("published", "narrow"), ("post hoc", "average"))
+#: procedures compared in rolling.md: (label, frame search[+naming rule]); the first is the
+#: published one; "+drift-last" adds ``diagnose(..., drift_last=True)`` (README.posthoc.md
+#: 1.3.1: developed on the odd origins, confirmed on the even ones)
+ROLL_VARIANTS = (("published", "narrow"), ("post hoc", "average"),
+                 ("post hoc, drift last", "average+drift-last"))
 
 
 def _run_rolling(data, jobs, only=None, every=1) -> int:
