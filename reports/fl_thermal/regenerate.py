@@ -21,12 +21,14 @@ t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole re
 
     python reports/fl_thermal/regenerate.py --rolling [--every K]
     python reports/fl_thermal/regenerate.py --rolling-only average [--every K]
+    python reports/fl_thermal/regenerate.py --rolling-only average+drift-last
     python reports/fl_thermal/regenerate.py --posthoc-split
     python reports/fl_thermal/regenerate.py --readme
 
-the rolling-origin evaluation of the published procedure and of the post hoc one
-(``--frame-search average``) on the whole record (rolling.json/md/png; ~35 min and ~15 min
-at every 2nd origin on the shared 2-core machine), the post hoc procedure on the
+the rolling-origin evaluation of the published procedure and of the post hoc ones
+(``--frame-search average``; the same with ``--drift-last``, README.posthoc.md 1.3.1) on
+the whole record (rolling.json/md/png; ~35 min, ~4 min and ~9 min on the shared 2-core
+machine), the post hoc procedure on the
 pre-registered split (posthoc_split.json, never into preregistered.json), and README.md
 rebuilt from the stored results.
 """
