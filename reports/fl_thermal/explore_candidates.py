@@ -22,8 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import regenerate as R  # noqa: E402  (also sets one BLAS thread per process)
+import importlib.util  # noqa: E402
+
+# regenerate.py beside this file (a script, not a package module); loading it also sets
+# one BLAS thread per process
+_spec = importlib.util.spec_from_file_location("regenerate",
+                                               Path(__file__).with_name("regenerate.py"))
+R = importlib.util.module_from_spec(_spec)
+sys.modules["regenerate"] = R
+_spec.loader.exec_module(R)
 
 from arfem.models.diagnosis import engine as E  # noqa: E402
 from arfem.models.diagnosis.dataset import hampel_outliers  # noqa: E402
