@@ -21,12 +21,13 @@ WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
 
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
-                  progress=None) -> Diagnosis:
-    """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` as in
-    :func:`arfem.models.diagnosis.engine.diagnose`."""
+                  progress=None, drift_last: bool = False) -> Diagnosis:
+    """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` and
+    ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`."""
     if progress is not None:
         progress("reading the dataset")
-    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search, progress)
+    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search, progress,
+                    drift_last=drift_last)
 
 
 def add_parser(subparsers):
@@ -44,6 +45,11 @@ def add_parser(subparsers):
                         "thermometer components only (narrow, default) or also speed-to-heat "
                         "laws n^p and a slow frame response (wide, ~5x slower), or no choice: "
                         "the average of every narrow structure (average)")
+    p.add_argument("--drift-last", action="store_true",
+                   help="speed-only records (post hoc, not the default): name sensor_drift "
+                        "(a linear drift in time) only if no cause driven by the recorded "
+                        "inputs passes the naming test (its rolling-origin evaluation on the "
+                        "real record: reports/fl_thermal/README.md)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     add_progress_flag(p)
     p.set_defaults(func=main)
@@ -51,12 +57,12 @@ def add_parser(subparsers):
 
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
-                  progress=None):
+                  progress=None, drift_last=False):
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
     prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
-    diag = diagnose_file(case, holdout_start_s, frame_search, progress)
+    diag = diagnose_file(case, holdout_start_s, frame_search, progress, drift_last)
     if progress is not None:
         progress("writing outputs")
     with staged_out_dir(out, force) as stage:
@@ -68,7 +74,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
 def main(args) -> int:
     with Progress(12, "arfem diagnose", enabled=not args.no_progress) as progress:
         s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
-                          args.frame_search, progress)
+                          args.frame_search, progress, args.drift_last)
     h = s["holdout"]
     named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
     print(f"{s['dataset']}: cause = {named}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "

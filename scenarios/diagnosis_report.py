@@ -241,6 +241,8 @@ def _markdown(diag) -> str:
                        f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").")
                   if isinstance(fs["components"], int) else       # FrameEnsemble: no choice
                   f"Thermometer frame: no structure chosen, the {fs['label']} structures.", ""]
+        if "drift_rule" in sel:                # --drift-last (post hoc option)
+            L += [f"Naming: {sel['drift_rule']}.", ""]
         L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
               "|---|---|---|---|---|---|"]
         for c in j["candidates"]:

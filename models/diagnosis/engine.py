@@ -58,6 +58,7 @@ from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_therm
                                     fit_speed_candidate, median_block_ratio,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
                                     speed_to_heat_map)
+from arfem.models.diagnosis.speed import drift_last as _drift_last
 from arfem.params import PLAUSIBLE_RANGES, InputError
 from arfem.io import json_text
 
@@ -285,7 +286,8 @@ def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
                                               base_rmse / noise_um if noise_um > 0 else None)}
 
 
-def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False):
+def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False,
+               drift_last: bool = False):
     """Speed-only records: the cause with the least forward-chaining validation RMSE on
     the fit window is named only if it cuts the baseline's by >= ``MIN_GAIN`` *and* wins
     on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed.forward_folds`);
@@ -312,6 +314,8 @@ def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False):
             r = median_block_ratio(tests[c]["cv_per_block_um"], base_per)
             tests[c].update(median_block_ratio=r, significant=bool(r <= 1.0 - MIN_GAIN))
         named.sort(key=lambda c: tests[c]["median_block_ratio"])
+    if drift_last:    # post hoc: a drift in time only where no input-driven cause passes
+        named = _drift_last(named, tests)
     top = named[0] if named else "none"
     cause = top if top != "none" and tests[top]["significant"] else "none"
     runner = next((c for c in order if c != cause), None)
@@ -324,7 +328,9 @@ def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False):
         "baseline_cv_per_block_um": base_per,
         **({"naming": f"post hoc rule of --frame-search average: the cause with the least "
                       f"median per-block RMSE ratio to the baseline, named if that is <= "
-                      f"{1 - MIN_GAIN:g}"} if robust else {})}
+                      f"{1 - MIN_GAIN:g}"} if robust else {}),
+        **({"drift_rule": "post hoc drift_last: sensor_drift is named only if no "
+                          "input-driven cause passes the naming test"} if drift_last else {})}
 
 
 #: the plausible range (arfem.params.PLAUSIBLE_RANGES key) of each fitted magnitude
@@ -763,7 +769,7 @@ def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
-             progress=None) -> Diagnosis:
+             progress=None, drift_last: bool = False) -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
@@ -777,6 +783,10 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
     progress : callable, optional
         Called with a step's name as each slow step starts (the command shows it).
+    drift_last : bool
+        Speed-only records (post hoc option): name ``sensor_drift`` only if no
+        input-driven cause passes the naming test
+        (:func:`arfem.models.diagnosis.speed.drift_last`).
     """
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
@@ -842,7 +852,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
             fits.setdefault(c, None)
         base = fits["none"]   # output-error AR: the reference the candidates are tested against
         cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
-                                                        robust=frame_search == "average")
+                                                        robust=frame_search == "average",
+                                                        drift_last=drift_last)
         if frame_struct is not None:
             neff["frame_structure"] = {"components": frame_struct.components,
                                        "sensor_lag_h": frame_struct.sensor_lag_h,

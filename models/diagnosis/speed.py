@@ -39,7 +39,8 @@ from arfem.models.diagnosis.forward import ar_columns, ar_first_order, first_ord
 
 __all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES",
            "FrameStructure", "FrameEnsemble", "frame_structures", "heat_law", "fit_frame_thermometers",
-           "select_frame_structure", "forward_folds", "cv_rmse", "median_block_ratio"]
+           "select_frame_structure", "forward_folds", "cv_rmse", "median_block_ratio",
+           "drift_last", "INPUT_FREE_CAUSES"]
 
 #: causes identifiable for a calibrated AR(1) (h and heat scale are absorbed by C1, C2)
 SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_expansion",
@@ -828,6 +829,52 @@ def median_block_ratio(per, base_per) -> float:
     """
     r = [a / b for a, b in zip(per, base_per) if b > 0]
     return float(np.median(r)) if r else float("nan")
+
+
+#: speed-only causes whose prediction is driven by no recorded input: a trend in time
+INPUT_FREE_CAUSES = ("sensor_drift",)
+
+
+def drift_last(named, tests) -> list:
+    """Order of the candidate causes with the input-free ones (:data:`INPUT_FREE_CAUSES`,
+    a linear drift in time) put behind every input-driven cause that passes its naming
+    test (``tests[c]["significant"]``); otherwise ``named`` unchanged.
+
+    The rule of ``drift_last=True`` (post hoc, after the rolling-origin evaluation of the
+    real record). On a fit window in which the machine mostly warms up, a linear drift
+    in time and a slow thermal response (a frame that follows the thermometers) both
+    fit the slow rise, and validation blocks inside that window cannot tell them apart.
+    They part only after the window: the thermal response follows the recorded
+    temperatures when the machine cools, the drift goes on rising. So where an
+    explanation from the recorded inputs passes the test, the drift is not preferred to
+    it on a validation score; it is named only when no input-driven cause passes.
+
+    Parameters
+    ----------
+    named : sequence of str
+        Candidate causes, best first (``"none"`` excluded).
+    tests : dict
+        Cause -> its naming test, with the bool ``"significant"``.
+
+    Returns
+    -------
+    list of str
+
+    Examples
+    --------
+    >>> t = {"sensor_drift": {"significant": True}, "frame_expansion": {"significant": True},
+    ...      "ambient_drift": {"significant": False}}
+    >>> drift_last(["sensor_drift", "ambient_drift", "frame_expansion"], t)
+    ['ambient_drift', 'frame_expansion', 'sensor_drift']
+    >>> t["frame_expansion"]["significant"] = False
+    >>> drift_last(["sensor_drift", "ambient_drift", "frame_expansion"], t)
+    ['sensor_drift', 'ambient_drift', 'frame_expansion']
+    """
+    named = list(named)
+    if not any(c not in INPUT_FREE_CAUSES and tests[c]["significant"] for c in named):
+        return named
+    return ([c for c in named if c not in INPUT_FREE_CAUSES]
+            + [c for c in named if c in INPUT_FREE_CAUSES])
 
 
 def cv_rmse(fitter, y, folds) -> tuple[float, list[float]]:

@@ -21,12 +21,14 @@ t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole re
 
     python reports/fl_thermal/regenerate.py --rolling [--every K]
     python reports/fl_thermal/regenerate.py --rolling-only average [--every K]
+    python reports/fl_thermal/regenerate.py --rolling-only average+drift-last
     python reports/fl_thermal/regenerate.py --posthoc-split
     python reports/fl_thermal/regenerate.py --readme
 
-the rolling-origin evaluation of the published procedure and of the post hoc one
-(``--frame-search average``) on the whole record (rolling.json/md/png; ~35 min and ~15 min
-at every 2nd origin on the shared 2-core machine), the post hoc procedure on the
+the rolling-origin evaluation of the published procedure and of the post hoc ones
+(``--frame-search average``; the same with ``--drift-last``, README.posthoc.md 1.3.1) on
+the whole record (rolling.json/md/png; ~35 min, ~4 min and ~9 min on the shared 2-core
+machine), the post hoc procedure on the
 pre-registered split (posthoc_split.json, never into preregistered.json), and README.md
 rebuilt from the stored results.
 """
@@ -214,7 +216,8 @@ def _roll_fit(toml, search, n_train, y_train):
     ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n_train,
                                                                          yt[-1])]),
                                outliers=out)
-    d = diagnose(ds_o, float(t[n_train]), search)
+    fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
+    d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last")
     s = d.series
     fs = d.summary["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},
@@ -249,8 +252,11 @@ def rolling_scores(data, channels=range(1, 6), search="narrow", jobs=2, origins=
     return out
 
 
-#: procedures compared in rolling.md: (label, frame search); the first is the published one
-ROLL_VARIANTS = (("published", "narrow"), ("post hoc", "average"))
+#: procedures compared in rolling.md: (label, frame search[+naming rule]); the first is the
+#: published one; "+drift-last" adds ``diagnose(..., drift_last=True)`` (README.posthoc.md
+#: 1.3.1: developed on the odd origins, confirmed on the even ones)
+ROLL_VARIANTS = (("published", "narrow"), ("post hoc", "average"),
+                 ("post hoc, drift last", "average+drift-last"))
 
 
 def _run_rolling(data, jobs, only=None, every=1) -> int:
@@ -368,6 +374,11 @@ def _rolling_text(out, variants):
     return "\n".join(lines)
 
 
+#: legend names of the procedures in rolling.png
+ROLL_LEGEND = {"published": "published, narrow", "post hoc": "post hoc: average",
+               "post hoc, drift last": "post hoc: average + drift last"}
+
+
 def _rolling_figure(out, variants, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -387,9 +398,10 @@ def _rolling_figure(out, variants, path):
         for i, (lab, _) in enumerate(variants):
             ax.plot([o["origin_s"] / 3600 for o in d[lab]["per_origin"]],
                     [o["extended_rmse_um"] for o in d[lab]["per_origin"]],
-                    "-" if i == 0 else "--", color=("#009E73", "#CC79A7", "#000000")[i],
-                    marker=("^", "v", "d")[i], ms=5,
-                    label=f"extended ({lab})" if len(variants) > 1 else "extended")
+                    ("-", "--", ":")[i], color=("#009E73", "#CC79A7", "#000000")[i],
+                    marker=("^", "v", "d")[i], ms=5, lw=(1.5, 1.5, 2.0)[i],
+                    label=(f"extended ({ROLL_LEGEND.get(lab, lab)})" if len(variants) > 1
+                           else "extended"))
         ax.set_yscale("log")
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         ax.yaxis.set_minor_formatter(FuncFormatter(
@@ -598,7 +610,9 @@ def _part1_text() -> str:
     L += r + ["", f"**Published procedure: extended beats both at {tot} of {n_or * n_ch} "
               f"(channel, origin) pairs.** " + most(labs[0]), "",
               "![hold-out RMSE per origin, every channel](rolling.png)", ""]
-    L += [(HERE / "README.posthoc.md").read_text(encoding="utf-8"), ""]
+    posthoc, mark, further = (HERE / "README.posthoc.md").read_text(
+        encoding="utf-8").partition("#### 1.3.1")
+    L += [posthoc.rstrip("\n"), ""]
     if len(labs) > 1:
         r2, tot2 = rows(labs[1])
         ev = roll["variants"][labs[1]].get("every", 1)
@@ -631,6 +645,10 @@ def _part1_text() -> str:
     else:
         L += ["The post hoc procedure's rolling run is not in rolling.json yet "
               "(`--rolling-only average`).", ""]
+    if further:
+        L += [mark + further.rstrip("\n"), ""]
+        if len(labs) > 2:
+            L += _split_text(roll, labs, rows, hdr, most)
     if split is not None and pre is not None:
         L += ["On the pre-registered split (t ≥ 100 800 s), **post hoc**, beside the "
               "pre-registered result (`posthoc_split.json`):", "",
@@ -642,6 +660,60 @@ def _part1_text() -> str:
                      f"({d['cause']}) | {'yes' if d['beats_both'] else '**no**'} |")
         L.append("")
     return "\n".join(L)
+
+
+#: README.posthoc.md 1.3.1: origins (by index, from 0) on which the third procedure was
+#: developed (the odd ones: 16.13, 24.13, ... h) and confirmed (the even ones)
+DEV_ORIGINS, CONF_ORIGINS = (0, 2, 4, 6, 8), (1, 3, 5, 7, 9)
+
+
+def split_tallies(roll, lab):
+    """``{channel: (development wins, confirmation wins)}`` of procedure ``lab`` in
+    rolling.json: origins where the extended model beats both the paper AR(1) and the
+    MLR, over :data:`DEV_ORIGINS` and :data:`CONF_ORIGINS`."""
+    def win(x):
+        return x["extended_rmse_um"] < min(x["paper_ar_rmse_um"], x["mlr_rmse_um"])
+    out = {}
+    for ch, d in roll["channels"].items():
+        po = d[lab]["per_origin"]
+        out[ch] = tuple(sum(win(po[i]) for i in idx if i < len(po))
+                        for idx in (DEV_ORIGINS, CONF_ORIGINS))
+    return out
+
+
+def _split_text(roll, labs, rows, hdr, most):
+    """The third procedure's rolling table and its development/confirmation verdict
+    (README.posthoc.md 1.3.1)."""
+    new, ref = labs[2], labs[1]
+    r3, tot3 = rows(new)
+    n3 = sum(len(d[new]["per_origin"]) for d in roll["channels"].values())
+    L = [f"Rolling origin, `average` + drift last (same origins and blocks as 1.2):", ""]
+    L += hdr + r3 + ["", f"**`average` + drift last: extended beats both at {tot3} of {n3} "
+                     f"(channel, origin) pairs.** " + most(new), ""]
+    tal = {lab: split_tallies(roll, lab) for lab in labs[:3]}
+    L += ["Beats both, per channel, on the development (odd) and confirmation (even) "
+          "origins, 5 each:", "",
+          "| channel | " + " | ".join(f"{lab}: development | {lab}: confirmation"
+                                     for lab in labs[:3]) + " |",
+          "|---|" + "---|---|" * 3]
+    for ch in roll["channels"]:
+        L.append(f"| {ch} | " + " | ".join(f"{tal[lab][ch][0]} | {tal[lab][ch][1]}"
+                                           for lab in labs[:3]) + " |")
+    sums = {lab: tuple(sum(v[i] for v in tal[lab].values()) for i in (0, 1))
+            for lab in labs[:3]}
+    L.append("| all | " + " | ".join(f"{a} | {b}" for a, b in sums.values()) + " |")
+    dev_ok = sums[new][0] > sums[ref][0] and all(tal[new][c][0] >= tal[ref][c][0]
+                                                  for c in tal[new])
+    conf_ok = sums[new][1] > sums[ref][1] and all(tal[new][c][1] >= tal[ref][c][1]
+                                                   for c in tal[new])
+    worse = [c for c in tal[new] if tal[new][c][1] < tal[ref][c][1]]
+    L += ["", f"Protocol verdict: on development {sums[new][0]} of 25 against `average`'s "
+          f"{sums[ref][0]} ({'chosen' if dev_ok else 'NOT better'}); on confirmation "
+          f"{sums[new][1]} of 25 against `average`'s {sums[ref][1]}"
+          + (f", no channel below `average`'s — **confirmed**." if conf_ok else
+             " — **not confirmed**" + (f" (below `average` on {', '.join(worse)})"
+                                       if worse else "") + "."), ""]
+    return L
 
 
 def _run_readme() -> int:

@@ -1,0 +1,106 @@
+"""The exploratory run of README.posthoc.md 1.3.1 (development origins only).
+
+    cd <repo> && python reports/fl_thermal/explore_candidates.py OUT.json [--jobs 2]
+
+For every channel at the development origins (the odd ones: 16.13, 24.13, 32.13, 40.13,
+44.13 h) it runs the post hoc ``--frame-search average`` procedure exactly as the
+rolling evaluation does (``regenerate._roll_fit``: fitted on the growth before the
+origin) and records, besides the three models' block RMSEs [µm], the block RMSE of
+*every* candidate cause's fit and each candidate's naming test -- which the diagnosis
+itself does not keep. The candidates are caught by wrapping the engine's two fitting
+functions (the fit on the most rows is the one on the whole fit window). This is what
+the drift-last variant was chosen from; it was run once, before the confirmation
+origins were scored. ~18 min on 2 processes of the loaded shared machine.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import importlib.util  # noqa: E402
+
+# regenerate.py beside this file (a script, not a package module); loading it also sets
+# one BLAS thread per process
+_spec = importlib.util.spec_from_file_location("regenerate",
+                                               Path(__file__).with_name("regenerate.py"))
+R = importlib.util.module_from_spec(_spec)
+sys.modules["regenerate"] = R
+_spec.loader.exec_module(R)
+
+from arfem.models.diagnosis import engine as E  # noqa: E402
+from arfem.models.diagnosis.dataset import hampel_outliers  # noqa: E402
+from arfem.models.diagnosis.rolling import blocks, speed_step_origins  # noqa: E402
+
+_CAUGHT: dict = {}
+_FSC, _FFT = E.fit_speed_candidate, E.fit_frame_thermometers
+
+
+def _keep(cause, rows, f):
+    n = int(rows.sum())
+    if f is not None and n >= _CAUGHT.get((cause, "n"), 0):
+        _CAUGHT[(cause, "n")] = n
+        _CAUGHT[cause] = f
+    return f
+
+
+def _fsc(c, t, y, sp, rows, *a, **k):
+    return _keep(c, rows, _FSC(c, t, y, sp, rows, *a, **k))
+
+
+def _fft(t, y, sp, rows, *a, **k):
+    return _keep("frame_expansion", rows, _FFT(t, y, sp, rows, *a, **k))
+
+
+def one(ch, o_idx, search="average"):
+    """Channel ``ch`` at origin number ``o_idx`` (from 0): models', candidates' block
+    RMSEs [µm] and the naming tests."""
+    E.fit_speed_candidate, E.fit_frame_thermometers = _fsc, _fft
+    toml = str(R.DATA / f"fl_thermal_ch{ch}.toml")
+    ds = R._dataset(toml)
+    t, y = np.asarray(ds.time_s), np.asarray(ds.growth_um)
+    org = speed_step_origins(t, ds.speed_rpm, R.ROLL_START_S, R.ROLL_MIN_BLOCK_S)
+    m = blocks(t, org)[o_idx] & ~ds.outliers
+    n = int(np.searchsorted(t, org[o_idx]))
+    _CAUGHT.clear()
+    yt = y[:n]
+    steps = np.abs(np.diff(yt))
+    steps = steps[steps > 1e-9]
+    out = np.zeros(t.size, bool)
+    out[:n] = hampel_outliers(yt, floor=float(steps.min()))
+    ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n, yt[-1])]),
+                               outliers=out)
+    d = E.diagnose(ds_o, float(t[n]), search)
+
+    def rm(p):
+        return float(np.sqrt(np.mean((y - p)[m] ** 2)))
+    s = d.series
+    return {"ch": ch, "origin_h": org[o_idx] / 3600, "cause": d.summary["cause"],
+            "paper_ar": rm(s["baseline_um"]), "mlr": rm(s["mlr_um"]),
+            "extended": rm(s["extended_um"]),
+            "candidates_block_rmse_um": {c: rm(f.prediction) for c, f in _CAUGHT.items()
+                                         if isinstance(c, str)},
+            "tests": {c["cause"]: {k: c.get(k) for k in ("score", "cv_per_block_um",
+                                                         "median_block_ratio", "significant")}
+                      for c in d.summary["candidates"]}}
+
+
+def main(argv=None) -> int:
+    from concurrent.futures import ProcessPoolExecutor
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out", help="JSON file to write")
+    ap.add_argument("--jobs", type=int, default=2)
+    a = ap.parse_args(argv)
+    jobs = [(ch, i) for i in R.DEV_ORIGINS for ch in range(1, 6)]
+    with ProcessPoolExecutor(a.jobs) as ex:
+        res = list(ex.map(one, *zip(*jobs)))
+    Path(a.out).write_text(json.dumps(res, indent=1, default=float) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""The post hoc ``drift_last`` naming rule of the speed-only diagnosis
+(``arfem diagnose --drift-last``; reports/fl_thermal/README.md, 1.3.1): a linear drift in
+time (``sensor_drift``) is named only where no cause driven by the recorded inputs passes
+its naming test. Checked on the naming step itself with fabricated validation scores (the
+rule is a pure function of them), and that the CLI flag reaches the engine."""
+import numpy as np
+import pytest
+
+from arfem.models.diagnosis.candidates import CandidateFit
+from arfem.models.diagnosis.engine import _select_cv
+from arfem.scenarios.cli import main as cli
+
+
+def _case(frame_blocks):
+    """Fits and per-block validation RMSEs [µm]: the drift cuts the baseline's error most
+    on every block (ratio 0.5), the frame by the given per-block errors (baseline 2 µm)."""
+    t = np.arange(100) * 60.0
+    res = np.random.default_rng(0).normal(0, 1, 60)
+    fits = {c: CandidateFit(c, "ar", {}, np.zeros(t.size), 1, 1.0, 60, {"_res": res})
+            for c in ("none", "sensor_drift", "frame_expansion")}
+    folds = [(t < a, (t >= a) & (t < a + 1200)) for a in (1800.0, 3000.0, 4200.0)]
+    per = {"none": [2.0, 2.0, 2.0], "sensor_drift": [1.0, 1.0, 1.0],
+           "frame_expansion": list(frame_blocks)}
+    cvs = {c: (float(np.sqrt(np.mean(np.square(v)))), v) for c, v in per.items()}
+    return fits, cvs, folds, t
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_drift_is_named_only_if_no_input_driven_cause_passes(robust):
+    """Both naming tests (pooled cut + majority of blocks; median block ratio): the drift,
+    best on validation, is named without the rule; with it, the frame that also passes
+    (ratio 0.7 on every block) is named instead, the drift stays a candidate; and where
+    the frame fails its test (worse than the baseline on every block) the drift is still
+    named -- the rule reorders, it never removes a cause."""
+    fits, cvs, folds, t = _case([1.4, 1.4, 1.4])
+    assert _select_cv(fits, cvs, folds, t, robust=robust)[0] == "sensor_drift"
+    cause, runner, _, tests, info = _select_cv(fits, cvs, folds, t, robust=robust,
+                                               drift_last=True)
+    assert cause == "frame_expansion"
+    assert tests["sensor_drift"]["significant"] and tests["frame_expansion"]["significant"]
+    assert "drift_rule" in info
+    fits, cvs, folds, t = _case([2.5, 2.5, 2.5])
+    assert _select_cv(fits, cvs, folds, t, robust=robust, drift_last=True)[0] == "sensor_drift"
+
+
+def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
+    """``arfem diagnose --drift-last`` passes drift_last=True to the engine (and the
+    default passes False): the engine is replaced by a recorder that stops the run."""
+    import arfem.scenarios.diagnose as d
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake(ds, hs, search, progress, drift_last=False):
+        seen.append((search, drift_last))
+        raise Stop
+    monkeypatch.setattr(d, "load_dataset", lambda path: None)
+    monkeypatch.setattr(d, "diagnose", fake)
+    (tmp_path / "x.toml").write_text("")
+    for extra, want in (([], ("narrow", False)),
+                        (["--frame-search", "average", "--drift-last"], ("average", True))):
+        with pytest.raises(Stop):
+            cli(["diagnose", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"),
+                 "--no-progress", *extra])
+        assert seen[-1] == want
