@@ -37,7 +37,9 @@ Selection rule (documented in every report):
    applies within the pair. Where no single cause is named though the baseline is off by
    ``MISFIT_FACTOR`` σ, a pair that removes ``MISFIT_CUT`` of the misfit is named;
 8. every named parameter has a 95 % interval from the joint fit
-   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`).
+   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`); on speed-only records from
+   refits of the named candidate without each of several contiguous blocks
+   (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`).
 
 Without ``--holdout-start`` the hold-out is the last third of the record if it holds a
 change of the input, else it starts at the last such change (:func:`_default_holdout`);
@@ -695,8 +697,9 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progre
         progress(f"95 % intervals (block jackknife): {cause}")
         # each refit maps the speeds its rows do not hold as the procedure maps unseen
         # speeds (eqs. 20-21), as the validation folds do
-        ci = jackknife_ci95(lambda tr: fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3]),
-                            fits[cause], y, rows, CONTRACT_PARAMETERS[cause])
+        def refit(tr):
+            return fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3])
+        ci = jackknife_ci95(refit, fits[cause], y, rows, CONTRACT_PARAMETERS[cause])
     text.append(f"speed-to-heat mapping: {json_text(map_info)}")
     text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
     ext = fits[cause] if cause != "none" else base_paper

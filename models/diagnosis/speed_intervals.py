@@ -126,7 +126,8 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
     >>> from arfem.models.diagnosis.synth_speed import ar1_noise
     >>> e = ar1_noise(np.random.default_rng(0), 2000, 1.0, 0.8)
     >>> rows = np.ones(2000, bool)
-    >>> mean = lambda r: NS(parameters={"m": float(e[r].mean())}, prediction=np.full(2000, e[r].mean()))
+    >>> def mean(r):
+    ...     return NS(parameters={"m": float(e[r].mean())}, prediction=np.full(2000, e[r].mean()))
     >>> lo, hi = jackknife_ci95(mean, mean(rows), e, rows, ["m"])["m"]
     >>> bool(lo < 0.0 < hi)
     True
