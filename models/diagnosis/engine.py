@@ -641,13 +641,14 @@ _SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit windo
                f"wins on a majority of the validation blocks")
 
 
-def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progress):
+def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progress,
+                    intervals=True):
     """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
     speed-only cause fitted as an output-error AR(1) (the frame structure chosen by
     forward-chaining validation where there are thermometers), the cause named by
     validation, and its parameters' 95 % intervals by the grouped jackknife
-    (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`). Returns a dict of
-    the kind :func:`_diagnose_fem` returns."""
+    (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`; not computed, ``{}``,
+    with ``intervals=False``). Returns a dict of the kind :func:`_diagnose_fem` returns."""
     rod = ds.rod
     levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
@@ -693,7 +694,7 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progre
                                    "search": frame_search,
                                    "validation_rmse_um": frame_table}
     ci = {}
-    if cause != "none":
+    if cause != "none" and intervals:
         progress(f"95 % intervals (block jackknife): {cause}")
         # each refit maps the speeds its rows do not hold as the procedure maps unseen
         # speeds (eqs. 20-21), as the validation folds do
@@ -888,7 +889,7 @@ def _summary(ds, v2, bres, eres, holdout):
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
-             progress=None) -> Diagnosis:
+             progress=None, intervals: bool = True) -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
@@ -902,6 +903,10 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
     progress : callable, optional
         Called with a step's name as each slow step starts (the command shows it).
+    intervals : bool
+        Speed-only records: compute the named cause's 95 % intervals (B refits, up to
+        twice the run's time with ``frame_search="average"``); False leaves ``ci95``
+        empty, for callers that need only the predictions (a rolling-origin evaluation).
     """
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
@@ -918,7 +923,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     if ds.input_kind == "q_W_m2":
         v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
     else:
-        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, step)
+        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, step,
+                             intervals)
     base, ext = v2["base"], v2["ext"]
 
     step("residuals and hold-out")
