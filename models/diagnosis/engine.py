@@ -37,7 +37,9 @@ Selection rule (documented in every report):
    applies within the pair. Where no single cause is named though the baseline is off by
    ``MISFIT_FACTOR`` σ, a pair that removes ``MISFIT_CUT`` of the misfit is named;
 8. every named parameter has a 95 % interval from the joint fit
-   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`).
+   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`); on speed-only records from
+   refits of the named candidate without each of several contiguous blocks
+   (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`).
 
 Without ``--holdout-start`` the hold-out is the last third of the record if it holds a
 change of the input, else it starts at the last such change (:func:`_default_holdout`);
@@ -54,6 +56,7 @@ from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit, FemPhysics,
                                          compatible, fit_candidate, fit_causes,
                                          parameter_ci95)
+from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
                                     fit_speed_candidate, median_block_ratio,
                                     forward_folds, mlr, paper_ar, select_frame_structure,
@@ -545,10 +548,11 @@ def _pair_parsimony(pair, fits, phys, args):
     return pair
 
 
-def _cause_entries(fit, causes, y, rows):
+def _cause_entries(fit, causes, y, rows, ci=None):
     """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
-    intervals from the (joint) fit."""
-    ci = parameter_ci95(fit, y, rows) if fit is not None else {}
+    intervals from the (joint) fit (``ci``, if given: intervals computed otherwise)."""
+    if ci is None:
+        ci = parameter_ci95(fit, y, rows) if fit is not None else {}
     out = []
     for c in causes:
         names = CONTRACT_PARAMETERS[c]
@@ -633,7 +637,89 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
             "scores": scores, "tests": tests, "neff": neff, "ext": ext, "base": fits["none"],
             "refused": refused, "equivalent": equivalent, "pairs_tried": pairs_tried,
             "tau_s": 1.0 / fem.slowest_rate(),
-            "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}}}
+            "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}},
+            "baseline_model": "fem", "score_kind": "bic_on_n_eff", "rule": _FEM_RULE,
+            "ar_label": "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"}
+
+
+_SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit window; the best "
+               f"cause is named only if it cuts the baseline's by >= {100 * MIN_GAIN:g} % and "
+               f"wins on a majority of the validation blocks")
+
+
+def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progress,
+                    intervals=True, drift_last=False):
+    """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
+    speed-only cause fitted as an output-error AR(1) (the frame structure chosen by
+    forward-chaining validation where there are thermometers), the cause named by
+    validation, and its parameters' 95 % intervals by the grouped jackknife
+    (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`; not computed, ``{}``,
+    with ``intervals=False``); ``drift_last`` as in :func:`diagnose`. Returns a dict of
+    the kind :func:`_diagnose_fem` returns."""
+    rod = ds.rod
+    levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
+    rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
+    paper_pred, paper_info = paper_ar(t, y, sp, rows, W, seen)
+    base_paper = CandidateFit("none", "ar", {}, paper_pred, 0)
+    folds = forward_folds(t, sp, rows)
+    fold_maps = [speed_to_heat_map(t, sp, temps, tr)[1:3] for tr, _ in folds]
+    frame_struct, frame_table = None, {}
+    if temps:
+        progress(f"frame structure search ({frame_search})")
+        frame_struct, frame_table = select_frame_structure(t, y, sp, temps, rows, folds,
+                                                           fold_maps, frame_search)
+
+    def fit_c(c, tr, seen_, W_):
+        if c == "frame_expansion" and frame_struct is not None:
+            return fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, frame_struct)
+        return fit_speed_candidate(c, t, y, sp, tr, seen_, W_, amb_K, rho_c_R)
+
+    fits, cvs = {}, {}
+    for c in SPEED_CAUSES:
+        progress(f"AR fit and validation: {c}")
+        f = fit_c(c, rows, seen, W)
+        fits[c] = f
+        if f is None:
+            continue
+        f.extra["_res"] = (y - f.prediction)[rows]
+        it = iter(fold_maps)
+
+        def fitter(tr, c=c, it=it):
+            g = fit_c(c, tr, *next(it))
+            return None if g is None else g.prediction
+        cvs[c] = cv_rmse(fitter, y, folds)
+    for c in CAUSES:
+        fits.setdefault(c, None)
+    cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
+                                                    robust=frame_search == "average",
+                                                    drift_last=drift_last)
+    if frame_struct is not None:
+        neff["frame_structure"] = {"components": frame_struct.components,
+                                   "sensor_lag_h": frame_struct.sensor_lag_h,
+                                   "heat_exponent": frame_struct.heat_exponent,
+                                   "slow_response": frame_struct.slow_lag,
+                                   "label": frame_struct.label,
+                                   "search": frame_search,
+                                   "validation_rmse_um": frame_table}
+    ci = {}
+    if cause != "none" and intervals:
+        progress(f"95 % intervals (block jackknife): {cause}")
+        # each refit maps the speeds its rows do not hold as the procedure maps unseen
+        # speeds (eqs. 20-21), as the validation folds do
+        def refit(tr):
+            return fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3])
+        ci = jackknife_ci95(refit, fits[cause], y, rows, CONTRACT_PARAMETERS[cause])
+    text.append(f"speed-to-heat mapping: {json_text(map_info)}")
+    text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
+    ext = fits[cause] if cause != "none" else base_paper
+    return {"fits": fits, "cause": cause, "causes": [] if cause == "none" else [cause],
+            "runner": runner, "scores": scores, "tests": tests, "neff": neff, "ext": ext,
+            "base": base_paper, "refused": {}, "ci95": ci,
+            "tau_s": fits["none"].extra.get("time_constant_h", 1.0) * 3600.0,
+            # output-error AR: the reference the candidates are tested against
+            "extra_models": {"ar_output_error": {"baseline": fits["none"], "extended": ext}},
+            "baseline_model": "ar", "score_kind": "validation_rmse_um", "rule": _SPEED_RULE,
+            "ar_label": "paper AR(1) calibrated by eq. 17 before the hold-out"}
 
 
 def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
@@ -741,22 +827,21 @@ def _add_mlr(summary, series, y, temps, rows, hold):
         series["mlr_um"] = pm
 
 
-def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
+def _add_version2(summary, v2, y, rows, hold, good, warnings):
     """The contract's version-2 fields: ``causes`` (with 95 % intervals),
     ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
-    if v2:
+    ext = v2["ext"]
+    if "ci95" in v2:    # speed-only records: one cause, intervals by the block jackknife
+        entries, _ = _cause_entries(ext, v2["causes"], y, rows, v2["ci95"])
+    else:
         entries, _ = _cause_entries(ext, v2["causes"], y, rows)
-        eq = v2["ext"].extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
+        eq = ext.extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
         if eq is not None:
             summary["equivalent_alternative"] = eq
         summary["second_cause_tests"] = v2["pairs_tried"]
         summary["refused_candidates"] = [{"cause": c, "refused": why,
                                           "parameters": v2["fits"][c].parameters}
                                          for c, why in v2["refused"].items()]
-    else:       # speed-only records: one cause, intervals not computed for this branch
-        entries = [] if cause == "none" else [{"cause": cause,
-                                               "parameters": dict(summary["parameters"]),
-                                               "ci95": {}}]
     summary["contract_version"] = 2
     summary["causes"] = entries
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
@@ -768,117 +853,11 @@ def _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings):
     summary["warnings"] = list(warnings)
 
 
-def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
-             progress=None, drift_last: bool = False) -> Diagnosis:
-    """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
-
-    Parameters
-    ----------
-    ds : Dataset
-        The record (``q_W_m2`` → FEM baseline; ``speed_rpm`` → calibrated AR(1) baseline).
-    holdout_start_s : float, optional
-        Start of the hold-out [s]; default the last third of the record.
-    frame_search : {"narrow", "wide"}
-        Speed-only records: the frame structures compared by forward-chaining
-        validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
-    progress : callable, optional
-        Called with a step's name as each slow step starts (the command shows it).
-    drift_last : bool
-        Speed-only records (post hoc option): name ``sensor_drift`` only if no
-        input-driven cause passes the naming test
-        (:func:`arfem.models.diagnosis.speed.drift_last`).
-    """
-    step = progress if progress is not None else (lambda name: None)
-    _refuse_dead_sensor(ds)
-    t, y, observed, outl, cols = _observations(ds)
-    good = observed & ~outl
-    u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
-    hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)
-    rows = good & (t < hs)
-    hold = good & (t >= hs)
-    rod = ds.rod
-    amb_K = None if cols["ambient_C"] is None else cols["ambient_C"] - rod.ambient_C
-    temps = {k: cols[k] for k in ds.temperatures}
-    signals = _signals(ds.input_kind, cols, temps)
-    text = []
-    warnings = []
-    extra_models = {}
-    v2 = {}
-
-    if ds.input_kind == "q_W_m2":
-        q = cols["q_W_m2"]
-        running = q > 0
-        v2 = _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, step)
-        fits, cause, runner = v2["fits"], v2["cause"], v2["runner"]
-        scores, tests, neff, ext = v2["scores"], v2["tests"], v2["neff"], v2["ext"]
-        base, tau_s, extra_models = v2["base"], v2["tau_s"], v2["extra_models"]
-        base_model = "fem"
-        ar_label = "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"
-    else:
-        sp = np.asarray(ds.speed_rpm, float)
-        running = sp > 0
-        levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
-        rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
-        paper_pred, paper_info = paper_ar(t, y, sp, rows, W, seen)
-        base_paper = CandidateFit("none", "ar", {}, paper_pred, 0)
-        folds = forward_folds(t, sp, rows)
-        fold_maps = [speed_to_heat_map(t, sp, temps, tr)[1:3] for tr, _ in folds]
-        frame_struct, frame_table = None, {}
-        if temps:
-            step(f"frame structure search ({frame_search})")
-            frame_struct, frame_table = select_frame_structure(t, y, sp, temps, rows, folds,
-                                                               fold_maps, frame_search)
-
-        def fit_c(c, tr, seen_, W_):
-            if c == "frame_expansion" and frame_struct is not None:
-                return fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, frame_struct)
-            return fit_speed_candidate(c, t, y, sp, tr, seen_, W_, amb_K, rho_c_R)
-
-        fits, cvs = {}, {}
-        for c in SPEED_CAUSES:
-            step(f"AR fit and validation: {c}")
-            f = fit_c(c, rows, seen, W)
-            fits[c] = f
-            if f is None:
-                continue
-            f.extra["_res"] = (y - f.prediction)[rows]
-            it = iter(fold_maps)
-
-            def fitter(tr, c=c, it=it):
-                g = fit_c(c, tr, *next(it))
-                return None if g is None else g.prediction
-            cvs[c] = cv_rmse(fitter, y, folds)
-        for c in CAUSES:
-            fits.setdefault(c, None)
-        base = fits["none"]   # output-error AR: the reference the candidates are tested against
-        cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
-                                                        robust=frame_search == "average",
-                                                        drift_last=drift_last)
-        if frame_struct is not None:
-            neff["frame_structure"] = {"components": frame_struct.components,
-                                       "sensor_lag_h": frame_struct.sensor_lag_h,
-                                       "heat_exponent": frame_struct.heat_exponent,
-                                       "slow_response": frame_struct.slow_lag,
-                                       "label": frame_struct.label,
-                                       "search": frame_search,
-                                       "validation_rmse_um": frame_table}
-        ext = fits[cause] if cause != "none" else base_paper
-        tau_s = base.extra.get("time_constant_h", 1.0) * 3600.0
-        base = base_paper
-        base_model = "ar"
-        ar_label = "paper AR(1) calibrated by eq. 17 before the hold-out"
-        extra_models["ar_output_error"] = {"baseline": fits["none"], "extended": ext}
-        text.append(f"speed-to-heat mapping: {json_text(map_info)}")
-        text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
-
-    step("residuals and hold-out")
-    bres = _residual_analysis(t, y, base.prediction, good, signals, running, tau_s)
-    eres = _residual_analysis(t, y, ext.prediction, good, signals, running, tau_s)
-    b_hold, e_hold, gain = _holdout_scores(y, base.prediction, ext.prediction, hold)
-
-    # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
-    # forward-chaining validation RMSE [µm] for speed-only ones
-    score_kind = "bic_on_n_eff" if ds.input_kind == "q_W_m2" else "validation_rmse_um"
+def _summary(ds, v2, bres, eres, holdout):
+    """diagnosis.json's main fields from the branch's result ``v2`` (:func:`_diagnose_fem`
+    or :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
+    fits, cause, scores, tests = v2["fits"], v2["cause"], v2["scores"], v2["tests"]
+    ext, base_model, score_kind = v2["ext"], v2["baseline_model"], v2["score_kind"]
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -893,36 +872,84 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
                      "rmse_um": eres["rmse_um"], "max_abs_um": eres["max_abs_um"],
                      "ljung_box_p": eres["ljung_box_p"], "fit_pct": eres["fit_pct"],
                      "per_phase": eres["per_phase"]},
-        "holdout": {"start_s": hs, "how_chosen": how, "baseline_rmse_um": b_hold,
-                    "extended_rmse_um": e_hold, "gain_pct": gain,
-                    "n_samples": int(hold.sum())},
+        "holdout": holdout,
         "parameters": {k: v for k, v in ext.parameters.items()
                        if k in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
         "parameters_detail": {k: v for k, v in ext.parameters.items()
                               if k not in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+        # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
+        # forward-chaining validation RMSE [µm] for speed-only ones
         "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
                         **(tests[c] if c in tests else {}),
                         "parameters": fits[c].parameters,
                         "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                        for c in sorted(scores, key=scores.get)],
         "runner_up": None,
-        "selection": {"rule": _FEM_RULE if ds.input_kind == "q_W_m2" else
-                              (f"score = forward-chaining validation RMSE [µm] on the fit "
-                               f"window; the best cause is named only if it cuts the "
-                               f"baseline's by >= {100 * MIN_GAIN:g} % and wins on a majority "
-                               f"of the validation blocks"),
-                      **neff},
+        "selection": {"rule": v2["rule"], **v2["neff"]},
         "not_applicable": [c for c in CAUSES if fits.get(c) is None],
         "refused": dict(v2.get("refused", {})),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
-    summary["runner_up"] = _runner_up(ds.input_kind, cause, runner, fits, scores, tests,
-                                      score_kind)
-    ar_out = _ar_form(extra_models, y, hold)
-    summary["ar_form"] = ar_out
-    summary["ar_form_description"] = ar_label
-    _add_version2(summary, v2, ext, cause, y, rows, hold, good, warnings)
+    summary["runner_up"] = _runner_up(ds.input_kind, cause, v2["runner"], fits, scores,
+                                      tests, score_kind)
+    return summary
+
+
+def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
+             progress=None, intervals: bool = True, drift_last: bool = False) -> Diagnosis:
+    """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
+
+    Parameters
+    ----------
+    ds : Dataset
+        The record (``q_W_m2`` → FEM baseline; ``speed_rpm`` → calibrated AR(1) baseline).
+    holdout_start_s : float, optional
+        Start of the hold-out [s]; default the last third of the record.
+    frame_search : {"narrow", "wide", "average"}
+        Speed-only records: the frame structures compared by forward-chaining
+        validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
+    progress : callable, optional
+        Called with a step's name as each slow step starts (the command shows it).
+    intervals : bool
+        Speed-only records: compute the named cause's 95 % intervals (B refits, up to
+        twice the run's time with ``frame_search="average"``); False leaves ``ci95``
+        empty, for callers that need only the predictions (a rolling-origin evaluation).
+    drift_last : bool
+        Speed-only records (post hoc option): name ``sensor_drift`` only if no
+        input-driven cause passes the naming test
+        (:func:`arfem.models.diagnosis.speed.drift_last`).
+    """
+    step = progress if progress is not None else (lambda name: None)
+    _refuse_dead_sensor(ds)
+    t, y, observed, outl, cols = _observations(ds)
+    good = observed & ~outl
+    u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
+    hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)
+    rows = good & (t < hs)
+    hold = good & (t >= hs)
+    amb_K = None if cols["ambient_C"] is None else cols["ambient_C"] - ds.rod.ambient_C
+    temps = {k: cols[k] for k in ds.temperatures}
+    signals = _signals(ds.input_kind, cols, temps)
+    text, warnings = [], []
+    if ds.input_kind == "q_W_m2":
+        v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
+    else:
+        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, step,
+                             intervals, drift_last)
+    base, ext = v2["base"], v2["ext"]
+
+    step("residuals and hold-out")
+    running = u > 0
+    bres = _residual_analysis(t, y, base.prediction, good, signals, running, v2["tau_s"])
+    eres = _residual_analysis(t, y, ext.prediction, good, signals, running, v2["tau_s"])
+    b_hold, e_hold, gain = _holdout_scores(y, base.prediction, ext.prediction, hold)
+    summary = _summary(ds, v2, bres, eres, {
+        "start_s": hs, "how_chosen": how, "baseline_rmse_um": b_hold,
+        "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(hold.sum())})
+    summary["ar_form"] = _ar_form(v2["extra_models"], y, hold)
+    summary["ar_form_description"] = v2["ar_label"]
+    _add_version2(summary, v2, y, rows, hold, good, warnings)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})

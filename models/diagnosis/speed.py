@@ -310,9 +310,12 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
 
         def build(x):
+            # G: the frame's steady growth per unit of the rod's [-] (a level's rod column
+            # settles at u/b, its frame column at G u/b)
             b, tau_s, G = np.exp(x[0]), np.exp(x[1]) * 3600.0, x[2]
             base = columns(b)
-            cols = [c + G * first_order_lag(t, u, tau_s) for c, u in zip(base[:-1], units.values())]
+            cols = [c + (G / b) * first_order_lag(t, u, tau_s)
+                    for c, u in zip(base[:-1], units.values())]
             return cols + [base[-1]]
 
         best = None
@@ -725,18 +728,27 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     lb = (np.log(1 / (50 * 3600.0)), np.log(1 / 300.0))
     lf = (np.log(1 / (SLOW_TAU_H[1] * 3600.0)), np.log(1 / (SLOW_TAU_H[0] * 3600.0)))
     if structure.slow_lag:
+        # the frame's response is the slower one (bf <= b): the rod and the frame are both
+        # per-speed first-order responses, so without this order their roles can swap
+        # (a fast "frame" at its 2 h bound beside a slow "rod") and τ_f means nothing
         gb, gf = np.linspace(*lb, 7), np.linspace(*lf, 5)
-        vals = np.array([[rss(np.exp(a), np.exp(c)) for c in gf] for a in gb])
+        vals = np.array([[rss(np.exp(a), np.exp(c)) if c <= a else np.inf for c in gf]
+                         for a in gb])
         i, j = np.unravel_index(int(np.argmin(vals)), vals.shape)
 
+        def clip2(x):
+            xb = float(np.clip(x[0], *lb))
+            return xb, float(np.clip(x[1], lf[0], min(lf[1], xb)))
+
         def f(x):
-            return rss(np.exp(np.clip(x[0], *lb)), np.exp(np.clip(x[1], *lf)))
+            xb, xf = clip2(x)
+            return rss(np.exp(xb), np.exp(xf))
         res = minimize(f, np.array([gb[i], gf[j]]), method="Nelder-Mead",
                        options={"xatol": 1e-3, "fatol": 1e-10, "maxiter": 120,
                                 "initial_simplex": np.array([[gb[i], gf[j]],
                                                              [gb[i] + 0.3, gf[j]],
                                                              [gb[i], gf[j] + 0.3]])})
-        b, bf = float(np.exp(np.clip(res.x[0], *lb))), float(np.exp(np.clip(res.x[1], *lf)))
+        b, bf = (float(np.exp(v)) for v in clip2(res.x))
     else:
         grid = np.linspace(*lb, 13)
         vals = [rss(np.exp(g)) for g in grid]
@@ -756,11 +768,17 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
         nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
         g1 = np.array([gains[j] for j in nz])
         g2 = np.array([slow[j] for j in nz])
+        z = [j for j, sv in enumerate(seen) if sv == 0] if p is None else []
+        if z:   # per-speed gains + offset + initial decays are collinear (Σ_s u_s = 1): only
+            g1, g2 = g1 - gains[z[0]], g2 - slow[z[0]]      # gains relative to rest count
         fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
         params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
         frame = V[:, nl + 1:2 * nl + 1] @ slow + (np.column_stack(pcs) @ gamma if pcs else 0.0)
     else:
         target = sum(g * u for g, u in zip(gains, units))
+        z = [j for j, sv in enumerate(seen) if sv == 0] if p is None else []
+        if z:   # the gains are known relative to the rest level only (see above)
+            target = target - gains[z[0]] * sum(units)
         frame = np.column_stack(pcs) @ gamma
 
         def summ(x):

@@ -217,7 +217,8 @@ def _roll_fit(toml, search, n_train, y_train):
                                                                          yt[-1])]),
                                outliers=out)
     fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
-    d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last")
+    d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
+                 intervals=False)     # predictions only: no jackknife refits
     s = d.series
     fs = d.summary["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},
@@ -577,7 +578,7 @@ def _part1_text() -> str:
               if d[lab]["summary"]["beats_all"] > d[lab]["summary"]["n_origins"] / 2]
         bad = [f"{ch} ({d[lab]['summary']['beats_all']} of {d[lab]['summary']['n_origins']})"
                for ch, d in roll["channels"].items() if ch not in ok]
-        return (f"Target \"extended beats both on every channel at most origins\": "
+        return ("Target \"extended beats both on every channel at most origins\": "
                 + ("**met**." if not bad else "**not met** — at no more than half of the "
                    "origins on " + ", ".join(bad) + "."))
 
@@ -687,7 +688,7 @@ def _split_text(roll, labs, rows, hdr, most):
     new, ref = labs[2], labs[1]
     r3, tot3 = rows(new)
     n3 = sum(len(d[new]["per_origin"]) for d in roll["channels"].values())
-    L = [f"Rolling origin, `average` + drift last (same origins and blocks as 1.2):", ""]
+    L = ["Rolling origin, `average` + drift last (same origins and blocks as 1.2):", ""]
     L += hdr + r3 + ["", f"**`average` + drift last: extended beats both at {tot3} of {n3} "
                      f"(channel, origin) pairs.** " + most(new), ""]
     tal = {lab: split_tallies(roll, lab) for lab in labs[:3]}
@@ -710,7 +711,7 @@ def _split_text(roll, labs, rows, hdr, most):
     L += ["", f"Protocol verdict: on development {sums[new][0]} of 25 against `average`'s "
           f"{sums[ref][0]} ({'chosen' if dev_ok else 'NOT better'}); on confirmation "
           f"{sums[new][1]} of 25 against `average`'s {sums[ref][1]}"
-          + (f", no channel below `average`'s — **confirmed**." if conf_ok else
+          + (", no channel below `average`'s — **confirmed**." if conf_ok else
              " — **not confirmed**" + (f" (below `average` on {', '.join(worse)})"
                                        if worse else "") + "."), ""]
     return L

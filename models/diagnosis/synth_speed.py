@@ -1,0 +1,205 @@
+"""Generated speed-only records (``speed_rpm``, no heat flux) with a known injected cause.
+
+The counterpart of :mod:`arfem.models.diagnosis.synth` for the speed-only path: what the
+intervals of :mod:`arfem.models.diagnosis.speed_intervals` are scored on
+(``benchmarks/bench_speed_intervals.py``). The truth is the model family of the speed-only
+candidates (:func:`arfem.models.diagnosis.speed.fit_speed_candidate`), so a miss of an
+interval is a miss of the interval, not a model-form error:
+
+* the spindle steps between a few speeds (0 and three or four of 1000-4000 1/min, each
+  phase 1.5-4 h); the heat of speed n is (n/n_max)^(5/3) (a viscous bearing-friction
+  law, Palmgren), and the rod's growth is the AR(1) of that heat (paper eqs. 12-14) at
+  rate b = 1/τ_rod, τ_rod 0.6-2 h, steady growth at n_max 12-30 µm;
+* one cause with known parameters:
+
+  ============================== =======================================================
+  ``sensor_drift``               + drift_um_per_h · t, |drift| 0.03-0.3 µm/h
+  ``ambient_drift``              + gain · AR(1) at rate b of the ambient change (a daily
+                                 wave plus a slower one, amplitude 1-3 K, recorded with
+                                 0.02 K noise), |gain| 1-5 µm/K
+  ``frame_expansion``            + frame_gain × the rod's steady growth, through a
+                                 first-order lag of τ_f = 3-10 h, |frame_gain| 0.3-0.8;
+                                 the frame's temperature is recorded (``T_frame_C``)
+  ``speed_dependent_convection`` rate b_running while the spindle turns, b_stopped at rest
+                                 (their ratio 1.5-2.5 either way), reported as
+                                 h = bρcR/2 with the default :class:`~arfem.params.Rod`
+  ============================== =======================================================
+
+* measurement noise: AR(1) with ρ 0.6-0.9 (as real records have) and marginal σ
+  0.03-0.15 µm.
+
+Reproducible: ``default_rng(seed)`` draws the schedule, rod and noise, ``default_rng([seed,
+k])`` the cause's magnitudes (k its index in :data:`SPEED_SYNTH_CAUSES`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from arfem.models.diagnosis.forward import ar_first_order, first_order_lag
+from arfem.params import Rod
+
+__all__ = ["SPEED_SYNTH_CAUSES", "SpeedCase", "generate_speed", "ar1_noise"]
+
+SPEED_SYNTH_CAUSES = ("sensor_drift", "ambient_drift", "frame_expansion",
+                      "speed_dependent_convection")
+HEAT_EXPONENT = 5.0 / 3.0
+
+
+@dataclass
+class SpeedCase:
+    """One generated speed-only record.
+
+    Attributes
+    ----------
+    time_s, speed_rpm, growth_um : ndarray
+        Sample times [s], spindle speed [1/min], measured growth [µm].
+    ambient_K : ndarray or None
+        Recorded ambient change [K] (``ambient_drift`` only).
+    cause : str
+        The injected cause.
+    truth : dict
+        Injected contract parameters, in the units their names carry.
+    settings : dict
+        Every other draw (rod time constant, noise σ [µm] and ρ, ...).
+    holdout_start_s : float
+        Start of the hold-out [s] (the last quarter of the record).
+    temperatures : dict
+        Sensor name -> temperature [°C]: ``frame_expansion`` records carry ``T_frame_C``,
+        the frame body's temperature (20 °C + 2-6 K per unit of the steady frame
+        response, recorded with 0.01 K noise), whose growth is the frame part.
+    """
+    time_s: np.ndarray
+    speed_rpm: np.ndarray
+    growth_um: np.ndarray
+    ambient_K: np.ndarray | None
+    cause: str
+    truth: dict
+    settings: dict = field(default_factory=dict)
+    holdout_start_s: float = 0.0
+    temperatures: dict = field(default_factory=dict)
+
+
+def ar1_noise(rng, n: int, sigma: float, rho: float) -> np.ndarray:
+    """Stationary AR(1) noise e_n = ρ e_{n−1} + w_n with marginal standard deviation σ.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    n : int
+        Samples.
+    sigma : float
+        Marginal standard deviation [any unit].
+    rho : float
+        Lag-1 autocorrelation [-], |ρ| < 1.
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> e = ar1_noise(np.random.default_rng(0), 20000, 2.0, 0.8)
+    >>> round(float(np.std(e)), 1), round(float(np.corrcoef(e[1:], e[:-1])[0, 1]), 2)
+    (2.0, 0.8)
+    """
+    from scipy.signal import lfilter
+    w = rng.normal(0.0, sigma * np.sqrt(1.0 - rho * rho), n)
+    e0 = rng.normal(0.0, sigma)
+    out, _ = lfilter([1.0], [1.0, -rho], w, zi=[rho * e0])
+    return out
+
+
+def _schedule(rng, duration_h: float, step_s: float):
+    levels = np.sort(rng.choice([1000.0, 1500.0, 2000.0, 2500.0, 3000.0, 3500.0, 4000.0],
+                                size=int(rng.integers(3, 5)), replace=False))
+    phases, total = [], 0.0
+    while total < duration_h:
+        on = float(rng.uniform(1.5, 4.0))
+        off = float(rng.uniform(1.5, 3.0))
+        phases += [(float(rng.choice(levels)), on), (0.0, off)]
+        total += on + off
+    edges = np.cumsum([0.0] + [h * 3600.0 for _, h in phases])
+    t = np.arange(1, int(duration_h * 3600.0 / step_s) + 1) * step_s
+    k = np.searchsorted(edges, t, side="left") - 1
+    return t, np.array([phases[i][0] for i in k]), float(levels[-1])
+
+
+def generate_speed(cause: str, seed: int, noise_um: float | None = None,
+                   duration_h: float = 30.0, step_s: float = 120.0) -> SpeedCase:
+    """A speed-only record with ``cause`` injected at known parameters.
+
+    Parameters
+    ----------
+    cause : str
+        One of :data:`SPEED_SYNTH_CAUSES`.
+    seed : int
+        Seed of every draw.
+    noise_um : float, optional
+        Marginal σ of the AR(1) measurement noise [µm]; default drawn in 0.03-0.15.
+    duration_h : float
+        Record length [h].
+    step_s : float
+        Sampling interval [s].
+
+    Returns
+    -------
+    SpeedCase
+
+    Examples
+    --------
+    >>> c = generate_speed("sensor_drift", 1)
+    >>> c.time_s.size, sorted(c.truth)
+    (900, ['drift_um_per_h'])
+    """
+    if cause not in SPEED_SYNTH_CAUSES:
+        raise ValueError(f"cause must be one of {SPEED_SYNTH_CAUSES}, not {cause!r}")
+    rng = np.random.default_rng(seed)
+    t, speed, n_max = _schedule(rng, duration_h, step_s)
+    heat = (speed / n_max) ** HEAT_EXPONENT
+    tau_rod_h = float(rng.uniform(0.6, 2.0))
+    k_um = float(rng.uniform(12.0, 30.0))
+    sigma = float(rng.uniform(0.03, 0.15)) if noise_um is None else float(noise_um)
+    rho = float(rng.uniform(0.6, 0.9))
+    noise = ar1_noise(rng, t.size, sigma, rho)
+    b = 1.0 / (tau_rod_h * 3600.0)
+    cr = np.random.default_rng([seed, SPEED_SYNTH_CAUSES.index(cause)])
+    sign = float(cr.choice([-1.0, 1.0]))
+    amb = None
+    temps = {}
+    if cause == "speed_dependent_convection":
+        ratio = float(cr.uniform(1.5, 2.5)) ** sign
+        b_run, b_stop = b, b / ratio
+        rod = ar_first_order(t, k_um * heat, np.where(speed > 0, b_run, b_stop), 1.0)
+        rcr = Rod()
+        rcr = rcr.density_kg_m3 * rcr.specific_heat_J_kgK * rcr.radius_m
+        truth = {"h_running_W_m2K": b_run * rcr / 2, "h_stopped_W_m2K": b_stop * rcr / 2}
+        y = rod
+    else:
+        y = ar_first_order(t, k_um * heat, b, 1.0)
+        if cause == "sensor_drift":
+            d = sign * float(cr.uniform(0.03, 0.3))
+            y = y + d * t / 3600.0
+            truth = {"drift_um_per_h": d}
+        elif cause == "ambient_drift":
+            g = sign * float(cr.uniform(1.0, 5.0))
+            a1, a2 = cr.uniform(1.0, 3.0), cr.uniform(0.3, 1.0)
+            ph = cr.uniform(0, 2 * np.pi, 2)
+            true_amb = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
+                        + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+            y = y + g * ar_first_order(t, true_amb, b, 1.0)
+            amb = true_amb + cr.normal(0.0, 0.02, t.size)
+            truth = {"ambient_gain_um_per_K": g}
+        else:                                   # frame_expansion
+            g = sign * float(cr.uniform(0.3, 0.8))
+            tau_f = float(cr.uniform(3.0, 10.0))
+            frame = first_order_lag(t, heat, tau_f * 3600.0)
+            y = y + g * k_um * frame
+            temps = {"T_frame_C": 20.0 + float(cr.uniform(2.0, 6.0)) * frame
+                     + cr.normal(0.0, 0.01, t.size)}
+            truth = {"frame_time_constant_h": tau_f, "frame_gain": g}
+    return SpeedCase(t, speed, y + noise, amb, cause, truth,
+                     {"rod_time_constant_h": tau_rod_h, "steady_growth_um": k_um,
+                      "noise_sigma_um": sigma, "noise_rho": rho, "n_max_rpm": n_max},
+                     float(t[0] + 0.75 * (t[-1] - t[0])), temps)
