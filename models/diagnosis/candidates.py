@@ -110,10 +110,11 @@ class FemPhysics:
         return self.m.simulate(t, q, ambient_K=ambient_K, h_W_m2K=h)
 
     def nonlinear(self, t, q, exponent, h_ref, ambient_K=None):
-        """Growth [µm] with h = h_ref (ΔT_s/DT_REF_K)^exponent (semi-implicit).
+        """Growth [µm] with h = h_ref (ΔT/DT_REF_K)^exponent at every point of the surface.
 
-        ΔT_s is the lateral-surface mean temperature minus the ambient [K]; see
-        :meth:`arfem.models.diagnosis.forward.RodModel.simulate_nonlinear`.
+        ΔT is the local lateral-surface temperature minus the ambient [K]: the law is
+        applied point by point, as it holds physically (not to the surface's mean
+        temperature); see :class:`arfem.models.diagnosis.local_convection.LocalConvectionRod`.
 
         Parameters
         ----------
@@ -133,8 +134,10 @@ class FemPhysics:
         ndarray
             Axial growth at each sample [µm], from equilibrium at t = 0.
         """
-        return self.m.simulate_nonlinear(t, q, exponent, DT_REF_K, ambient_K=ambient_K,
-                                         h_ref_W_m2K=h_ref)
+        if not hasattr(self, "_local"):
+            from arfem.models.diagnosis.local_convection import LocalConvectionRod
+            self._local = LocalConvectionRod(self.m.fem, all_modes=self.m.all_modes)
+        return self._local.simulate(t, q, exponent, h_ref, DT_REF_K, ambient_K=ambient_K)
 
     def slowest_rate(self, h=None) -> float:
         """Decay rate of the FEM rod's slowest growth mode [1/s].
@@ -557,7 +560,10 @@ def _physical(causes, theta, lin) -> dict:
             p["h_at_10K_W_m2K"] = float(np.exp(theta["log_h_ref"]))
         elif c == "frame_expansion":
             p["frame_time_constant_h"] = float(np.exp(theta["log_tau_h"]))
-            p["frame_gain"] = float(lin["frame_gain"])
+            # the frame column is the lag of the *recorded* flux times the rod's nominal
+            # steady gain; the contract's frame_gain is per unit of the rod's own growth,
+            # which a heat scale multiplies: divide it out
+            p["frame_gain"] = float(lin["frame_gain"] / lin.get("scale", 1.0))
         elif c == "heat_input_scale":
             p["scale"] = float(lin["scale"])
         elif c == "ambient_drift":
@@ -624,6 +630,8 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
 
     Where the model takes a recorded ambient as input, the variance its sensor noise
     causes in the linear coefficients (:func:`_ambient_noise_var`) is added to both.
+    A parameter that is a ratio of coordinates (``frame_gain`` beside a heat scale:
+    frame coefficient / scale) gets the first-order (delta-method) variance of the ratio.
     Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
     exponentiated (positive, asymmetric).
     """
@@ -658,9 +666,19 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
         coord, log = _COORD[k]
         i = idx[coord]
         add = eiv.get(coord, 0.0)
-        half = max(t_ess * np.sqrt(max(cov_ess[i, i], 0.0) + add),
-                   t_blk * np.sqrt(max(cov_blk[i, i], 0.0) + add))
         v = vals[coord]
+        if k == "frame_gain" and "scale" in idx:
+            # frame_gain = c_frame / scale (see _physical): delta method on the pair
+            w = np.zeros(p)
+            s_ = vals["scale"]
+            w[i], w[idx["scale"]] = 1.0 / s_, -v / s_ ** 2
+            var_e, var_b = float(w @ cov_ess @ w), float(w @ cov_blk @ w)
+            add = add / s_ ** 2 + eiv.get("scale", 0.0) * v ** 2 / s_ ** 4
+            v = v / s_
+        else:
+            var_e, var_b = cov_ess[i, i], cov_blk[i, i]
+        half = max(t_ess * np.sqrt(max(var_e, 0.0) + add),
+                   t_blk * np.sqrt(max(var_b, 0.0) + add))
         lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
     fit.extra["n_eff_ci"] = n_eff
