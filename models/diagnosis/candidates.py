@@ -297,8 +297,9 @@ _THETA = {
     "nonlinear_convection": ("exponent", "log_h_ref"),
     "frame_expansion": ("log_tau_h",),
 }
-#: finite-difference step of each θ for the Jacobian (the natural-convection model
-#: quantises ln h to 0.25 % steps, so its steps are several of those)
+#: finite-difference step of each θ for the Jacobian (the natural-convection steps are
+#: those chosen when that model quantised ln h to 0.25 % steps; kept, as its optimum and
+#: intervals are what the benchmark measured with them)
 _FD_STEP = {"log_h": 1e-3, "log_h_running": 1e-3, "log_h_stopped": 1e-3, "exponent": 0.02,
             "log_h_ref": 0.02, "log_tau_h": 1e-3}
 
@@ -468,8 +469,7 @@ def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_
         x = np.array([res.x])
     else:
         # Gauss-Newton (trust-region reflective) on the projected residual, a forward-
-        # difference Jacobian with the steps of _FD_STEP (the natural-convection model
-        # is piecewise constant below its 0.25 % quantisation of ln h)
+        # difference Jacobian with the steps of _FD_STEP
         steps = np.array([_FD_STEP[n] for n in names])
 
         last = {}
@@ -632,6 +632,16 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     causes in the linear coefficients (:func:`_ambient_noise_var`) is added to both.
     A parameter that is a ratio of coordinates (``frame_gain`` beside a heat scale:
     frame coefficient / scale) gets the first-order (delta-method) variance of the ratio.
+
+    References
+    ----------
+    Effective sample size of an AR(1) residual: Bretherton C. S. et al., "The effective
+    number of spatial degrees of freedom of a time-varying field", J. Climate 12 (1999)
+    1990-2009 (N_eff = N(1 − ρ1)/(1 + ρ1)). Block sandwich / delete-a-block jackknife:
+    Künsch H. R., "The jackknife and the bootstrap for general stationary observations", Ann. Statist. 17
+    (1989) 1217-1241; White H., "A heteroskedasticity-consistent covariance matrix
+    estimator", Econometrica 48 (1980) 817-838. Delta method: Casella G., Berger R. L.,
+    Statistical Inference, 2nd ed. (2002), sec. 5.5.4.
     Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
     exponentiated (positive, asymmetric).
     """
