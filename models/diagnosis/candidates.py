@@ -671,7 +671,7 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
     vals = {**fit.extra["theta"], **fit.extra["linear"]}
     eiv = _ambient_noise_var(fit)
-    out = {}
+    out, kinds = {}, {}
     for k in fit.parameters:
         coord, log = _COORD[k]
         i = idx[coord]
@@ -687,11 +687,14 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
             v = v / s_
         else:
             var_e, var_b = cov_ess[i, i], cov_blk[i, i]
-        half = max(t_ess * np.sqrt(max(var_e, 0.0) + add),
-                   t_blk * np.sqrt(max(var_b, 0.0) + add))
+        h_e = t_ess * np.sqrt(max(var_e, 0.0) + add)
+        h_b = t_blk * np.sqrt(max(var_b, 0.0) + add)
+        kinds[k] = {"ess": h_e, "block": h_b, "value": v, "log": log}
+        half = max(h_e, h_b)
         lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
     fit.extra["n_eff_ci"] = n_eff
+    fit.extra["ci95_half_widths"] = kinds      # of each kind, in the searched coordinate
     return out
 
 
