@@ -59,3 +59,19 @@ def test_heat_scale_and_frame_both_named_with_covering_intervals(tmp_path):
     ci = {k: v for c in s["causes"] for k, v in c["ci95"].items()}
     for k, v in case.parameters.items():
         assert ci[k][0] <= v <= ci[k][1], (k, ci[k], v)
+
+
+def test_unknown_initial_state_decays_at_the_h_in_force(tmp_path):
+    """Post hoc (found on the fresh batch, seed 5058): on a warm-start record whose h
+    switches between running and stopped values, the unknown initial state's slowest
+    mode decays at the rate of the h in force on each interval, not at the lesser one;
+    with the lesser rate the single cause left 4.0 noise σ of structured residual and a
+    frame lag was named as a second cause. Only the running/stopped h is named now."""
+    from arfem.models.diagnosis.candidates import _nuisance
+    t = np.array([0.0, 60.0, 120.0, 180.0])
+    const = _nuisance(t, False, 1e-3)[1]
+    assert np.allclose(_nuisance(t, False, np.full(4, 1e-3))[1], const, rtol=1e-12)
+    case = generate("speed_dependent_convection", 5058, warm_start_h=1.0157959136967243)
+    assert not case.initial_known
+    s = diagnose_file(write_case(case, tmp_path / "d")).summary
+    assert [c["cause"] for c in s["causes"]] == ["speed_dependent_convection"]

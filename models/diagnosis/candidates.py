@@ -280,11 +280,15 @@ class ArPhysics:
         return self.rod.expansion_1_K * self.rod.length_m * 1e6
 
 
-def _nuisance(t, initial_known: bool, rate_1_s: float) -> list[np.ndarray]:
-    """Columns for an unknown initial state: an offset and the slowest mode's decay."""
+def _nuisance(t, initial_known: bool, rate_1_s) -> list[np.ndarray]:
+    """Columns for an unknown initial state: an offset and the slowest mode's decay
+    (``rate_1_s`` [1/s] scalar, or per interval where h switches: exp(−Σ μ_i Δτ_i))."""
     if initial_known:
         return []
-    return [np.ones_like(t), np.exp(-rate_1_s * np.asarray(t, float))]
+    t = np.asarray(t, float)
+    if np.ndim(rate_1_s) == 0:
+        return [np.ones_like(t), np.exp(-rate_1_s * t)]
+    return [np.ones_like(t), np.exp(-np.cumsum(np.asarray(rate_1_s, float) * intervals(t)))]
 
 
 #: causes that change the convection coefficient: at most one of them in a combination
@@ -356,7 +360,9 @@ def _design(causes, phys, t, q, initial_known, ambient_K):
         elif hc == "speed_dependent_convection":
             hr, hs = float(np.exp(d["log_h_running"])), float(np.exp(d["log_h_stopped"]))
             h = np.where(running, hr, hs)
-            g, rate = phys.response(t, q, h=h), phys.slowest_rate(min(hr, hs))
+            # the initial state's slowest mode decays at the rate of the h in force
+            rate = np.where(running, phys.slowest_rate(hr), phys.slowest_rate(hs))
+            g = phys.response(t, q, h=h)
         else:
             href = float(np.exp(d["log_h_ref"]))
             g = phys.nonlinear(t, q, float(d["exponent"]), href)
