@@ -85,9 +85,10 @@ PAIR_MIN_GAIN = 0.15
 #: could be told from the first one's model error by. A right single cause leaves
 #: 1.03-1.16 σ on generated records (the recorded ambient's noise adds a little), now
 #: that natural convection is modelled point by point (it left up to 5 σ when h was
-#: taken from the mean surface temperature, which is why this was 4). Known exception:
-#: a warm start (initial unknown) with running/stopped h leaves 1.6-4.9 σ, which a slow
-#: frame lag can take up as a wrong second cause (generated seeds 3058, 5058)
+#: taken from the mean surface temperature, which is why this was 4). A warm start
+#: (initial unknown) with running/stopped h left 1.6-4.9 σ, which a slow frame lag took
+#: up as a wrong second cause (generated seeds 3058, 5058), until the initial state's
+#: decay followed the h in force (candidates._nuisance; a post hoc fix)
 PAIR_MISFIT = 2.0
 #: a record whose spread is below this fraction (or above its inverse) of the nominal
 #: simulation's, with an implausible heat scale, is in the wrong units
