@@ -85,9 +85,15 @@ PARSIMONY_P = 0.01
 #: at least this fraction (and its F test is significant at ALPHA)
 PAIR_MIN_GAIN = 0.15
 #: ... and only if the single cause leaves more than this many noise σ (fit-window RMSE):
-#: a cause that explains the record to within a few σ leaves nothing a second cause
-#: could be told from the first one's model error by
-PAIR_MISFIT = 4.0
+#: a cause that explains the record to within the noise leaves nothing a second cause
+#: could be told from the first one's model error by. A right single cause leaves
+#: 1.03-1.16 σ on generated records (the recorded ambient's noise adds a little), now
+#: that natural convection is modelled point by point (it left up to 5 σ when h was
+#: taken from the mean surface temperature, which is why this was 4). A warm start
+#: (initial unknown) with running/stopped h left 1.6-4.9 σ, which a slow frame lag took
+#: up as a wrong second cause (generated seeds 3058, 5058), until the initial state's
+#: decay followed the h in force (candidates._nuisance; a post hoc fix)
+PAIR_MISFIT = 2.0
 #: a record whose spread is below this fraction (or above its inverse) of the nominal
 #: simulation's, with an implausible heat scale, is in the wrong units
 UNITS_RATIO = 0.05
@@ -430,10 +436,10 @@ _PARTNERS = ("ambient_drift", "convection_mismatch", "heat_input_scale", "frame_
              "sensor_drift")
 
 
-#: pairs not tried: the diagnosis's natural-convection model takes h from the mean
-#: surface temperature, where the truth of a real rod (and of the generator) applies it
-#: point by point; the difference is mostly a change of steady gain, which a heat scale
-#: would take up -- a pair that cannot be told from the first cause's model error
+#: pairs not tried: natural convection beside a heat scale. When the diagnosis took h
+#: from the mean surface temperature (the truth applies it point by point) its model
+#: error was mostly a change of steady gain, which a heat scale took up; the law is now
+#: applied point by point (local_convection), but this pair has not been re-evaluated
 _UNPAIRED = ({"nonlinear_convection", "heat_input_scale"},)
 
 

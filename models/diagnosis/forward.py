@@ -9,8 +9,10 @@ with a lateral h that is uniform along the rod the axially uniform eigenvectors
 orthogonal to every other mode, so the growth response to the end flux and to the
 ambient lives *exactly* in the span of the axially uniform modes (2·nr + 1 of them for
 Q2). :class:`RodModel` keeps those modes of the nominal h; a different h (or an h that
-switches, or depends on the surface temperature) is the small symmetric matrix
-diag(μ0) + (h − h0) ΦᵀBΦ in that closed subspace -- no truncation error. A forward run
+switches) is the small symmetric matrix
+diag(μ0) + (h − h0) ΦᵀBΦ in that closed subspace -- no truncation error (an h that
+varies along the surface couples the axial modes:
+:mod:`arfem.models.diagnosis.local_convection`). A forward run
 is then a handful of first-order recursions (paper eq. 12 per mode), milliseconds
 for a 72 h record.
 
@@ -29,9 +31,6 @@ from scipy.signal import lfilter
 
 from arfem.fem.heat import build_axisymmetric, modes
 from arfem.params import Rod
-
-#: quantisation step of ln h in the semi-implicit natural-convection model
-_H_STEP = float(np.log1p(0.0025))
 
 __all__ = ["RodModel", "intervals", "first_order_lag", "ar_first_order", "ar_columns"]
 
@@ -248,6 +247,7 @@ class RodModel:
         self.fem = build_axisymmetric(rod, order=order, nr=nr, nz=nz)
         h0 = rod.convection_W_m2K
         md = modes(self.fem, h0)
+        self.all_modes = md          # every mode at h0 (for models that need axial ones)
         g = md.g
         keep = np.abs(g) > 1e-9 * np.max(np.abs(g))
         phi = md.phi[:, keep]
@@ -262,7 +262,6 @@ class RodModel:
         self.s = self.fb / self.lateral_area_m2
         self.n_modes = int(keep.sum())
         self._cache: dict[float, _Eig] = {}
-        self._prop: dict = {}
 
     def eig(self, h_W_m2K: float) -> _Eig:
         """Eigen-decomposition of the reduced operator at convection h [W/(m²·K)] (cached).
@@ -370,74 +369,3 @@ class RodModel:
         if return_surface:
             return growth, surf
         return growth
-
-    def simulate_nonlinear(self, time_s, q_W_m2, exponent: float, dT_ref_K: float,
-                           ambient_K=None, h_floor_frac: float = 0.05,
-                           h_ref_W_m2K: float | None = None):
-        """Growth [µm] with natural convection h = h0 (ΔT_s/ΔT_ref)^exponent.
-
-        Semi-implicit: on each interval h is evaluated from the lateral-surface mean
-        temperature rise ΔT_s at its start and held; the interval is then integrated
-        exactly (h is quantised to 0.25 % steps so each interval's exact propagator is cached).
-
-        Parameters
-        ----------
-        time_s : array_like
-            Sample times [s] (the first interval starts at t = 0).
-        q_W_m2 : array_like
-            Heat flux on each interval [W/m²].
-        exponent : float
-            n in h ∝ ΔT^n [-] (1/4 laminar, 1/3 turbulent natural convection).
-        dT_ref_K : float
-            Surface-to-air temperature difference at which h equals ``h_ref_W_m2K``
-            (default h0) [K].
-        ambient_K : array_like, optional
-            Ambient minus the nominal ambient on each interval [K]; default 0.
-        h_floor_frac : float
-            Lower bound of h as a fraction of h0 [-] (ΔT → 0 would give h → 0).
-        h_ref_W_m2K : float, optional
-            h at ΔT = ΔT_ref [W/(m²·K)]; default h0.
-
-        Returns
-        -------
-        ndarray
-            Axial growth at each sample [µm], from equilibrium at t = 0.
-        """
-        t = np.asarray(time_s, float)
-        d = intervals(t)
-        q = np.asarray(q_W_m2, float)
-        amb = np.zeros(t.size) if ambient_K is None else np.asarray(ambient_K, float)
-        c = np.zeros(self.n_modes)
-        out = np.empty(t.size)
-        n = float(exponent)
-        lo = np.log(h_floor_frac)
-        l0 = 0.0 if h_ref_W_m2K is None else float(np.log(h_ref_W_m2K / self.h0))
-        inv_step = 1.0 / _H_STEP
-        s_vec, g_vec = self.s, self.g
-        log = np.log
-        for i in range(t.size):
-            dts = abs(float(s_vec @ c) - amb[i])
-            lr = l0 + (n * (log(max(dts / dT_ref_K, 1e-12))) if n != 0 else 0.0)
-            k = int(round(min(max(lr, lo), 2.5) * inv_step))
-            P, Pq, Pb = self._propagator(k, float(d[i]))
-            c = P @ c + q[i] * Pq + amb[i] * Pb
-            out[i] = g_vec @ c
-        return out
-
-    def _propagator(self, k: int, d: float):
-        """Exact one-interval map c -> P c + q Pq + θ_amb Pb at h = h0·e^{k·step} (cached)."""
-        key = (k, d)
-        v = self._prop.get(key)
-        if v is None:
-            h = self.h0 * float(np.exp(k * _H_STEP))
-            E = self.eig(h)
-            a = np.exp(-E.lam * d)
-            P = (E.V * a) @ E.V.T
-            w = (1.0 - a) / E.lam
-            Pq = E.V @ (w * E.fq)
-            Pb = E.V @ (w * h * E.fb)
-            v = (P, Pq, Pb)
-            if len(self._prop) > 20000:
-                self._prop.clear()
-            self._prop[key] = v
-        return v
