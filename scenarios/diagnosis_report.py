@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
+from arfem.models.diagnosis.speed_intervals import SEARCH_RANGES
 from arfem.io import atomic_write_text, write_csv, write_json
 
 __all__ = ["write_all"]
@@ -172,6 +173,15 @@ def _sentences(item: str) -> list[str]:
     return [text[:1].upper() + text[1:] + ("" if text.endswith(".") else ".")]
 
 
+def _unbounded(name, ci) -> str:
+    """A note when a 95 % interval reaches an end of the range the fit can return: the
+    data do not bound the parameter there (e.g. a frame time constant 0.1-200 h)."""
+    lo, hi = SEARCH_RANGES.get(name, (None, None))
+    ends = [e for e, v in ((lo, ci[0]), (hi, ci[1])) if e is not None and abs(v - e) <= 1e-9 * e]
+    return ("; reaches the end of the range the fit can return, so the data do not bound it"
+            if ends else "")
+
+
 def _markdown(diag) -> str:
     j = diag.summary
     b, e, h = j["baseline"], j["extended"], j["holdout"]
@@ -184,7 +194,8 @@ def _markdown(diag) -> str:
             ci = c.get("ci95", {})
             L.append(f"**{'Cause' if i == 0 else 'Second cause'}: `{c['cause']}`** — " + ", ".join(
                 f"`{k}` = {_fmt(v, 4)}" + (f" (95 % interval {_fmt(ci[k][0], 4)} to "
-                                           f"{_fmt(ci[k][1], 4)})" if k in ci else "")
+                                           f"{_fmt(ci[k][1], 4)}{_unbounded(k, ci[k])})"
+                                           if k in ci else "")
                 for k, v in c["parameters"].items()))
             L.append("")
     else:

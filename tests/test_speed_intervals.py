@@ -173,3 +173,13 @@ def test_slow_frame_response_is_the_slower_one():
     p = f.parameters
     assert abs(p["frame_time_constant_h"] / c.truth["frame_time_constant_h"] - 1) < 0.15
     assert p["frame_time_constant_h"] > p["rod_time_constant_h"]
+
+
+def test_report_says_when_an_interval_reaches_the_fit_range():
+    """An interval cut at the range the fit can return (τ_f 0.1-200 h) is not a bound
+    from the data, and report.md must say so; an interval inside the range must not."""
+    from arfem.scenarios.diagnosis_report import _unbounded
+    assert "do not bound" in _unbounded("frame_time_constant_h", [0.1, 200.0])
+    assert "do not bound" in _unbounded("frame_time_constant_h", [3.0, 200.0])
+    assert _unbounded("frame_time_constant_h", [1.5, 40.0]) == ""
+    assert _unbounded("frame_gain", [-44.0, 47.0]) == ""      # no range: no claim
