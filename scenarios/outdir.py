@@ -396,7 +396,7 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = F
                                  "it was", str(out)) from None
             raise
         try:
-            _switch(txn, out, force, inputs, out_locked)
+            _switch(txn, out, force, inputs, out_locked, nonempty_ok=force or update)
         except InputError:
             raise
         except OSError as e:
@@ -418,7 +418,8 @@ def _write_manifest(stage: Path, out: Path, own: dict, files: list) -> None:
     (stage / OWNERSHIP_MANIFEST).write_text(_manifest_text(keep), encoding="utf-8")
 
 
-def _switch(txn: Path, out: Path, force: bool, inputs, out_locked: bool = False) -> None:
+def _switch(txn: Path, out: Path, force: bool, inputs, out_locked: bool = False,
+            nonempty_ok: bool = True) -> None:
     stage = txn / _NEW
     if (stage / OWNERSHIP_MANIFEST).exists():
         raise InputError(f"{OWNERSHIP_MANIFEST} is arfem's own bookkeeping file; a command "
@@ -436,6 +437,12 @@ def _switch(txn: Path, out: Path, force: bool, inputs, out_locked: bool = False)
             # someone created out meanwhile: switch file by file below
             (stage / OWNERSHIP_MANIFEST).unlink()
     with (contextlib.nullcontext() if out_locked else lock_out_dir(out)):
+        # checked again under the lock: a command that found --out absent or empty must
+        # not fill it with its files after another one wrote there meanwhile
+        if not nonempty_ok and _user_entries(out):
+            raise InputError("is not empty: another command wrote there while this one "
+                             "ran, and nothing of this run was moved in; choose another "
+                             "--out or pass --force", str(out))
         _switch_into(txn, stage, out, force, inputs, entries, files)
 
 

@@ -461,3 +461,22 @@ def test_a_second_sweep_is_refused_while_the_directory_is_locked(tmp_path):
                 pass
     with DirLock(tmp_path):                        # free again once released
         pass
+
+
+def test_a_run_that_found_out_absent_does_not_fill_it_after_another_did(tmp_path):
+    """Without --force, an --out that was absent (or empty) when the command started must
+    not receive its files after another command filled it meanwhile: the check made
+    before the work is made again under the lock, at the switch (an audit found the
+    second of two concurrent `arfem run`s silently replacing the first's results).
+    With --force the later command replaces arfem's own files, as it would in turn."""
+    out = tmp_path / "new"
+    with pytest.raises(InputError, match="another command wrote there"):
+        with sio.staged_out_dir(out) as st:          # found absent: no --force needed
+            (st / "summary.json").write_text("mine")
+            with sio.staged_out_dir(out) as other:   # another command finishes first
+                (other / "summary.json").write_text("theirs")
+    assert (out / "summary.json").read_text() == "theirs"
+    assert not [p for p in tmp_path.iterdir() if p.name != "new"]   # no staging left
+    with sio.staged_out_dir(out, force=True) as st:
+        (st / "summary.json").write_text("mine")
+    assert (out / "summary.json").read_text() == "mine"
