@@ -183,3 +183,31 @@ def test_report_says_when_an_interval_reaches_the_fit_range():
     assert "do not bound" in _unbounded("frame_time_constant_h", [3.0, 200.0])
     assert _unbounded("frame_time_constant_h", [1.5, 40.0]) == ""
     assert _unbounded("frame_gain", [-44.0, 47.0]) == ""      # no range: no claim
+
+
+def test_an_estimate_the_data_do_not_bound_gets_an_honest_interval():
+    """Refits pinned at a search bound (the audit's ch2 fitted on its first 2 h: τ_f
+    199.9 h with an interval 199.84-199.99 h) or not varying at all must not yield a
+    narrow interval: it is the whole search range, or none for a parameter without one;
+    both are reported in ``detail["not_bounded"]`` (the engine turns them into
+    warnings)."""
+    from types import SimpleNamespace as NS
+    from arfem.models.diagnosis.speed_intervals import SEARCH_RANGES, jackknife_ci95
+    rows = np.ones(400, bool)
+    tau = iter([199.9, 199.5, 199.95, 199.7, 199.99, 199.6, 199.8, 199.85])
+
+    def pinned(r):
+        return NS(parameters={"frame_time_constant_h": next(tau), "frame_gain": 0.0},
+                  prediction=np.zeros(400))
+    fit = NS(parameters={"frame_time_constant_h": 199.9, "frame_gain": 0.0},
+             prediction=np.zeros(400))
+    detail = {}
+    ci = jackknife_ci95(pinned, fit, np.zeros(400), rows,
+                        ["frame_time_constant_h", "frame_gain"], blocks=8, detail=detail)
+    assert ci["frame_time_constant_h"] == list(SEARCH_RANGES["frame_time_constant_h"])
+    assert "frame_gain" not in ci                       # no spread, no range: no interval
+    assert set(detail["not_bounded"]) == {"frame_time_constant_h", "frame_gain"}
+    fixed = NS(parameters={"frame_time_constant_h": 50.0}, prediction=np.zeros(400))
+    ci = jackknife_ci95(lambda r: fixed, fixed, np.zeros(400), rows,
+                        ["frame_time_constant_h"], blocks=8)
+    assert ci["frame_time_constant_h"] == list(SEARCH_RANGES["frame_time_constant_h"])

@@ -653,8 +653,8 @@ _SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit windo
                f"wins on a majority of the validation blocks")
 
 
-def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progress,
-                    intervals=True, drift_last=False):
+def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnings,
+                    progress, intervals=True, drift_last=False):
     """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
     speed-only cause fitted as an output-error AR(1) (the frame structure chosen by
     forward-chaining validation where there are thermometers), the cause named by
@@ -714,7 +714,13 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, progre
         # speeds (eqs. 20-21), as the validation folds do
         def refit(tr):
             return fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3])
-        ci = jackknife_ci95(refit, fits[cause], y, rows, CONTRACT_PARAMETERS[cause])
+        detail = {}
+        ci = jackknife_ci95(refit, fits[cause], y, rows, CONTRACT_PARAMETERS[cause],
+                            detail=detail)
+        for k, why in detail.get("not_bounded", {}).items():
+            warnings.append(f"{cause}: {k} = {fits[cause].parameters[k]:.4g} is not "
+                            f"determined by the data before the hold-out ({why}); its "
+                            f"95 % interval is the range the fit can return, or none")
     text.append(f"speed-to-heat mapping: {json_text(map_info)}")
     text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
     ext = fits[cause] if cause != "none" else base_paper
@@ -941,7 +947,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     if ds.input_kind == "q_W_m2":
         v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
     else:
-        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, step,
+        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, warnings,
+                             step,
                              intervals, drift_last)
     base, ext = v2["base"], v2["ext"]
 

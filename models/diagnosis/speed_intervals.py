@@ -57,6 +57,22 @@ LOG_PARAMETERS = ("frame_time_constant_h", "h_running_W_m2K", "h_stopped_W_m2K")
 #: interval is cut there, and one that reaches an end says the data do not bound the
 #: parameter on that side
 SEARCH_RANGES = {"frame_time_constant_h": (0.1, 200.0)}
+#: an estimate within this fraction of an end of its search range sits at that end: the
+#: refits cannot move past it, so the data do not bound the parameter on that side
+EDGE_TOL = 0.01
+
+
+def at_search_edge(name: str, value: float) -> bool:
+    """Whether ``value`` of parameter ``name`` lies within ``EDGE_TOL`` of an end of
+    the range a speed-only fit can return (:data:`SEARCH_RANGES`).
+
+    Examples
+    --------
+    >>> at_search_edge("frame_time_constant_h", 199.9), at_search_edge("frame_time_constant_h", 12.7)
+    (True, False)
+    """
+    lo, hi = SEARCH_RANGES.get(name, (None, None))
+    return lo is not None and (value <= lo * (1 + EDGE_TOL) or value >= hi * (1 - EDGE_TOL))
 
 
 def jackknife_blocks(residual) -> int:
@@ -110,13 +126,19 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
     log_names : iterable of str
         Parameters whose interval is made on the log scale (must be positive).
     detail : dict, optional
-        Filled with ``blocks`` (B) and ``refits`` (parameter -> the B refitted values).
+        Filled with ``blocks`` (B), ``refits`` (parameter -> the B refitted values) and
+        ``not_bounded`` (parameter -> why the data do not bound it).
 
     Returns
     -------
     dict
         Parameter -> [low, high] in its unit; a parameter is left out where fewer than
         ``MIN_BLOCKS`` refits gave a finite value (or a log one a non-positive value).
+        Where the data do not bound a parameter the interval says so instead of
+        shrinking: an estimate at an end of its search range (:func:`at_search_edge`;
+        its refits are held at that bound too, so their spread measures nothing) and
+        refits that all return the same value (a part of the model switched off) give
+        the whole search range, or no interval for a parameter without one.
 
     Examples
     --------
@@ -147,12 +169,23 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
         for k in names:
             v = None if g is None else g.parameters.get(k)
             vals[k].append(np.nan if v is None else float(v))
+    not_bounded = {}
     if detail is not None:
-        detail.update(blocks=int(B), refits=vals)
+        detail.update(blocks=int(B), refits=vals, not_bounded=not_bounded)
     out = {}
     for k in names:
         v = np.asarray(vals[k], float)
         est = float(fit.parameters[k])
+        end_lo, end_hi = SEARCH_RANGES.get(k, (-np.inf, np.inf))
+        fin = v[np.isfinite(v)]
+        if fin.size >= MIN_BLOCKS and np.ptp(fin) <= 1e-9 * max(1.0, abs(est)):
+            not_bounded[k] = "the refits without each block all returned the same value"
+            if k in SEARCH_RANGES:
+                out[k] = [end_lo, end_hi]
+            continue
+        edge = at_search_edge(k, est)
+        if edge:
+            not_bounded[k] = "at the edge of its search range"
         log = k in log_names
         if log:
             if est <= 0:
@@ -166,6 +199,7 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
         half = float(_sst.t.ppf(0.975, b - 1)) * np.sqrt((b - 1) / b * np.sum((v - v.mean()) ** 2))
         lo, hi = est - half, est + half
         lo, hi = (float(np.exp(lo)), float(np.exp(hi))) if log else (float(lo), float(hi))
-        a, b = SEARCH_RANGES.get(k, (-np.inf, np.inf))
-        out[k] = [max(lo, a), min(hi, b)]
+        if edge:           # refits held at the bound: their spread says nothing
+            lo, hi = end_lo, end_hi
+        out[k] = [max(lo, end_lo), min(hi, end_hi)]
     return out
