@@ -82,4 +82,9 @@ def main(args) -> int:
     print(f"hold-out: from {h['start_s']:g} s; {h['how_chosen']}")
     for w in s.get("warnings", []):
         print(f"warning: {w}")
+    ignored = [f for f, on in (("--frame-search", args.frame_search != "narrow"),
+                               ("--drift-last", args.drift_last)) if on]
+    if ignored and s.get("input_kind") != "speed_rpm":
+        print(f"note: {' and '.join(ignored)} apply to speed_rpm records only; this "
+              f"{s.get('input_kind')} record was diagnosed without them")
     return 0

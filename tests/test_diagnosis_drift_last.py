@@ -64,3 +64,24 @@ def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
             cli(["diagnose", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"),
                  "--no-progress", *extra])
         assert seen[-1] == want
+
+
+def test_speed_only_options_on_a_heat_flux_record_are_reported_as_ignored(tmp_path,
+                                                                          monkeypatch,
+                                                                          capsys):
+    """--drift-last and --frame-search act on speed_rpm records only; on a q_W_m2 record
+    the command must say they were not used instead of ignoring them silently (an audit
+    found the output identical with and without them), and say nothing without them."""
+    import arfem.scenarios.diagnose as d
+    summary = {"dataset": "x", "cause": "none", "causes": [], "input_kind": "q_W_m2",
+               "warnings": [], "holdout": {"baseline_rmse_um": 1.0, "extended_rmse_um": 1.0,
+                                           "gain_pct": 0.0, "start_s": 0.0,
+                                           "how_chosen": "given"}}
+    monkeypatch.setattr(d, "run_diagnosis", lambda *a, **k: summary)
+    for extra, note in (([], None), (["--drift-last"], "--drift-last apply"),
+                        (["--frame-search", "wide", "--drift-last"],
+                         "--frame-search and --drift-last apply")):
+        assert cli(["diagnose", "x.toml", "--out", str(tmp_path / "o"), "--no-progress",
+                    *extra]) == 0
+        out = capsys.readouterr().out
+        assert (note in out) if note else ("note:" not in out), out

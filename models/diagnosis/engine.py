@@ -188,7 +188,7 @@ def _holdout_start(t, holdout_start_s, where, u=None):
     n_after = int(np.sum(t >= hs))
     if n_before < 20 or n_after < 5:
         span = (f"{n_before} samples to fit and {n_after} to score (record {t[0]:g}..{t[-1]:g} s); "
-                "need >= 20 and >= 5")
+                "need >= 20 to fit and >= 5 to score")
         if holdout_start_s is None:
             raise InputError(f"record too short: its hold-out from {hs:g} s leaves {span}",
                              where)
