@@ -252,7 +252,12 @@ def _markdown(diag) -> str:
                    "(validation RMSE of every structure tried, µm: " + ", ".join(
                        f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").")
                   if isinstance(fs["components"], int) else       # FrameEnsemble: no choice
-                  f"Thermometer frame: no structure chosen, the {fs['label']} structures.", ""]
+                  f"Thermometer frame: no structure chosen, the {fs['label']} structures. "
+                  "Its `frame_time_constant_h` is the members' median; members with a "
+                  "sensor lag add that lag to it, so where the thermometers follow the "
+                  "frame without lag it runs long, and its 95 % interval (noise only) "
+                  "held the truth in 2 of 8 generated cases "
+                  "(`benchmarks/bench_speed_intervals.py --kinds frame_average`).", ""]
         if "drift_rule" in sel:                # --drift-last (post hoc option)
             L += [f"Naming: {sel['drift_rule']}.", ""]
         L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
