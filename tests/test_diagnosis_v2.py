@@ -149,3 +149,24 @@ def test_empty_growth_keeps_its_input(tmp_path):
     assert set(case.time_s[sw]) <= set(ds.unobserved["time_s"].tolist())
     got = run_diagnosis(toml, tmp_path / "out")
     assert got["cause"] == "none" and got["causes"] == [], got["candidates"][:3]
+
+
+def test_named_cause_warnings_say_what_a_reader_must_not_miss():
+    """Three facts about a named cause go to ``warnings`` (an audit found each silent on
+    the real record or a generated one): its effect's interval holds 0; the extended
+    model is worse on the hold-out; it still leaves > MISFIT_FACTOR noise σ. A cause
+    whose effect is established, that gains, and fits to noise gets none of them."""
+    from arfem.models.diagnosis.engine import MISFIT_FACTOR, _named_cause_warnings
+
+    def summary(gain, rmse):
+        return {"holdout": {"gain_pct": gain}, "extended": {"rmse_um": rmse}}
+    good = [{"cause": "frame_expansion", "ci95": {"frame_time_constant_h": [3.0, 9.0],
+                                                   "frame_gain": [0.4, 0.6]}}]
+    assert _named_cause_warnings(summary(40.0, 1.0), good, 0.5) == []
+    bad = [{"cause": "frame_expansion", "ci95": {"frame_time_constant_h": [0.1, 200.0],
+                                                  "frame_gain": [-44.0, 47.0]}}]
+    w = _named_cause_warnings(summary(-5.0, 2.6), bad, 2.6 / (MISFIT_FACTOR + 1))
+    assert len(w) == 3
+    assert "frame_gain" in w[0] and "holds 0" in w[0]
+    assert "worse than the baseline" in w[1] and "leaves 11 noise σ" in w[2]
+    assert _named_cause_warnings(summary(-5.0, 50.0), [], 0.1) == []   # no cause: none

@@ -859,10 +859,43 @@ def _add_version2(summary, v2, y, rows, hold, good, warnings):
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
     if len(entries) > 1:
         summary["extended"]["model"] = ext.model
-    w = _holdout_warning(y, hold, st.noise_sigma(np.asarray(y, float)[good]))
+    noise = st.noise_sigma(np.asarray(y, float)[good])
+    w = _holdout_warning(y, hold, noise)
     if w:
         warnings.append(w)
+    warnings += _named_cause_warnings(summary, entries, noise)
     summary["warnings"] = list(warnings)
+
+
+#: parameters whose value 0 means "no effect": a named cause whose interval of one of
+#: them holds 0 has not shown the size or sign of its effect
+EFFECT_PARAMETERS = ("frame_gain", "drift_um_per_h", "ambient_gain_um_per_K")
+
+
+def _named_cause_warnings(summary, entries, noise_um) -> list[str]:
+    """What a reader of a named cause must not miss: an effect whose 95 % interval holds
+    0, a hold-out the extended model makes worse, and an extended model that still
+    leaves more than ``MISFIT_FACTOR`` noise σ (something outside the vocabulary, or a
+    second cause not established)."""
+    out = []
+    for e in entries:
+        for k, (lo, hi) in e["ci95"].items():
+            if k in EFFECT_PARAMETERS and lo <= 0.0 <= hi:
+                out.append(f"{e['cause']}: the 95 % interval of {k} ({lo:.3g} to {hi:.3g}) "
+                           "holds 0: the data before the hold-out do not establish the size "
+                           "or sign of this effect")
+    gain = summary["holdout"]["gain_pct"]
+    if entries and np.isfinite(gain) and gain < 0:
+        out.append(f"the extended model is worse than the baseline on the hold-out (gain "
+                   f"{gain:.1f} %): the named cause does not carry past the fit window; "
+                   "treat it as unconfirmed")
+    rmse = summary["extended"]["rmse_um"]
+    if entries and np.isfinite(noise_um) and noise_um > 0 and rmse > MISFIT_FACTOR * noise_um:
+        out.append(f"the extended model leaves "
+                   f"{rmse / noise_um:.0f} noise σ (RMSE {rmse:.3g} µm, σ ≈ {noise_um:.3g} µm):"
+                   " something the cause vocabulary does not hold remains, or a further "
+                   "cause was not established")
+    return out
 
 
 def _summary(ds, v2, bres, eres, holdout):
