@@ -666,10 +666,7 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     Js = J / scale
     A = np.linalg.pinv(Js.T @ Js)
     cov_ess = A / np.outer(scale, scale) * s2 * (n / n_eff)
-    a = st.acf(r, min(n // 2, 5000))
-    below = np.flatnonzero(a < np.exp(-1.0))
-    corr = int(below[0]) if below.size else n
-    B = int(np.clip(n // max(CI_BLOCK_CORR * corr, 1), CI_MIN_BLOCKS, CI_BLOCKS))
+    B = st.contiguous_blocks(r, CI_BLOCK_CORR, CI_MIN_BLOCKS, CI_BLOCKS)
     G = np.array([Js[ix].T @ r[ix] for ix in np.array_split(np.arange(n), B)])
     cov_blk = (A @ (G.T @ G) @ A) / np.outer(scale, scale) * B / (B - 1.0)
     t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))

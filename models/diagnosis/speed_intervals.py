@@ -96,12 +96,7 @@ def jackknife_blocks(residual) -> int:
     >>> jackknife_blocks(np.sin(np.arange(1000) / 100.0))
     4
     """
-    r = np.asarray(residual, float)
-    n = r.size
-    a = st.acf(r, min(n // 2, 5000))
-    below = np.flatnonzero(a < np.exp(-1.0))
-    corr = int(below[0]) if below.size else n
-    return int(np.clip(n // max(BLOCK_CORR * corr, 1), MIN_BLOCKS, MAX_BLOCKS))
+    return st.contiguous_blocks(residual, BLOCK_CORR, MIN_BLOCKS, MAX_BLOCKS)
 
 
 def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,

@@ -12,7 +12,7 @@ import numpy as np
 from scipy import stats as _st
 
 __all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr", "noise_sigma",
-           "bic", "f_test_p", "corr_bound", "ccf"]
+           "bic", "f_test_p", "corr_bound", "ccf", "acf", "contiguous_blocks"]
 
 
 def rmse(r) -> float:
@@ -90,6 +90,27 @@ def acf(r, max_lag: int) -> np.ndarray:
     den = float(r @ r) or 1.0
     m = int(min(max_lag, r.size - 1))
     return np.array([float(r[k:] @ r[:r.size - k]) / den for k in range(m + 1)])
+
+
+def contiguous_blocks(r, block_corr: int, min_blocks: int, max_blocks: int) -> int:
+    """How many contiguous blocks to cut a residual into so that each is at least
+    ``block_corr`` correlation times long (the lag where its autocorrelation first falls
+    below 1/e), kept within [``min_blocks``, ``max_blocks``] -- the blocks of the
+    block-sandwich and block-jackknife intervals.
+
+    Examples
+    --------
+    >>> contiguous_blocks(np.random.default_rng(0).normal(size=1000), 5, 4, 10)
+    10
+    >>> contiguous_blocks(np.sin(np.arange(1000) / 100.0), 5, 4, 10)
+    4
+    """
+    r = np.asarray(r, float)
+    n = r.size
+    a = acf(r, min(n // 2, 5000))
+    below = np.flatnonzero(a < np.exp(-1.0))
+    corr = int(below[0]) if below.size else n
+    return int(np.clip(n // max(block_corr * corr, 1), min_blocks, max_blocks))
 
 
 def xcorr(r, x) -> float:
