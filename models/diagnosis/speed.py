@@ -763,22 +763,23 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     gains = coef[:nl]
     gamma = coef[V.shape[1] + 1:]            # thermometer components, after the offset
     params = {}
+    # per-speed gains + offset + initial decays are collinear (Σ_s u_s = 1): the gains
+    # are known relative to the rest level only, so that is what the summaries use
+    rest = next((j for j, sv in enumerate(seen) if sv == 0), None) if p is None else None
     if bf is not None:
         slow = coef[nl + 1:2 * nl + 1]
         nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
         g1 = np.array([gains[j] for j in nz])
         g2 = np.array([slow[j] for j in nz])
-        z = [j for j, sv in enumerate(seen) if sv == 0] if p is None else []
-        if z:   # per-speed gains + offset + initial decays are collinear (Σ_s u_s = 1): only
-            g1, g2 = g1 - gains[z[0]], g2 - slow[z[0]]      # gains relative to rest count
+        if rest is not None:
+            g1, g2 = g1 - gains[rest], g2 - slow[rest]
         fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
         params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
         frame = V[:, nl + 1:2 * nl + 1] @ slow + (np.column_stack(pcs) @ gamma if pcs else 0.0)
     else:
         target = sum(g * u for g, u in zip(gains, units))
-        z = [j for j, sv in enumerate(seen) if sv == 0] if p is None else []
-        if z:   # the gains are known relative to the rest level only (see above)
-            target = target - gains[z[0]] * sum(units)
+        if rest is not None:
+            target = target - gains[rest] * sum(units)
         frame = np.column_stack(pcs) @ gamma
 
         def summ(x):
