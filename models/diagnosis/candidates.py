@@ -20,6 +20,7 @@ Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
@@ -134,10 +135,14 @@ class FemPhysics:
         ndarray
             Axial growth at each sample [µm], from equilibrium at t = 0.
         """
-        if not hasattr(self, "_local"):
-            from arfem.models.diagnosis.local_convection import LocalConvectionRod
-            self._local = LocalConvectionRod(self.m.fem, all_modes=self.m.all_modes)
         return self._local.simulate(t, q, exponent, h_ref, DT_REF_K, ambient_K=ambient_K)
+
+    @cached_property
+    def _local(self):
+        """The rod with pointwise convection, built on first use (only natural-convection
+        candidates need it)."""
+        from arfem.models.diagnosis.local_convection import LocalConvectionRod
+        return LocalConvectionRod(self.m.fem, all_modes=self.m.all_modes)
 
     def slowest_rate(self, h=None) -> float:
         """Decay rate of the FEM rod's slowest growth mode [1/s].

@@ -565,7 +565,7 @@ def _cause_entries(fit, causes, y, rows, ci=None):
         out.append({"cause": c,
                     "parameters": {k: fit.parameters[k] for k in names if k in fit.parameters},
                     "ci95": {k: ci[k] for k in names if k in ci}})
-    return out, ci
+    return out
 
 
 def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
@@ -843,10 +843,10 @@ def _add_version2(summary, v2, y, rows, hold, good, warnings):
     """The contract's version-2 fields: ``causes`` (with 95 % intervals),
     ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
     ext = v2["ext"]
-    if "ci95" in v2:    # speed-only records: one cause, intervals by the block jackknife
-        entries, _ = _cause_entries(ext, v2["causes"], y, rows, v2["ci95"])
-    else:
-        entries, _ = _cause_entries(ext, v2["causes"], y, rows)
+    # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
+    # from the joint fit, and also record parsimony and the second-cause tests
+    entries = _cause_entries(ext, v2["causes"], y, rows, v2.get("ci95"))
+    if "ci95" not in v2:
         eq = ext.extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
         if eq is not None:
             summary["equivalent_alternative"] = eq
@@ -981,8 +981,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
     else:
         v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, warnings,
-                             step,
-                             intervals, drift_last)
+                             step, intervals, drift_last)
     base, ext = v2["base"], v2["ext"]
 
     step("residuals and hold-out")
