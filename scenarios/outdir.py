@@ -35,6 +35,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -343,13 +344,13 @@ def lock_out_dir(out: str | os.PathLike, wait: bool = True, who: str = "arfem co
             if not wait:
                 raise InputError(f"another {who} is writing to this directory; wait for it "
                                  "to finish", str(out)) from None
-            import sys
             print(f"arfem: note: {_short(out)}: another arfem command is writing there; "
                   "waiting for it to finish", file=sys.stderr, flush=True)
             fcntl.flock(fd, fcntl.LOCK_EX)
         yield out
     finally:
         os.close(fd)                                 # releases the lock
+
 
 @contextlib.contextmanager
 def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = False,
@@ -362,9 +363,11 @@ def staged_out_dir(out: str | os.PathLike, force: bool = False, update: bool = F
     rename (``out`` unchanged): a clash (a directory where a file goes, or the reverse),
     replacing an input (``inputs`` or any file arfem read in this process), replacing a
     file arfem did not write (``--force`` or not), or, without ``force``, one changed
-    since arfem wrote it. The switch is all or nothing, also across a kill -9 (the
-    next run rolls it back), and holds :func:`lock_out_dir` on an existing ``out``
-    (``out_locked``: the caller holds it already, as ``arfem sweep`` does). On any error ``out`` is as it was and the staging
+    since arfem wrote it, or any file at all in an ``out`` that was absent or empty when
+    the command started (another command wrote there meanwhile). The switch is all or
+    nothing, also across a kill -9 (the next run rolls it back), and holds
+    :func:`lock_out_dir` on an existing ``out`` (``out_locked``: the caller holds it
+    already, as ``arfem sweep`` does). On any error ``out`` is as it was and the staging
     directory is removed; an error writing into the stage (e.g. disk full) is one
     :class:`InputError`.
 
