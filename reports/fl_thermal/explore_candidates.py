@@ -15,7 +15,6 @@ origins were scored. ~18 min on 2 processes of the loaded shared machine.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -33,7 +32,6 @@ sys.modules["regenerate"] = R
 _spec.loader.exec_module(R)
 
 from arfem.models.diagnosis import engine as E  # noqa: E402
-from arfem.models.diagnosis.dataset import hampel_outliers  # noqa: E402
 from arfem.models.diagnosis.rolling import blocks, speed_step_origins  # noqa: E402
 
 _CAUGHT: dict = {}
@@ -67,14 +65,7 @@ def one(ch, o_idx, search="average"):
     m = blocks(t, org)[o_idx] & ~ds.outliers
     n = int(np.searchsorted(t, org[o_idx]))
     _CAUGHT.clear()
-    yt = y[:n]
-    steps = np.abs(np.diff(yt))
-    steps = steps[steps > 1e-9]
-    out = np.zeros(t.size, bool)
-    out[:n] = hampel_outliers(yt, floor=float(steps.min()))
-    ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n, yt[-1])]),
-                               outliers=out)
-    d = E.diagnose(ds_o, float(t[n]), search)
+    d = E.diagnose(R.origin_dataset(ds, n, y[:n]), float(t[n]), search)
 
     def rm(p):
         return float(np.sqrt(np.mean((y - p)[m] ** 2)))

@@ -190,32 +190,39 @@ def _dataset(toml):
     return _DS_CACHE[toml]
 
 
-def _roll_fit(toml, search, n_train, y_train):
-    """One origin of the rolling evaluation: ``arfem diagnose``'s procedure fitted on the
-    first ``n_train`` rows, given only their growth ``y_train``.
-
-    The record's growth from the origin on is replaced by the last value before it (so
-    no fitted number can depend on it) and its outlier flags are recomputed from
-    ``y_train`` alone; the inputs (speed, temperatures) stay, since the models predict
-    from them. Returns the three models' predictions over the record and what the
-    procedure chose."""
+def origin_dataset(ds, n_train, y_train):
+    """The record as seen at an origin: its growth from row ``n_train`` on replaced by the
+    last value before it (so no fitted number can depend on it) and its outlier flags
+    recomputed from ``y_train`` (the first ``n_train`` growths) alone; the inputs
+    (speed, temperatures) stay, since the models predict from them."""
     import dataclasses
 
     import numpy as np
 
     from arfem.models.diagnosis.dataset import hampel_outliers
-    from arfem.models.diagnosis.engine import diagnose
 
-    ds = _dataset(str(toml))
     t = np.asarray(ds.time_s)
     yt = np.asarray(y_train, float)
     steps = np.abs(np.diff(yt))
     steps = steps[steps > 1e-9]
     out = np.zeros(t.size, bool)
     out[:n_train] = hampel_outliers(yt, floor=float(steps.min()) if steps.size else 0.0)
-    ds_o = dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n_train,
+    return dataclasses.replace(ds, growth_um=np.concatenate([yt, np.full(t.size - n_train,
                                                                          yt[-1])]),
                                outliers=out)
+
+
+def _roll_fit(toml, search, n_train, y_train):
+    """One origin of the rolling evaluation: ``arfem diagnose``'s procedure fitted on the
+    first ``n_train`` rows, given only their growth ``y_train`` (:func:`origin_dataset`).
+    Returns the three models' predictions over the record and what the procedure chose."""
+    import numpy as np
+
+    from arfem.models.diagnosis.engine import diagnose
+
+    ds = _dataset(str(toml))
+    t = np.asarray(ds.time_s)
+    ds_o = origin_dataset(ds, n_train, y_train)
     fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
     d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
                  intervals=False)     # predictions only: no jackknife refits
