@@ -18,7 +18,7 @@ Two geometries, both on the mesh and the element family of a :class:`arfem.fem.h
   the axis and the in-row component at a second vertex of the same row, which
   fixes the in-plane translations and the rotation about z.
 
-The stiffness is assembled and factored once (:func:`scipy.sparse.linalg.splu`);
+The stiffness is assembled and factored once (:func:`arfem.fem.linsolve.factorize_spd`);
 the thermal load is a fixed coupling matrix ``T`` applied to θ, so the
 displacement of any number of temperature fields costs one triangular solve each.
 
@@ -34,10 +34,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 from skfem import Basis, BilinearForm, ElementVector, FacetBasis, LinearForm
 
 from arfem.fem.heat import HeatFEM
+from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError, Rod
 
 __all__ = ["lame_parameters", "ThermoElastic", "elastic_forms"]
@@ -226,7 +226,7 @@ class ThermoElastic:
             fixed += [vb.nodal_dofs[:2, a], vb.nodal_dofs[1:2, b]]
         D = np.unique(np.concatenate([np.asarray(f, int).ravel() for f in fixed]))
         free = np.setdiff1d(np.arange(vb.N), D)
-        lu = splu(K[free][:, free].tocsc())
+        lu = factorize_spd(K[free][:, free])
 
         # face-averaged u_z over the far face: ∫ v_z dA / ∫ dA
         fb = FacetBasis(mesh, vb.elem, facets=mesh.boundaries["far"], intorder=intorder or 6)

@@ -13,12 +13,15 @@ piecewise constant in time (a :class:`arfem.params.Schedule`).
 Two integrators:
 
 * :func:`solve_theta` -- the θ-method (Crank–Nicolson by default, backward Euler
-  with ``theta=1``); each distinct (step, h) system is factored once with
-  :func:`scipy.sparse.linalg.splu` and reused, as in scikit-fem's ex19.
+  with ``theta=1``); each distinct (step, h) system is factored once
+  (:func:`arfem.fem.linsolve.factorize_spd`: a symmetric, nested-dissection
+  factorisation of the SPD matrix) and reused, as in scikit-fem's ex19.
 * :func:`solve_modal` -- exact in time for piecewise-constant inputs: the
   generalised eigenproblem (K + hB) φ = μ M φ is solved once per distinct h and
   each mode is advanced by its exponential. Arbitrary (uneven) output times,
-  no time-step error; the tool of choice for sweeps and measured data.
+  no time-step error; the tool of choice for sweeps and measured data. On 3D
+  models it hands over to the reduced-modal solve of :mod:`arfem.fem.reduced`
+  (slowest modes by shift-invert Lanczos, the rest by a static correction).
 
 Axial growth is reported as α∫θ dV / A, which for a free bar held axially at one
 end equals the face-averaged axial displacement of the far face (reciprocity;
@@ -32,11 +35,11 @@ from typing import Callable
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 from skfem import (Basis, BilinearForm, ElementHex1, ElementHex2, ElementHexS2,
                    ElementQuad1, ElementQuad2, FacetBasis, LinearForm, Mesh)
 from skfem.helpers import dot, grad
 
+from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["HeatFEM", "HeatResult", "solve_theta", "solve_modal", "build_axisymmetric",
@@ -354,7 +357,8 @@ def _initial(model: HeatFEM, theta0) -> np.ndarray:
 
 def solve_theta(model: HeatFEM, schedule: Schedule, dt_s: float, theta: float = 0.5,
                 store_fields: bool = False, theta0=None,
-                source: Callable[[np.ndarray, int], np.ndarray] | None = None) -> HeatResult:
+                source: Callable[[np.ndarray, int], np.ndarray] | None = None,
+                factor_method: str | None = None) -> HeatResult:
     """θ-method time integration; outputs at t = 0 and at every step end.
 
     Each segment of ``schedule`` is split into ``ceil(duration / dt_s)`` equal
@@ -375,6 +379,9 @@ def solve_theta(model: HeatFEM, schedule: Schedule, dt_s: float, theta: float = 
     source : callable, optional
         ``source(theta_prev, segment_index) -> extra load [W]`` added explicitly
         on each step (used for nonlinear boundary terms held at the previous state).
+    factor_method : {"symmetric", "lu"}, optional
+        How M + θΔt(K + hB) is factored (:func:`arfem.fem.linsolve.factorize_spd`);
+        default: symmetric where pymetis is installed. Both give the same θ to round-off.
     """
     if not (0.5 <= theta <= 1.0):
         raise InputError(f"must lie in [0.5, 1], got {theta!r}", "theta")
@@ -395,7 +402,7 @@ def solve_theta(model: HeatFEM, schedule: Schedule, dt_s: float, theta: float = 
         key = (round(step, 9), h[i])
         if key not in cache:
             A = model.operator(h[i])
-            lhs = splu((M + theta * step * A).tocsc())
+            lhs = factorize_spd(M + theta * step * A, factor_method)
             rhs = (M - (1.0 - theta) * step * A).tocsr()
             cache[key] = (lhs, rhs)
         lhs, rhs = cache[key]
@@ -473,7 +480,17 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
     Between breakpoints each modal amplitude obeys c' = −μ c + φᵀf, so
     c(t + d) = c_ss + e^{−μ d}(c(t) − c_ss) with c_ss = φᵀf / μ, exactly.
     Where h changes, the state is carried across in nodal form.
+
+    On a 3D model (``model.axisymmetric`` false) the dense eigensolve of every mode
+    would cost O(n³) time and O(n²) memory; there this function returns
+    :func:`arfem.fem.reduced.solve_reduced` instead (the slowest modes exactly, the
+    rest quasi-statically, with its own error estimate; same arguments and result
+    fields). ``mode_cache`` is then keyed by (h, n_modes).
     """
+    if not model.axisymmetric:
+        from arfem.fem.reduced import solve_reduced
+        return solve_reduced(model, schedule, output_times_s, store_fields=store_fields,
+                             theta0=theta0, mode_cache=mode_cache)
     q, h, amb = _inputs(model, schedule)
     edges = schedule.edges_s
     if output_times_s is None:

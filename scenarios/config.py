@@ -434,8 +434,9 @@ def estimate_cost(sc: Scenario) -> dict:
     Returns ``ndofs`` (FEM unknowns, exact for these meshes), ``n_samples`` (AR(1)
     samples), ``n_steps`` (θ-method steps, 0 for the modal solver), ``n_snapshots``,
     ``memory_bytes`` (estimated peak of the arrays held [bytes]) and ``work_flop``
-    (estimated floating-point operations). The model: the modal solver holds dense
-    n×n matrices (eigh ~10 n³ flop) and (samples × n) modal blocks; the θ-method a
+    (estimated floating-point operations). The model: the axisymmetric modal solver
+    holds dense n×n matrices (eigh ~10 n³ flop) and (samples × n) modal blocks; on 3D
+    it is reduced-modal (one sparse factor and ~60 solves with it); the θ-method a
     sparse LU with ~30x fill and, for fields, every step's state; the AR(1) and the
     writers ~20 arrays per sample.
     """
@@ -456,10 +457,15 @@ def estimate_cost(sc: Scenario) -> dict:
     snaps = total / sc.outputs.field_interval_s + 3
     any_fields = sc.outputs.fields or sc.outputs.picture or f.elastic
     mem = 20.0 * 8 * n_samples
-    if f.theta is None:
+    if f.theta is None and f.model == "axisymmetric":
         n_steps = 0.0
         mem += 8.0 * (4 * n * n + 4 * n_samples * n + (5 * snaps * n if any_fields else 0))
         work = 10.0 * n ** 3 + 6.0 * n_samples * n + (2.0 * snaps * n * n if any_fields else 0)
+    elif f.theta is None:           # 3D: reduced-modal (fem.reduced): one sparse factor,
+        n_steps = 0.0               # ~60 Lanczos solves, 9 modes, snapshots from them
+        mem += 8.0 * (30 * row * n + 12 * n + (2 * snaps * n if any_fields else 0))
+        work = 30.0 * row * n * 50 + 60 * 4.0 * 30 * row * n + 40.0 * n_samples \
+            + (20.0 * snaps * n if any_fields else 0)
     else:
         n_steps = total / f.dt_s
         mem += 8.0 * (30 * row * n + (n_steps * n if any_fields else 0) + 10 * n_steps)

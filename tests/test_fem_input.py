@@ -48,7 +48,7 @@ def no_assembly(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("assembly/solve reached with bad input")
     monkeypatch.setattr(fem_heat.HeatFEM, "build", classmethod(boom))
-    monkeypatch.setattr(fem_heat, "splu", boom)
+    monkeypatch.setattr(fem_heat, "factorize_spd", boom)
     monkeypatch.setattr(fem_heat, "modes", boom)
 
 
