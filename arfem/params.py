@@ -286,12 +286,18 @@ class Schedule:
                 a = np.full(n, a.item())
             if a.shape != (n,):
                 raise InputError(f"has {a.size} values for {n} segments", name)
-            for i, v in enumerate(a.tolist()):
+            # one vectorised test (a sweep point's subdivided schedule has ~10⁴ segments);
+            # the first offending value is then named as before
+            bad = ~np.isfinite(a)
+            if positive:
+                bad |= (a < 0) | ((a == 0) & (not allow_zero))
+            if bad.any():
+                i = int(np.argmax(bad))
+                v = a.tolist()[i]
                 if not math.isfinite(v):
                     raise InputError(f"must be finite, got {v!r}", f"{name}[{i}]")
-                if positive and (v < 0 or (v == 0 and not allow_zero)):
-                    raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}",
-                                     f"{name}[{i}]")
+                raise InputError(f"must be {'>= 0' if allow_zero else '> 0'}, got {v!r}",
+                                 f"{name}[{i}]")
             a.setflags(write=False)
             return a
 

@@ -23,7 +23,11 @@ __all__ = ["evaluate_point", "blas_threads", "LocalExecutor", "DaskExecutor",
 # -- evaluating one point (runs in a worker) ----------------------------------------------
 
 _WORKER_CACHE: dict = {}
-_WORKER_CACHE_MAX = 24            # assembled models + eigen-decompositions kept per worker
+#: entries kept per worker before the cache is cleared (all at once: entries refer to
+#: their model by id). The shipped sweep needs 104 (13 h: model and modes, and one
+#: unit-flux growth per Δτ); 24 cleared it every few points, 84 eigen-decompositions
+#: for 13 distinct h. Entries are small (an axisymmetric model's dense modes ~3 MB).
+_WORKER_CACHE_MAX = 128
 
 
 def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
