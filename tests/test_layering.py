@@ -26,7 +26,11 @@ REPO = Path(__file__).resolve().parents[1]
 FOLDERS = {"arfem": "arfem", "fem": "arfem.fem", "models": "arfem.models",
            "scenarios": "arfem.scenarios"}
 #: rank of each layer; a module may import its own rank or lower
-RANKS = {"ground": 0, "arfem.fem": 1, "arfem.models": 2, "arfem.scenarios": 3}
+RANKS = {"ground": 0, "arfem.fem": 1, "arfem.models": 2, "arfem.scenarios": 3,
+         "arfem.api": 4}
+#: the one upward import allowed: the package root re-exports the API lazily (PEP 562
+#: ``__getattr__``), so ``import arfem`` loads nothing of the layers above
+FRONT_DOOR = {("arfem", "arfem.api")}
 #: ``python -m arfem`` sits above everything (the root ``arfem`` itself is ground: its version)
 ENTRY = {"arfem.__main__"}
 #: calls that read or write files; none may appear under models/
@@ -38,7 +42,7 @@ def layer(module: str) -> str | None:
     """The layer of an ``arfem`` module name (None for anything outside arfem)."""
     if module in ENTRY:
         return "entry"
-    for pkg in ("arfem.fem", "arfem.models", "arfem.scenarios"):
+    for pkg in ("arfem.fem", "arfem.models", "arfem.scenarios", "arfem.api"):
         if module == pkg or module.startswith(pkg + "."):
             return pkg
     if module == "arfem" or module.startswith("arfem."):
@@ -83,7 +87,7 @@ def violations(source: str, module: str) -> list[str]:
             bad.append(f"{module}:{line} imports {name!r}: everything imports as arfem.…")
             continue
         theirs = layer(name)
-        if theirs is None or mine == "entry":
+        if theirs is None or mine == "entry" or (module, name) in FRONT_DOOR:
             continue
         if theirs == "entry":
             bad.append(f"{module}:{line} imports the entry point {name!r}")
@@ -126,6 +130,11 @@ def test_the_checker_flags_an_upward_import():
                       "arfem.models.ar1") == []
     assert violations("from arfem.models.ar1 import x\n", "arfem.scenarios.run") == []
     assert file_calls("def f(p):\n    return open(p).read()\n")
+    # the API sits above everything; only the package root may reach it (lazily)
+    assert violations("from arfem import api\n", "arfem.scenarios.run")
+    assert violations("from arfem import api\n", "arfem.params")
+    assert violations("from arfem import api\n", "arfem") == []
+    assert violations("from arfem.scenarios.run import evaluate\n", "arfem.api") == []
 
 
 @pytest.mark.parametrize("path, module", list(package_modules()),
