@@ -356,7 +356,8 @@ def check(scenario, *, max_abs_pct: float | None = None, max_c1_diff: float | No
         Limit on max|AR − FEM| [% of the FEM peak]; default the scenario's ``[check]``
         value, else 3 %.
     max_c1_diff : float, optional
-        Limit on |C1 fitted to the FEM − C1 of the AR| [-]; default 5e-4.
+        Limit on the absolute difference of C1 fitted to the FEM and the AR's C1 [-];
+        default 5e-4.
     model : {"paper", "corrected"}, optional
         Which AR(1) is held to the limits; default the paper's.
 

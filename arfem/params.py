@@ -150,7 +150,7 @@ def check_positive(name: str, value, allow_zero: bool = False) -> float:
 class Rod:
     """Spindle rod: geometry, material and nominal boundary conditions.
 
-    Field names carry their SI unit; defaults are the seed paper's values [1]_.
+    Field names carry their SI unit; defaults are the seed paper's values (Du et al. 2021, §2).
 
     Parameters
     ----------

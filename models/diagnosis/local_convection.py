@@ -187,7 +187,8 @@ class LocalConvectionRod:
         lo, hi = H_FLOOR * h0, H_CAP * h0
         for b in range(nb):
             zn0[b] = zn
-            zs = zn if zp is None else zn + (t_mid[b] / (tprev[b] - tpp)) * (zn - zp)
+            span = tprev[b] - tpp          # the previous block's length; 0 at a repeated time
+            zs = zn if (zp is None or span <= 0.0) else zn + (t_mid[b] / span) * (zn - zp)
             dT = dT_mid[b] + L @ zs
             Sb = W @ ((clip(c * power(absolute(dT) + 1e-12, n), lo, hi) - h0) * dT)
             S[b] = Sb
