@@ -183,10 +183,76 @@ def _unbounded(name, ci) -> str:
             if ends else "")
 
 
+#: what an engineer can do about each named cause (the verdict's last sentence)
+_ACTIONS = {
+    "ambient_drift": "give the model the ambient air temperature as an input (a recorded "
+                     "`ambient_C`); the seed paper names a varying ambient as its AR(1)'s "
+                     "open limit",
+    "convection_mismatch": "set the simulation's lateral h to the fitted value",
+    "speed_dependent_convection": "use one h while the spindle runs and another while it "
+                                  "stands",
+    "heat_input_scale": "rescale the heat input (the speed-to-heat map of eqs. 20-21)",
+    "frame_expansion": "add the machine frame's slow expansion (a first-order term driven "
+                       "by the same input) to the compensation model",
+    "sensor_drift": "check the displacement sensor's zero before changing the thermal model",
+    "nonlinear_convection": "use a natural-convection h(ΔT) instead of a constant h",
+}
+
+
+def verdict(j: dict) -> list[str]:
+    """The report's opening: what is wrong, how sure, what to do, in one or two sentences,
+    then the key figure and the hold-out table (everything else follows as evidence)."""
+    b, e, h = j["baseline"], j["extended"], j["holdout"]
+    cause, causes = j["cause"], j.get("causes") or []
+    base, ext = h["baseline_rmse_um"], h["extended_rmse_um"]
+    mlr = (j.get("mlr") or {}).get("holdout_rmse_um")
+    warns = j.get("warnings", [])
+    if cause == "none":
+        text = (f"The simulation as configured explains this record: no cause is named "
+                f"(hold-out RMSE {_fmt(base)} µm"
+                + (f", the MLR of eq. 18 {_fmt(mlr)} µm" if mlr is not None else "")
+                + "). Nothing in arfem's vocabulary of causes improves on it.")
+    elif h["gain_pct"] < 0:
+        text = (f"A `{cause}` fits the data before the hold-out, but it makes the hold-out "
+                f"worse ({_fmt(base)} → {_fmt(ext)} µm RMSE): treat it as unconfirmed. What "
+                "this record's simulation gets wrong is not established by arfem's causes; "
+                "see the warnings and the residual analysis below.")
+    else:
+        parts = []
+        for c in causes or [{"cause": cause, "parameters": j["parameters"], "ci95": {}}]:
+            ci = c.get("ci95", {})
+            parts.append(f"`{c['cause']}` (" + ", ".join(
+                f"{k} = {_fmt(v, 4)}" + (f" [{_fmt(ci[k][0], 3)}, {_fmt(ci[k][1], 3)}]"
+                                         if k in ci else "")
+                for k, v in c["parameters"].items()) + ")")
+        unsure = any("holds 0" in w or "does not carry" in w or "noise σ" in w for w in warns) \
+            or any(_unbounded(k, v) for c in causes for k, v in c.get("ci95", {}).items())
+        sure = ("but its size is not pinned down by the data (see the warnings)" if unsure
+                else "with 95 % intervals in brackets")
+        acts = "; ".join(_ACTIONS[c] for c in dict.fromkeys(
+            x for c in (causes or [{"cause": cause}]) for x in c["cause"].split("+"))
+            if c in _ACTIONS)
+        text = (f"The simulation misses " + " and ".join(parts) + f", {sure}. Adding it cuts "
+                f"the hold-out error from {_fmt(base)} to {_fmt(ext)} µm RMSE "
+                f"({h['gain_pct']:.0f} %)"
+                + (f"; the MLR of eq. 18 scores {_fmt(mlr)} µm" if mlr is not None else "")
+                + (f". What to do: {acts}." if acts else "."))
+    L = ["## Verdict", "", text, "",
+         "![the record, the simulation as assumed and the extended model, with their "
+         "residuals](growth_residual.png)", "",
+         f"| model (fitted before t = {h['start_s'] / 3600:.2f} h) | hold-out RMSE [µm] |",
+         "|---|---|",
+         f"| simulation as assumed ({b['model']}) | {_fmt(base)} |",
+         f"| extended ({e['model']}) | {_fmt(ext)} |"]
+    if mlr is not None:
+        L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | {_fmt(mlr)} |")
+    return L + ["", "## Warnings and the named cause in full", ""]
+
+
 def _markdown(diag) -> str:
     j = diag.summary
     b, e, h = j["baseline"], j["extended"], j["holdout"]
-    L = [f"# Diagnosis of `{j['dataset']}`", ""]
+    L = [f"# Diagnosis of `{j['dataset']}`", ""] + verdict(j)
     for w in j.get("warnings", []):
         L += [f"> **Warning:** {w}", ""]
     causes = j.get("causes")

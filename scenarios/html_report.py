@@ -55,12 +55,13 @@ _INPUT_KEYS = (".toml", ".csv")
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2em auto;
 max-width:1100px;padding:0 1em;color:#222;line-height:1.4}
-h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
+h1{font-size:1.5em}.verdict{background:#f3f7fb;border-left:4px solid #2a6ebb;
+padding:.2em 1em .6em;margin:1em 0 2em}.verdict h2{margin-top:.6em;border:0}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
 margin-top:2em}h3{font-size:1.05em;margin-top:1.4em}
 table{border-collapse:collapse;margin:.5em 0 1em;font-size:.88em}
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:left;vertical-align:top}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
-figure{margin:1em 0}figure img{max-width:100%;height:auto;border:1px solid #ddd}
+figure{margin:1em 0}figure img,.verdict img{max-width:100%;height:auto;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555}pre{background:#f7f7f7;padding:.6em;overflow-x:auto;
 font-size:.82em}details{margin:.4em 0}code{font-size:.9em}.note{color:#666;font-size:.85em}
 """
@@ -190,13 +191,42 @@ def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> N
                 continue
 
 
-def _markdown(text: str, base: Path, root: Path) -> str:
+def _png_uri(p: Path) -> str | None:
+    """A PNG file as a ``data:`` URI, or None if it is not a PNG or too large to embed."""
+    if not p.is_file():
+        return None
+    data = p.read_bytes()
+    if len(data) > MAX_EMBED or data[:8] != b"\x89PNG\r\n\x1a\n":
+        return None
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+
+
+def _markdown(text: str, base: Path, root: Path, embed: set | None = None) -> str:
     """Markdown (CommonMark with pipe tables, by markdown-it-py) as HTML.
 
     Raw HTML in the text is escaped, not passed through; a link is kept only where it
     points to a file that exists (made relative to the report), else its text stays.
+    An image is embedded (``data:`` URI) when ``embed`` is given and the PNG exists (its
+    name is then added to ``embed``); otherwise it becomes a link to the file, so that
+    the page never depends on a file beside it.
     """
     md = MarkdownIt("commonmark", {"html": False}).enable("table")
+
+    def image(renderer, tokens, idx, options, env):
+        tok = tokens[idx]
+        src = unquote(tok.attrGet("src") or "")
+        alt = "".join(c.content for c in (tok.children or [])) or src
+        dest = base / src
+        uri = _png_uri(dest) if embed is not None and "://" not in src else None
+        if uri:
+            embed.add(Path(os.path.relpath(dest.resolve(), root.resolve())))
+            return f'<img src="{uri}" alt="{_e(alt)}">'
+        if "://" not in src and dest.is_file():
+            rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
+            return f'<a href="{_href(rel)}">{_e(alt)}</a>'
+        return _e(alt)
+
+    md.add_render_rule("image", image)
 
     def link_open(renderer, tokens, idx, options, env):
         href = tokens[idx].attrGet("href") or ""
@@ -216,6 +246,26 @@ def _markdown(text: str, base: Path, root: Path) -> str:
     md.add_render_rule("link_open", link_open)
     md.add_render_rule("link_close", link_close)
     return md.render(text, {})
+
+
+def _verdict(root: Path, shown: set) -> str:
+    """The ``## Verdict`` section of the folder's lead Markdown file (README.md, else
+    summary.md, else report.md) as HTML, its figure embedded, for the top of the page:
+    a reader meets the answer first and the machinery after it. The figures it shows are
+    added to ``shown`` (the outputs below then link to them instead of repeating them).
+    Empty if there is none."""
+    for name in ("README.md", "summary.md", "report.md"):
+        p = root / name
+        if not p.is_file():
+            continue
+        lines = p.read_text("utf-8", errors="replace").splitlines()
+        if "## Verdict" not in lines:
+            return ""
+        i = lines.index("## Verdict") + 1
+        j = next((k for k in range(i, len(lines)) if lines[k].startswith("## ")), len(lines))
+        body = _markdown("\n".join(lines[i:j]), root, root, embed=shown)
+        return f'<section class="verdict" id="verdict"><h2>Verdict</h2>{body}</section>'
+    return ""
 
 
 def _anchor(rel: Path) -> str:
@@ -299,6 +349,8 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
     by_dir: dict[Path, list[Path]] = {}
     for rel in files:
         by_dir.setdefault(rel.parent, []).append(rel)
+    shown: set = set()
+    lead = _verdict(root, shown)
     inputs: dict = {}
     sections = []
     toc = []
@@ -306,7 +358,9 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         rels = by_dir[d]
         name = "outputs" if d == Path(".") else d.as_posix()
         body = []
-        pngs = [r for r in rels if r.suffix.lower() == ".png"]
+        pngs = [r for r in rels if r.suffix.lower() == ".png" and r not in shown]
+        body += [f'<p class="note">{_e(r.as_posix())}: shown in the verdict above '
+                 f'(<a href="{_href(r)}">file</a>).</p>' for r in rels if r in shown]
         jsons = [r for r in rels if r.suffix.lower() == ".json"]
         mds = [r for r in rels if r.suffix.lower() == ".md"]
         tomls = [r for r in rels if r.suffix.lower() == ".toml"]
@@ -361,6 +415,7 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
         f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>"
         f"<h1>{_e(title)}</h1>"
+        + lead +
         f'<p class="note">Generated by <code>arfem report</code> from the files in this '
         "directory; the numbers are those of its JSON files, the figures are embedded, the "
         "links are relative.</p>"

@@ -282,8 +282,26 @@ def _figure(ev: Evaluation, path: Path) -> None:
 def _summary_md(ev: Evaluation) -> str:
     m = ev.metrics
     sc = ev.scenario
+    ok = m["max_abs_diff_pct_of_peak"] <= AR_TOLERANCE_PCT
+    verdict = (
+        f"The paper's AR(1) {'tracks' if ok else 'does not track'} the FEM on this scenario: "
+        f"its largest deviation is {m['max_abs_diff_pct_of_peak']:.2f} % of the FEM peak "
+        f"({m['max_abs_diff_um']:.3f} of {m['fem_peak_um']:.3f} µm; the CI check allows "
+        f"{AR_TOLERANCE_PCT:g} %). The corrected AR(1) deviates by "
+        f"{m['corrected_max_abs_diff_pct_of_peak']:.4f} %"
+        + ("." if ok else "; use it (`arfem check --model corrected`), or shorten Δτ / "
+           "reduce the Biot number hR/λ, where the paper's 1D model holds."))
     lines = [
         f"# {sc.name}",
+        "",
+        "## Verdict",
+        "",
+        verdict,
+        "",
+        "![growth of the FEM, the paper's AR(1) and the corrected AR(1), and their "
+        "differences](figure.png)",
+        "",
+        "## The scenario",
         "",
         sc.description,
         "",

@@ -137,9 +137,42 @@ def _fmt(x, nd=3) -> str:
     return f"{x:.{nd}g}" if isinstance(x, float) else str(x)
 
 
+def _verdict_lines(sweep: Sweep, rows: list[dict], summary: dict) -> list[str]:
+    """The page's opening: the answer of the sweep in a sentence, its key figure and its
+    one table (the thresholds), before the grid, the runs and the files."""
+    th = summary.get("thresholds") or []
+    concl = summary.get("conclusion") or {}
+    done = [r for r in rows if isinstance(r.get("max_abs_diff_pct_of_peak"), (int, float))]
+    if not done:
+        return ["## Verdict", "", "No point has been computed yet.", "", "## The sweep", ""]
+    worst = max(done, key=lambda r: r["max_abs_diff_pct_of_peak"])
+    best = min(done, key=lambda r: r["max_abs_diff_pct_of_peak"])
+    text = concl.get("text") or (
+        f"The paper's AR(1) deviates from the FEM by {best['max_abs_diff_pct_of_peak']:.3g} "
+        f"to {worst['max_abs_diff_pct_of_peak']:.3g} % of the peak over these "
+        f"{len(done)} points" + (f" ({len(rows) - len(done)} failed)" if len(done) < len(rows)
+                                 else "") + ".")
+    act = ("Use the paper's AR(1) only below those Biot numbers hR/λ; above, use the "
+           "corrected AR(1) (`--model corrected` in `arfem check`)."
+           if concl.get("paper_biot_at_3pct_range") else "")
+    L = ["## Verdict", "", text + (" " + act if act else ""), ""]
+    plots = summary.get("plots") or []
+    fig = "error_vs_biot.png" if "error_vs_biot.png" in plots else (plots[0] if plots else None)
+    if fig:
+        L += [f"![max |AR − FEM| against the Biot number, per Δτ]({fig})", ""]
+    if th:
+        L += ["| Δτ [s] | paper AR max error [%] | Bi at 3 % | corrected AR max error [%] |",
+              "|---|---|---|---|"]
+        L += [f"| {t['dtau_s']:g} | {t['paper_max_error_pct']:.3g} | "
+              f"{_fmt(t['paper_biot_at_3pct'])} | {t['corrected_max_error_pct']:.2g} |"
+              for t in th]
+        L.append("")
+    return L + ["## The sweep", ""]
+
+
 def render_readme(sweep: Sweep, rows: list[dict], summary: dict) -> str:
     """Markdown report of a sweep; every number in it is computed from ``rows``."""
-    L = [f"# Sweep `{sweep.name}`", ""]
+    L = [f"# Sweep `{sweep.name}`", ""] + _verdict_lines(sweep, rows, summary)
     if sweep.description:
         L += [sweep.description, ""]
     L += [f"Base scenario `{sweep.base}`; grid (full Cartesian product, "
