@@ -30,6 +30,7 @@ import numpy as np
 from arfem.io import read_text_utf8, read_toml
 from arfem.strict import check_keys
 from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
+from arfem.models.diagnosis.stats import resolution
 from arfem.params import InputError, Rod, check_plausible
 
 __all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
@@ -363,23 +364,26 @@ def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
     return amb
 
 
-def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> np.ndarray:
-    """The growth in a plausible range; its Hampel outlier flags (the σ floored at the
-    quantisation step where the sensor is quantised)."""
+def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> tuple[np.ndarray, float]:
+    """The growth in a plausible range; its Hampel outlier flags, with the σ floored at
+    the sensor's resolution where the growth is quantised (a one-quantum flicker of a
+    quantised reading is the sensor, not an outlier); and that resolution [µm]."""
     if g.size and np.isfinite(g).any():
         i = int(np.nanargmax(np.abs(g)))
         check_plausible("growth_um", float(g[i]),
                         f"{csv_path}: line {lines[i]}, column {label('growth_um')}")
-    steps = np.abs(np.diff(g))
-    steps = steps[steps > 1e-9]
-    floor = float(steps.min()) if steps.size else 0.0
-    outliers = hampel_outliers(g, floor=floor)
+    res = resolution(g)
+    if res > 0:
+        notes.append(f"growth_um is quantised at {res:.4g} µm (the sensor's resolution, "
+                     f"estimated from the steps): outlier and noise scales are floored at "
+                     f"it (quantisation noise σ = {res / np.sqrt(12):.3g} µm)")
+    outliers = hampel_outliers(g, floor=res)
     if outliers.any():
         shown = ", ".join(str(x) for x in lines[outliers][:10])
         notes.append(f"flagged {int(outliers.sum())} growth outliers (Hampel, 6 robust σ from a "
                      f"median of the 10 neighbouring samples): CSV lines {shown}"
                      + (" ..." if outliers.sum() > 10 else ""))
-    return outliers
+    return outliers, res
 
 
 def _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes: list) -> None:
@@ -462,7 +466,7 @@ def load_dataset(toml_path) -> Dataset:
         if np.isnan(v).any():
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
     g = values["growth_um"]
-    outliers = _growth_outliers(g, lines, csv_path, label, notes)
+    outliers, res = _growth_outliers(g, lines, csv_path, label, notes)
     gaps = sampling_gaps(t)
     _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes)
 
@@ -482,4 +486,4 @@ def load_dataset(toml_path) -> Dataset:
         temperatures={k: _frozen(v) for k, v in temps.items()}, rod=rod,
         initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
         sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols,
-        unobserved=unobserved)
+        unobserved=unobserved, growth_resolution_um=res)

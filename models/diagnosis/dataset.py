@@ -61,6 +61,9 @@ class Dataset:
     extra_columns : dict of str to ndarray
         Columns the contract does not know, carried as text over the kept rows (ignored
         by the models).
+    growth_resolution_um : float
+        Resolution of the growth sensor [µm] estimated from the record
+        (:func:`arfem.models.diagnosis.stats.resolution`), 0 where it is not quantised.
     unobserved : dict of str to ndarray
         Rows with a time and an input but an empty ``growth_um``: their ``time_s`` and
         inputs (``q_W_m2``/``speed_rpm``, ``ambient_C``, ``T_<name>_C``). The observation
@@ -86,6 +89,13 @@ class Dataset:
     line_numbers: np.ndarray | None = field(default=None, repr=False)
     extra_columns: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     unobserved: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    growth_resolution_um: float = 0.0
+
+    @property
+    def noise_floor_um(self) -> float:
+        """Smallest noise σ a rule may assume [µm]: the quantisation noise of the growth
+        sensor, resolution/√12 (0 for an unquantised record)."""
+        return self.growth_resolution_um / np.sqrt(12.0)
 
     @property
     def input_kind(self) -> str:

@@ -598,7 +598,9 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
         warnings.append(unit_warning)
         refused.update({c: "the record's magnitude is implausible (see warnings)"
                         for c, f in fits.items() if c != "none" and f is not None})
-    noise = st.noise_sigma(y[rows])
+    # the noise scale of every rule: second differences, floored at the quantisation
+    # noise of a quantised growth sensor (resolution/√12), which they under-read
+    noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     n_tests = sum(f is not None for f in fits.values()) - 1
     if refused and not unit_warning:
         # a refusal is worth a warning where the refused fit would have been named
@@ -839,7 +841,7 @@ def _add_mlr(summary, series, y, temps, rows, hold):
         series["mlr_um"] = pm
 
 
-def _add_version2(summary, v2, y, rows, hold, good, warnings):
+def _add_version2(summary, v2, y, rows, hold, good, warnings, noise_floor_um=0.0):
     """The contract's version-2 fields: ``causes`` (with 95 % intervals),
     ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
     ext = v2["ext"]
@@ -859,7 +861,7 @@ def _add_version2(summary, v2, y, rows, hold, good, warnings):
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
     if len(entries) > 1:
         summary["extended"]["model"] = ext.model
-    noise = st.noise_sigma(np.asarray(y, float)[good])
+    noise = max(st.noise_sigma(np.asarray(y, float)[good]), noise_floor_um)
     w = _holdout_warning(y, hold, noise)
     if w:
         warnings.append(w)
@@ -994,7 +996,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(hold.sum())})
     summary["ar_form"] = _ar_form(v2["extra_models"], y, hold)
     summary["ar_form_description"] = v2["ar_label"]
-    _add_version2(summary, v2, y, rows, hold, good, warnings)
+    _add_version2(summary, v2, y, rows, hold, good, warnings, ds.noise_floor_um)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})
