@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem import __version__
+from arfem.io import json_text
 from arfem.params import InputError, Rod, Schedule, paper_cycle
 
 __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult",
@@ -40,22 +41,6 @@ __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemR
 def _frame(columns: dict):
     import pandas as pd
     return pd.DataFrame(columns)
-
-
-def _jsonable(o):
-    if isinstance(o, dict):
-        return {str(k): _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return _jsonable(o.tolist())
-    if isinstance(o, (np.floating, float)):
-        return float(o) if np.isfinite(o) else None
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, Path):
-        return str(o)
-    return o
 
 
 def load_scenario(path):
@@ -129,7 +114,7 @@ class FemResult:
 
     def to_json(self) -> str:
         """The result as a JSON document (arrays as lists)."""
-        return json.dumps(_jsonable(self.__dict__))
+        return json_text(self.__dict__)
 
 
 def solve_fem(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
@@ -223,7 +208,7 @@ class AR1Result:
 
     def to_json(self) -> str:
         """The result as a JSON document (arrays as lists)."""
-        return json.dumps(_jsonable(self.__dict__))
+        return json_text(self.__dict__)
 
 
 def ar1(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
@@ -291,7 +276,7 @@ class Comparison:
 
     def to_json(self) -> str:
         """The metrics as a JSON document (the series are in :meth:`to_dataframe`)."""
-        return json.dumps(_jsonable(self.metrics))
+        return json_text(self.metrics)
 
 
 def _scenario(scenario):
@@ -342,7 +327,7 @@ class CheckResult:
 
     def to_json(self) -> str:
         """The result as a JSON document."""
-        return json.dumps(_jsonable(self.__dict__))
+        return json_text(self.__dict__)
 
 
 def check(scenario, *, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
@@ -450,7 +435,7 @@ class DiagnosisResult:
 
     def to_json(self) -> str:
         """``diagnosis.json`` as a string."""
-        return json.dumps(_jsonable(self.summary))
+        return json_text(self.summary)
 
 
 def _write_contract(df, folder: Path, rod: Rod | None, name: str, initial: str) -> Path:
