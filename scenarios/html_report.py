@@ -249,8 +249,8 @@ def _markdown(text: str, base: Path, root: Path, embed: set | None = None) -> st
 
 
 def _verdict(root: Path, shown: set) -> str:
-    """The ``## Verdict`` section of the folder's lead Markdown file (README.md, else
-    summary.md, else report.md) as HTML, its figure embedded, for the top of the page:
+    """The ``## Verdict`` section of the folder's Markdown (the first of README.md,
+    summary.md and report.md that has one) as HTML, its figure embedded, for the top of the page:
     a reader meets the answer first and the machinery after it. The figures it shows are
     added to ``shown`` (the outputs below then link to them instead of repeating them).
     Empty if there is none."""
@@ -260,7 +260,7 @@ def _verdict(root: Path, shown: set) -> str:
             continue
         lines = p.read_text("utf-8", errors="replace").splitlines()
         if "## Verdict" not in lines:
-            return ""
+            continue
         i = lines.index("## Verdict") + 1
         j = next((k for k in range(i, len(lines)) if lines[k].startswith("## ")), len(lines))
         body = _markdown("\n".join(lines[i:j]), root, root, embed=shown)
