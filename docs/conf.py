@@ -5,6 +5,7 @@ Build (warnings are errors, cross-references checked, the gallery executed):
     pip install -e ".[docs]"
     python -m sphinx -W --keep-going -n -b html docs docs/_build/html
 """
+import logging
 import os
 
 from docutils import nodes
@@ -14,6 +15,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # the examples' FEMs are sm
 os.environ.setdefault("MPLBACKEND", "agg")
 
 import arfem  # noqa: E402
+
+logging.getLogger("skfem").setLevel(logging.WARNING)   # the examples' assembly chatter
 
 project = "arfem"
 author = "the arfem developers"
