@@ -25,7 +25,8 @@ except PackageNotFoundError:  # pragma: no cover - running from an uninstalled t
 #: fast (the FEM, the diagnosis engine and matplotlib load only when a function runs).
 _API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult", "ar1",
         "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep", "diagnose",
-        "DiagnosisResult", "InputError")
+        "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model", "read_model",
+        "InputError")
 
 __all__ = ["__version__", *_API]
 

@@ -31,11 +31,13 @@ import numpy as np
 
 from arfem import __version__
 from arfem.io import json_text
+from arfem.models.compensator import Compensator, StateSpaceModel, ar1_model
 from arfem.params import InputError, Rod, Schedule, paper_cycle
 
 __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult",
            "ar1", "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep",
-           "diagnose", "DiagnosisResult", "InputError", "__version__"]
+           "diagnose", "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model",
+           "read_model", "InputError", "__version__"]
 
 
 def _frame(columns: dict):
@@ -522,3 +524,32 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
             msg = str(exc).replace(str(Path(tmp) / "data.csv"), "<DataFrame>")
             raise InputError(msg.replace(str(toml), "<DataFrame>")) from None
     return DiagnosisResult(str(d.summary.get("cause", "")), d.summary, d.series)
+
+
+def read_model(path) -> StateSpaceModel:
+    """Read and validate a ``model.json`` (written by ``arfem run``) for a compensator.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file (layout: the documentation's "model.json" page).
+
+    Returns
+    -------
+    StateSpaceModel
+
+    Raises
+    ------
+    InputError
+        Not JSON, another ``model_version``, a wrong shape, a model that would not settle.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "model.json"
+    >>> _ = p.write_text(json.dumps(ar1_model(0.99, 1e-4, dtau_s=30.0).to_dict()))
+    >>> read_model(p).dtau_s, read_model(p).inputs[0].name
+    (30.0, 'q_W_m2')
+    """
+    from arfem.scenarios.model_file import read_model as _read
+    return _read(path)

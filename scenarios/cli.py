@@ -7,6 +7,7 @@ Subcommands (each lives in its own module and registers itself here):
     arfem sweep SWEEP.toml --out DIR           parameter sweep (local processes or Dask)
     arfem diagnose CASE.toml --out DIR         what a simulation gets wrong on measured data
     arfem allocate SCENARIO --out DIR          precision allocation over a motion chain
+    arfem compensate MODEL RECORD --out DIR    replay a compensator on a measured record
 
 Bad input ends with one line ``arfem: error: <where>: <what>`` and exit status 2.
 """
@@ -29,6 +30,7 @@ COMMANDS = {
     "allocate": "arfem.scenarios.allocate",
     "check": "arfem.scenarios.check",
     "report": "arfem.scenarios.html_report",
+    "compensate": "arfem.scenarios.compensate",
 }
 
 

@@ -28,6 +28,7 @@ __all__ = ["Evaluation", "build_model", "evaluate", "write_outputs", "run_scenar
 #: The files ``write_outputs`` puts into --out (checked before the work: never an input
 #: or a file arfem did not write; see arfem.scenarios.outdir).
 WRITES = ("timeseries.csv", "summary.json", "figure.png", "summary.md", "temperature_3d.png",
+          "model.json", "model_corrected.json",
           "scenario.toml", "report.html", "fields/fields.xdmf3", "fields/fields.h5",
           "fields/peak.xdmf")
 
@@ -346,6 +347,28 @@ def _timeseries_columns(ev: Evaluation) -> dict:
     }
 
 
+def _write_models(ev: Evaluation, out_dir: Path) -> list[str]:
+    """``model.json`` (the paper's AR(1), eqs. 12-14) and ``model_corrected.json`` (the
+    radial-mode corrected AR(1)) at the scenario's Δτ, for ``arfem compensate``."""
+    from arfem import __version__
+    from arfem.models.compensator import ar1_model
+    from arfem.scenarios.model_file import write_model
+    rod, dt = ev.scenario.rod, ev.scenario.dtau_s
+    out = []
+    for name, kind in (("model.json", "paper_ar1"), ("model_corrected.json", "corrected_ar1")):
+        if kind == "paper_ar1":
+            c1, c2 = c1_paper(rod, dt), c2_paper(rod, dt, 1.0)
+            how = "paper eqs. 12-14 (C1 = exp(-b dtau), C2 per unit q)"
+        else:
+            c1, c2 = corrected_coefficients(rod, dt, 1.0)
+            how = "arfem's radial-mode corrected AR(1) (slowest axially uniform mode)"
+        write_model(out_dir / name, ar1_model(
+            c1, c2 * 1e6, dtau_s=dt, kind=kind, arfem_version=__version__,
+            description=f"{how}, for the rod of scenario {ev.scenario.name!r}"))
+        out.append(name)
+    return out
+
+
 def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False,
                   progress=None) -> list[str]:
     """Write every output of one evaluation into ``out_dir`` (a staging directory);
@@ -368,6 +391,7 @@ def write_outputs(ev: Evaluation, out_dir: Path, fixed_precision: bool = False,
     summary = {**ev.metrics, **extra}
     write_json(out_dir / "summary.json", det.fixed_metrics(summary) if fixed_precision
                else summary)
+    written += _write_models(ev, out_dir)
     progress("figure")
     _figure(ev, out_dir / "figure.png")
     atomic_write_text(out_dir / "summary.md", _summary_md(ev))

@@ -1,0 +1,313 @@
+"""A causal thermal-error compensator: a discrete-time state-space model and one cycle.
+
+The seed paper's §3.3 writes its AR(1) into the controller's temperature compensation
+every interval (Siemens: position-independent compensation ``SD43900``, enabled by
+``MD32750``): the offset sent each interval is minus the predicted growth. This module
+holds the model in a form a compensator can run and the one function every cycle
+calls, in replay and in live operation alike:
+
+    x_k = A x_{k−1} + B u_k,      ŷ_k = C x_k + D u_k + d0            (growth [µm])
+    offset_k = clamp(−ŷ_k, ±max_offset_um), rate-limited to ±max_step_um per cycle
+
+``u_k`` are the inputs read at interval k (the heat flux over the interval that ends
+there, temperatures, …), so the offset for interval k uses inputs up to k only. The
+paper's AR(1) (eq. 12) is the one-state case A = C1, B = C2 per unit q (eq. 13–14),
+C = 1. A missing, stale or non-finite input holds the last offset and raises an alarm;
+the state then advances with the last good inputs, so that it stays on time.
+
+A measured growth (a touch probe) corrects the state by a Kalman update whose noises
+come from the fit: Q the one-step innovation variance, R the measurement noise.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from arfem.params import InputError
+
+__all__ = ["MODEL_VERSION", "InputSpec", "StateSpaceModel", "Cycle", "Compensator",
+           "ar1_model"]
+
+#: version of the ``model.json`` layout this module reads and writes
+MODEL_VERSION = 1
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    """One input the model reads: its name as in the measured-data contract, and unit."""
+
+    name: str
+    unit: str
+
+
+@dataclass(frozen=True)
+class StateSpaceModel:
+    """A discrete-time linear model of the growth at the record's Δτ.
+
+    Attributes
+    ----------
+    kind : str
+        What it is, e.g. ``"paper_ar1"`` or ``"corrected_ar1"``.
+    dtau_s : float
+        Interval Δτ [s] the matrices belong to.
+    A, B, C, D : ndarray
+        (n, n), (n, m), (1, n), (1, m): state update and output; growth in [µm].
+    d0_um : float
+        Constant output term [µm].
+    inputs : tuple of InputSpec
+        The m inputs, in the order of the columns of B and D.
+    x0 : ndarray
+        Initial state (n,) [µm].
+    Q, R : float
+        Innovation variance of the state [µm²] and measurement noise variance [µm²],
+        for the probe update.
+    description : str
+        Where the model comes from (paper equations, fit window).
+    arfem_version : str
+        The arfem that wrote it.
+    """
+
+    kind: str
+    dtau_s: float
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    inputs: tuple
+    x0: np.ndarray
+    d0_um: float = 0.0
+    Q: float = 0.0
+    R: float = 0.0
+    description: str = ""
+    arfem_version: str = ""
+
+    @property
+    def n_states(self) -> int:
+        return int(self.A.shape[0])
+
+    def to_dict(self) -> dict:
+        """The ``model.json`` document (``docs/model-json.md``)."""
+        return {"model_version": MODEL_VERSION, "kind": self.kind, "dtau_s": self.dtau_s,
+                "inputs": [{"name": i.name, "unit": i.unit} for i in self.inputs],
+                "output": {"name": "growth_um", "unit": "µm"},
+                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
+                "D": self.D.tolist(), "d0_um": self.d0_um, "x0": self.x0.tolist(),
+                "noise": {"Q_um2": self.Q, "R_um2": self.R},
+                "description": self.description, "arfem_version": self.arfem_version}
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
+        """Validate a ``model.json`` document; :class:`InputError` names the key.
+
+        Examples
+        --------
+        >>> m = ar1_model(0.99, 1e-4, dtau_s=30.0)
+        >>> StateSpaceModel.from_dict(m.to_dict()).A.tolist()
+        [[0.99]]
+        >>> StateSpaceModel.from_dict({**m.to_dict(), "model_version": 7})
+        Traceback (most recent call last):
+        ...
+        arfem.params.InputError: model: model_version: is 7; this arfem reads version 1
+        """
+        if not isinstance(d, dict):
+            raise InputError("must be a JSON object", where)
+        known = {"model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C", "D",
+                 "d0_um", "x0", "noise", "description", "arfem_version"}
+        extra = sorted(set(d) - known)
+        if extra:
+            raise InputError(f"unknown key {extra[0]!r}", where)
+        if d.get("model_version") != MODEL_VERSION:
+            raise InputError(f"is {d.get('model_version')!r}; this arfem reads version "
+                             f"{MODEL_VERSION}", f"{where}: model_version")
+
+        def mat(key, shape=None):
+            try:
+                a = np.asarray(d[key], float)
+            except KeyError:
+                raise InputError("missing", f"{where}: {key}") from None
+            except (TypeError, ValueError):
+                raise InputError("must be numbers", f"{where}: {key}") from None
+            if not np.all(np.isfinite(a)):
+                raise InputError("must be finite", f"{where}: {key}")
+            if shape is not None and a.shape != shape:
+                raise InputError(f"has shape {a.shape}, needs {shape}", f"{where}: {key}")
+            return a
+
+        dtau = d.get("dtau_s")
+        if not isinstance(dtau, (int, float)) or not math.isfinite(dtau) or dtau <= 0:
+            raise InputError(f"must be a positive number of seconds, got {dtau!r}",
+                             f"{where}: dtau_s")
+        ins = d.get("inputs")
+        if not isinstance(ins, list) or not all(isinstance(i, dict) and isinstance(
+                i.get("name"), str) and isinstance(i.get("unit"), str) for i in ins):
+            raise InputError("must be a list of {name, unit}", f"{where}: inputs")
+        A = mat("A")
+        if A.ndim != 2 or A.shape[0] != A.shape[1]:
+            raise InputError(f"must be square, got shape {A.shape}", f"{where}: A")
+        n, m = A.shape[0], len(ins)
+        B, C, D = mat("B", (n, m)), mat("C", (1, n)), mat("D", (1, m))
+        x0 = mat("x0", (n,))
+        if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+            raise InputError("has an eigenvalue on or outside the unit circle: the model "
+                             "would not settle", f"{where}: A")
+        noise = d.get("noise") or {}
+        return cls(kind=str(d.get("kind", "")), dtau_s=float(dtau), A=A, B=B, C=C, D=D,
+                   inputs=tuple(InputSpec(i["name"], i["unit"]) for i in ins), x0=x0,
+                   d0_um=float(d.get("d0_um", 0.0)), Q=float(noise.get("Q_um2", 0.0)),
+                   R=float(noise.get("R_um2", 0.0)),
+                   description=str(d.get("description", "")),
+                   arfem_version=str(d.get("arfem_version", "")))
+
+
+def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",
+              Q_um2: float = 0.0, R_um2: float = 0.0, description: str = "",
+              arfem_version: str = "") -> StateSpaceModel:
+    """The AR(1) ΔL_k = C1 ΔL_{k−1} + C2·q_k (paper eq. 12) as a one-state model.
+
+    Parameters
+    ----------
+    c1 : float
+        C1 = e^{−bΔτ} (paper eq. 13) [-], in [0, 1).
+    c2_um_per_W_m2 : float
+        C2 per unit heat flux (paper eq. 14 is linear in q) [µm per W/m²].
+    dtau_s : float
+        Interval Δτ [s].
+
+    Returns
+    -------
+    StateSpaceModel
+        Input ``q_W_m2``; output growth [µm].
+
+    Examples
+    --------
+    >>> m = ar1_model(0.9909, 0.1985 / 2000, dtau_s=30.0)
+    >>> c = Compensator(m)
+    >>> round(c.step({"q_W_m2": 2000.0}).predicted_growth_um, 4)
+    0.1985
+    """
+    return StateSpaceModel(kind=kind, dtau_s=float(dtau_s), A=np.array([[float(c1)]]),
+                           B=np.array([[float(c2_um_per_W_m2)]]), C=np.array([[1.0]]),
+                           D=np.zeros((1, 1)), inputs=(InputSpec("q_W_m2", "W/m²"),),
+                           x0=np.zeros(1), Q=float(Q_um2), R=float(R_um2),
+                           description=description, arfem_version=arfem_version)
+
+
+@dataclass(frozen=True)
+class Cycle:
+    """What one compensator cycle decided.
+
+    Attributes
+    ----------
+    offset_um : float
+        The correction to write [µm] (−predicted growth, clamped and rate-limited).
+    predicted_growth_um : float
+        The model's growth [µm] (NaN where the inputs were not usable).
+    alarms : tuple of str
+        ``missing:NAME``, ``nonfinite:NAME``, ``stale:NAME`` (from the transport),
+        ``clamped``, ``rate_limited``.
+    held : bool
+        True when the last offset was kept because an input was not usable.
+    """
+
+    offset_um: float
+    predicted_growth_um: float
+    alarms: tuple = ()
+    held: bool = False
+
+
+@dataclass
+class Compensator:
+    """Runs a :class:`StateSpaceModel` cycle by cycle; the same object in replay and live.
+
+    Parameters
+    ----------
+    model : StateSpaceModel
+    max_offset_um : float
+        Limit on the absolute offset [µm] (the controller's compensation range).
+    max_step_um : float
+        Largest change of the offset per cycle [µm] (large jumps spoil the surface).
+    """
+
+    model: StateSpaceModel
+    max_offset_um: float = math.inf
+    max_step_um: float = math.inf
+    x: np.ndarray = field(init=False)
+    P: np.ndarray = field(init=False)
+    offset_um: float = field(init=False, default=0.0)
+    _u_last: np.ndarray | None = field(init=False, default=None)
+
+    def __post_init__(self):
+        for name in ("max_offset_um", "max_step_um"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise InputError(f"must be > 0, got {v!r}", name)
+        self.x = self.model.x0.astype(float).copy()
+        self.P = np.zeros((self.model.n_states,) * 2)
+
+    def step(self, inputs: Mapping[str, float | None], alarms=()) -> Cycle:
+        """One cycle: read the inputs of interval k, advance the state, set the offset.
+
+        Parameters
+        ----------
+        inputs : mapping
+            Input name → value in the unit of :attr:`StateSpaceModel.inputs`; ``None``
+            for a value the transport could not read.
+        alarms : iterable of str
+            Alarms from the transport (e.g. ``"stale:speed_rpm"``); any holds the offset.
+        """
+        mdl = self.model
+        alarms = list(alarms)
+        u = np.empty(len(mdl.inputs))
+        for j, spec in enumerate(mdl.inputs):
+            v = inputs.get(spec.name)
+            if v is None:
+                alarms.append(f"missing:{spec.name}")
+                u[j] = np.nan
+            else:
+                try:
+                    u[j] = float(v)
+                except (TypeError, ValueError):
+                    u[j] = np.nan
+                if not math.isfinite(u[j]):
+                    alarms.append(f"nonfinite:{spec.name}")
+        usable = not alarms
+        if usable:
+            self._u_last = u
+        u_run = u if usable else self._u_last
+        if u_run is not None:                    # keep the state on time
+            self.x = mdl.A @ self.x + mdl.B @ u_run
+            self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
+        if not usable:
+            return Cycle(self.offset_um, float("nan"), tuple(alarms), True)
+        y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
+        want = -y
+        if abs(want) > self.max_offset_um:
+            want = math.copysign(self.max_offset_um, want)
+            alarms.append("clamped")
+        if abs(want - self.offset_um) > self.max_step_um:
+            want = self.offset_um + math.copysign(self.max_step_um, want - self.offset_um)
+            alarms.append("rate_limited")
+        self.offset_um = float(want)
+        return Cycle(self.offset_um, y, tuple(alarms), False)
+
+    def probe(self, measured_growth_um: float) -> float:
+        """Kalman update of the state with a measured growth [µm]; returns the gain.
+
+        The prediction error is weighted by P Cᵀ / (C P Cᵀ + R); with R = 0 the state
+        jumps to the measurement, with Q = 0 (P = 0) the probe changes nothing.
+        """
+        mdl = self.model
+        if mdl.n_states == 0 or not math.isfinite(measured_growth_um):
+            return 0.0
+        u = self._u_last if self._u_last is not None else np.zeros(len(mdl.inputs))
+        y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
+        s = float((mdl.C @ self.P @ mdl.C.T)[0, 0] + mdl.R)
+        if s <= 0:
+            return 0.0
+        K = (self.P @ mdl.C.T)[:, 0] / s
+        self.x = self.x + K * (measured_growth_um - y)
+        self.P = (np.eye(mdl.n_states) - np.outer(K, mdl.C[0])) @ self.P
+        return float(K @ mdl.C[0])
