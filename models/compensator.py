@@ -29,7 +29,7 @@ import numpy as np
 from arfem.params import InputError
 
 __all__ = ["MODEL_VERSION", "InputSpec", "StateSpaceModel", "Cycle", "Compensator",
-           "ar1_model"]
+           "ar1_model", "fit_speed_ar1_model", "fit_mlr_model"]
 
 #: version of the ``model.json`` layout this module reads and writes
 MODEL_VERSION = 1
@@ -83,10 +83,27 @@ class StateSpaceModel:
     R: float = 0.0
     description: str = ""
     arfem_version: str = ""
+    input_maps: dict = field(default_factory=dict)
 
     @property
     def n_states(self) -> int:
         return int(self.A.shape[0])
+
+    def mapped(self, name: str, value: float) -> tuple[float, bool]:
+        """An input as the matrices take it: through its piecewise-linear map where the
+        model has one (e.g. spindle speed → C2 of the speed's level, paper eq. 17), with
+        linear extrapolation beyond the fitted points; True where it extrapolated."""
+        m = self.input_maps.get(name)
+        if m is None:
+            return value, False
+        x, y = m
+        if x.size == 1:
+            return float(y[0]), value != x[0]
+        if value < x[0] or value > x[-1]:
+            i = 0 if value < x[0] else -2
+            slope = (y[i + 1] - y[i]) / (x[i + 1] - x[i])
+            return float(y[i] + slope * (value - x[i])), True
+        return float(np.interp(value, x, y)), False
 
     def to_dict(self) -> dict:
         """The ``model.json`` document (``docs/model-json.md``)."""
@@ -96,6 +113,8 @@ class StateSpaceModel:
                 "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
                 "D": self.D.tolist(), "d0_um": self.d0_um, "x0": self.x0.tolist(),
                 "noise": {"Q_um2": self.Q, "R_um2": self.R},
+                "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
+                               for k, (x, y) in self.input_maps.items()},
                 "description": self.description, "arfem_version": self.arfem_version}
 
     @classmethod
@@ -115,7 +134,7 @@ class StateSpaceModel:
         if not isinstance(d, dict):
             raise InputError("must be a JSON object", where)
         known = {"model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C", "D",
-                 "d0_um", "x0", "noise", "description", "arfem_version"}
+                 "d0_um", "x0", "noise", "input_maps", "description", "arfem_version"}
         extra = sorted(set(d) - known)
         if extra:
             raise InputError(f"unknown key {extra[0]!r}", where)
@@ -153,13 +172,26 @@ class StateSpaceModel:
         if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
             raise InputError("has an eigenvalue on or outside the unit circle: the model "
                              "would not settle", f"{where}: A")
+        maps = {}
+        for name, mp in (d.get("input_maps") or {}).items():
+            key = f"{where}: input_maps.{name}"
+            if name not in {i["name"] for i in ins}:
+                raise InputError("maps an input the model does not read", key)
+            try:
+                x, y = np.asarray(mp["x"], float), np.asarray(mp["y"], float)
+            except (KeyError, TypeError, ValueError):
+                raise InputError("needs numeric lists x and y", key) from None
+            if x.ndim != 1 or x.shape != y.shape or x.size == 0 or np.any(np.diff(x) <= 0) \
+                    or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+                raise InputError("x must increase strictly and match y, all finite", key)
+            maps[name] = (x, y)
         noise = d.get("noise") or {}
         return cls(kind=str(d.get("kind", "")), dtau_s=float(dtau), A=A, B=B, C=C, D=D,
                    inputs=tuple(InputSpec(i["name"], i["unit"]) for i in ins), x0=x0,
                    d0_um=float(d.get("d0_um", 0.0)), Q=float(noise.get("Q_um2", 0.0)),
                    R=float(noise.get("R_um2", 0.0)),
                    description=str(d.get("description", "")),
-                   arfem_version=str(d.get("arfem_version", "")))
+                   arfem_version=str(d.get("arfem_version", "")), input_maps=maps)
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",
@@ -206,8 +238,9 @@ class Cycle:
     predicted_growth_um : float
         The model's growth [µm] (NaN where the inputs were not usable).
     alarms : tuple of str
-        ``missing:NAME``, ``nonfinite:NAME``, ``stale:NAME`` (from the transport),
-        ``clamped``, ``rate_limited``.
+        ``missing:NAME``, ``nonfinite:NAME``, ``stale:NAME`` (from the transport): the
+        offset is held; ``clamped``, ``rate_limited``, ``extrapolated:NAME`` (an input
+        beyond its map's fitted points): informative.
     held : bool
         True when the last offset was kept because an input was not usable.
     """
@@ -274,6 +307,12 @@ class Compensator:
                 if not math.isfinite(u[j]):
                     alarms.append(f"nonfinite:{spec.name}")
         usable = not alarms
+        notes = []
+        if usable:
+            for j, spec in enumerate(mdl.inputs):
+                u[j], extrapolated = mdl.mapped(spec.name, u[j])
+                if extrapolated:
+                    notes.append(f"extrapolated:{spec.name}")
         if usable:
             self._u_last = u
         u_run = u if usable else self._u_last
@@ -282,6 +321,7 @@ class Compensator:
             self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
         if not usable:
             return Cycle(self.offset_um, float("nan"), tuple(alarms), True)
+        alarms += notes                           # informative: the offset is not held
         y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
         want = -y
         if abs(want) > self.max_offset_um:
@@ -311,3 +351,100 @@ class Compensator:
         self.x = self.x + K * (measured_growth_um - y)
         self.P = (np.eye(mdl.n_states) - np.outer(K, mdl.C[0])) @ self.P
         return float(K @ mdl.C[0])
+
+
+def _noise_var(y) -> float:
+    d2 = np.diff(np.asarray(y, float), 2)
+    d2 = d2[np.isfinite(d2)]
+    return float(np.mean(d2 ** 2) / 6.0) if d2.size >= 10 else 0.0
+
+
+def fit_speed_ar1_model(growth_um, speed_rpm, *, dtau_s: float,
+                        description: str = "", arfem_version: str = "") -> StateSpaceModel:
+    """The paper's AR(1) calibrated on a speed record (paper eq. 17) as a model.
+
+    C1 is shared, one C2 is fitted per spindle speed seen; the speed → C2 map is
+    piecewise linear through the fitted levels (a speed between two levels gets the
+    interpolated C2, one beyond them the extrapolated value, flagged). The state noise Q
+    is the variance of the one-step residual of the fit, R that of the measurement
+    (second differences), for the probe update.
+
+    Parameters
+    ----------
+    growth_um : array_like
+        ΔL_0 … ΔL_N [µm], every Δτ, over the fit window.
+    speed_rpm : array_like
+        Speed on each of the N steps [1/min] (the row's value: over the interval ending
+        there).
+    dtau_s : float
+        Sampling interval Δτ [s].
+
+    Returns
+    -------
+    StateSpaceModel
+        Input ``speed_rpm``, mapped to C2 [µm]; A = C1, B = 1, C = 1.
+
+    Raises
+    ------
+    InputError
+        If the fitted C1 is not in [0, 1) (the model would not settle).
+
+    Examples
+    --------
+    >>> from arfem.models.ar1 import ar1_simulate
+    >>> sp = np.repeat([0.0, 3000.0, 0.0, 6000.0, 0.0], 200)
+    >>> g = ar1_simulate(0.99, np.where(sp == 3000, 0.1, np.where(sp == 6000, 0.25, 0.0)))
+    >>> m = fit_speed_ar1_model(g, sp, dtau_s=15.0)
+    >>> round(float(m.A[0, 0]), 4), [round(float(v), 4) for v in m.input_maps["speed_rpm"][1]]
+    (0.99, [0.0, 0.1, 0.25])
+    """
+    from arfem.models.ar1 import fit_ar1
+    g = np.asarray(growth_um, float)
+    sp = np.asarray(speed_rpm, float)
+    fit = fit_ar1(g, sp)
+    if not 0.0 <= fit.c1 < 1.0:
+        raise InputError(f"eq. 17 gives C1 = {fit.c1:.6g}, not in [0, 1): this AR(1) would "
+                         "not settle, so it cannot run as a compensator", "growth_um")
+    levels = np.array(sorted(fit.c2))
+    return StateSpaceModel(
+        kind="paper_ar1_speed", dtau_s=float(dtau_s), A=np.array([[fit.c1]]),
+        B=np.array([[1.0]]), C=np.array([[1.0]]), D=np.zeros((1, 1)),
+        inputs=(InputSpec("speed_rpm", "1/min"),), x0=np.zeros(1),
+        Q=fit.residual_rms ** 2, R=_noise_var(g), description=description,
+        arfem_version=arfem_version,
+        input_maps={"speed_rpm": (levels, np.array([fit.c2[v] for v in levels]))})
+
+
+def fit_mlr_model(growth_um, temperatures: dict, *, dtau_s: float, description: str = "",
+                  arfem_version: str = "") -> StateSpaceModel:
+    """Multiple linear regression of the growth on temperatures (paper eq. 18) as a
+    static model: ŷ = β0 + Σ β_i T_i (no state; probes cannot correct it).
+
+    Parameters
+    ----------
+    growth_um : array_like
+        Growth [µm] over the fit window.
+    temperatures : dict
+        ``T_<name>_C`` → series [°C] on the same rows; series with a non-finite value are
+        left out.
+    dtau_s : float
+        Sampling interval Δτ [s].
+
+    Examples
+    --------
+    >>> T = np.linspace(20, 30, 100)
+    >>> m = fit_mlr_model(3.0 * (T - 20) + 1.0, {"T_a_C": T}, dtau_s=60.0)
+    >>> round(float(m.D[0, 0]), 6), round(m.d0_um, 6)
+    (3.0, -59.0)
+    """
+    g = np.asarray(growth_um, float)
+    names = [k for k, v in temperatures.items() if np.all(np.isfinite(np.asarray(v, float)))]
+    if not names:
+        raise InputError("no complete temperature series to regress on", "temperatures")
+    X = np.column_stack([np.ones_like(g)] + [np.asarray(temperatures[k], float) for k in names])
+    coef, *_ = np.linalg.lstsq(X, g, rcond=None)
+    return StateSpaceModel(
+        kind="mlr", dtau_s=float(dtau_s), A=np.zeros((0, 0)), B=np.zeros((0, len(names))),
+        C=np.zeros((1, 0)), D=coef[1:][None, :], inputs=tuple(InputSpec(k, "°C") for k in names),
+        x0=np.zeros(0), d0_um=float(coef[0]), description=description,
+        arfem_version=arfem_version)

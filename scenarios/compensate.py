@@ -58,8 +58,13 @@ def _record_inputs(ds) -> dict:
 
 
 def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
-           probe_every_s: float | None = None, where: str = "record") -> dict:
+           probe_every_s: float | None = None, score_from_s: float = 0.0,
+           where: str = "record") -> dict:
     """Step ``model`` through the dataset ``ds`` causally; the series and the figures.
+
+    The whole record is stepped through (the state starts at the model's ``x0`` at the
+    first row); the error measures are taken over the rows at or after ``score_from_s``
+    [s] (e.g. the end of the model's fit window, for an out-of-sample figure).
 
     Returns a dict with the per-row ``series`` and the ``summary`` numbers.
     """
@@ -89,8 +94,10 @@ def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
             gains.append(comp.probe(float(g[k])))
             next_probe += probe_every_s
     resid = g + off
-    ok = np.isfinite(g)
+    ok = np.isfinite(g) & (t >= score_from_s)
     ok[0] = False
+    if not ok.any():
+        raise InputError(f"has no row at or after {score_from_s:g} s to score", where)
 
     def rms(x):
         return float(np.sqrt(np.mean(x[ok] ** 2)))
@@ -101,6 +108,7 @@ def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
     summary = {
         "model_kind": model.kind, "model_description": model.description,
         "dataset": ds.name, "dtau_s": model.dtau_s, "n_cycles": int(n - 1),
+        "score_from_s": float(score_from_s), "n_scored": int(ok.sum()),
         "rms_before_um": rms(g), "rms_after_um": rms(resid),
         "peak_to_peak_before_um": pp(g), "peak_to_peak_after_um": pp(resid),
         "compensation_rate_rms_pct": 100.0 * (1.0 - rms(resid) / rms(g)) if rms(g) else None,
@@ -174,10 +182,11 @@ def _markdown(res) -> str:
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "compensate", help="replay a compensator (model.json) on a measured record",
-        description="Step a state-space model (model.json, written by arfem run) through a "
+        description="Step a state-space model (model.json, written by arfem run or arfem "
+                    "diagnose) through a "
                     "measured record strictly causally, apply the offset each interval, and "
                     "report the error that is left (the seed paper's Fig. 8).")
-    p.add_argument("model", help="model.json")
+    p.add_argument("model", help="model.json (written by arfem run or arfem diagnose)")
     p.add_argument("record", help="dataset TOML (measured-data contract)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
@@ -187,6 +196,9 @@ def add_parser(sub) -> None:
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
                         "correct the model's state (Kalman update); default: never")
+    p.add_argument("--score-from", type=float, default=0.0, metavar="SECONDS",
+                   help="measure the error from this time on [s] (e.g. the end of the "
+                        "model's fit window); the replay itself always starts at the first row")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
 
@@ -201,8 +213,11 @@ def main(args) -> int:
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model)
     ds = load_dataset(args.record)
+    if not math.isfinite(args.score_from):
+        raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
+                         "--score-from")
     res = replay(model, ds, max_offset_um=args.max_offset_um, max_step_um=args.max_step_um,
-                 probe_every_s=probe, where=str(args.record))
+                 probe_every_s=probe, score_from_s=args.score_from, where=str(args.record))
     with staged_out_dir(args.out, args.force) as stage:
         write_csv(stage / "compensated.csv", res["series"])
         write_json(stage / "summary.json", res["summary"])

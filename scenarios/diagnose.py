@@ -2,11 +2,14 @@
 measured record, the physical cause, and the hold-out gain of the extended model.
 
 Writes ``diagnosis.json`` (the measured-data contract's keys and more), ``report.md``,
-``series.csv``, figures and ``report.html``, atomically. Bad input: one line, exit 2, ``--out`` untouched.
+``series.csv``, figures, ``report.html`` and the compensator models fitted on the same
+window (``model.json``: the paper's AR(1); ``model_mlr.json``: eq. 18 where the record has
+temperatures; see ``arfem compensate``), atomically. Bad input: one line, exit 2, ``--out`` untouched.
 """
 from __future__ import annotations
 
 from arfem.models.diagnosis.engine import Diagnosis, diagnose
+from arfem.params import InputError
 from arfem.scenarios.dataset import load_dataset
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
@@ -17,7 +20,47 @@ __all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
 WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
-          "correlations.png", "report.html")
+          "correlations.png", "report.html", "model.json", "model_mlr.json")
+
+
+def compensator_models(ds, fit_end_s: float) -> dict:
+    """The models ``arfem compensate`` can run, fitted on the rows before ``fit_end_s``
+    (the diagnosis's hold-out start): ``{"model.json": …, "model_mlr.json": …}``.
+
+    A ``q_W_m2`` record gets the paper's AR(1) of its ``[rod]`` (eqs. 12-14, nothing
+    fitted); a ``speed_rpm`` record the AR(1) calibrated by eq. 17 with its speed → C2
+    map; a record with complete temperatures also the MLR of eq. 18. A fit that would
+    not settle (C1 >= 1) is not exported; ``"not_exported"`` then says why.
+    """
+    import numpy as np
+
+    from arfem import __version__
+    from arfem.models.ar1 import c1_paper, c2_paper
+    from arfem.models.compensator import ar1_model, fit_mlr_model, fit_speed_ar1_model
+    t = np.asarray(ds.time_s, float)
+    dt = float(np.median(np.diff(t)))
+    fit = t < fit_end_s
+    span = f"fitted on {t[fit][0] / 3600:.2f}-{t[fit][-1] / 3600:.2f} h of {ds.name!r}"
+    out = {}
+    if ds.q_W_m2 is not None:
+        out["model.json"] = ar1_model(
+            c1_paper(ds.rod, dt), c2_paper(ds.rod, dt, 1.0) * 1e6, dtau_s=dt,
+            arfem_version=__version__,
+            description=f"paper eqs. 12-14 for the [rod] of {ds.name!r} (not fitted)")
+    else:
+        try:
+            out["model.json"] = fit_speed_ar1_model(
+                ds.growth_um[fit], ds.speed_rpm[fit][1:], dtau_s=dt,
+                arfem_version=__version__,
+                description=f"paper AR(1) calibrated by eq. 17, {span}")
+        except InputError as exc:          # e.g. C1 >= 1: no compensator to export
+            out["not_exported"] = f"model.json: {exc}"
+    temps = {k: np.asarray(v, float)[fit] for k, v in ds.temperatures.items()}
+    if any(np.all(np.isfinite(v)) for v in temps.values()):
+        out["model_mlr.json"] = fit_mlr_model(ds.growth_um[fit], temps, dtau_s=dt,
+                                              arfem_version=__version__,
+                                              description=f"MLR of eq. 18, {span}")
+    return out
 
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
@@ -61,12 +104,21 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
+    from arfem.scenarios.model_file import write_model
     prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
-    diag = diagnose_file(case, holdout_start_s, frame_search, progress, drift_last)
+    if progress is not None:
+        progress("reading the dataset")
+    ds = load_dataset(case)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     if progress is not None:
         progress("writing outputs")
+    models = compensator_models(ds, diag.summary["holdout"]["start_s"])
+    if "not_exported" in models:
+        print(f"note: {models.pop('not_exported')}")
     with staged_out_dir(out, force) as stage:
         write_all(diag, stage)
+        for name, m in models.items():
+            write_model(stage / name, m)
         write_html_report(stage)
     return diag.summary
 

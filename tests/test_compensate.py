@@ -149,3 +149,27 @@ def test_bad_model_or_mismatch_is_one_line_exit_2(workspace, tmp_path):
     assert r.returncode == 2 and "is not JSON" in r.stderr
     r = _cli(d / "run" / "model.json", rec, "--out", tmp_path / "o4", "--probe-every", "soon")
     assert r.returncode == 2 and "--probe-every" in r.stderr
+
+
+def test_speed_fit_that_would_not_settle_is_refused():
+    """FL_THERMAL ch5 fitted by eq. 17 gives C1 = 1.0007: such a model would run away
+    (its replay reached 4000 µm), so it is not exported as a compensator."""
+    from arfem.models.compensator import fit_speed_ar1_model
+    g = np.cumsum(np.full(400, 0.01))                    # a ramp: C1 fits at/above 1
+    sp = np.repeat([0.0, 1000.0], 200)[1:]
+    with pytest.raises(InputError, match="would not settle"):
+        fit_speed_ar1_model(g[:400], np.r_[sp, 1000.0][:399], dtau_s=15.0)
+
+
+def test_speed_model_maps_and_flags_extrapolation():
+    """The speed → C2 map interpolates between fitted levels and flags a speed beyond
+    them (informative: the offset is not held)."""
+    m = StateSpaceModel.from_dict({**M.to_dict(), "inputs": [{"name": "speed_rpm",
+                                                              "unit": "1/min"}],
+                                   "B": [[1.0]], "input_maps": {"speed_rpm": {
+                                       "x": [0.0, 1000.0], "y": [0.0, 0.2]}}})
+    c = Compensator(m)
+    mid = c.step({"speed_rpm": 500.0})
+    assert mid.predicted_growth_um == pytest.approx(0.1) and not mid.alarms
+    far = c.step({"speed_rpm": 2000.0})
+    assert "extrapolated:speed_rpm" in far.alarms and not far.held
