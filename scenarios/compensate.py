@@ -187,8 +187,12 @@ def add_parser(sub) -> None:
                     "measured record strictly causally, apply the offset each interval, and "
                     "report the error that is left (the seed paper's Fig. 8).")
     p.add_argument("model", help="model.json (written by arfem run or arfem diagnose)")
-    p.add_argument("record", help="dataset TOML (measured-data contract)")
-    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("record", nargs="?", help="dataset TOML (measured-data contract); "
+                   "not with --live")
+    p.add_argument("--out", help="output directory (replay)")
+    p.add_argument("--live", metavar="CONFIG.toml",
+                   help="run live instead of replaying: one cycle per JSON line on stdin, "
+                        "the offset as a JSON line on stdout (docs: arfem compensate)")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
                    help="largest |offset| written [µm] (default: no limit)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
@@ -205,6 +209,15 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from arfem.scenarios.dataset import load_dataset
+    if args.live is not None:
+        if args.record is not None or args.out is not None:
+            raise InputError("takes no RECORD and no --out (it reads stdin, writes stdout "
+                             "and the config's log)", "--live")
+        from arfem.scenarios.live import run_live
+        return run_live(args)
+    if args.record is None or args.out is None:
+        raise InputError("a replay needs MODEL.json RECORD.toml --out DIR (or --live "
+                         "CONFIG.toml)", "arfem compensate")
     for name in ("max_offset_um", "max_step_um"):
         v = getattr(args, name)
         if not (v > 0):

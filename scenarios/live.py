@@ -1,0 +1,179 @@
+"""``arfem compensate MODEL.json --live CONFIG.toml``: the compensator on a live stream.
+
+Transport ``jsonl`` (built): one JSON object per line on standard input is one cycle,
+
+    {"time_s": 1830.0, "speed_rpm": 3000, "T_t1_C": 24.1}
+
+and one JSON object per line on standard output is its answer, flushed at once,
+
+    {"time_s": 1830.0, "offset_um": -4.213, "predicted_growth_um": 4.213,
+     "alarms": [], "held": false}
+
+for any bridge that speaks lines (an MTConnect agent adapter, a PLC gateway). Each
+cycle runs :meth:`arfem.models.compensator.Compensator.step`, the call ``arfem
+compensate``'s replay makes, so replaying the logged inputs gives the same offsets.
+
+Safety, per cycle:
+
+* the offset is clamped to ``max_offset_um`` and its change limited to ``max_step_um``;
+* a line that is not JSON, an input missing or not finite, a line whose ``time_s`` is
+  not newer than the last one (stale), or one more than ``stale_after_s`` after it (a
+  gap: the inputs in between were not seen) holds the last offset and raises an alarm
+  (in the answer and in the log);
+* every cycle is appended to the log file (time, inputs, offset, alarms) and flushed,
+  so the log survives ``kill -9``;
+* SIGINT / SIGTERM end the loop after the current cycle with a final log line; so does
+  the end of the input.
+
+Transport ``opcua`` (an OPC UA client with asyncua) is not built yet: a config naming it
+is refused in one line.
+"""
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+import time
+
+from arfem.io import read_toml
+from arfem.models.compensator import Compensator
+from arfem.params import InputError
+from arfem.strict import check_keys
+
+__all__ = ["LiveConfig", "load_config", "run_jsonl", "run_live"]
+
+_KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log"}
+
+
+class LiveConfig:
+    """The validated ``[live]`` table of a live-mode config file."""
+
+    def __init__(self, transport, max_offset_um, max_step_um, stale_after_s, log):
+        self.transport = transport
+        self.max_offset_um = max_offset_um
+        self.max_step_um = max_step_um
+        self.stale_after_s = stale_after_s
+        self.log = log
+
+
+def load_config(path) -> LiveConfig:
+    """Read ``CONFIG.toml``; one-line :class:`InputError` naming the file and key.
+
+    Keys of ``[live]``: ``transport`` (``"jsonl"``), ``max_offset_um`` [µm] and
+    ``max_step_um`` [µm] (required: a controller must never be sent an unbounded
+    offset), ``stale_after_s`` [s] (default 60), ``log`` (the cycle log's path, relative
+    to the config file; default ``compensate.log.jsonl``).
+    """
+    from pathlib import Path
+    doc = read_toml(path)
+    check_keys(doc, {"live"}, str(path))
+    live = doc.get("live")
+    if not isinstance(live, dict):
+        raise InputError("needs a [live] table", str(path))
+    check_keys(live, _KEYS, f"{path}: live")
+    transport = live.get("transport", "jsonl")
+    if transport == "opcua":
+        raise InputError("the OPC UA transport is not built yet in this arfem; use "
+                         "transport = \"jsonl\" behind a gateway", f"{path}: live.transport")
+    if transport != "jsonl":
+        raise InputError(f"must be \"jsonl\", got {transport!r}", f"{path}: live.transport")
+    vals = {}
+    for key, default in (("max_offset_um", None), ("max_step_um", None),
+                         ("stale_after_s", 60.0)):
+        v = live.get(key, default)
+        if v is None:
+            raise InputError("is required (the bound on what is sent to the controller)",
+                             f"{path}: live.{key}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or v <= 0:
+            raise InputError(f"must be a positive number, got {v!r}", f"{path}: live.{key}")
+        vals[key] = float(v)
+    log = live.get("log", "compensate.log.jsonl")
+    if not isinstance(log, str) or not log:
+        raise InputError(f"must be a file name, got {log!r}", f"{path}: live.log")
+    return LiveConfig(transport, vals["max_offset_um"], vals["max_step_um"],
+                      vals["stale_after_s"], str(Path(path).parent / log))
+
+
+def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
+    """The JSON-lines loop; returns 0 when the input ends or a signal stops it."""
+    stdin = sys.stdin if stdin is None else stdin
+    stdout = sys.stdout if stdout is None else stdout
+    comp = Compensator(model, max_offset_um=cfg.max_offset_um, max_step_um=cfg.max_step_um)
+    stop = {"signal": None}
+
+    def on_signal(signum, frame):             # also ends a read that waits for a line
+        stop["signal"] = signal.Signals(signum).name
+        raise _Stop
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    names = [i.name for i in model.inputs]
+    state = {"last_t": -math.inf}
+    n = 0
+    try:
+        with open(cfg.log, "a", encoding="utf-8", buffering=1) as log:
+            log.write(json.dumps({"event": "started", "model": model.kind,
+                                  "wall_time": time.time()}) + "\n")
+            log.flush()
+            try:
+                for line in stdin:
+                    n += _cycle(line, comp, names, cfg, state, stdout, log)
+            except _Stop:
+                pass
+            log.write(json.dumps({"event": "stopped", "cycles": n,
+                                  "reason": stop["signal"] or "end of input",
+                                  "last_offset_um": comp.offset_um}) + "\n")
+    finally:
+        for s_, h in old.items():
+            signal.signal(s_, h)
+    return 0
+
+
+class _Stop(Exception):
+    """Raised by the SIGINT/SIGTERM handler to leave the loop after a cycle or a wait."""
+
+
+def _cycle(line, comp, names, cfg, state, stdout, log) -> int:
+    """One input line → one answer line and one log line; returns 1."""
+    alarms, t, values = [], None, {}
+    try:
+        doc = json.loads(line)
+        if not isinstance(doc, dict):
+            raise ValueError
+    except ValueError:
+        doc = {}
+        alarms.append("malformed_line")
+    t = doc.get("time_s")
+    if not isinstance(t, (int, float)) or isinstance(t, bool) \
+            or not math.isfinite(t):
+        alarms.append("missing:time_s")
+        t = None
+    elif t <= state["last_t"]:        # a repeated or out-of-order sample
+        alarms += [f"stale:{nm}" for nm in names]
+    elif state["last_t"] > -math.inf and t - state["last_t"] > cfg.stale_after_s:
+        alarms.append("gap:time_s")    # the inputs in between were not seen
+    for nm in names:
+        v = doc.get(nm)
+        values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
+            else None
+    cyc = comp.step(values, alarms=alarms)
+    if t is not None and "stale:" not in " ".join(alarms):
+        state["last_t"] = t
+    out = {"time_s": t, "offset_um": cyc.offset_um,
+           "predicted_growth_um": None if math.isnan(cyc.predicted_growth_um)
+           else cyc.predicted_growth_um,
+           "alarms": list(cyc.alarms), "held": cyc.held}
+    stdout.write(json.dumps(out) + "\n")
+    stdout.flush()
+    log.write(json.dumps({"time_s": t, "inputs": values, **out}) + "\n")
+    log.flush()
+    return 1
+
+
+def run_live(args) -> int:
+    """``arfem compensate MODEL --live CONFIG``: refuse bad input before any offset."""
+    from arfem.scenarios.model_file import read_model
+    cfg = load_config(args.live)
+    model = read_model(args.model)
+    return run_jsonl(model, cfg)
