@@ -344,6 +344,19 @@ def _inputs(model: HeatFEM, schedule: Schedule):
     return q, h, amb
 
 
+def _output_times(schedule: Schedule, output_times_s) -> np.ndarray:
+    """Validated output times [s] (default: t = 0 and every segment end)."""
+    edges = schedule.edges_s
+    if output_times_s is None:
+        return edges
+    out_t = np.asarray(output_times_s, float)
+    if out_t.ndim != 1 or np.any(~np.isfinite(out_t)) or np.any(np.diff(out_t) < 0):
+        raise InputError("must be finite and non-decreasing", "output_times_s")
+    if out_t.size and (out_t[0] < -1e-9 or out_t[-1] > edges[-1] * (1 + 1e-12) + 1e-9):
+        raise InputError(f"must lie within [0, {edges[-1]:g}] s", "output_times_s")
+    return out_t
+
+
 def _initial(model: HeatFEM, theta0) -> np.ndarray:
     if theta0 is None:
         return np.zeros(model.ndofs)
@@ -538,14 +551,7 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
                              theta0=theta0, mode_cache=mode_cache)
     q, h, amb = _inputs(model, schedule)
     edges = schedule.edges_s
-    if output_times_s is None:
-        out_t = edges
-    else:
-        out_t = np.asarray(output_times_s, float)
-        if out_t.ndim != 1 or np.any(~np.isfinite(out_t)) or np.any(np.diff(out_t) < 0):
-            raise InputError("must be finite and non-decreasing", "output_times_s")
-        if out_t.size and (out_t[0] < -1e-9 or out_t[-1] > edges[-1] * (1 + 1e-12) + 1e-9):
-            raise InputError(f"must lie within [0, {edges[-1]:g}] s", "output_times_s")
+    out_t = _output_times(schedule, output_times_s)
     # all breakpoints: segment edges and output times
     bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
     seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)

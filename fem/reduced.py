@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs
+from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, _output_times
 from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError, Schedule
 
@@ -178,18 +178,6 @@ class ReducedResult(HeatResult):
     n_modes: int = 0
 
 
-def _out_times(schedule: Schedule, output_times_s) -> np.ndarray:
-    edges = schedule.edges_s
-    if output_times_s is None:
-        return edges
-    out_t = np.asarray(output_times_s, float)
-    if out_t.ndim != 1 or np.any(~np.isfinite(out_t)) or np.any(np.diff(out_t) < 0):
-        raise InputError("must be finite and non-decreasing", "output_times_s")
-    if out_t.size and (out_t[0] < -1e-9 or out_t[-1] > edges[-1] * (1 + 1e-12) + 1e-9):
-        raise InputError(f"must lie within [0, {edges[-1]:g}] s", "output_times_s")
-    return out_t
-
-
 def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
                   store_fields: bool = False, theta0=None, n_modes: int = DEFAULT_N_MODES,
                   mode_cache: dict | None = None,
@@ -231,7 +219,7 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     """
     q, h, amb = _inputs(model, schedule)
     edges = schedule.edges_s
-    out_t = _out_times(schedule, output_times_s)
+    out_t = _output_times(schedule, output_times_s)
     bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
     seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
     d = np.diff(bps)

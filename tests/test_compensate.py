@@ -12,7 +12,6 @@ What is verified and why:
   AR(1) removes >= 90 % of the RMS error (it tracks the FEM within ~3 % of the peak).
 """
 import json
-import math
 import subprocess
 import sys
 

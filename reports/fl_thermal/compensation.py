@@ -24,7 +24,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 
 from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.compensate import replay
