@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 import signal
 import sys
 import time
@@ -46,15 +47,16 @@ __all__ = ["LiveConfig", "load_config", "run_jsonl", "run_live"]
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log"}
 
 
+@dataclass(frozen=True)
 class LiveConfig:
-    """The validated ``[live]`` table of a live-mode config file."""
+    """The validated ``[live]`` table of a live-mode config file (units in the names;
+    ``log`` is the cycle log's path)."""
 
-    def __init__(self, transport, max_offset_um, max_step_um, stale_after_s, log):
-        self.transport = transport
-        self.max_offset_um = max_offset_um
-        self.max_step_um = max_step_um
-        self.stale_after_s = stale_after_s
-        self.log = log
+    transport: str
+    max_offset_um: float
+    max_step_um: float
+    stale_after_s: float
+    log: str
 
 
 def load_config(path) -> LiveConfig:
@@ -101,11 +103,12 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
     stdin = sys.stdin if stdin is None else stdin
     stdout = sys.stdout if stdout is None else stdout
     comp = Compensator(model, max_offset_um=cfg.max_offset_um, max_step_um=cfg.max_step_um)
-    stop = {"signal": None}
+    stop = {"signal": None, "busy": False}
 
-    def on_signal(signum, frame):             # also ends a read that waits for a line
+    def on_signal(signum, frame):
         stop["signal"] = signal.Signals(signum).name
-        raise _Stop
+        if not stop["busy"]:                  # waiting for a line: end the wait now
+            raise _Stop                       # (inside a cycle: after it, below)
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     names = [i.name for i in model.inputs]
@@ -118,7 +121,11 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
             log.flush()
             try:
                 for line in stdin:
+                    stop["busy"] = True
                     n += _cycle(line, comp, names, cfg, state, stdout, log)
+                    stop["busy"] = False
+                    if stop["signal"]:
+                        break
             except _Stop:
                 pass
             log.write(json.dumps({"event": "stopped", "cycles": n,
