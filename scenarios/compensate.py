@@ -84,7 +84,10 @@ def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
     next_probe = probe_every_s if probe_every_s else math.inf
     gains = []
     names = [i.name for i in model.inputs]
-    for k in range(1, n):
+    # a first row at t = 0 is the equilibrium start, no interval ends there; a later
+    # first row closes the interval that began at t = 0 (the contract), so it is stepped
+    first = 1 if t[0] <= 0.0 else 0
+    for k in range(first, n):
         cyc = comp.step({nm: inputs[nm][k] for nm in names})
         pred[k], off[k] = cyc.predicted_growth_um, cyc.offset_um
         held += cyc.held
@@ -95,7 +98,7 @@ def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
             next_probe += probe_every_s
     resid = g + off
     ok = np.isfinite(g) & (t >= score_from_s)
-    ok[0] = False
+    ok[:first] = False
     if not ok.any():
         raise InputError(f"has no row at or after {score_from_s:g} s to score", where)
 
@@ -107,7 +110,7 @@ def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
 
     summary = {
         "model_kind": model.kind, "model_description": model.description,
-        "dataset": ds.name, "dtau_s": model.dtau_s, "n_cycles": int(n - 1),
+        "dataset": ds.name, "dtau_s": model.dtau_s, "n_cycles": int(n - first),
         "score_from_s": float(score_from_s), "n_scored": int(ok.sum()),
         "rms_before_um": rms(g), "rms_after_um": rms(resid),
         "peak_to_peak_before_um": pp(g), "peak_to_peak_after_um": pp(resid),
