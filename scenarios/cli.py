@@ -8,6 +8,8 @@ Subcommands (each lives in its own module and registers itself here):
     arfem diagnose CASE.toml --out DIR         what a simulation gets wrong on measured data
     arfem allocate SCENARIO --out DIR          precision allocation over a motion chain
     arfem compensate MODEL RECORD --out DIR    replay a compensator on a measured record
+    arfem compensate MODEL --live CONFIG       run it live (JSON lines or OPC UA)
+    arfem twin [--port 0] [--lockstep]         a simulated spindle behind OPC UA
 
 Bad input ends with one line ``arfem: error: <where>: <what>`` and exit status 2.
 """
@@ -31,6 +33,7 @@ COMMANDS = {
     "check": "arfem.scenarios.check",
     "report": "arfem.scenarios.html_report",
     "compensate": "arfem.scenarios.compensate",
+    "twin": "arfem.scenarios.twin",
 }
 
 

@@ -25,8 +25,10 @@ Safety, per cycle:
 * SIGINT / SIGTERM end the loop after the current cycle with a final log line; so does
   the end of the input.
 
-Transport ``opcua`` (an OPC UA client with asyncua) is not built yet: a config naming it
-is refused in one line.
+Transport ``opcua`` (:mod:`arfem.scenarios.opcua_live`, an asyncua client): every
+``period_s`` the loop reads the input nodes, runs the same step and writes the offset
+(and the alarm) node; a lost connection is retried with backoff while the controller
+keeps the last offset. The ``[opcua]`` table of the config names the endpoint and nodes.
 """
 from __future__ import annotations
 
@@ -44,45 +46,51 @@ from arfem.strict import check_keys
 
 __all__ = ["LiveConfig", "load_config", "run_jsonl", "run_live"]
 
-_KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log"}
+_KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
+         "cycles"}
 
 
 @dataclass(frozen=True)
 class LiveConfig:
-    """The validated ``[live]`` table of a live-mode config file (units in the names;
-    ``log`` is the cycle log's path)."""
+    """The validated config of live mode (units in the names; ``log`` is the cycle log's
+    path, ``cycles`` = 0 runs until a signal; ``opcua`` the ``[opcua]`` table, for that
+    transport)."""
 
     transport: str
     max_offset_um: float
     max_step_um: float
     stale_after_s: float
     log: str
+    period_s: float = 1.0
+    cycles: int = 0
+    opcua: object = None
 
 
-def load_config(path) -> LiveConfig:
+def load_config(path, model=None) -> LiveConfig:
     """Read ``CONFIG.toml``; one-line :class:`InputError` naming the file and key.
 
-    Keys of ``[live]``: ``transport`` (``"jsonl"``), ``max_offset_um`` [µm] and
-    ``max_step_um`` [µm] (required: a controller must never be sent an unbounded
+    Keys of ``[live]``: ``transport`` (``"jsonl"`` or ``"opcua"``), ``max_offset_um`` [µm]
+    and ``max_step_um`` [µm] (required: a controller must never be sent an unbounded
     offset), ``stale_after_s`` [s] (default 60), ``log`` (the cycle log's path, relative
-    to the config file; default ``compensate.log.jsonl``).
+    to the config file; default ``compensate.log.jsonl``), ``period_s`` [s] (the OPC UA
+    loop's cycle, default 1), ``cycles`` (stop after this many cycles; default 0 = run
+    until SIGINT/SIGTERM). The ``opcua`` transport also needs an ``[opcua]`` table
+    (:func:`arfem.scenarios.opcua_live.parse_config`), checked against ``model``'s inputs.
     """
     from pathlib import Path
     doc = read_toml(path)
-    check_keys(doc, {"live"}, str(path))
+    check_keys(doc, {"live", "opcua"}, str(path))
     live = doc.get("live")
     if not isinstance(live, dict):
         raise InputError("needs a [live] table", str(path))
     check_keys(live, _KEYS, f"{path}: live")
     transport = live.get("transport", "jsonl")
-    if transport == "opcua":
-        raise InputError("the OPC UA transport is not built yet in this arfem; use "
-                         "transport = \"jsonl\" behind a gateway", f"{path}: live.transport")
-    if transport != "jsonl":
-        raise InputError(f"must be \"jsonl\", got {transport!r}", f"{path}: live.transport")
+    if transport not in ("jsonl", "opcua"):
+        raise InputError(f"must be \"jsonl\" or \"opcua\", got {transport!r}",
+                         f"{path}: live.transport")
     vals = {}
     for key, default in (("max_offset_um", None), ("max_step_um", None),
-                         ("stale_after_s", 60.0)):
+                         ("stale_after_s", 60.0), ("period_s", 1.0)):
         v = live.get(key, default)
         if v is None:
             raise InputError("is required (the bound on what is sent to the controller)",
@@ -91,11 +99,21 @@ def load_config(path) -> LiveConfig:
                 or v <= 0:
             raise InputError(f"must be a positive number, got {v!r}", f"{path}: live.{key}")
         vals[key] = float(v)
+    cycles = live.get("cycles", 0)
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or cycles < 0:
+        raise InputError(f"must be a whole number >= 0, got {cycles!r}", f"{path}: live.cycles")
     log = live.get("log", "compensate.log.jsonl")
     if not isinstance(log, str) or not log:
         raise InputError(f"must be a file name, got {log!r}", f"{path}: live.log")
+    opc = None
+    if transport == "opcua":
+        from arfem.scenarios.opcua_live import parse_config
+        opc = parse_config(doc.get("opcua"), str(path), model)
+    elif "opcua" in doc:
+        raise InputError("is for transport = \"opcua\"", f"{path}: opcua")
     return LiveConfig(transport, vals["max_offset_um"], vals["max_step_um"],
-                      vals["stale_after_s"], str(Path(path).parent / log))
+                      vals["stale_after_s"], str(Path(path).parent / log),
+                      vals["period_s"], cycles, opc)
 
 
 def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
@@ -124,12 +142,14 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
                     stop["busy"] = True
                     n += _cycle(line, comp, names, cfg, state, stdout, log)
                     stop["busy"] = False
-                    if stop["signal"]:
+                    if stop["signal"] or (cfg.cycles and n >= cfg.cycles):
                         break
             except _Stop:
                 pass
             log.write(json.dumps({"event": "stopped", "cycles": n,
-                                  "reason": stop["signal"] or "end of input",
+                                  "reason": stop["signal"] or (
+                                      "cycles done" if cfg.cycles and n >= cfg.cycles
+                                      else "end of input"),
                                   "last_offset_um": comp.offset_um}) + "\n")
     finally:
         for s_, h in old.items():
@@ -181,6 +201,9 @@ def _cycle(line, comp, names, cfg, state, stdout, log) -> int:
 def run_live(args) -> int:
     """``arfem compensate MODEL --live CONFIG``: refuse bad input before any offset."""
     from arfem.scenarios.model_file import read_model
-    cfg = load_config(args.live)
     model = read_model(args.model)
+    cfg = load_config(args.live, model)
+    if cfg.transport == "opcua":
+        from arfem.scenarios.opcua_live import run_opcua
+        return run_opcua(model, cfg)
     return run_jsonl(model, cfg)

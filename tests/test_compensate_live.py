@@ -7,7 +7,7 @@ What is verified and why:
   or NaN input, a repeated time (stale) and a gap hold the offset with an alarm;
 * SIGTERM while the loop waits for a line ends it with exit 0 and a final log line, and
   every cycle before it is already in the log (flushed per line: what kill -9 leaves);
-* a config naming an unknown key, no bounds, or the OPC UA transport (not built) is
+* a config naming an unknown key, no bounds, or the OPC UA transport without its table is
   refused in one line with exit status 2 before any offset is written.
 """
 import json
@@ -100,7 +100,7 @@ def test_sigterm_ends_cleanly_with_the_log_flushed(setup):
 @pytest.mark.parametrize("text, msg", [
     ('[live]\ntransport = "jsonl"\nmax_offset_um = 1\nmax_step_um = 1\nperiod = 1\n', "unknown"),
     ('[live]\ntransport = "jsonl"\nmax_step_um = 1\n', "live.max_offset_um: is required"),
-    ('[live]\ntransport = "opcua"\nmax_offset_um = 1\nmax_step_um = 1\n', "not built yet"),
+    ('[live]\ntransport = "opcua"\nmax_offset_um = 1\nmax_step_um = 1\n', "needs an [opcua] table"),
     ('[live]\ntransport = "jsonl"\nmax_offset_um = -1\nmax_step_um = 1\n', "positive"),
 ])
 def test_bad_config_is_one_line_exit_2(setup, text, msg):

@@ -1,0 +1,230 @@
+"""``arfem twin``: a simulated spindle behind an OPC UA server, to try a compensator on.
+
+The machine is :class:`arfem.models.twin.SpindleTwin` (the FEM rod under a speed
+program, with a daily ambient swing the paper's AR(1) does not model). The server
+listens on 127.0.0.1 only and exposes, under the object ``Spindle`` of namespace
+``urn:arfem:twin`` (node ids ``ns=2;s=Spindle.<name>``):
+
+    time_s, speed_rpm, q_W_m2, ambient_C, T_face_C, T_mid_C   the machine's readings
+    growth_um          what the displacement sensor reads (true growth + noise) [µm]
+    true_growth_um     the true growth [µm]
+    error_um           true growth + the offset in force: what a part would show [µm]
+    offset_um          writable: the compensation offset [µm]
+    alarm              writable: the compensator's alarm (String)
+
+Time runs accelerated: one interval Δτ (``--dtau-s``) every ``--period-s`` of wall
+time; with ``--lockstep`` the machine instead advances one Δτ each time the offset is
+written (each compensator cycle), so that a test sees every interval exactly once.
+``--record DIR`` writes the history as a measured-data record (``twin.toml`` and
+``twin.csv``, with the extra columns ``true_growth_um``, ``offset_um``, ``error_um`` and
+``alarm_set``: the offset, and whether the alarm node was set, when the interval ended) when the twin stops: after ``--steps``
+intervals, or at SIGINT/SIGTERM. The first line on standard output is
+``arfem twin: listening on <endpoint>``.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import signal
+import socket
+import sys
+
+from arfem.params import InputError
+
+__all__ = ["NAMESPACE", "READINGS", "serve", "add_parser", "main", "write_record"]
+
+NAMESPACE = "urn:arfem:twin"
+READINGS = ("time_s", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C", "T_mid_C",
+            "growth_um", "true_growth_um", "error_um")
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now (the OS's choice)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def write_record(directory, rows: list, name: str = "twin") -> None:
+    """The twin's history as a measured-data record (contract TOML + CSV), atomically;
+    a NaN reading is an empty cell, every number is written exactly (repr)."""
+    from pathlib import Path
+
+    from arfem.io import atomic_write_text
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    cols = ("time_s", "growth_um", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C", "T_mid_C",
+            "true_growth_um", "offset_um", "error_um", "alarm_set")
+
+    def cell(v):
+        return "" if v is None or not math.isfinite(v) else repr(float(v))
+    lines = [",".join(cols)] + [",".join(cell(r.get(c)) for c in cols) for r in rows]
+    atomic_write_text(d / f"{name}.csv", "\n".join(lines) + "\n")
+    atomic_write_text(d / f"{name}.toml", (
+        "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
+        "# a daily ambient swing; growth_um = true growth + sensor noise\n"
+        f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n'))
+
+
+async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
+                ready=None) -> list:
+    """Run the server until ``steps`` intervals are done (0 = until cancelled or a
+    signal); returns the history (one dict of readings per interval)."""
+    from asyncua import Server, ua
+    from asyncua.common.callback import CallbackType
+
+    logging.getLogger("asyncua").setLevel(logging.ERROR)
+    server = Server()
+    await server.init()
+    endpoint = f"opc.tcp://127.0.0.1:{port}/arfem/twin"
+    server.set_endpoint(endpoint)
+    server.set_server_name("arfem twin")
+    server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+    idx = await server.register_namespace(NAMESPACE)
+    obj = await server.nodes.objects.add_object(ua.NodeId("Spindle", idx), "Spindle")
+    nodes = {}
+    for name in READINGS + ("offset_um",):
+        nodes[name] = await obj.add_variable(ua.NodeId(f"Spindle.{name}", idx), name, 0.0,
+                                             varianttype=ua.VariantType.Double)
+    nodes["alarm"] = await obj.add_variable(ua.NodeId("Spindle.alarm", idx), "alarm", "",
+                                            varianttype=ua.VariantType.String)
+    await nodes["offset_um"].set_writable()
+    await nodes["alarm"].set_writable()
+    offset_id, alarm_id = nodes["offset_um"].nodeid, nodes["alarm"].nodeid
+    history: list = []
+    state = {"offset": 0.0, "alarm": "", "now": None}
+    done = asyncio.Event()
+
+    async def publish(r):
+        for name in READINGS:
+            if name in r:
+                await server.write_attribute_value(
+                    nodes[name].nodeid, ua.DataValue(ua.Variant(r[name], ua.VariantType.Double)))
+
+    def close():
+        """The interval in force ends: its offset, alarm and error go to the history."""
+        r = state.pop("now", None)
+        state["now"] = None
+        if r is not None:
+            r["offset_um"] = state["offset"]
+            r["alarm_set"] = 1.0 if state["alarm"] else 0.0
+            r["error_um"] = r["true_growth_um"] + state["offset"]
+            history.append(r)
+
+    async def advance():
+        """Close the interval in force and start the next (unless ``steps`` are done)."""
+        close()
+        if steps and len(history) >= steps:
+            done.set()
+            return
+        r = twin.advance()
+        r["error_um"] = r["true_growth_um"] + state["offset"]
+        state["now"] = r
+        await publish(r)
+
+    async def on_write(event, dispatcher):
+        ids = [w.NodeId for w in event.request_params.NodesToWrite]
+        if alarm_id in ids:
+            state["alarm"] = str(server.read_attribute_value(alarm_id).Value.Value or "")
+        if offset_id in ids:
+            state["offset"] = float(server.read_attribute_value(offset_id).Value.Value)
+            if lockstep:
+                await advance()
+
+    server.subscribe_server_callback(CallbackType.PostWrite, on_write)
+    loop = asyncio.get_running_loop()
+    for s in (signal.SIGINT, signal.SIGTERM):
+        try:
+            loop.add_signal_handler(s, done.set)
+        except (RuntimeError, ValueError):      # not the main thread: cancel instead
+            pass
+    async with server:
+        await advance()
+        if ready is not None:
+            ready(endpoint)
+        if lockstep:
+            await done.wait()
+        else:
+            t0 = loop.time()
+            k = 1
+            while not done.is_set():
+                try:
+                    await asyncio.wait_for(done.wait(), max(0.0, t0 + k * period_s - loop.time()))
+                except asyncio.TimeoutError:
+                    await advance()
+                    k += 1
+    close()                                  # stopped early: the interval in force ends
+    return history
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "twin", help="serve a simulated spindle over OPC UA (127.0.0.1), to try "
+                     "arfem compensate --live on",
+        description="A FEM spindle rod with a hidden daily ambient swing, run in "
+                    "accelerated time behind an OPC UA server on 127.0.0.1.")
+    p.add_argument("--port", type=int, default=4840, help="TCP port; 0 = a free one "
+                   "(default 4840)")
+    p.add_argument("--dtau-s", type=float, default=60.0, help="simulated interval Δτ [s]")
+    p.add_argument("--period-s", type=float, default=1.0,
+                   help="wall time per interval [s] (default 1: 60x real time at Δτ 60 s)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="advance one interval per write of offset_um instead of per period")
+    p.add_argument("--steps", type=int, default=0, help="stop after this many intervals "
+                   "(default 0: until SIGINT/SIGTERM)")
+    p.add_argument("--ambient-amplitude-K", type=float, default=2.0,
+                   help="amplitude of the hidden daily ambient swing [K] (default 2)")
+    p.add_argument("--noise-um", type=float, default=0.05,
+                   help="white noise σ of the growth sensor [µm] (default 0.05)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
+    p.add_argument("--start-h", type=float, default=0.0,
+                   help="run the machine this many hours before serving (default 0)")
+    p.add_argument("--nan-at-step", type=int, default=-1, metavar="N",
+                   help="the q_W_m2 reading of interval N is NaN (a sensor fault)")
+    p.add_argument("--record", metavar="DIR", help="write the history as a measured-data "
+                   "record (twin.toml, twin.csv) into DIR when the twin stops")
+    p.set_defaults(func=main)
+
+
+def main(args) -> int:
+    from pathlib import Path
+
+    from arfem.models.twin import SpindleTwin, TwinProgram
+    try:
+        import asyncua  # noqa: F401
+    except ImportError:
+        raise InputError("needs the asyncua package: pip install 'arfem[opcua]'",
+                         "arfem twin") from None
+    for name in ("dtau_s", "period_s"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
+    if not 0 <= args.port < 65536:
+        raise InputError(f"must be a TCP port (0-65535), got {args.port}", "--port")
+    if args.steps < 0:
+        raise InputError(f"must be >= 0, got {args.steps}", "--steps")
+    if args.record is not None and Path(args.record).exists() and (
+            Path(args.record) / "twin.csv").exists():
+        raise InputError("already holds a twin.csv; choose another directory", "--record")
+    twin = SpindleTwin(TwinProgram(dtau_s=args.dtau_s,
+                                   ambient_amplitude_K=args.ambient_amplitude_K,
+                                   growth_noise_um=args.noise_um, seed=args.seed,
+                                   nan_at_step=args.nan_at_step))
+    for _ in range(int(round(args.start_h * 3600.0 / args.dtau_s))):
+        twin.advance()
+    port = free_port() if args.port == 0 else args.port
+
+    def ready(endpoint):
+        print(f"arfem twin: listening on {endpoint}", flush=True)
+
+    try:
+        history = asyncio.run(serve(twin, port, args.period_s, args.lockstep, args.steps,
+                                    ready))
+    except OSError as exc:
+        raise InputError(f"cannot listen on 127.0.0.1:{port}: {exc.strerror or exc}",
+                         "--port") from None
+    if args.record is not None:
+        write_record(args.record, history)
+    print(f"arfem twin: stopped after {len(history)} intervals", file=sys.stderr)
+    return 0
