@@ -7,6 +7,7 @@ holds the model in a form a compensator can run and the one function every cycle
 calls, in replay and in live operation alike:
 
     x_k = A x_{k−1} + B u_k,      ŷ_k = C x_k + D u_k + d0            (growth [µm])
+    u_k = map(reading_k − reference)        (``input_offsets``, ``input_maps``; optional)
     offset_k = clamp(−ŷ_k, ±max_offset_um), rate-limited to ±max_step_um per cycle
 
 ``u_k`` are the inputs read at interval k (the heat flux over the interval that ends
@@ -84,15 +85,19 @@ class StateSpaceModel:
     description: str = ""
     arfem_version: str = ""
     input_maps: dict = field(default_factory=dict)
+    input_offsets: dict = field(default_factory=dict)
 
     @property
     def n_states(self) -> int:
         return int(self.A.shape[0])
 
     def mapped(self, name: str, value: float) -> tuple[float, bool]:
-        """An input as the matrices take it: through its piecewise-linear map where the
-        model has one (e.g. spindle speed → C2 of the speed's level, paper eq. 17), with
-        linear extrapolation beyond the fitted points; True where it extrapolated."""
+        """An input as the matrices take it: minus its reference where the model has one
+        (e.g. the ambient minus the nominal ambient the model was linearised about), then
+        through its piecewise-linear map where the model has one (e.g. spindle speed →
+        C2 of the speed's level, paper eq. 17), with linear extrapolation beyond the
+        fitted points; True where it extrapolated."""
+        value = value - self.input_offsets.get(name, 0.0)
         m = self.input_maps.get(name)
         if m is None:
             return value, False
@@ -115,7 +120,8 @@ class StateSpaceModel:
                 "noise": {"Q_um2": self.Q, "R_um2": self.R},
                 "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
                                for k, (x, y) in self.input_maps.items()},
-                "description": self.description, "arfem_version": self.arfem_version}
+                "description": self.description, "arfem_version": self.arfem_version,
+                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {})}
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
@@ -134,7 +140,8 @@ class StateSpaceModel:
         if not isinstance(d, dict):
             raise InputError("must be a JSON object", where)
         known = {"model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C", "D",
-                 "d0_um", "x0", "noise", "input_maps", "description", "arfem_version"}
+                 "d0_um", "x0", "noise", "input_maps", "input_offsets", "description",
+                 "arfem_version"}
         extra = sorted(set(d) - known)
         if extra:
             raise InputError(f"unknown key {extra[0]!r}", where)
@@ -151,6 +158,9 @@ class StateSpaceModel:
                 raise InputError("must be numbers", f"{where}: {key}") from None
             if not np.all(np.isfinite(a)):
                 raise InputError("must be finite", f"{where}: {key}")
+            if a.size == 0 and (shape is None or 0 in shape):
+                # a model without state (the MLR): JSON keeps [] and [[]] of (0, m) etc.
+                a = a.reshape(shape if shape is not None else (0, 0))
             if shape is not None and a.shape != shape:
                 raise InputError(f"has shape {a.shape}, needs {shape}", f"{where}: {key}")
             return a
@@ -185,13 +195,22 @@ class StateSpaceModel:
                     or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
                 raise InputError("x must increase strictly and match y, all finite", key)
             maps[name] = (x, y)
+        offsets = {}
+        for name, v in (d.get("input_offsets") or {}).items():
+            key = f"{where}: input_offsets.{name}"
+            if name not in {i["name"] for i in ins}:
+                raise InputError("offsets an input the model does not read", key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InputError(f"must be a finite number, got {v!r}", key)
+            offsets[name] = float(v)
         noise = d.get("noise") or {}
         return cls(kind=str(d.get("kind", "")), dtau_s=float(dtau), A=A, B=B, C=C, D=D,
                    inputs=tuple(InputSpec(i["name"], i["unit"]) for i in ins), x0=x0,
                    d0_um=float(d.get("d0_um", 0.0)), Q=float(noise.get("Q_um2", 0.0)),
                    R=float(noise.get("R_um2", 0.0)),
                    description=str(d.get("description", "")),
-                   arfem_version=str(d.get("arfem_version", "")), input_maps=maps)
+                   arfem_version=str(d.get("arfem_version", "")), input_maps=maps,
+                   input_offsets=offsets)
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",

@@ -20,17 +20,22 @@ __all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
 WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
-          "correlations.png", "report.html", "model.json", "model_mlr.json")
+          "correlations.png", "report.html", "model.json", "model_extended.json",
+          "model_mlr.json")
 
 
-def compensator_models(ds, fit_end_s: float) -> dict:
+def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     """The models ``arfem compensate`` can run, fitted on the rows before ``fit_end_s``
-    (the diagnosis's hold-out start): ``{"model.json": …, "model_mlr.json": …}``.
+    (the diagnosis's hold-out start): ``{"model.json": …, "model_extended.json": …,
+    "model_mlr.json": …}``.
 
     A ``q_W_m2`` record gets the paper's AR(1) of its ``[rod]`` (eqs. 12-14, nothing
-    fitted); a ``speed_rpm`` record the AR(1) calibrated by eq. 17 with its speed → C2
-    map; a record with complete temperatures also the MLR of eq. 18. A fit that would
-    not settle (C1 >= 1) is not exported; ``"not_exported"`` then says why.
+    fitted) and, given the :class:`Diagnosis` ``diag`` with a named cause, the extended
+    model (:func:`arfem.models.diagnosis.export.fem_state_space`); a ``speed_rpm``
+    record the AR(1) calibrated by eq. 17 with its speed → C2 map; a record with complete
+    temperatures also the MLR of eq. 18. A model that cannot run as a compensator (C1 >=
+    1, a cause with no linear time-invariant form) is not exported; the list
+    ``"not_exported"`` says why.
     """
     import numpy as np
 
@@ -41,7 +46,7 @@ def compensator_models(ds, fit_end_s: float) -> dict:
     dt = float(np.median(np.diff(t)))
     fit = t < fit_end_s
     span = f"fitted on {t[fit][0] / 3600:.2f}-{t[fit][-1] / 3600:.2f} h of {ds.name!r}"
-    out = {}
+    out, why = {}, []
     if ds.q_W_m2 is not None:
         out["model.json"] = ar1_model(
             c1_paper(ds.rod, dt), c2_paper(ds.rod, dt, 1.0) * 1e6, dtau_s=dt,
@@ -54,12 +59,31 @@ def compensator_models(ds, fit_end_s: float) -> dict:
                 arfem_version=__version__,
                 description=f"paper AR(1) calibrated by eq. 17, {span}")
         except InputError as exc:          # e.g. C1 >= 1: no compensator to export
-            out["not_exported"] = f"model.json: {exc}"
+            why.append(f"model.json: {exc}")
+    if diag is not None and diag.summary.get("cause", "none") != "none":
+        if diag.models.get("physics") is None:
+            why.append("model_extended.json: the extended model of a speed-only record "
+                       "(a frame estimated from thermometers) is not exported yet")
+        else:
+            from arfem.models.diagnosis import stats as st
+            from arfem.models.diagnosis.export import fem_state_space
+            causes = " + ".join(diag.models["causes"])
+            try:
+                out["model_extended.json"] = fem_state_space(
+                    diag.models["extended"], diag.models["physics"], dt,
+                    R_um2=max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
+                    arfem_version=__version__,
+                    description=f"FEM rod with {causes} (the diagnosis's extended model), "
+                                f"{span}")
+            except InputError as exc:
+                why.append(f"model_extended.json: {exc}")
     temps = {k: np.asarray(v, float)[fit] for k, v in ds.temperatures.items()}
     if any(np.all(np.isfinite(v)) for v in temps.values()):
         out["model_mlr.json"] = fit_mlr_model(ds.growth_um[fit], temps, dtau_s=dt,
                                               arfem_version=__version__,
                                               description=f"MLR of eq. 18, {span}")
+    if why:
+        out["not_exported"] = why
     return out
 
 
@@ -112,9 +136,9 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     if progress is not None:
         progress("writing outputs")
-    models = compensator_models(ds, diag.summary["holdout"]["start_s"])
-    if "not_exported" in models:
-        print(f"note: {models.pop('not_exported')}")
+    models = compensator_models(ds, diag.summary["holdout"]["start_s"], diag)
+    for why in models.pop("not_exported", []):
+        print(f"note: {why}")
     with staged_out_dir(out, force) as stage:
         write_all(diag, stage)
         for name, m in models.items():

@@ -120,6 +120,10 @@ class Diagnosis:
     summary: dict
     series: dict
     text: list = field(default_factory=list)
+    #: the fitted extended model and the physics it ran on (``{"extended": CandidateFit,
+    #: "physics": FemPhysics}`` for q_W_m2 records; empty for speed-only ones), for export
+    #: as a compensator (:mod:`arfem.models.diagnosis.export`)
+    models: dict = field(default_factory=dict)
 
 
 def _phases(t, running, tau_s):
@@ -644,7 +648,7 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
     return {"fits": fits, "cause": cause, "causes": causes, "runner": runner,
             "scores": scores, "tests": tests, "neff": neff, "ext": ext, "base": fits["none"],
             "refused": refused, "equivalent": equivalent, "pairs_tried": pairs_tried,
-            "tau_s": 1.0 / fem.slowest_rate(),
+            "tau_s": 1.0 / fem.slowest_rate(), "physics": fem,
             "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}},
             "baseline_model": "fem", "score_kind": "bic_on_n_eff", "rule": _FEM_RULE,
             "ar_label": "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"}
@@ -1001,4 +1005,6 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})
     _add_mlr(summary, series, y, temps, rows, hold)
-    return Diagnosis(summary, series, text)
+    models = {"extended": ext, "physics": v2["physics"], "causes": tuple(v2["causes"])} \
+        if "physics" in v2 else {}
+    return Diagnosis(summary, series, text, models)

@@ -43,7 +43,7 @@ def run() -> dict:
         models = compensator_models(ds, FIT_END_S)
         entry = {"channel": f"ch{ch}"}
         if "not_exported" in models:
-            entry["ar1_not_exported"] = models["not_exported"]
+            entry["ar1_not_exported"] = "; ".join(models["not_exported"])
         for key, fname in (("ar1", "model.json"), ("mlr", "model_mlr.json")):
             if fname not in models:
                 continue

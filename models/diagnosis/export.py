@@ -1,0 +1,131 @@
+"""The diagnosis's extended model as a compensator (:class:`StateSpaceModel`).
+
+For a ``q_W_m2`` record the extended model is the FEM rod reduced exactly to its growth
+modes (:class:`arfem.models.diagnosis.forward.RodModel`) with the named causes. Its
+forward run is a set of first-order recursions with exact zero-order-hold steps, so at
+a fixed interval Δτ it *is* a discrete-time state-space model:
+
+    z_k = diag(e^{−λΔτ}) z_{k−1} + diag((1 − e^{−λΔτ})/λ) (f_q q_k + h f_b θ_amb,k)
+    growth_k = gᵀ z_k  [+ frame gain · x_frame,k]
+
+(paper eq. 12 per mode). The causes enter as follows:
+
+* ``convection_mismatch``: the modes of the fitted h;
+* ``heat_input_scale``: f_q times the fitted scale;
+* ``ambient_drift``: a second input ``ambient_C`` (minus the nominal ambient, the
+  ``input_offsets`` of the model), its load scaled by the fitted gain over the
+  physical one;
+* ``frame_expansion``: one more state, the first-order lag (time constant τ) of the
+  rod's steady growth target q·(steady gain), times the fitted frame gain.
+
+Not exported: ``sensor_drift`` (a drifting sensor is not growth of the machine:
+compensating it would move the tool by the drift; it is left out and said so),
+``speed_dependent_convection`` and ``nonlinear_convection`` (the modes change with the
+speed or the temperature: not a linear time-invariant model). The initial-state
+nuisance terms of a record with ``initial = "unknown"`` describe that record's start;
+the compensator starts from equilibrium (``x0 = 0``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from arfem.models.compensator import InputSpec, StateSpaceModel
+from arfem.params import InputError
+
+__all__ = ["fem_state_space", "NOT_LTI"]
+
+#: causes whose model is not linear time-invariant at a fixed interval
+NOT_LTI = ("speed_dependent_convection", "nonlinear_convection")
+
+
+def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description: str = "",
+                    arfem_version: str = "") -> StateSpaceModel:
+    """The fitted causes ``fit`` on the FEM rod ``phys`` as a model at interval Δτ.
+
+    Parameters
+    ----------
+    fit : CandidateFit
+        A fit of :func:`arfem.models.diagnosis.candidates.fit_causes` on
+        :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``extra`` holds the
+        causes, θ and the linear coefficients).
+    phys : FemPhysics
+        The physics the fit ran on.
+    dtau_s : float
+        Interval Δτ [s] of the model (the record's).
+    R_um2 : float
+        Measurement noise variance of the growth sensor [µm²], for the probe update (the
+        state noise Q is the fit's residual variance).
+
+    Returns
+    -------
+    StateSpaceModel
+        Inputs ``q_W_m2`` [W/m²] (and ``ambient_C`` [°C] with ``ambient_drift``);
+        output growth [µm]; ``kind`` = ``"extended:<causes>"``.
+
+    Raises
+    ------
+    InputError
+        If a cause has no linear time-invariant form (:data:`NOT_LTI`).
+
+    Examples
+    --------
+    >>> from arfem.models.diagnosis.candidates import FemPhysics, fit_causes
+    >>> from arfem.models.diagnosis.forward import RodModel
+    >>> from arfem.params import Rod
+    >>> phys = FemPhysics(Rod(), RodModel(Rod(), nr=2, nz=8))
+    >>> t = np.arange(1, 601) * 60.0
+    >>> q = np.where((t % 36000) < 18000, 2000.0, 0.0)
+    >>> y = 1.2 * phys.response(t, q)
+    >>> f = fit_causes(("heat_input_scale",), phys, t, q, y, np.ones(t.size, bool))
+    >>> m = fem_state_space(f, phys, 60.0)
+    >>> from arfem.models.compensator import Compensator
+    >>> c = Compensator(m)
+    >>> pred = [c.step({"q_W_m2": v}).predicted_growth_um for v in q]
+    >>> bool(np.max(np.abs(np.array(pred) - y)) < 1e-9 * np.max(y))
+    True
+    """
+    causes = tuple(fit.extra.get("causes", ()))
+    bad = [c for c in causes if c in NOT_LTI]
+    if bad:
+        raise InputError(f"{bad[0]} changes the rod's modes with the input or the state: "
+                         "not a linear time-invariant model, so it is not exported",
+                         "model_extended.json")
+    theta, lin = fit.extra.get("theta", {}), fit.extra.get("linear", {})
+    rod, m = phys.rod, phys.m
+    h = float(np.exp(theta["log_h"])) if "convection_mismatch" in causes \
+        else rod.convection_W_m2K
+    E = m.eig(h)
+    a = np.exp(-E.lam * dtau_s)
+    w = (1.0 - a) / E.lam
+    scale = float(lin.get("scale", 1.0)) if "heat_input_scale" in causes else 1.0
+    cols = [scale * w * E.fq]
+    inputs = [InputSpec("q_W_m2", "W/m²")]
+    offsets = {}
+    notes = []
+    if "ambient_drift" in causes:
+        k = float(lin["ambient_gain_um_per_K"]) / phys.ambient_gain_um_per_K()
+        cols.append(k * w * h * E.fb)
+        inputs.append(InputSpec("ambient_C", "°C"))
+        offsets["ambient_C"] = float(rod.ambient_C)
+    n = E.lam.size
+    A = np.diag(a)
+    B = np.column_stack(cols)
+    C = np.array(E.g, float)
+    if "frame_expansion" in causes:
+        af = float(np.exp(-dtau_s / (np.exp(theta["log_tau_h"]) * 3600.0)))
+        A = np.block([[A, np.zeros((n, 1))], [np.zeros((1, n)), np.array([[af]])]])
+        row = np.zeros((1, B.shape[1]))
+        row[0, 0] = (1.0 - af) * phys.steady_gain_um_per_W_m2()
+        B = np.vstack([B, row])
+        C = np.concatenate([C, [float(lin["frame_gain"])]])
+    if "sensor_drift" in causes:
+        notes.append("sensor_drift left out: a sensor's drift is not growth of the machine")
+    if any(k.startswith("_initial") for k in lin):
+        notes.append("the record's unknown initial state is not carried: the compensator "
+                     "starts at equilibrium")
+    desc = "; ".join([description] + notes) if description or notes else ""
+    return StateSpaceModel(
+        kind="extended:" + "+".join(causes) if causes else "fem", dtau_s=float(dtau_s),
+        A=A, B=B, C=C[None, :], D=np.zeros((1, B.shape[1])), inputs=tuple(inputs),
+        x0=np.zeros(A.shape[0]), Q=float(fit.rss / max(fit.n, 1)), R=float(R_um2),
+        description=desc, arfem_version=arfem_version, input_offsets=offsets)
