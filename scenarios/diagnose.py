@@ -61,22 +61,27 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
         except InputError as exc:          # e.g. C1 >= 1: no compensator to export
             why.append(f"model.json: {exc}")
     if diag is not None and diag.summary.get("cause", "none") != "none":
-        if diag.models.get("physics") is None:
-            why.append("model_extended.json: the extended model of a speed-only record "
-                       "(a frame estimated from thermometers) is not exported yet")
-        else:
-            from arfem.models.diagnosis import stats as st
-            from arfem.models.diagnosis.export import fem_state_space
-            causes = " + ".join(diag.models["causes"])
-            try:
+        from arfem.models.diagnosis import stats as st
+        from arfem.models.diagnosis.export import fem_state_space, speed_state_space
+        causes = " + ".join(diag.models["causes"])
+        kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
+              "arfem_version": __version__}
+        try:
+            if diag.models.get("physics") is not None:
                 out["model_extended.json"] = fem_state_space(
                     diag.models["extended"], diag.models["physics"], dt,
-                    R_um2=max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
-                    arfem_version=__version__,
                     description=f"FEM rod with {causes} (the diagnosis's extended model), "
-                                f"{span}")
-            except InputError as exc:
-                why.append(f"model_extended.json: {exc}")
+                                f"{span}", **kw)
+            elif diag.models.get("speed") is not None:
+                out["model_extended.json"] = speed_state_space(
+                    diag.models["extended"], diag.models["speed"], dt,
+                    description=f"AR(1) of the speed + frame from thermometers (the "
+                                f"diagnosis's extended model), {span}", **kw)
+            else:
+                why.append(f"model_extended.json: the extended model of this speed-only "
+                           f"record ({causes}) is not exported yet")
+        except InputError as exc:
+            why.append(f"model_extended.json: {exc}")
     temps = {k: np.asarray(v, float)[fit] for k, v in ds.temperatures.items()}
     if any(np.all(np.isfinite(v)) for v in temps.values()):
         out["model_mlr.json"] = fit_mlr_model(ds.growth_um[fit], temps, dtau_s=dt,

@@ -102,3 +102,58 @@ def test_twin_extended_model_beats_the_paper_ar1_threefold(tmp_path):
     rms = {f: replay(read_model(tmp_path / "d" / f), ds, score_from_s=48 * 3600.0)
            ["summary"]["rms_after_um"] for f in ("model.json", "model_extended.json")}
     assert rms["model_extended.json"] <= rms["model.json"] / 3.0, rms
+
+
+def test_every_kind_of_model_arfem_writes_meets_the_published_schema(tmp_path, phys):
+    """docs/model.schema.json is the documented layout: the paper AR(1), the speed AR(1)
+    with its map, the extended model with input offsets and a frame, and the stateless
+    MLR all validate; a file with an unknown key or a wrong output does not."""
+    import json
+    from pathlib import Path
+
+    import jsonschema
+
+    from arfem.models.compensator import ar1_model, fit_mlr_model, fit_speed_ar1_model
+    from arfem.models.ar1 import ar1_simulate
+    schema = json.loads((Path(__file__).parents[1] / "docs" / "model.schema.json").read_text())
+    t, q, amb, y = _record(phys)
+    ext = fem_state_space(fit_causes(("ambient_drift", "frame_expansion"), phys, t, q, y,
+                                     np.ones(t.size, bool), ambient_K=amb), phys, 60.0)
+    sp = np.repeat([0.0, 3000.0, 0.0, 6000.0, 0.0], 200)
+    g = ar1_simulate(0.99, np.where(sp == 3000, 0.1, np.where(sp == 6000, 0.25, 0.0)))
+    T = np.linspace(20, 30, 100)
+    models = [ar1_model(0.99, 1e-4, dtau_s=30.0), fit_speed_ar1_model(g, sp, dtau_s=15.0),
+              ext, fit_mlr_model(3.0 * (T - 20), {"T_a_C": T}, dtau_s=60.0)]
+    for m in models:
+        doc = json.loads(json.dumps(m.to_dict()))
+        jsonschema.validate(doc, schema)
+    bad = json.loads(json.dumps(models[0].to_dict()))
+    for change in ({"colour": 1}, {"output": {"name": "growth_mm", "unit": "mm"}}):
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate({**bad, **change}, schema)
+
+
+@pytest.mark.parametrize("ch", [2, 5])
+def test_speed_record_frame_model_export_reproduces_the_fit(ch):
+    """FL_THERMAL, the pre-registered split (fit before 28 h): the thermometer frame
+    model the diagnosis names, exported, reproduces its prediction over the whole 46 h
+    record (fit window and hold-out) to 1e-9 of its peak -- ch2 with unlagged components
+    (the D path), ch5 with components lagged 2 h (one state each, initial values from
+    the record's first row)."""
+    from pathlib import Path
+
+    from arfem.models.diagnosis.engine import diagnose
+    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.diagnose import compensator_models
+    root = Path(__file__).parents[1]
+    ds = load_dataset(root / "scenarios" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
+    d = diagnose(ds, 100800.0, intervals=False)
+    assert d.summary["cause"] == "frame_expansion"
+    m = compensator_models(ds, 100800.0, d)["model_extended.json"]
+    assert (m.n_states > 1) == (ch == 5)
+    cols = {"speed_rpm": ds.speed_rpm, **ds.temperatures}
+    c = Compensator(m)
+    pred = [c.step({i.name: float(cols[i.name][k]) for i in m.inputs}).predicted_growth_um
+            for k in range(1, ds.time_s.size)]
+    ref = d.models["extended"].prediction[1:]
+    assert np.max(np.abs(np.array(pred) - ref)) <= 1e-9 * np.max(np.abs(ref))

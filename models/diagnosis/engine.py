@@ -120,9 +120,10 @@ class Diagnosis:
     summary: dict
     series: dict
     text: list = field(default_factory=list)
-    #: the fitted extended model and the physics it ran on (``{"extended": CandidateFit,
-    #: "physics": FemPhysics}`` for q_W_m2 records; empty for speed-only ones), for export
-    #: as a compensator (:mod:`arfem.models.diagnosis.export`)
+    #: the fitted extended model and what it ran on, for export as a compensator
+    #: (:mod:`arfem.models.diagnosis.export`): ``extended`` (CandidateFit), ``causes``,
+    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (the inputs of a speed
+    #: record's thermometer frame fit), None where not applicable
     models: dict = field(default_factory=dict)
 
 
@@ -730,7 +731,11 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
     text.append(f"speed-to-heat mapping: {json_text(map_info)}")
     text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
     ext = fits[cause] if cause != "none" else base_paper
+    speed_export = {"t": t, "speed": sp, "rows": rows, "seen": seen, "W": W, "temps": temps,
+                    "structure": frame_struct} \
+        if cause == "frame_expansion" and frame_struct is not None else None
     return {"fits": fits, "cause": cause, "causes": [] if cause == "none" else [cause],
+            "speed_export": speed_export,
             "runner": runner, "scores": scores, "tests": tests, "neff": neff, "ext": ext,
             "base": base_paper, "refused": {}, "ci95": ci,
             "tau_s": fits["none"].extra.get("time_constant_h", 1.0) * 3600.0,
@@ -1005,6 +1010,6 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})
     _add_mlr(summary, series, y, temps, rows, hold)
-    models = {"extended": ext, "physics": v2["physics"], "causes": tuple(v2["causes"])} \
-        if "physics" in v2 else {}
+    models = {"extended": ext, "causes": tuple(v2["causes"]),
+              "physics": v2.get("physics"), "speed": v2.get("speed_export")}
     return Diagnosis(summary, series, text, models)

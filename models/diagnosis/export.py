@@ -24,6 +24,12 @@ compensating it would move the tool by the drift; it is left out and said so),
 speed or the temperature: not a linear time-invariant model). The initial-state
 nuisance terms of a record with ``initial = "unknown"`` describe that record's start;
 the compensator starts from equilibrium (``x0 = 0``).
+
+For a ``speed_rpm`` record the extended model the diagnosis names from thermometers
+(``frame_expansion``, :func:`arfem.models.diagnosis.speed.fit_frame_thermometers`, the
+"narrow" structures: per-speed gains, no slow response) is an output-error AR(1) plus a
+linear function of lagged principal components of the temperatures, also linear and
+time-invariant (:func:`speed_state_space`).
 """
 from __future__ import annotations
 
@@ -32,7 +38,7 @@ import numpy as np
 from arfem.models.compensator import InputSpec, StateSpaceModel
 from arfem.params import InputError
 
-__all__ = ["fem_state_space", "NOT_LTI"]
+__all__ = ["fem_state_space", "speed_state_space", "NOT_LTI"]
 
 #: causes whose model is not linear time-invariant at a fixed interval
 NOT_LTI = ("speed_dependent_convection", "nonlinear_convection")
@@ -129,3 +135,98 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
         A=A, B=B, C=C[None, :], D=np.zeros((1, B.shape[1])), inputs=tuple(inputs),
         x0=np.zeros(A.shape[0]), Q=float(fit.rss / max(fit.n, 1)), R=float(R_um2),
         description=desc, arfem_version=arfem_version, input_offsets=offsets)
+
+
+def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
+                      description: str = "", arfem_version: str = "") -> StateSpaceModel:
+    """The thermometer frame model of a speed record as a model at interval Δτ.
+
+    The fit's prediction is (:func:`~arfem.models.diagnosis.speed.fit_frame_thermometers`)
+
+        ŷ = Σ_s G_s X_s + d·e^{−bt} + c + Σ_j γ_j P_j
+
+    with X_s the unit AR(1) responses (rate b) of the speed levels, P_j the leading
+    principal components of the standardised temperatures (from the fit rows), lagged
+    by τ_l. As a state-space model: one rod state (A = e^{−bΔτ}, input the speed mapped
+    to its level's gain G, initial value d), one state per lagged component (A =
+    e^{−Δτ/τ_l}, inputs the temperatures about their fit-window means, initial value the
+    component's first sample) -- or, without lag, the components straight through D --
+    and d0 = c. A speed between the levels of the record gets the interpolated gain
+    (the diagnosis has no gain for it).
+
+    Parameters
+    ----------
+    fit : CandidateFit
+        The ``frame_expansion`` fit (its ``extra["coefficients"]``).
+    info : dict
+        ``t``, ``speed``, ``rows``, ``seen``, ``W``, ``temps``, ``structure`` of the fit
+        (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
+        ``Diagnosis.models["speed"]``).
+    dtau_s : float
+        Interval Δτ [s] (the record's).
+    R_um2 : float
+        Growth sensor noise variance [µm²] for the probe update.
+
+    Raises
+    ------
+    InputError
+        For a structure with a heat law, a slow frame response or an average of
+        structures (not exported).
+    """
+    from arfem.models.diagnosis.speed import FrameEnsemble
+    st = info["structure"]
+    where = "model_extended.json"
+    if isinstance(st, FrameEnsemble) or st.slow_lag or st.heat_exponent is not None:
+        raise InputError(f"the frame structure {getattr(st, 'label', st)} (a heat law, a "
+                         "slow response or an average of structures) is not exported yet",
+                         where)
+    coef = np.asarray(fit.extra["coefficients"], float)
+    seen = [float(v) for v in info["seen"]]
+    nl = len(seen)
+    gains, decay, c, gamma = coef[:nl], coef[nl], coef[nl + 1], coef[nl + 2:]
+    b = 1.0 / (fit.extra["time_constant_h"] * 3600.0)
+    level_gain = {sv: g for sv, g in zip(seen, gains)}
+    for lv, w in info["W"].items():
+        level_gain[float(lv)] = float(sum(wt * level_gain[float(sv)] for sv, wt in w.items()))
+    xs = np.array(sorted(level_gain))
+    maps = {"speed_rpm": (xs, np.array([level_gain[v] for v in xs]))}
+    a = float(np.exp(-b * dtau_s))
+    inputs = [InputSpec("speed_rpm", "1/min")]
+    A, B, C, x0 = [[a]], [[1.0 - a]], [1.0], [float(decay)]
+    D = [0.0]
+    offsets = {}
+    k = int(gamma.size)
+    if k:
+        rows = np.asarray(info["rows"], bool)
+        names = [nm for nm, v in info["temps"].items() if np.all(np.isfinite(np.asarray(v, float)))]
+        T = np.column_stack([np.asarray(info["temps"][nm], float) for nm in names])
+        mu, sd = T[rows].mean(0), T[rows].std(0)
+        sd[sd == 0] = 1.0
+        Z = (T - mu) / sd
+        lam, V = np.linalg.eigh(Z[rows].T @ Z[rows])
+        lam, V = lam[::-1], V[:, ::-1]
+        scale = np.array([max(np.sqrt(max(lam[j], 0.0) / rows.sum()), 1e-12) for j in range(k)])
+        W = V[:, :k] / sd[:, None] / scale[None, :]      # (m, k): raw_j = Σ_i (T_i − μ_i) W_ij
+        inputs += [InputSpec(nm, "°C") for nm in names]
+        offsets = {nm: float(m) for nm, m in zip(names, mu)}
+        m = len(names)
+        if st.sensor_lag_h > 0:
+            al = float(np.exp(-dtau_s / (st.sensor_lag_h * 3600.0)))
+            n = 1 + k
+            A = np.diag([a] + [al] * k)
+            B = np.zeros((n, 1 + m))
+            B[0, 0] = 1.0 - a
+            B[1:, 1:] = (1.0 - al) * W.T
+            C = np.concatenate([[1.0], gamma])
+            x0 = np.concatenate([[decay], (T[0] - mu) @ W])
+            D = np.zeros(1 + m)
+        else:
+            A, B = np.array([[a]]), np.concatenate([[1.0 - a], np.zeros(m)])[None, :]
+            D = np.concatenate([[0.0], W @ gamma])
+    A, B = np.atleast_2d(np.asarray(A, float)), np.atleast_2d(np.asarray(B, float))
+    return StateSpaceModel(
+        kind="extended:frame_expansion(thermometers)", dtau_s=float(dtau_s), A=A, B=B,
+        C=np.atleast_2d(np.asarray(C, float)), D=np.atleast_2d(np.asarray(D, float)),
+        inputs=tuple(inputs), x0=np.asarray(x0, float), d0_um=float(c),
+        Q=float(fit.rss / max(fit.n, 1)), R=float(R_um2), description=description,
+        arfem_version=arfem_version, input_maps=maps, input_offsets=offsets)
