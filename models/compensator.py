@@ -299,7 +299,7 @@ class Compensator:
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
 
-    def step(self, inputs: Mapping[str, float | None], alarms=()) -> Cycle:
+    def step(self, inputs: Mapping[str, float | None], alarms=(), advance: bool = True) -> Cycle:
         """One cycle: read the inputs of interval k, advance the state, set the offset.
 
         Parameters
@@ -309,6 +309,9 @@ class Compensator:
             for a value the transport could not read.
         alarms : iterable of str
             Alarms from the transport (e.g. ``"stale:speed_rpm"``); any holds the offset.
+        advance : bool
+            False for a reading the machine's clock says is not new (stale): the offset
+            is held and the state is not advanced, as no interval has passed.
         """
         mdl = self.model
         alarms = list(alarms)
@@ -325,7 +328,7 @@ class Compensator:
                     u[j] = np.nan
                 if not math.isfinite(u[j]):
                     alarms.append(f"nonfinite:{spec.name}")
-        usable = not alarms
+        usable = not alarms and advance
         notes = []
         if usable:
             for j, spec in enumerate(mdl.inputs):
@@ -335,7 +338,7 @@ class Compensator:
         if usable:
             self._u_last = u
         u_run = u if usable else self._u_last
-        if u_run is not None:                    # keep the state on time
+        if u_run is not None and advance:        # keep the state on time
             self.x = mdl.A @ self.x + mdl.B @ u_run
             self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
         if not usable:

@@ -176,17 +176,11 @@ def _cycle(line, comp, names, cfg, state, stdout, log) -> int:
             or not math.isfinite(t):
         alarms.append("missing:time_s")
         t = None
-    elif t <= state["last_t"]:        # a repeated or out-of-order sample
-        alarms += [f"stale:{nm}" for nm in names]
-    elif state["last_t"] > -math.inf and t - state["last_t"] > cfg.stale_after_s:
-        alarms.append("gap:time_s")    # the inputs in between were not seen
     for nm in names:
         v = doc.get(nm)
         values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
             else None
-    cyc = comp.step(values, alarms=alarms)
-    if t is not None and "stale:" not in " ".join(alarms):
-        state["last_t"] = t
+    cyc = clocked_step(comp, values, t, state, cfg.stale_after_s, alarms)
     out = {"time_s": t, "offset_um": cyc.offset_um,
            "predicted_growth_um": None if math.isnan(cyc.predicted_growth_um)
            else cyc.predicted_growth_um,
@@ -196,6 +190,34 @@ def _cycle(line, comp, names, cfg, state, stdout, log) -> int:
     log.write(json.dumps({"time_s": t, "inputs": values, **out}) + "\n")
     log.flush()
     return 1
+
+
+def clocked_step(comp, values: dict, t, state: dict, stale_after_s: float, alarms: list,
+                 clock_only: bool = False):
+    """One cycle with the machine's sample time ``t`` [s] (None: not known; one interval
+    is assumed, or, with ``clock_only`` -- the machine has a clock and it could not be
+    read -- none: the model waits for the clock to say how many passed). A time not newer than the last (``state["last_t"]``) is stale: the
+    offset is held and the model does not advance (no interval passed). A time more
+    than one Δτ after the last means intervals this loop did not see: the model advances
+    through them first (held, with the last inputs), so that it stays on time; more than
+    ``stale_after_s`` after it also raises ``gap:time_s``. Used by every transport."""
+    last = state.get("last_t", -math.inf)
+    names = list(values)
+    state["missed"] = 0
+    if t is None and clock_only:
+        return comp.step(values, alarms, advance=False)
+    if t is not None and t <= last:                  # a repeated or out-of-order sample
+        return comp.step(values, alarms + [f"stale:{nm}" for nm in names], advance=False)
+    if t is not None and last > -math.inf:
+        if t - last > stale_after_s:
+            alarms = alarms + ["gap:time_s"]         # the inputs in between were not seen
+        missed = max(int(round((t - last) / comp.model.dtau_s)) - 1, 0)
+        state["missed"] = missed
+        for _ in range(missed):
+            comp.step({nm: None for nm in names}, alarms=["missed_interval"])
+    if t is not None:
+        state["last_t"] = t
+    return comp.step(values, alarms)
 
 
 def run_live(args) -> int:

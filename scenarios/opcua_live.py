@@ -43,7 +43,11 @@ Per cycle: a bad status or a non-finite value holds the offset (``missing:NAME``
 ``gap:time_s``; a failed request drops the connection (``connection_lost``, offset
 held by the controller), which is retried with backoff; a deadline missed by a whole
 period counts a cycle of its own (``overrun``: the model's state advances with the
-last inputs, so that it stays on time). Every cycle is one flushed line of the log.
+last inputs, so that it stays on time) -- unless ``time_node`` is given: then the
+machine's clock counts the intervals, a late cycle simply runs late, and intervals the
+loop did not see (the time advanced by more than one Δτ) advance the state, held
+(``missed_intervals`` in the log); while it cannot be read (a lost connection) the
+state waits for it. Every cycle is one flushed line of the log.
 """
 from __future__ import annotations
 
@@ -58,6 +62,7 @@ from dataclasses import dataclass
 
 from arfem.models.compensator import Compensator
 from arfem.params import InputError, one_line
+from arfem.scenarios.live import clocked_step
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
@@ -342,16 +347,13 @@ class _Loop:
                             t = float(dv.Value.Value)
                         else:
                             transport.append("missing:time_s")
-        if t is not None:
-            if t <= self.last_t:
-                transport += [f"stale:{nm}" for nm in self.names]
-            else:
-                if self.last_t > -math.inf and t - self.last_t > self.cfg.stale_after_s:
-                    transport.append("gap:time_s")
-                self.last_t = t
         values = {nm: (v if isinstance(v, (int, float)) and not isinstance(v, bool) else None)
                   for nm, v in values.items()}
-        cyc = self.comp.step(values, alarms=transport)
+        clock = {"last_t": self.last_t}
+        cyc = clocked_step(self.comp, values, t, clock, self.cfg.stale_after_s, transport,
+                           clock_only=bool(self.o.time_node))
+        self.last_t = clock["last_t"]
+        missed = clock["missed"]
         written = False
         if self.client is not None and not overrun:
             nodes = [self.nodes.offset]
@@ -372,7 +374,8 @@ class _Loop:
                    "inputs": values, "transport_alarms": transport,
                    "offset_um": cyc.offset_um,
                    "predicted_growth_um": None if math.isnan(g) else g,
-                   "alarms": list(cyc.alarms), "held": cyc.held, "written": written})
+                   "alarms": list(cyc.alarms), "held": cyc.held, "written": written,
+                   **({"missed_intervals": missed} if missed else {})})
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -403,9 +406,9 @@ class _Loop:
                 self._log({"event": "started", "model": self.model.kind, "transport": "opcua",
                            "endpoint": self.o.endpoint, "period_s": period,
                            "wall_time": time.time()})
-                t0 = loop.time()
+                t0, k = loop.time(), 0                 # k: deadline index; n: cycles run
                 while not self.stop.is_set() and not (self.cfg.cycles and n >= self.cfg.cycles):
-                    deadline = t0 + n * period
+                    deadline = t0 + k * period
                     wait = deadline - loop.time()
                     if wait > 0:
                         try:
@@ -413,11 +416,17 @@ class _Loop:
                             break
                         except asyncio.TimeoutError:
                             pass
-                    if loop.time() - deadline >= period:   # a whole period missed
-                        await self._cycle(loop, n, deadline, overrun=True)
-                    else:
-                        await self._cycle(loop, n, deadline)
+                    behind = int((loop.time() - deadline) // period)
+                    if behind >= 1:                    # whole periods missed
+                        if not self.o.time_node:       # no machine clock: count them
+                            for j in range(behind):
+                                await self._cycle(loop, n, deadline + j * period, overrun=True)
+                                n += 1
+                        k += behind                    # (with one, its time tells)
+                        deadline = t0 + k * period
+                    await self._cycle(loop, n, deadline)
                     n += 1
+                    k += 1
                 self._log({"event": "stopped", "cycles": n,
                            "reason": self.reason or "cycles done",
                            "last_offset_um": self.comp.offset_um, "wall_time": time.time()})

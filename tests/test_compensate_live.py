@@ -109,3 +109,27 @@ def test_bad_config_is_one_line_exit_2(setup, text, msg):
     r = _live(d, ['{"time_s": 60, "q_W_m2": 1}\n'], "bad.toml")
     assert r.returncode == 2 and msg in r.stderr and r.stdout == ""
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_the_machine_clock_decides_how_far_the_model_advances():
+    """clocked_step (every transport): a stale time holds the offset without advancing
+    the state (no interval passed); a time two intervals on advances through the unseen
+    one first (held, last inputs); with clock_only and no readable time, nothing moves.
+    The reference steps a Compensator interval by interval by hand."""
+    from arfem.models.compensator import Compensator
+    from arfem.scenarios.live import clocked_step
+    m = ar1_model(0.9, 0.01, dtau_s=60.0)
+    c, ref, state = Compensator(m), Compensator(m), {}
+    for t, q in ((60.0, 100.0), (120.0, 200.0)):
+        clocked_step(c, {"q_W_m2": q}, t, state, 600.0, [])
+        ref.step({"q_W_m2": q})
+    x = c.x.copy()
+    cyc = clocked_step(c, {"q_W_m2": 900.0}, 120.0, state, 600.0, [])
+    assert cyc.held and "stale:q_W_m2" in cyc.alarms and np.array_equal(c.x, x)
+    cyc = clocked_step(c, {"q_W_m2": 900.0}, None, state, 600.0, [], clock_only=True)
+    assert np.array_equal(c.x, x)
+    cyc = clocked_step(c, {"q_W_m2": 300.0}, 240.0, state, 600.0, [])
+    ref.step({"q_W_m2": None})                      # the unseen interval: last inputs
+    want = ref.step({"q_W_m2": 300.0})
+    assert state["missed"] == 1 and not cyc.held
+    assert cyc.predicted_growth_um == want.predicted_growth_um
