@@ -1,10 +1,12 @@
 """Diagnosis benchmark (contract version 2): a balanced batch of generated datasets,
 fixed seeds, built by ``arfem.models.diagnosis.synth.generate`` and diagnosed from the
-files alone. The batch (``--per-kind N``; default 4 -> 68 cases):
+files alone. The batch (``--per-kind N``; default 4 -> 85 cases):
 
 * every single cause of the contract, ``none`` included, 1.25 N times each (40 at N=4);
-* four kinds of two-cause record (N/4 x 3 each ... 12 at N=4);
-* clean records with coloured (AR(1), ρ 0.6-0.9) measurement noise;
+* seven kinds of two-cause record (3N/4 each: 21 at N=4), among them speed-dependent
+  convection and convection beside a frame, and natural convection with a heat scale;
+* clean records with four kinds of sensor noise (3N/4 each: 12 at N=4): white, AR(1)
+  (ρ 0.6-0.97), a random walk (0.2-0.5 µm at the record's end) and coarse quantisation;
 * records that start warm (``initial = "unknown"``), with a drawn cause;
 * records of other rod geometries through ``[rod]``, with a drawn cause;
 * records in wrong units (growth written in mm).
@@ -41,7 +43,19 @@ from arfem.scenarios.diagnose import diagnose_file
 from arfem.scenarios.synth_files import write_case
 
 PAIRS = ("ambient_drift+sensor_drift", "heat_input_scale+sensor_drift",
-         "convection_mismatch+ambient_drift", "heat_input_scale+frame_expansion")
+         "convection_mismatch+ambient_drift", "heat_input_scale+frame_expansion",
+         # issue 24: a convection change beside a frame, natural convection with a scale
+         "speed_dependent_convection+frame_expansion", "convection_mismatch+frame_expansion",
+         "nonlinear_convection+heat_input_scale")
+#: clean records (no cause) with the sensor noises of issue 24, σ up to 0.2 µm
+CLEAN_NOISES = (
+    ("white", lambda r: {"noise_um": float(r.uniform(0.05, 0.2))}),
+    ("AR(1)", lambda r: {"noise_um": float(r.uniform(0.05, 0.2)),
+                         "noise_ar1": float(r.uniform(0.6, 0.97))}),
+    ("random walk", lambda r: {"noise_um": 0.05, "noise_walk_um": float(r.uniform(0.2, 0.5))}),
+    ("quantised", lambda r: {"noise_um": float(r.uniform(0.02, 0.05)),
+                             "quantum_um": float(r.choice([0.15, 0.2, 0.255]))}),
+)
 RODS = (dict(radius_m=0.05, length_m=0.5), dict(radius_m=0.15, length_m=1.2),
         dict(radius_m=0.08, length_m=0.6, convection_W_m2K=30.0),
         dict(radius_m=0.12, length_m=1.0, convection_W_m2K=90.0))
@@ -61,9 +75,10 @@ def batch(per_kind: int, seed_start: int = 1000):
             jobs.append(("two causes", c, seed, {}))
             seed += 1
     rng = np.random.default_rng(7)
-    for i in range(per_kind):
-        jobs.append(("coloured noise", "none", seed, {"noise_ar1": float(rng.uniform(0.6, 0.9))}))
-        seed += 1
+    for i in range(max(1, 3 * per_kind // 4)):
+        for label, draw in CLEAN_NOISES:
+            jobs.append((f"clean, {label} noise", "none", seed, draw(rng)))
+            seed += 1
     for i in range(per_kind):
         c = CAUSES[1 + i % (len(CAUSES) - 1)]
         jobs.append(("initial unknown", c, seed, {"warm_start_h": float(rng.uniform(1, 4))}))
@@ -160,7 +175,7 @@ def main(argv=None):
           f" (target >= 95 %)")
     for k in sorted(total):
         print(f"  {k:40s} {right[k]}/{total[k]}")
-    n_clean = sum(v for k, v in total.items() if k in ("single: none", "coloured noise"))
+    n_clean = sum(v for k, v in total.items() if k == "single: none" or k.startswith("clean"))
     print(f"causes named on clean records: {clean_named} over {n_clean} records (target 0)")
     cn, cc = sum(cover_n.values()), sum(cover.values())
     print(f"95 % interval coverage: {cc}/{cn} = {100 * cc / max(cn, 1):.1f} % (target 90-98 %)"

@@ -629,8 +629,10 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     residual's autocorrelation, and the wider interval of the two is reported:
 
     * effective sample size: s² (JᵀJ)⁻¹ · N/N_eff with s² = RSS/(N − p), J the Jacobian of
-      the prediction in all p parameters on the N fit rows and N_eff = N(1 − ρ1)/(1 + ρ1)
-      from the residual's lag-1 autocorrelation; Student's t on N_eff − p degrees of freedom;
+      the prediction in all p parameters on the N fit rows and N_eff the smaller of
+      N(1 − ρ1)/(1 + ρ1) (the residual's lag-1 autocorrelation) and the batch-means N/τ,
+      which sees slow wander (:func:`arfem.models.diagnosis.stats.noise_n_eff`);
+      Student's t on N_eff − p degrees of freedom;
     * block sandwich (the linearised delete-a-block jackknife): (JᵀJ)⁻¹ [Σ_b g_b g_bᵀ]
       (JᵀJ)⁻¹ · B/(B − 1) with g_b = J_bᵀ r_b summed over B contiguous blocks of the fit
       window, each at least ``CI_BLOCK_CORR`` correlation times of the residual long (the
@@ -663,8 +665,7 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
         return {}
     n, p = J.shape
     r = (np.asarray(y, float) - fit.prediction)[rows]
-    rho = st.lag1(r)
-    n_eff = st.effective_n(n, rho)
+    n_eff = st.noise_n_eff(r)
     s2 = float(r @ r) / max(n - p, 1)
     scale = np.linalg.norm(J, axis=0)
     scale[scale == 0] = 1.0

@@ -326,6 +326,7 @@ def _common_settings(rng) -> dict:
         "phases": None,                     # drawn on the grid below unless overridden
         # not drawn (the draws above stay the same for every seed): the v2 record kinds
         "noise_ar1": 0.0,                   # lag-1 correlation of coloured (AR(1)) noise
+        "noise_walk_um": 0.0,               # random-walk sensor wander: its σ at the end [µm]
         "growth_unit_factor": 1.0,          # written growth = reading x this (1e-3: in mm)
         "warm_start_h": 0.0,                # > 0: heated this long before t = 0 (initial unknown)
         "warm_q_W_m2": 2500.0,              # the flux of that warm-up
@@ -442,6 +443,7 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
         ``jitter_s``, ``noise_um``, ``quantum_um``, ``n_outliers``, ``n_gaps``,
         ``empty_fraction``, ``ambient_noise_K``, ``frame_noise_K``, ``frame_sensor``,
         ``phases`` = [(duration_h, q_W_m2), ...], ``noise_ar1`` (coloured noise),
+        ``noise_walk_um`` (random-walk wander, its σ at the record's end [µm]),
         ``growth_unit_factor`` (1e-3 writes growth in mm), ``warm_start_h`` and
         ``warm_q_W_m2`` (a warm start: ``initial = "unknown"``), ``declared_rod`` (a dict
         of [rod] values written instead of the true ones)) and the cause's own (e.g. ``scale``,
@@ -578,6 +580,11 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
         c = np.sqrt(1.0 - rho * rho)
         white = lfilter([c], [1.0, -rho], white, zi=[(1.0 - c) * white[0]])[0]
     meas = clean + white
+    walk_um = float(s["noise_walk_um"])
+    if walk_um > 0:          # slow wander of the sensor's electronics (own stream: the
+        # other draws of the seed stay as they are)
+        steps = np.random.default_rng([int(seed), 7]).normal(0.0, walk_um / np.sqrt(n), n)
+        meas = meas + np.cumsum(steps) - steps[0]
     cand = np.flatnonzero((np.arange(n) >= 1) & (np.arange(n) < n - 1))
     # an empty growth cell may fall anywhere, also where the input switches: the loader
     # keeps the row's input and drops only the observation
