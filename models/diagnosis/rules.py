@@ -318,12 +318,8 @@ def _second_cause(cause, fits, phys, args, refused):
             if p < PARSIMONY_P and gain >= MIN_GAIN and rec["significant"]:
                 ups.append(g)
             elif best is const and "equivalent" not in const.extra:
-                const.extra["equivalent"] = {
-                    "cause": f"{cause}+{m}", "parameters": g.parameters, "p_value": p,
-                    "why": (f"{m} fits no better than convection_mismatch alongside {cause}: "
-                            f"RMSE cut {100 * gain:.1f} % (named only from "
-                            f"{100 * MIN_GAIN:g} %), nested F test p = {p:.3g} (named only "
-                            f"below {PARSIMONY_P:g}); the pair with fewer parameters is named")}
+                const.extra["equivalent"] = _equivalent(g, p, _fewer_parameters_why(m, cause,
+                                                                                     gain, p))
     if ups:
         ups.sort(key=lambda g: g.rss)
         g = ups[0]
@@ -333,17 +329,29 @@ def _second_cause(cause, fits, phys, args, refused):
                 p = st.f_test_p(ups[1].rss, g.rss, 1, st.noise_n_eff(r))
                 if p >= PARSIMONY_P:
                     other = "+".join(ups[1].extra["causes"])
-                    g.extra["equivalent"] = {
-                        "cause": other, "parameters": ups[1].parameters, "p_value": p,
-                        "why": (f"{other} fits as well (RMSE {np.sqrt(ups[1].rss / ups[1].n):.3g} "
-                                f"against {np.sqrt(g.rss / g.n):.3g} µm, F test p = {p:.3g}): "
-                                "two explanations fit alike; the data do not tell them apart")}
+                    g.extra["equivalent"] = _equivalent(ups[1], p, (
+                        f"{other} fits as well (RMSE {np.sqrt(ups[1].rss / ups[1].n):.3g} "
+                        f"against {np.sqrt(g.rss / g.n):.3g} µm, F test p = {p:.3g}): two "
+                        "explanations fit alike; the data do not tell them apart"))
             best = g
     if best is not None:
         best = _h_swap(best, fits, y, rows, fit_pair, tried, lead, len(pairs))
         best = _pair_parsimony(best, fits, phys, args)
         best.extra["causes"] = tuple(sorted(best.extra["causes"], key=lambda c: fits[c].rss))
     return best, tried
+
+
+def _fewer_parameters_why(m: str, other: str, gain: float, p: float) -> str:
+    return (f"{m} fits no better than convection_mismatch alongside {other}: RMSE cut "
+            f"{100 * gain:.1f} % (named only from {100 * MIN_GAIN:g} %), nested F test "
+            f"p = {p:.3g} (named only below {PARSIMONY_P:g}); the pair with fewer "
+            "parameters is named")
+
+
+def _equivalent(alt, p: float, why: str) -> dict:
+    """The record of an alternative that fits as well (``equivalent`` in the report)."""
+    return {"cause": "+".join(alt.extra["causes"]), "parameters": alt.parameters,
+            "p_value": p, "why": why}
 
 
 def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
@@ -372,13 +380,11 @@ def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
         elif "equivalent" not in best.extra:
             alt = g if lo is best else best
             best = lo
-            best.extra["equivalent"] = {
-                "cause": "+".join(alt.extra["causes"]), "parameters": alt.parameters,
-                "p_value": p,
-                "why": (f"{'+'.join(alt.extra['causes'])} fits as well (RMSE "
-                        f"{np.sqrt(alt.rss / alt.n):.3g} against {np.sqrt(best.rss / best.n):.3g} "
-                        f"µm, nested F test p = {p:.3g}): two explanations fit alike; the "
-                        "data before the hold-out do not tell them apart")}
+            best.extra["equivalent"] = _equivalent(alt, p, (
+                f"{'+'.join(alt.extra['causes'])} fits as well (RMSE "
+                f"{np.sqrt(alt.rss / alt.n):.3g} against {np.sqrt(best.rss / best.n):.3g} "
+                f"µm, nested F test p = {p:.3g}): two explanations fit alike; the data "
+                "before the hold-out do not tell them apart"))
     return best
 
 
@@ -404,13 +410,7 @@ def _pair_parsimony(pair, fits, phys, args):
         p = st.f_test_p(g.rss, pair.rss, max(pair.k - g.k, 1), st.noise_n_eff(r))
         gain = 1.0 - np.sqrt(pair.rss / g.rss) if g.rss > 0 else 0.0
         if p >= PARSIMONY_P or gain < MIN_GAIN:
-            g.extra["equivalent"] = {
-                "cause": "+".join(pair.extra["causes"]), "parameters": pair.parameters,
-                "p_value": p,
-                "why": (f"{m} fits no better than convection_mismatch alongside {other}: "
-                        f"RMSE cut {100 * gain:.1f} % (named only from {100 * MIN_GAIN:g} %), "
-                        f"nested F test p = {p:.3g} (named only below {PARSIMONY_P:g}); the "
-                        "pair with fewer parameters is named")}
+            g.extra["equivalent"] = _equivalent(pair, p, _fewer_parameters_why(m, other, gain, p))
             if "convection_mismatch" not in fits or fits["convection_mismatch"] is None:
                 return pair
             return g
