@@ -194,8 +194,10 @@ def add_parser(sub) -> None:
                    "not with --live")
     p.add_argument("--out", help="output directory (replay)")
     p.add_argument("--live", metavar="CONFIG.toml",
-                   help="run live instead of replaying: one cycle per JSON line on stdin, "
-                        "the offset as a JSON line on stdout (docs: arfem compensate)")
+                   help="run live instead of replaying, with the transport the config "
+                        "names: an OPC UA client (reads the input nodes, writes the offset "
+                        "node every period_s) or JSON lines on stdin/stdout "
+                        "(docs: arfem compensate)")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
                    help="largest |offset| written [µm] (default: no limit)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
