@@ -8,7 +8,7 @@ exactly as ``arfem diagnose`` fits it on a speed-only record, and its contract p
 get the intervals of :func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`
 (what diagnosis.json reports). Kinds: the four causes through
 :func:`~arfem.models.diagnosis.speed.fit_speed_candidate` (records without thermometers)
-and ``frame_expansion`` through :func:`~arfem.models.diagnosis.speed.fit_frame_thermometers`
+and ``frame_expansion`` through :func:`~arfem.models.diagnosis.speed_frame.fit_frame_thermometers`
 with one thermometer component (``frame_thermometers``, the form of the "narrow" search),
 with the frame's own slow response instead (``frame_slow``, "wide") and as the
 ``--frame-search average`` ensemble of the "narrow" structures of one thermometer
@@ -35,9 +35,9 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np
 
-from arfem.models.diagnosis.speed import (FrameEnsemble, FrameStructure,
-                                          fit_frame_thermometers, fit_speed_candidate,
-                                          frame_structures)
+from arfem.models.diagnosis.speed import fit_speed_candidate
+from arfem.models.diagnosis.speed_frame import (FrameEnsemble, FrameStructure,
+                                                fit_frame_thermometers, frame_structures)
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.synth_speed import generate_speed
 from arfem.params import Rod

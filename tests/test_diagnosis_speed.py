@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis.forward import ar_columns, ar_first_order, first_order_lag
-from arfem.models.diagnosis.speed import (FrameStructure, fit_frame_thermometers, forward_folds,
-                                    frame_structures, heat_law, select_frame_structure)
+from arfem.models.diagnosis.speed_frame import (FrameStructure, fit_frame_thermometers,
+                                                frame_structures, heat_law)
+from arfem.models.diagnosis.speed_select import forward_folds, select_frame_structure
 from arfem.scenarios.cli import main as cli
 
 ROD_TAU_H, FRAME_TAU_H, FRAME_GAIN, P_TRUE, K_ROD_UM = 1.0, 8.0, -0.4, 5.0 / 3.0, 20.0
@@ -119,7 +120,7 @@ def test_frame_ensemble_is_the_equal_weight_mean_of_its_members():
     prediction is exactly the mean of the "narrow" structures' predictions (1e-9 of the
     growth range: the members are the same deterministic fits), its contract parameters
     the members' medians, and select_frame_structure returns it with no table."""
-    from arfem.models.diagnosis.speed import FrameEnsemble
+    from arfem.models.diagnosis.speed_frame import FrameEnsemble
     t, speed, y, temps = _record()
     rows = t < HOLDOUT_S
     folds = forward_folds(t, speed, rows)

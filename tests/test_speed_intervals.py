@@ -151,7 +151,7 @@ def test_thermometer_frame_summary_recovers_the_injected_frame(seed):
     (Σ_s u_s = 1), so the gains are known only relative to the rest level; a summary
     that used them as they came out of the least squares gave 8.1 h / -1.24 on seed 1001
     and 60 h / -5.1 on seed 1002 (true 4.86 h / -0.64 and 7.22 h / -0.67)."""
-    from arfem.models.diagnosis.speed import FrameStructure, fit_frame_thermometers
+    from arfem.models.diagnosis.speed_frame import FrameStructure, fit_frame_thermometers
     c, rows, seen = _frame_case(seed)
     f = fit_frame_thermometers(c.time_s, c.growth_um, c.speed_rpm, rows, seen, {},
                                c.temperatures, FrameStructure(1, 0.0, None, False))
@@ -166,7 +166,7 @@ def test_slow_frame_response_is_the_slower_one():
     Seed 1001 (rod 1.84 h, frame 4.86 h) fitted a 2 h "frame" (its bound) beside a 4 h
     "rod" before the order was imposed; now τ_f is within 15 % of the truth and longer
     than the rod's."""
-    from arfem.models.diagnosis.speed import FrameStructure, fit_frame_thermometers
+    from arfem.models.diagnosis.speed_frame import FrameStructure, fit_frame_thermometers
     c, rows, seen = _frame_case(1001)
     f = fit_frame_thermometers(c.time_s, c.growth_um, c.speed_rpm, rows, seen, {}, {},
                                FrameStructure(0, 0.0, None, True))

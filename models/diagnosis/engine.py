@@ -74,9 +74,10 @@ from arfem.models.diagnosis.rules import (
     _implausible, _parsimony, _second_cause, _select, _select_cv, _unconfirmed,
     _units_warning)
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
-from arfem.models.diagnosis.speed import (SPEED_CAUSES, cv_rmse, fit_frame_thermometers,
-                                          fit_speed_candidate, forward_folds, mlr, paper_ar,
-                                          select_frame_structure, speed_to_heat_map)
+from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
+                                          speed_to_heat_map)
+from arfem.models.diagnosis.speed_frame import fit_frame_thermometers
+from arfem.models.diagnosis.speed_select import cv_rmse, forward_folds, select_frame_structure
 from arfem.params import InputError
 from arfem.io import json_text
 
@@ -664,7 +665,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         Start of the hold-out [s]; default the last third of the record.
     frame_search : {"narrow", "wide", "average"}
         Speed-only records: the frame structures compared by forward-chaining
-        validation (:func:`arfem.models.diagnosis.speed.frame_structures`).
+        validation (:func:`arfem.models.diagnosis.speed_frame.frame_structures`).
     progress : callable, optional
         Called with a step's name as each slow step starts (the command shows it).
     intervals : bool
@@ -674,7 +675,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     drift_last : bool
         Speed-only records (post hoc option): name ``sensor_drift`` only if no
         input-driven cause passes the naming test
-        (:func:`arfem.models.diagnosis.speed.drift_last`).
+        (:func:`arfem.models.diagnosis.speed_select.drift_last`).
     """
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)

@@ -26,7 +26,7 @@ nuisance terms of a record with ``initial = "unknown"`` describe that record's s
 the compensator starts from equilibrium (``x0 = 0``).
 
 For a ``speed_rpm`` record the extended model the diagnosis names from thermometers
-(``frame_expansion``, :func:`arfem.models.diagnosis.speed.fit_frame_thermometers`, the
+(``frame_expansion``, :func:`arfem.models.diagnosis.speed_frame.fit_frame_thermometers`, the
 "narrow" structures: per-speed gains, no slow response) is an output-error AR(1) plus a
 linear function of lagged principal components of the temperatures, also linear and
 time-invariant (:func:`speed_state_space`).
@@ -141,7 +141,7 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
                       description: str = "", arfem_version: str = "") -> StateSpaceModel:
     """The thermometer frame model of a speed record as a model at interval Δτ.
 
-    The fit's prediction is (:func:`~arfem.models.diagnosis.speed.fit_frame_thermometers`)
+    The fit's prediction is (:func:`~arfem.models.diagnosis.speed_frame.fit_frame_thermometers`)
 
         ŷ = Σ_s G_s X_s + d·e^{−bt} + c + Σ_j γ_j P_j
 
@@ -173,7 +173,7 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
         For a structure with a heat law, a slow frame response or an average of
         structures (not exported).
     """
-    from arfem.models.diagnosis.speed import FrameEnsemble
+    from arfem.models.diagnosis.speed_frame import FrameEnsemble
     st = info["structure"]
     where = "model_extended.json"
     if isinstance(st, FrameEnsemble) or st.slow_lag or st.heat_exponent is not None:

@@ -17,8 +17,8 @@ import numpy as np
 
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import CandidateFit, compatible, fit_causes
-from arfem.models.diagnosis.speed import drift_last as _drift_last
-from arfem.models.diagnosis.speed import median_block_ratio
+from arfem.models.diagnosis.speed_select import drift_last as _drift_last
+from arfem.models.diagnosis.speed_select import median_block_ratio
 from arfem.params import PLAUSIBLE_RANGES
 
 
@@ -108,7 +108,7 @@ def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False,
                drift_last: bool = False):
     """Speed-only records: the cause with the least forward-chaining validation RMSE on
     the fit window is named only if it cuts the baseline's by >= ``MIN_GAIN`` *and* wins
-    on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed.forward_folds`);
+    on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed_select.forward_folds`);
     otherwise ``none``. Residuals of thermal models are so autocorrelated that the
     effective sample size of the fit window is a few dozen, so out-of-sample error on
     later blocks -- each opening, like the hold-out, with a speed the training part has

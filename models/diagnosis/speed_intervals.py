@@ -3,7 +3,7 @@
 The speed-only candidates (:mod:`arfem.models.diagnosis.speed`) are output-error fits of
 a calibrated AR(1) whose parameters come from nested searches (grids, Nelder-Mead,
 linear least squares inside) and, for a frame with thermometers, are derived summaries
-of the fitted frame part (:func:`~arfem.models.diagnosis.speed.fit_frame_thermometers`)
+of the fitted frame part (:func:`~arfem.models.diagnosis.speed_frame.fit_frame_thermometers`)
 or medians over an ensemble of such fits (``FrameEnsemble``). None of them carries a
 Jacobian, so the intervals come from refitting, with one method for all of them:
 
