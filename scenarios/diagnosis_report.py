@@ -212,6 +212,15 @@ def verdict(j: dict) -> list[str]:
                 f"(hold-out RMSE {_fmt(base)} µm"
                 + (f", the MLR of eq. 18 {_fmt(mlr)} µm" if mlr is not None else "")
                 + "). Nothing in arfem's vocabulary of causes improves on it.")
+        u = j.get("unconfirmed")
+        if u:
+            text = (f"No cause is named (hold-out RMSE {_fmt(base)} µm). A `{u['cause']}` "
+                    "fits the data before the hold-out but is unconfirmed: "
+                    + ("its effect is within the slow part of the record's noise "
+                       f"({_fmt(u['effect_rms_um'])} against {_fmt(u['slow_noise_um'])} µm), "
+                       "which looks like sensor wander, not a cause."
+                       if "effect_rms_um" in u else
+                       f"the hold-out contradicts it (gain {_fmt(u['holdout_gain_pct'])} %)."))
     elif h["gain_pct"] < 0:
         text = (f"A `{cause}` fits the data before the hold-out, but it makes the hold-out "
                 f"worse ({_fmt(base)} → {_fmt(ext)} µm RMSE): treat it as unconfirmed. What "

@@ -49,6 +49,8 @@ def test_sensor_wander_names_no_cause(tmp_path):
     u = s.get("unconfirmed")
     assert u is not None and u["effect_rms_um"] < 3.0 * u["slow_noise_um"]
     assert any("unconfirmed" in w for w in s["warnings"])
+    from arfem.scenarios.diagnosis_report import verdict
+    assert "sensor wander" in " ".join(verdict(s))       # the report opens with it
 
 
 def test_holdout_contradicting_the_misfit_rule_unconfirms():
