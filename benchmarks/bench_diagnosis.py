@@ -1,6 +1,6 @@
 """Diagnosis benchmark (contract version 2): a balanced batch of generated datasets,
 fixed seeds, built by ``arfem.models.diagnosis.synth.generate`` and diagnosed from the
-files alone. The batch (``--per-kind N``; default 4 -> 85 cases):
+files alone. The batch (``--per-kind N``; default 4 -> 99 cases):
 
 * every single cause of the contract, ``none`` included, 1.25 N times each (40 at N=4);
 * seven kinds of two-cause record (3N/4 each: 21 at N=4), among them speed-dependent
@@ -9,7 +9,9 @@ files alone. The batch (``--per-kind N``; default 4 -> 85 cases):
   (ρ 0.6-0.97), a random walk (0.2-0.5 µm at the record's end) and coarse quantisation;
 * records that start warm (``initial = "unknown"``), with a drawn cause;
 * records of other rod geometries through ``[rod]``, with a drawn cause;
-* records in wrong units (growth written in mm).
+* records in wrong units (growth written in mm);
+* every cause under slow sensor noise, AR(1) (ρ 0.8-0.97) or a random walk (0.2-0.5 µm),
+  N/2 each (14 at N=4; added after the fresh batch 9000 was scored).
 
 Prints: % fully right (every injected cause named, nothing extra; for wrong units: a
 warning and no cause), per kind; causes named on clean records; the coverage of the
@@ -91,6 +93,15 @@ def batch(per_kind: int, seed_start: int = 1000):
         c = CAUSES[(1 + 3 * i) % len(CAUSES)]
         jobs.append(("wrong units", c, seed, {"growth_unit_factor": 1e-3}))
         seed += 1
+    # every cause under slow sensor noise (added after the fresh batch 9000): AR(1)
+    # noise and a random walk, in turn
+    for i in range(max(1, per_kind // 2)):
+        for j, c in enumerate(CAUSES[1:]):
+            ov = ({"noise_um": float(rng.uniform(0.05, 0.2)),
+                   "noise_ar1": float(rng.uniform(0.8, 0.97))} if (i + j) % 2 == 0 else
+                  {"noise_um": 0.05, "noise_walk_um": float(rng.uniform(0.2, 0.5))})
+            jobs.append(("cause, slow noise", c, seed, ov))
+            seed += 1
     return jobs
 
 

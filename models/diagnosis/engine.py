@@ -48,6 +48,8 @@ Selection rule (documented in every report; each rule has its one home in
     minus the baseline's -- is below ``EFFECT_FACTOR`` times the slow part of the noise
     it leaves (the RMS of the residual's 30-min means) is not named either
     (``unconfirmed``): slow sensor wander is fitted by a flexible cause but is not one.
+    The second cause of a pair is held to the same rule with its own increment over
+    the first (post hoc: added after the fresh batch 9000 was scored).
 
 Every N_eff (rules 2, 3, 6, 7 and the intervals) is the smaller of the lag-1 form and
 the batch-means form, which sees slow sensor wander
@@ -345,6 +347,15 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
     causes = [] if cause == "none" else ([cause] if pair is None else list(pair.extra["causes"]))
     if pair is not None and causes[0] != cause:
         cause = causes[0]
+    if pair is not None and fits.get(causes[0]) is not None:
+        # rule 10 for the second cause of a pair: its own increment over the first
+        inc, slow = _effect_and_slow_noise(t, y, rows, pair, fits[causes[0]])
+        if inc < EFFECT_FACTOR * slow:
+            warnings.append(f"{causes[1]} beside {causes[0]} changes the fit window by "
+                            f"{inc:.3g} µm RMS, within {EFFECT_FACTOR:g} x the slow part "
+                            f"of the noise ({slow:.3g} µm): unconfirmed as a second cause "
+                            "(post hoc rule, after the fresh batch 9000)")
+            pair, causes, cause = None, [causes[0]], causes[0]
     ext = fits[cause] if pair is None else pair
     unconfirmed = None
     if cause != "none":
