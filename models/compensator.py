@@ -69,6 +69,13 @@ class StateSpaceModel:
         Where the model comes from (paper equations, fit window).
     arfem_version : str
         The arfem that wrote it.
+    input_maps : dict
+        Input name → (x, y): a piecewise-linear map of that input (e.g. speed → C2).
+    input_offsets : dict
+        Input name → reference subtracted from the reading (e.g. the nominal ambient).
+    fit_window_s : tuple of float, optional
+        (first, last) sample time [s] of the rows the model was fitted on; None for a
+        model that is not fitted (the paper's eqs. 13-14 from the rod's values).
     """
 
     kind: str
@@ -86,6 +93,7 @@ class StateSpaceModel:
     arfem_version: str = ""
     input_maps: dict = field(default_factory=dict)
     input_offsets: dict = field(default_factory=dict)
+    fit_window_s: tuple | None = None
 
     @property
     def n_states(self) -> int:
@@ -121,7 +129,9 @@ class StateSpaceModel:
                 "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
                                for k, (x, y) in self.input_maps.items()},
                 "description": self.description, "arfem_version": self.arfem_version,
-                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {})}
+                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {}),
+                **({"fit_window_s": [float(v) for v in self.fit_window_s]}
+                   if self.fit_window_s is not None else {})}
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
@@ -140,8 +150,8 @@ class StateSpaceModel:
         if not isinstance(d, dict):
             raise InputError("must be a JSON object", where)
         known = {"model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C", "D",
-                 "d0_um", "x0", "noise", "input_maps", "input_offsets", "description",
-                 "arfem_version"}
+                 "d0_um", "x0", "noise", "input_maps", "input_offsets", "fit_window_s",
+                 "description", "arfem_version"}
         extra = sorted(set(d) - known)
         if extra:
             raise InputError(f"unknown key {extra[0]!r}", where)
@@ -203,6 +213,14 @@ class StateSpaceModel:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InputError(f"must be a finite number, got {v!r}", key)
             offsets[name] = float(v)
+        fw = d.get("fit_window_s")
+        if fw is not None:
+            if not (isinstance(fw, list) and len(fw) == 2 and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool)
+                    and math.isfinite(v) for v in fw) and fw[0] <= fw[1]):
+                raise InputError(f"must be [first, last] sample times in seconds, got {fw!r}",
+                                 f"{where}: fit_window_s")
+            fw = (float(fw[0]), float(fw[1]))
         noise = d.get("noise") or {}
         return cls(kind=str(d.get("kind", "")), dtau_s=float(dtau), A=A, B=B, C=C, D=D,
                    inputs=tuple(InputSpec(i["name"], i["unit"]) for i in ins), x0=x0,
@@ -210,7 +228,7 @@ class StateSpaceModel:
                    R=float(noise.get("R_um2", 0.0)),
                    description=str(d.get("description", "")),
                    arfem_version=str(d.get("arfem_version", "")), input_maps=maps,
-                   input_offsets=offsets)
+                   input_offsets=offsets, fit_window_s=fw)
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",

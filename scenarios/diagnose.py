@@ -37,6 +37,8 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     1, a cause with no linear time-invariant form) is not exported; the list
     ``"not_exported"`` says why.
     """
+    import dataclasses
+
     import numpy as np
 
     from arfem import __version__
@@ -87,6 +89,10 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
         out["model_mlr.json"] = fit_mlr_model(ds.growth_um[fit], temps, dtau_s=dt,
                                               arfem_version=__version__,
                                               description=f"MLR of eq. 18, {span}")
+    window = (float(t[fit][0]), float(t[fit][-1]))
+    for name, m in out.items():          # every model but the unfitted paper AR(1)
+        if not (name == "model.json" and ds.q_W_m2 is not None):
+            out[name] = dataclasses.replace(m, fit_window_s=window)
     if why:
         out["not_exported"] = why
     return out

@@ -149,11 +149,27 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
     ds = load_dataset(root / "scenarios" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
     d = diagnose(ds, 100800.0, intervals=False)
     assert d.summary["cause"] == "frame_expansion"
-    m = compensator_models(ds, 100800.0, d)["model_extended.json"]
+    models = compensator_models(ds, 100800.0, d)
+    m = models["model_extended.json"]
     assert (m.n_states > 1) == (ch == 5)
+    t = ds.time_s[ds.time_s < 100800.0]
+    assert m.fit_window_s == (float(t[0]), float(t[-1]))      # what it was fitted on
+    assert models["model_mlr.json"].fit_window_s == m.fit_window_s
     cols = {"speed_rpm": ds.speed_rpm, **ds.temperatures}
     c = Compensator(m)
     pred = [c.step({i.name: float(cols[i.name][k]) for i in m.inputs}).predicted_growth_um
             for k in range(1, ds.time_s.size)]
     ref = d.models["extended"].prediction[1:]
     assert np.max(np.abs(np.array(pred) - ref)) <= 1e-9 * np.max(np.abs(ref))
+
+
+def test_fit_window_is_checked_when_read():
+    """``fit_window_s`` round-trips, and a malformed one is one line naming the key."""
+    from arfem.models.compensator import StateSpaceModel, ar1_model
+    import dataclasses
+    m = dataclasses.replace(ar1_model(0.99, 1e-4, dtau_s=60.0), fit_window_s=(0.0, 3600.0))
+    assert StateSpaceModel.from_dict(m.to_dict()).fit_window_s == (0.0, 3600.0)
+    assert "fit_window_s" not in ar1_model(0.99, 1e-4, dtau_s=60.0).to_dict()
+    for bad in ([3600.0, 0.0], [0.0], "0-3600", [0.0, float("nan")]):
+        with pytest.raises(InputError, match="fit_window_s: must be"):
+            StateSpaceModel.from_dict({**m.to_dict(), "fit_window_s": bad})
