@@ -67,20 +67,53 @@ def write_record(directory, rows: list, name: str = "twin") -> None:
         f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n'))
 
 
+def _user_manager(name: str, secret: str):
+    """An asyncua user manager that admits one user, by name and password."""
+    from asyncua.crypto.permission_rules import User, UserRole
+    from asyncua.server.user_managers import UserManager
+
+    class _One(UserManager):
+        def get_user(self, iserver, username=None, password=None, certificate=None):
+            if username == name and password == secret:
+                return User(role=UserRole.User)
+            return None
+    return _One()
+
+
 async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
-                ready=None) -> list:
+                ready=None, secure_dir=None, credentials=None) -> list:
     """Run the server until ``steps`` intervals are done (0 = until cancelled or a
-    signal); returns the history (one dict of readings per interval)."""
+    signal); returns the history (one dict of readings per interval).
+
+    ``secure_dir``: serve Basic256Sha256 SignAndEncrypt only, with a self-signed server
+    certificate kept there (made on first use); ``credentials``: (user, password), the
+    only identity admitted (anonymous refused)."""
     from asyncua import Server, ua
     from asyncua.common.callback import CallbackType
 
-    logging.getLogger("asyncua").setLevel(logging.ERROR)
-    server = Server()
+    logging.getLogger("asyncua").setLevel(logging.CRITICAL)
+    server = Server(user_manager=None if credentials is None else _user_manager(*credentials))
     await server.init()
     endpoint = f"opc.tcp://127.0.0.1:{port}/arfem/twin"
     server.set_endpoint(endpoint)
     server.set_server_name("arfem twin")
-    server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+    if secure_dir is None:
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+    else:
+        from pathlib import Path
+
+        from asyncua.crypto.cert_gen import setup_self_signed_certificate
+        from cryptography.x509.oid import ExtendedKeyUsageOID
+        d = Path(secure_dir)
+        d.mkdir(parents=True, exist_ok=True)
+        await setup_self_signed_certificate(
+            d / "twin_key.pem", d / "twin_cert.der", "urn:arfem:twin", "localhost",
+            [ExtendedKeyUsageOID.SERVER_AUTH], {"commonName": "arfem twin"})
+        server.set_security_policy([ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt])
+        await server.load_certificate(str(d / "twin_cert.der"))
+        await server.load_private_key(str(d / "twin_key.pem"))
+    if credentials is not None:
+        server.set_security_IDs(["Username"])
     idx = await server.register_namespace(NAMESPACE)
     obj = await server.nodes.objects.add_object(ua.NodeId("Spindle", idx), "Spindle")
     nodes = {}
@@ -184,6 +217,12 @@ def add_parser(sub) -> None:
                    help="the q_W_m2 reading of interval N is NaN (a sensor fault)")
     p.add_argument("--record", metavar="DIR", help="write the history as a measured-data "
                    "record (twin.toml, twin.csv) into DIR when the twin stops")
+    p.add_argument("--secure", metavar="DIR", help="serve Basic256Sha256 SignAndEncrypt "
+                   "only, with a self-signed certificate kept in DIR (made on first use)")
+    p.add_argument("--user-env", metavar="NAME", help="admit only the user whose name is "
+                   "in this environment variable (with --password-env); anonymous refused")
+    p.add_argument("--password-env", metavar="NAME",
+                   help="environment variable holding that user's password")
     p.set_defaults(func=main)
 
 
@@ -214,13 +253,24 @@ def main(args) -> int:
     for _ in range(int(round(args.start_h * 3600.0 / args.dtau_s))):
         twin.advance()
     port = free_port() if args.port == 0 else args.port
+    credentials = None
+    if (args.user_env is None) != (args.password_env is None):
+        raise InputError("go together", "--user-env/--password-env")
+    if args.user_env is not None:
+        import os
+        vals = [os.environ.get(n) for n in (args.user_env, args.password_env)]
+        for flag, n, v in zip(("--user-env", "--password-env"),
+                              (args.user_env, args.password_env), vals):
+            if not v:
+                raise InputError(f"the environment variable {n} is not set", flag)
+        credentials = tuple(vals)
 
     def ready(endpoint):
         print(f"arfem twin: listening on {endpoint}", flush=True)
 
     try:
         history = asyncio.run(serve(twin, port, args.period_s, args.lockstep, args.steps,
-                                    ready))
+                                    ready, args.secure, credentials))
     except OSError as exc:
         raise InputError(f"cannot listen on 127.0.0.1:{port}: {exc.strerror or exc}",
                          "--port") from None

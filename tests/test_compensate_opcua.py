@@ -18,6 +18,10 @@ What is verified and why:
 * bad input -- an unreachable endpoint, a node id the server lacks, a key that is
   unknown, a password in the file, an unset credential variable -- is one line with
   exit status 2 and no offset written;
+* security: against a twin that serves only Basic256Sha256 SignAndEncrypt and admits
+  one user, the compensator connects with a client certificate and credentials taken
+  from the environment variables its config names, and runs; a wrong password is one
+  line, exit 2, no offset written;
 * nothing is left running: every process started here has exited when its test ends.
 """
 import json
@@ -54,9 +58,9 @@ class Procs:
         self.all.append(p)
         return p
 
-    def twin(self, d, *extra, port=0):
+    def twin(self, d, *extra, port=0, env=None):
         p = self.start(ARFEM + ["twin", "--port", str(port), "--lockstep",
-                                "--record", str(d), *extra])
+                                "--record", str(d), *extra], env=env)
         ready, _, _ = select.select([p.stdout], [], [], 60)
         line = p.stdout.readline() if ready else ""
         assert "listening on" in line, (line, p.poll(), p.stderr.read() if p.poll() else "")
@@ -241,3 +245,38 @@ def test_bad_live_input_is_one_line_exit_2_before_any_offset(tmp_path, procs, mo
         assert twin.wait(timeout=30) == 0
         rec = read_csv(tmp_path / "twin.csv")
         assert np.all(rec["offset_um"] == 0.0)    # the machine never received an offset
+
+
+def test_signed_and_encrypted_with_credentials_from_the_environment(tmp_path, procs,
+                                                                    model_file):
+    import asyncio
+
+    from asyncua.crypto.cert_gen import setup_self_signed_certificate
+    from cryptography.x509.oid import ExtendedKeyUsageOID
+    mpath, _ = model_file
+    asyncio.run(setup_self_signed_certificate(
+        tmp_path / "client_key.pem", tmp_path / "client_cert.der", "urn:freeopcua:client",
+        "localhost", [ExtendedKeyUsageOID.CLIENT_AUTH], {"commonName": "arfem test"}))
+    env = {**os.environ, "TWIN_USER": "operator", "TWIN_PASSWORD": "s3cret",
+           "ARFEM_OPCUA_CERT": str(tmp_path / "client_cert.der"),
+           "ARFEM_OPCUA_KEY": str(tmp_path / "client_key.pem"),
+           "ARFEM_OPCUA_USER": "operator", "ARFEM_OPCUA_PASSWORD": "s3cret"}
+    twin, url = procs.twin(tmp_path, "--steps", "20", "--secure", str(tmp_path / "pki"),
+                           "--user-env", "TWIN_USER", "--password-env", "TWIN_PASSWORD",
+                           env=env)
+    sec = ('security_mode = "SignAndEncrypt"\nsecurity_policy = "Basic256Sha256"\n'
+           'certificate_env = "ARFEM_OPCUA_CERT"\nprivate_key_env = "ARFEM_OPCUA_KEY"\n'
+           'username_env = "ARFEM_OPCUA_USER"\npassword_env = "ARFEM_OPCUA_PASSWORD"\n')
+    cfg = config(tmp_path, url, cycles=20, opc_extra=sec)
+    assert "s3cret" not in cfg.read_text()          # the secret lives in the environment
+    bad = compensate(mpath, cfg, env={**env, "ARFEM_OPCUA_PASSWORD": "wrong"})
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1, bad.stderr
+    assert "opcua.endpoint: cannot connect" in bad.stderr
+    assert not (tmp_path / "live.log").exists()
+    r = compensate(mpath, cfg, env=env)
+    assert r.returncode == 0, r.stderr
+    assert twin.wait(timeout=60) == 0
+    cyc = [c for c in log_lines(tmp_path) if "cycle" in c]
+    assert len(cyc) == 20 and all(c["written"] and not c["held"] for c in cyc)
+    rec = read_csv(tmp_path / "twin.csv")
+    assert np.array_equal(rec["offset_um"], [c["offset_um"] for c in cyc])
