@@ -18,6 +18,8 @@ Element choice is left to the caller (``ElementQuad1/2`` or ``ElementHex1``,
 """
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from skfem import MeshHex1, MeshHex2, MeshQuad1
 
@@ -186,15 +188,17 @@ def cylinder_mesh(rod: Rod, n_core: int = 2, n_ring: int = 2, nz: int = 16,
     xi = np.linspace(-1.0, 1.0, n_core + 1)
     ring = core + graded(n_ring, 1.0 - core, ratio_ring, toward="end")
     box = MeshHex1.init_tensor(core * xi, core * xi, z)
-    for quarter in range(4):
-        blk = MeshHex1.init_tensor(xi, ring, z)
-        p = blk.p.copy()
-        p[0] = p[0] * p[1]                    # x = xi * y: nodes on rays
-        c, s_ = np.cos(quarter * np.pi / 2), np.sin(quarter * np.pi / 2)
-        p[0], p[1] = c * p[0] - s_ * p[1], s_ * p[0] + c * p[1]
-        box = box + MeshHex1(p, blk.t)
+    # skfem's mesh join leaves its arrays in Fortran order and logs a warning as it
+    # copies them ("Transforming over 1000 vertices ..."): noise for arfem's users
+    join_log = logging.getLogger("skfem.mesh.mesh")
+    level = join_log.level
+    join_log.setLevel(logging.ERROR)
+    try:
+        box = _join_quarters(box, xi, ring, z)
+    finally:
+        join_log.setLevel(level)
     m2 = MeshHex2.from_mesh(box)
-    d = m2.doflocs.copy()
+    d = np.array(m2.doflocs, order="C")          # C order: skfem would warn and copy
     X, Y = disk_map(d[0], d[1], core)
     d[0], d[1] = X * rod.radius_m, Y * rod.radius_m
     m = MeshHex2(d, m2.t)
@@ -206,3 +210,15 @@ def cylinder_mesh(rod: Rod, n_core: int = 2, n_ring: int = 2, nz: int = 16,
     far = bnd[np.abs(mid[2, bnd] - L) < tol]
     lateral = np.setdiff1d(bnd, np.concatenate([heated, far]))
     return MeshHex2(d, m2.t, _boundaries={"heated": heated, "far": far, "lateral": lateral})
+
+
+def _join_quarters(box, xi, ring, z):
+    """The core box plus four ring blocks, one per quarter, their nodes on rays."""
+    for quarter in range(4):
+        blk = MeshHex1.init_tensor(xi, ring, z)
+        p = blk.p.copy()
+        p[0] = p[0] * p[1]                    # x = xi * y: nodes on rays
+        c, s_ = np.cos(quarter * np.pi / 2), np.sin(quarter * np.pi / 2)
+        p[0], p[1] = c * p[0] - s_ * p[1], s_ * p[0] + c * p[1]
+        box = box + MeshHex1(p, blk.t)
+    return box
