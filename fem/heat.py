@@ -543,7 +543,7 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
     would cost O(n³) time and O(n²) memory; there this function returns
     :func:`arfem.fem.reduced.solve_reduced` instead (the slowest modes exactly, the
     rest quasi-statically, with its own error estimate; same arguments and result
-    fields). ``mode_cache`` is then keyed by (h, n_modes).
+    fields). ``mode_cache`` is then keyed by (h, n_modes, method).
     """
     if not model.axisymmetric:
         from arfem.fem.reduced import solve_reduced
