@@ -8,8 +8,13 @@ For each size, one after the other in this run, each case in its own child proce
 (so that its peak memory is its own); the parent polls the child's resident memory and
 ends it past 8 GB, so that no size above 8 GB runs to completion on a 24 GB machine:
 
-* ``arfem``     arfem's default 3D solve (``solve_modal`` → reduced-modal on 3D),
-                20-node serendipity bricks (``build_3d``);
+* ``arfem``     arfem's default 3D solve (``solve_modal`` → reduced-modal on 3D, block
+                Krylov Ritz modes), 20-node serendipity bricks (``build_3d``); the
+                conductance is factored by PARDISO where the optional ``fast`` extra
+                is installed (the note says which);
+* ``arfem-superlu`` the same with METIS + SuperLU, i.e. without the ``fast`` extra;
+* ``arfem-eigsh`` the reduced-modal solve by eigsh's 8 slowest modes, arfem's default
+                before the Krylov reduction (``--modal-sizes``; by default 10k, 40k);
 * ``arfem-cn``  arfem's Crank–Nicolson, Δt = 30 s, symmetric factorisation
                 (``--cn-sizes``; by default only at the ~10k size);
 * ``arfem-cn-lu`` the same with SuperLU's general LU, the factorisation arfem used
@@ -62,10 +67,18 @@ def case_arfem(size: str, kind: str) -> dict:
     model = build_3d(rod, order=2, n_core=nc, n_ring=nr, nz=nz)
     t1 = time.perf_counter()
     extra = {}
-    if kind == "arfem":
-        res = solve_modal(model, fine)
+    if kind in ("arfem", "arfem-superlu", "arfem-eigsh"):
+        from arfem.fem.linsolve import default_method
+        from arfem.fem.reduced import solve_reduced
+        if kind == "arfem":
+            res = solve_modal(model, fine)
+            factor = default_method(few_solves=True, n=model.ndofs)
+        else:
+            factor = "symmetric"
+            res = solve_reduced(model, fine, factor_method=factor,
+                                method="eigsh" if kind == "arfem-eigsh" else "krylov")
         extra = {"error_estimate_rel": float(res.error_estimate_m.max() / res.growth_m.max()),
-                 "n_modes": res.n_modes}
+                 "n_modes": res.n_modes, "factor": factor}
     else:
         res = solve_theta(model, fine, DT_S,
                           factor_method="lu" if kind == "arfem-cn-lu" else "symmetric")
@@ -160,6 +173,9 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", default=",".join(SIZES))
     ap.add_argument("--cn-sizes", default="10k",
                     help="sizes at which arfem's Crank–Nicolson also runs (both factorisations)")
+    ap.add_argument("--modal-sizes", default="10k,40k",
+                    help="sizes at which the SuperLU and eigsh variants of the reduced "
+                         "solve also run")
     ap.add_argument("--json", help="also write every result to this file")
     ap.add_argument("--_one", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -175,31 +191,34 @@ def main(argv=None) -> int:
         return 2
     sizes = [s for s in args.sizes.split(",") if s]
     cn_sizes = {s for s in args.cn_sizes.split(",") if s}
-    bad = [s for s in sizes + sorted(cn_sizes) if s not in SIZES]
+    modal_sizes = {s for s in args.modal_sizes.split(",") if s}
+    bad = [s for s in sizes + sorted(cn_sizes | modal_sizes) if s not in SIZES]
     if bad:
         print(f"bench_peer_ngsolve: unknown size(s) {bad}; known: {list(SIZES)}", file=sys.stderr)
         return 2
     print(f"load average at start: {os.getloadavg()[0]:.2f}, {os.cpu_count()} cores, "
           "one BLAS thread per case; each case its own process, ended past 8 GB resident")
-    hdr = f"{'size':>5} {'case':<12} {'dofs':>7} {'build s':>8} {'solve s':>8} " \
+    hdr = f"{'size':>5} {'case':<13} {'dofs':>7} {'build s':>8} {'solve s':>8} " \
           f"{'peak µm':>10} {'RSS MB':>7}  note"
     print(hdr)
     results = []
     for size in sizes:
-        cases = ["arfem"] + (["arfem-cn", "arfem-cn-lu"] if size in cn_sizes else []) \
-            + ["ngsolve"]
+        cases = ["arfem"] \
+            + (["arfem-superlu", "arfem-eigsh"] if size in modal_sizes else []) \
+            + (["arfem-cn", "arfem-cn-lu"] if size in cn_sizes else []) + ["ngsolve"]
         row = {}
         for case in cases:
             r = _run(case, size)
             row[case] = r
             results.append({"size": size, "case": case, **r})
             if "error" in r:
-                print(f"{size:>5} {case:<12} {'—':>7}  {r['error']}")
+                print(f"{size:>5} {case:<13} {'—':>7}  {r['error']}")
                 continue
             note = ""
             if "error_estimate_rel" in r:
-                note = f"{r['n_modes']} modes, stated error {r['error_estimate_rel']:.1e} of peak"
-            print(f"{size:>5} {case:<12} {r['dofs']:>7} {r['build_s']:>8.2f} "
+                note = (f"{r['n_modes']} modes, {r['factor']}, "
+                        f"stated error {r['error_estimate_rel']:.1e} of peak")
+            print(f"{size:>5} {case:<13} {r['dofs']:>7} {r['build_s']:>8.2f} "
                   f"{r['solve_s']:>8.2f} {r['peak_um']:>10.5f} {r['peak_rss_MB']:>7.0f}  {note}",
                   flush=True)
         ng_r, ar = row.get("ngsolve", {}), row.get("arfem", {})
