@@ -625,8 +625,8 @@ def _ambient_noise_var(fit) -> dict:
 def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     """95 % intervals of a fit's physical parameters [their units].
 
-    Two covariances of the nonlinear least-squares estimate, each respecting the
-    residual's autocorrelation, and the wider interval of the two is reported:
+    Three covariances of the nonlinear least-squares estimate, each respecting the
+    residual's autocorrelation, and the widest interval of the three is reported:
 
     * effective sample size: s² (JᵀJ)⁻¹ · N/N_eff with s² = RSS/(N − p), J the Jacobian of
       the prediction in all p parameters on the N fit rows and N_eff the smaller of
@@ -639,10 +639,15 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
       lag where its autocorrelation falls below 1/e), 4 <= B <= 10; Student's t on B − 1
       degrees of freedom. Where the model
       fits some stretches of the record differently from others (model error, not
-      noise) the block scores disagree and the interval widens accordingly.
+      noise) the block scores disagree and the interval widens accordingly;
+    * fitted noise model (issue 24): the sandwich A JᵀΣJ A with Σ a slow + white noise
+      fitted through the fit, so that the slow noise the fitted cause absorbed is
+      counted (:func:`arfem.models.diagnosis.stats.slow_noise_sandwich`); the wider of
+      its stationary AR(1) and random-walk forms; Student's t on N_eff − p degrees of
+      freedom.
 
     Where the model takes a recorded ambient as input, the variance its sensor noise
-    causes in the linear coefficients (:func:`_ambient_noise_var`) is added to both.
+    causes in the linear coefficients (:func:`_ambient_noise_var`) is added to each.
     A parameter that is a ratio of coordinates (``frame_gain`` beside a heat scale:
     frame coefficient / scale) gets the first-order (delta-method) variance of the ratio.
 
@@ -675,8 +680,16 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     B = st.contiguous_blocks(r, CI_BLOCK_CORR, CI_MIN_BLOCKS, CI_BLOCKS)
     G = np.array([Js[ix].T @ r[ix] for ix in np.array_split(np.arange(n), B)])
     cov_blk = (A @ (G.T @ G) @ A) / np.outer(scale, scale) * B / (B - 1.0)
+    # slow + white noise fitted through the fit, as a stationary AR(1) and as a random
+    # walk: each parameter gets the wider of the two (stats.slow_noise_sandwich)
+    slow = st.slow_noise_sandwich(Js, r)
+    zero = np.zeros((p, p))
+    cov_ar = (slow["ar1"][0] if slow else zero) / np.outer(scale, scale)
+    cov_walk = (slow["walk"][0] if slow else zero) / np.outer(scale, scale)
+    rho_ar = slow["ar1"][1] if slow else 0.0
     t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
     t_blk = float(_sst.t.ppf(0.975, B - 1))
+    t_ar = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
     idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
     vals = {**fit.extra["theta"], **fit.extra["linear"]}
     eiv = _ambient_noise_var(fit)
@@ -692,17 +705,21 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
             s_ = vals["scale"]
             w[i], w[idx["scale"]] = 1.0 / s_, -v / s_ ** 2
             var_e, var_b = float(w @ cov_ess @ w), float(w @ cov_blk @ w)
+            var_a = max(float(w @ cov_ar @ w), float(w @ cov_walk @ w))
             add = add / s_ ** 2 + eiv.get("scale", 0.0) * v ** 2 / s_ ** 4
             v = v / s_
         else:
             var_e, var_b = cov_ess[i, i], cov_blk[i, i]
+            var_a = max(cov_ar[i, i], cov_walk[i, i])
         h_e = t_ess * np.sqrt(max(var_e, 0.0) + add)
         h_b = t_blk * np.sqrt(max(var_b, 0.0) + add)
-        kinds[k] = {"ess": h_e, "block": h_b, "value": v, "log": log}
-        half = max(h_e, h_b)
+        h_a = t_ar * np.sqrt(max(var_a, 0.0) + add)
+        kinds[k] = {"ess": h_e, "block": h_b, "slow_noise": h_a, "value": v, "log": log}
+        half = max(h_e, h_b, h_a)
         lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
     fit.extra["n_eff_ci"] = n_eff
+    fit.extra["noise_ar1_rho"] = rho_ar
     fit.extra["ci95_half_widths"] = kinds      # of each kind, in the searched coordinate
     return out
 
