@@ -268,10 +268,13 @@ def _markdown(diag) -> str:
     if causes:
         for i, c in enumerate(causes):
             ci = c.get("ci95", {})
+            widened = set(c.get("ci95_model_choice", []))
             L.append(f"**{'Cause' if i == 0 else 'Second cause'}: `{c['cause']}`** — " + ", ".join(
                 f"`{k}` = {_fmt(v, 4)}" + (f" (95 % interval {_fmt(ci[k][0], 4)} to "
-                                           f"{_fmt(ci[k][1], 4)}{_unbounded(k, ci[k])})"
-                                           if k in ci else "")
+                                           f"{_fmt(ci[k][1], 4)}{_unbounded(k, ci[k])}"
+                                           + (", widened to hold the equivalent "
+                                              "alternative's estimate" if k in widened else "")
+                                           + ")" if k in ci else "")
                 for k, v in c["parameters"].items()))
             L.append("")
     else:

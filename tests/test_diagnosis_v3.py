@@ -154,3 +154,21 @@ def test_noise_model_sandwich_is_ols_under_white_noise():
         ols = float(r @ r) / (n - 2) * np.linalg.inv(J.T @ J)[1, 1]
         ratios.append(var / ols)
     assert 0.75 <= np.median(ratios) <= 1.25, ratios
+
+
+def test_model_choice_widens_only_shared_parameters_it_lies_outside():
+    """Where an alternative fits alike, an interval of a parameter the alternative also
+    estimates is widened to hold the alternative's estimate (the model choice is
+    uncertain), and only then: an estimate already inside, or a parameter the
+    alternative lacks, leaves the interval as it was; the widened ones are listed."""
+    from arfem.models.diagnosis.engine import _widen_for_model_choice
+    entries = [{"cause": "frame_expansion", "parameters": {},
+                "ci95": {"frame_time_constant_h": [4.8, 5.2], "frame_gain": [-0.31, -0.29]}},
+               {"cause": "convection_mismatch", "parameters": {}, "ci95": {"h_W_m2K": [70, 80]}}]
+    eq = {"cause": "frame_expansion", "parameters": {"frame_time_constant_h": 2.0,
+                                                     "frame_gain": -0.30}}
+    _widen_for_model_choice(entries, eq)
+    assert entries[0]["ci95"]["frame_time_constant_h"] == [2.0, 5.2]
+    assert entries[0]["ci95"]["frame_gain"] == [-0.31, -0.29]
+    assert entries[0]["ci95_model_choice"] == ["frame_time_constant_h"]
+    assert entries[1]["ci95"]["h_W_m2K"] == [70, 80] and "ci95_model_choice" not in entries[1]

@@ -573,6 +573,7 @@ def _add_version2(summary, v2, y, rows, hold, good, warnings, noise_floor_um=0.0
         eq = ext.extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
         if eq is not None:
             summary["equivalent_alternative"] = eq
+            _widen_for_model_choice(entries, eq)
         summary["second_cause_tests"] = v2["pairs_tried"]
         summary["refused_candidates"] = [{"cause": c, "refused": why,
                                           "parameters": v2["fits"][c].parameters}
@@ -588,6 +589,26 @@ def _add_version2(summary, v2, y, rows, hold, good, warnings, noise_floor_um=0.0
         warnings.append(w)
     warnings += _named_cause_warnings(summary, entries, noise)
     summary["warnings"] = list(warnings)
+
+
+def _widen_for_model_choice(entries, eq) -> None:
+    """Where an alternative explanation fits alike (``equivalent_alternative``), the model
+    choice is uncertain: each interval of a parameter that the alternative also
+    estimates is widened to hold the alternative's estimate, and ``ci95_model_choice``
+    lists the parameters so widened (issue 24: intervals that account for model choice
+    where it matters)."""
+    alt = eq.get("parameters") or {}
+    for e in entries:
+        widened = []
+        for k, ci in e["ci95"].items():
+            v = alt.get(k)
+            if ci is None or v is None or not np.isfinite(v):
+                continue
+            if v < ci[0] or v > ci[1]:
+                e["ci95"][k] = [float(min(ci[0], v)), float(max(ci[1], v))]
+                widened.append(k)
+        if widened:
+            e["ci95_model_choice"] = widened
 
 
 #: parameters whose value 0 means "no effect": a named cause whose interval of one of
