@@ -198,7 +198,7 @@ def cylinder_mesh(rod: Rod, n_core: int = 2, n_ring: int = 2, nz: int = 16,
     finally:
         join_log.setLevel(level)
     m2 = MeshHex2.from_mesh(box)
-    d = np.array(m2.doflocs, order="C")          # C order: skfem would warn and copy
+    d = m2.doflocs.copy()
     X, Y = disk_map(d[0], d[1], core)
     d[0], d[1] = X * rod.radius_m, Y * rod.radius_m
     m = MeshHex2(d, m2.t)

@@ -686,10 +686,8 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     zero = np.zeros((p, p))
     cov_ar = (slow["ar1"][0] if slow else zero) / np.outer(scale, scale)
     cov_walk = (slow["walk"][0] if slow else zero) / np.outer(scale, scale)
-    rho_ar = slow["ar1"][1] if slow else 0.0
     t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
     t_blk = float(_sst.t.ppf(0.975, B - 1))
-    t_ar = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
     idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
     vals = {**fit.extra["theta"], **fit.extra["linear"]}
     eiv = _ambient_noise_var(fit)
@@ -713,13 +711,12 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
             var_a = max(cov_ar[i, i], cov_walk[i, i])
         h_e = t_ess * np.sqrt(max(var_e, 0.0) + add)
         h_b = t_blk * np.sqrt(max(var_b, 0.0) + add)
-        h_a = t_ar * np.sqrt(max(var_a, 0.0) + add)
+        h_a = t_ess * np.sqrt(max(var_a, 0.0) + add)
         kinds[k] = {"ess": h_e, "block": h_b, "slow_noise": h_a, "value": v, "log": log}
         half = max(h_e, h_b, h_a)
         lo, hi = v - half, v + half
         out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
     fit.extra["n_eff_ci"] = n_eff
-    fit.extra["noise_ar1_rho"] = rho_ar
     fit.extra["ci95_half_widths"] = kinds      # of each kind, in the searched coordinate
     return out
 
