@@ -369,8 +369,9 @@ def slow_noise_sandwich(J, r, long_lag: int = 240) -> dict:
     scales. A slow part is fitted only where the sum at lag 1, L/4 or L stands more than
     :data:`SLOW_NOISE_Z` of white noise's own scatter (σ²√(N − k)) above zero; otherwise
     both covariances are the white s² A. A stationary AR(1) cannot carry a random walk's power at the slowest
-    frequencies (an interval from it covered 84 % under a walk in a simulation), and a
-    walk model over-covers a stationary noise (100 %), so the caller takes the wider.
+    frequencies (an interval from it covered 84 % under a walk in a simulation of 1500
+    samples), and a walk model over-covers a stationary noise (100 %), so the caller
+    takes the wider.
     Each covariance is the sandwich A JᵀΣJ A.
 
     Parameters
