@@ -30,7 +30,8 @@ import numpy as np
 from arfem.params import InputError
 
 __all__ = ["MODEL_VERSION", "InputSpec", "StateSpaceModel", "Cycle", "Compensator",
-           "ar1_model", "fit_speed_ar1_model", "fit_mlr_model"]
+           "ar1_model", "fit_speed_ar1_model", "fit_mlr_model", "plausible_ranges",
+           "propagate", "INFORMATIVE"]
 
 #: version of the ``model.json`` layout this module reads and writes
 MODEL_VERSION = 1
@@ -264,6 +265,102 @@ def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "p
                            description=description, arfem_version=arfem_version)
 
 
+#: alarm kinds that do not hold the offset (the part before ``:``); every other alarm is
+#: a fault the operator must see
+INFORMATIVE = frozenset({"clamped", "rate_limited", "extrapolated"})
+
+#: no spindle's thermal growth reaches 1 mm: an input whose steady-state share of the
+#: predicted growth would exceed this is not a reading [µm]
+PLAUSIBLE_GROWTH_UM = 1000.0
+
+#: missed intervals up to this many are stepped one by one (the same floats as a replay
+#: that saw them); more are stepped in closed form (:func:`propagate`)
+EXACT_STEPS = 64
+
+
+def propagate(A: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A^k, Σ_{j<k} A^j and Σ_{j<k} A^j (A^j)ᵀ by binary doubling: O(log k) products.
+
+    Advancing ``x ← A x + B u`` k times with a constant ``u`` gives
+    ``A^k x + (Σ A^j) B u``; the covariance ``P ← A P Aᵀ + Q I`` gives
+    ``A^k P (A^k)ᵀ + Q Σ A^j (A^j)ᵀ``. Used for a machine clock that jumped (issue 28):
+    a jump of 1e15 s costs about 50 products, not one loop turn per interval.
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        State matrix (spectral radius < 1 for a model that settles).
+    k : int
+        Number of intervals, >= 0.
+
+    Examples
+    --------
+    >>> Ak, G, S = propagate(np.array([[0.5]]), 3)
+    >>> float(Ak[0, 0]), float(G[0, 0]), float(S[0, 0])
+    (0.125, 1.75, 1.3125)
+    """
+    n = A.shape[0]
+    eye = np.eye(n)
+    rp, rg, rs = eye, np.zeros((n, n)), np.zeros((n, n))     # k = 0
+    bp, bg, bs = A.astype(float), eye, eye                   # k = 1
+    k = int(k)
+    while k > 0:
+        if k & 1:                                            # r ∘ b: r's steps, then b's
+            rp, rg, rs = bp @ rp, rg + rp @ bg, rs + rp @ bs @ rp.T
+        k >>= 1
+        if k:
+            bp, bg, bs = bp @ bp, bg + bp @ bg, bs + bp @ bs @ bp.T
+    return rp, rg, rs
+
+
+def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None) -> dict:
+    """The range [lo, hi] each input's raw reading must lie in to be fed to the state.
+
+    A reading outside is a bad reading (``out_of_range:NAME``: the offset is held, the
+    state never sees it; issue 28). Defaults, by the input's name and unit:
+
+    * a heat input (``q_*`` or a unit in W): >= 0;
+    * a speed (``*_rpm``): 0 to twice the fastest speed of its map (or 100 000 /min);
+    * an ambient temperature (``ambient*``): -10 to 50 °C; any other ``*_C``: -10 to
+      150 °C;
+    * every input whose share of the steady-state growth, C (I − A)⁻¹ B + D per unit,
+      is known: no more than :data:`PLAUSIBLE_GROWTH_UM` (1 mm) of growth.
+
+    ``overrides`` maps an input name to ``(lo, hi)`` (the config's ``[live.ranges]``).
+
+    Examples
+    --------
+    >>> m = ar1_model(0.99, 1e-4, dtau_s=60.0)
+    >>> lo, hi = plausible_ranges(m)["q_W_m2"]
+    >>> lo, round(hi)
+    (0.0, 100000)
+    """
+    n = model.n_states
+    if n:
+        dc = (model.C @ np.linalg.solve(np.eye(n) - model.A, model.B) + model.D)[0]
+    else:
+        dc = model.D[0]
+    out = {}
+    for j, spec in enumerate(model.inputs):
+        nm, unit = spec.name, spec.unit
+        lo, hi = -math.inf, math.inf
+        if nm.startswith("q_") or unit.startswith("W"):
+            lo = 0.0
+        if nm.endswith("_rpm"):
+            m = model.input_maps.get(nm)
+            lo, hi = 0.0, (2.0 * max(float(m[0][-1]), 1.0) if m is not None else 1e5)
+        elif nm.endswith("_C") or unit in ("°C", "degC", "C"):
+            lo, hi = (-10.0, 50.0) if "ambient" in nm else (-10.0, 150.0)
+        elif nm not in model.input_maps and abs(dc[j]) > 0:
+            ref = model.input_offsets.get(nm, 0.0)
+            half = PLAUSIBLE_GROWTH_UM / abs(float(dc[j]))
+            lo, hi = max(lo, ref - half), ref + half
+        out[nm] = (float(lo), float(hi))
+    for nm, (lo, hi) in (overrides or {}).items():
+        out[nm] = (float(lo), float(hi))
+    return out
+
+
 @dataclass(frozen=True)
 class Cycle:
     """What one compensator cycle decided.
@@ -275,8 +372,8 @@ class Cycle:
     predicted_growth_um : float
         The model's growth [µm] (NaN where the inputs were not usable).
     alarms : tuple of str
-        ``missing:NAME``, ``nonfinite:NAME``, ``stale:NAME`` (from the transport): the
-        offset is held; ``clamped``, ``rate_limited``, ``extrapolated:NAME`` (an input
+        ``missing:NAME``, ``nonfinite:NAME``, ``out_of_range:NAME``, ``stale:NAME`` and
+        any other alarm from the transport: the offset is held; ``clamped``, ``rate_limited``, ``extrapolated:NAME`` (an input
         beyond its map's fitted points): informative.
     held : bool
         True when the last offset was kept because an input was not usable.
@@ -299,11 +396,23 @@ class Compensator:
         Limit on the absolute offset [µm] (the controller's compensation range).
     max_step_um : float
         Largest change of the offset per cycle [µm] (large jumps spoil the surface).
+    ranges : mapping, optional
+        Input name → (lo, hi): the plausible range of its raw reading
+        (:func:`plausible_ranges`); a reading outside is ``out_of_range:NAME``, held and
+        never fed to the state. None (replay's default): no range check.
+
+    Notes
+    -----
+    :attr:`offset_um` is the offset the controller holds: the rate limit counts from
+    it. A transport that reads the controller's value back (on start, on reconnect, after
+    a refused write) sets it with :meth:`resume`, so that the next offset is at most
+    ``max_step_um`` from what the machine actually has.
     """
 
     model: StateSpaceModel
     max_offset_um: float = math.inf
     max_step_um: float = math.inf
+    ranges: Mapping | None = None
     x: np.ndarray = field(init=False)
     P: np.ndarray = field(init=False)
     offset_um: float = field(init=False, default=0.0)
@@ -346,6 +455,10 @@ class Compensator:
                     u[j] = np.nan
                 if not math.isfinite(u[j]):
                     alarms.append(f"nonfinite:{spec.name}")
+                elif self.ranges is not None and spec.name in self.ranges:
+                    lo, hi = self.ranges[spec.name]
+                    if not lo <= u[j] <= hi:
+                        alarms.append(f"out_of_range:{spec.name}")
         usable = not alarms and advance
         notes = []
         if usable:
@@ -372,6 +485,59 @@ class Compensator:
             alarms.append("rate_limited")
         self.offset_um = float(want)
         return Cycle(self.offset_um, y, tuple(alarms), False)
+
+    def advance_idle(self, k: int) -> None:
+        """Advance the state through ``k`` intervals not seen, with the last good inputs
+        (the offset is held: nothing was sent). Up to :data:`EXACT_STEPS` one by one --
+        the floats of a replay that stepped them -- beyond that in closed form
+        (:func:`propagate`), so that any jump costs O(log k). Nothing moves before a
+        first good reading."""
+        mdl = self.model
+        k = int(k)
+        if k <= 0 or self._u_last is None or mdl.n_states == 0:
+            return
+        bu = mdl.B @ self._u_last
+        if k <= EXACT_STEPS:
+            for _ in range(k):
+                self.x = mdl.A @ self.x + bu
+                self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
+            return
+        Ak, G, S = propagate(mdl.A, k)
+        self.x = Ak @ self.x + G @ bu
+        self.P = Ak @ self.P @ Ak.T + mdl.Q * S
+
+    def reinitialise(self) -> None:
+        """Forget the state (back to the model's ``x0``, no last inputs); the offset the
+        controller holds is kept, so the next offsets ramp from it."""
+        self.x = self.model.x0.astype(float).copy()
+        self.P = np.zeros((self.model.n_states,) * 2)
+        self._u_last = None
+
+    def resume(self, offset_um: float) -> None:
+        """Count the rate limit from ``offset_um`` [µm], the value the controller holds
+        (read back on start or reconnect, or the last accepted one after a refused
+        write): the next offset is at most ``max_step_um`` from it."""
+        self.offset_um = float(offset_um)
+
+    def state(self) -> dict:
+        """The state to log (a warm start restores it): ``x`` [µm], ``P`` [µm²] and the
+        last good inputs ``u`` (as the matrices take them), JSON-ready."""
+        return {"x": self.x.tolist(), "P": self.P.tolist(),
+                "u": None if self._u_last is None else self._u_last.tolist()}
+
+    def restore(self, state: Mapping) -> None:
+        """Set the state from :meth:`state`'s document; :class:`ValueError` if it does not
+        fit this model (shape, finiteness)."""
+        n, m = self.model.n_states, len(self.model.inputs)
+        x = np.asarray(state["x"], float).reshape(-1)
+        P = np.asarray(state["P"], float)
+        u = None if state.get("u") is None else np.asarray(state["u"], float).reshape(-1)
+        if x.shape != (n,) or P.shape != (n, n) or (u is not None and u.shape != (m,)):
+            raise ValueError("state does not fit the model")
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))
+                and (u is None or np.all(np.isfinite(u)))):
+            raise ValueError("state is not finite")
+        self.x, self.P, self._u_last = x, P, u
 
     def probe(self, measured_growth_um: float) -> float:
         """Kalman update of the state with a measured growth [µm]; returns the gain.

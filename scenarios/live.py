@@ -9,52 +9,103 @@ and one JSON object per line on standard output is its answer, flushed at once,
     {"time_s": 1830.0, "offset_um": -4.213, "predicted_growth_um": 4.213,
      "alarms": [], "held": false}
 
-for any bridge that speaks lines (an MTConnect agent adapter, a PLC gateway). Each
-cycle runs :meth:`arfem.models.compensator.Compensator.step`, the call ``arfem
-compensate``'s replay makes, so replaying the logged inputs gives the same offsets.
+for any bridge that speaks lines (an MTConnect agent adapter, a PLC gateway). A line may
+also carry ``controller_offset_um``, the offset the controller holds (read back by the
+gateway): the rate limit then counts from it. Each cycle runs
+:meth:`arfem.models.compensator.Compensator.step`, the call ``arfem compensate``'s replay
+makes, so replaying the logged inputs gives the same offsets.
 
-Safety, per cycle:
+Safety, per cycle (``docs/safety.md`` lists every fault):
 
-* the offset is clamped to ``max_offset_um`` and its change limited to ``max_step_um``;
-* a line that is not JSON, an input missing or not finite, a line whose ``time_s`` is
-  not newer than the last one (stale), or one more than ``stale_after_s`` after it (a
-  gap: the inputs in between were not seen) holds the last offset and raises an alarm
-  (in the answer and in the log);
-* every cycle is appended to the log file (time, inputs, offset, alarms) and flushed,
-  so the log survives ``kill -9``;
+* the offset is clamped to ``max_offset_um`` and its change limited to ``max_step_um``,
+  counted from what the controller holds;
+* **write-ahead log**: a cycle's line (time, inputs, offset, alarms, the model's state)
+  is written, flushed and fsync'ed before its offset leaves the process, so the log holds
+  every offset the machine may have received;
+* **warm start**: the state is restored from the log's last good line (a torn last
+  line is ignored; a log of another model is not used); the ``started`` line says
+  ``"start": "warm"`` or ``"cold"``;
+* a line that is not a reading (not JSON, nested too deeply, longer than 64 KiB, blank,
+  not an object) is held and logged without advancing the model; an input missing, not
+  finite or outside its plausible range (:func:`arfem.models.compensator.plausible_ranges`,
+  ``[live.ranges]``) holds the offset and is never fed to the state;
+* the machine's clock (``time_s``): a repeated time is stale (held, no interval passed);
+  intervals not seen are stepped in closed form; a clock that goes backwards
+  (``clock_backwards``) or jumps beyond ``max_clock_jump_s`` (``clock_jump``: the state
+  is re-initialised) raises an alarm, holds, and re-synchronises on the new time;
 * SIGINT / SIGTERM end the loop after the current cycle with a final log line; so does
-  the end of the input.
+  the end of the input. A status line goes to standard error every ``status_every``
+  cycles and whenever the set of alarms changes.
 
 Transport ``opcua`` (:mod:`arfem.scenarios.opcua_live`, an asyncua client): every
 ``period_s`` the loop reads the input nodes, runs the same step and writes the offset
-(and the alarm) node; a lost connection is retried with backoff while the controller
-keeps the last offset. The ``[opcua]`` table of the config names the endpoint and nodes.
+(and the alarm) node; it reads the controller's offset back on start and on every
+reconnect, and checks every write.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
-from dataclasses import dataclass
+import os
 import signal
 import sys
 import time
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Mapping
 
 from arfem.io import read_toml
-from arfem.models.compensator import Compensator
+from arfem.models.compensator import INFORMATIVE, Compensator, plausible_ranges
 from arfem.params import InputError
-from arfem.strict import check_keys
+from arfem.strict import boolean, check_keys, number
 
-__all__ = ["LiveConfig", "load_config", "run_jsonl", "run_live"]
+if TYPE_CHECKING:                                  # (opcua_live imports this module)
+    from arfem.scenarios.opcua_live import OpcuaConfig
+
+__all__ = ["LiveConfig", "Clock", "CycleLog", "Status", "load_config", "clocked_step",
+           "model_sha", "warm_start", "faults", "run_jsonl", "run_live"]
 
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
-         "cycles"}
+         "cycles", "max_clock_jump_s", "fsync", "status_every", "ranges"}
+
+#: a JSON line longer than this [characters] is not a reading (held, skipped to its end)
+MAX_LINE = 65536
+
+#: how much of the log's end a warm start reads [bytes]
+_TAIL = 1 << 20
 
 
 @dataclass(frozen=True)
 class LiveConfig:
-    """The validated config of live mode (units in the names; ``log`` is the cycle log's
-    path, ``cycles`` = 0 runs until a signal; ``opcua`` the ``[opcua]`` table, for that
-    transport)."""
+    """The validated config of live mode.
+
+    Attributes
+    ----------
+    transport : str
+        ``"jsonl"`` or ``"opcua"``.
+    max_offset_um, max_step_um : float
+        Clamp on the offset and on its change per cycle [µm].
+    stale_after_s : float
+        A machine time step longer than this raises ``gap:time_s`` [s].
+    log : str
+        The cycle log's path.
+    period_s : float
+        The OPC UA loop's cycle [s].
+    cycles : int
+        Stop after this many cycles; 0 runs until a signal.
+    max_clock_jump_s : float
+        A machine clock that jumps forward by more than this is a fault
+        (``clock_jump``): hold, alarm, re-initialise the state, re-synchronise [s].
+    fsync : bool
+        fsync the log after each line (before the offset leaves the process).
+    status_every : int
+        A status line on standard error every this many cycles (0: only when the
+        alarms change).
+    ranges : tuple
+        ((input name, lo, hi), ...): the plausible range of each input's reading.
+    opcua : OpcuaConfig or None
+        The ``[opcua]`` table, for that transport.
+    """
 
     transport: str
     max_offset_um: float
@@ -63,7 +114,14 @@ class LiveConfig:
     log: str
     period_s: float = 1.0
     cycles: int = 0
-    opcua: object = None
+    opcua: OpcuaConfig | None = None
+    max_clock_jump_s: float = 86400.0
+    fsync: bool = True
+    status_every: int = 100
+    ranges: tuple = ()
+
+    def ranges_dict(self) -> dict:
+        return {nm: (lo, hi) for nm, lo, hi in self.ranges}
 
 
 def load_config(path, model=None) -> LiveConfig:
@@ -74,8 +132,12 @@ def load_config(path, model=None) -> LiveConfig:
     offset), ``stale_after_s`` [s] (default 60), ``log`` (the cycle log's path, relative
     to the config file; default ``compensate.log.jsonl``), ``period_s`` [s] (the OPC UA
     loop's cycle, default 1), ``cycles`` (stop after this many cycles; default 0 = run
-    until SIGINT/SIGTERM). The ``opcua`` transport also needs an ``[opcua]`` table
-    (:func:`arfem.scenarios.opcua_live.parse_config`), checked against ``model``'s inputs.
+    until SIGINT/SIGTERM), ``max_clock_jump_s`` [s] (default 86400), ``fsync`` (default
+    true), ``status_every`` (default 100), and a table ``[live.ranges]`` of
+    ``input = [lo, hi]`` (plausible ranges; defaults from the model,
+    :func:`arfem.models.compensator.plausible_ranges`). The ``opcua`` transport also
+    needs an ``[opcua]`` table (:func:`arfem.scenarios.opcua_live.parse_config`),
+    checked against ``model``'s inputs.
     """
     from pathlib import Path
     doc = read_toml(path)
@@ -83,28 +145,35 @@ def load_config(path, model=None) -> LiveConfig:
     live = doc.get("live")
     if not isinstance(live, dict):
         raise InputError("needs a [live] table", str(path))
-    check_keys(live, _KEYS, f"{path}: live")
+    where = f"{path}: live"
+    check_keys(live, _KEYS, where)
     transport = live.get("transport", "jsonl")
     if transport not in ("jsonl", "opcua"):
         raise InputError(f"must be \"jsonl\" or \"opcua\", got {transport!r}",
-                         f"{path}: live.transport")
+                         f"{where}.transport")
     vals = {}
     for key, default in (("max_offset_um", None), ("max_step_um", None),
-                         ("stale_after_s", 60.0), ("period_s", 1.0)):
+                         ("stale_after_s", 60.0), ("period_s", 1.0),
+                         ("max_clock_jump_s", 86400.0)):
         v = live.get(key, default)
         if v is None:
             raise InputError("is required (the bound on what is sent to the controller)",
-                             f"{path}: live.{key}")
+                             f"{where}.{key}")
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
                 or v <= 0:
-            raise InputError(f"must be a positive number, got {v!r}", f"{path}: live.{key}")
+            raise InputError(f"must be a positive number, got {v!r}", f"{where}.{key}")
         vals[key] = float(v)
-    cycles = live.get("cycles", 0)
-    if isinstance(cycles, bool) or not isinstance(cycles, int) or cycles < 0:
-        raise InputError(f"must be a whole number >= 0, got {cycles!r}", f"{path}: live.cycles")
+    ints = {}
+    for key, default in (("cycles", 0), ("status_every", 100)):
+        v = live.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise InputError(f"must be a whole number >= 0, got {v!r}", f"{where}.{key}")
+        ints[key] = v
+    fsync = boolean(live.get("fsync", True), f"{where}.fsync")
     log = live.get("log", "compensate.log.jsonl")
     if not isinstance(log, str) or not log:
-        raise InputError(f"must be a file name, got {log!r}", f"{path}: live.log")
+        raise InputError(f"must be a file name, got {log!r}", f"{where}.log")
+    ranges = _ranges(live.get("ranges", {}), f"{where}.ranges", model)
     opc = None
     if transport == "opcua":
         from arfem.scenarios.opcua_live import parse_config
@@ -113,14 +182,211 @@ def load_config(path, model=None) -> LiveConfig:
         raise InputError("is for transport = \"opcua\"", f"{path}: opcua")
     return LiveConfig(transport, vals["max_offset_um"], vals["max_step_um"],
                       vals["stale_after_s"], str(Path(path).parent / log),
-                      vals["period_s"], cycles, opc)
+                      vals["period_s"], ints["cycles"], opc, vals["max_clock_jump_s"],
+                      fsync, ints["status_every"], ranges)
 
 
-def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
-    """The JSON-lines loop; returns 0 when the input ends or a signal stops it."""
+def _ranges(table, where: str, model) -> tuple:
+    """``[live.ranges]`` merged over the model's defaults: ((name, lo, hi), ...)."""
+    if not isinstance(table, dict):
+        raise InputError("must be a table of input = [lo, hi]", where)
+    names = [i.name for i in model.inputs] if model is not None else list(table)
+    over = {}
+    for nm, v in table.items():
+        if nm not in names:
+            raise InputError(f"the model does not read this input (it reads "
+                             f"{', '.join(names)})", f"{where}.{nm}")
+        if not (isinstance(v, list) and len(v) == 2):
+            raise InputError(f"must be [lo, hi], got {v!r}", f"{where}.{nm}")
+        lo, hi = (number(x, f"{where}.{nm}") for x in v)
+        if not lo < hi:
+            raise InputError(f"needs lo < hi, got {v!r}", f"{where}.{nm}")
+        over[nm] = (lo, hi)
+    if model is None:
+        return tuple((nm, lo, hi) for nm, (lo, hi) in over.items())
+    return tuple((nm, lo, hi) for nm, (lo, hi) in plausible_ranges(model, over).items())
+
+
+# ---------------------------------------------------------------- the machine's clock
+
+@dataclass(frozen=True)
+class Clock:
+    """What the loop knows of the machine's clock.
+
+    Attributes
+    ----------
+    last_t : float or None
+        Machine time [s] of the last reading the state was synchronised to (None:
+        none yet).
+    missed : int
+        Intervals the last cycle advanced through unseen (closed form).
+    """
+
+    last_t: float | None = None
+    missed: int = 0
+
+
+def clocked_step(comp: Compensator, values: Mapping, t: float | None, clock: Clock, *,
+                 stale_after_s: float, max_clock_jump_s: float = math.inf,
+                 alarms=(), clock_only: bool = False):
+    """One cycle at the machine's sample time ``t`` [s]; returns ``(Cycle, Clock)``.
+
+    Used by every transport. ``t`` None: not known -- one interval is assumed, or, with
+    ``clock_only`` (the machine has a clock and it could not be read), none: the state
+    waits for the clock. Otherwise, against the last time:
+
+    * equal: stale (``stale:NAME``), held, no interval passed;
+    * earlier (a controller reboot, a clock set back): ``clock_backwards``, held, and
+      the clock re-synchronised on ``t`` (the state is kept);
+    * later by more than ``max_clock_jump_s``: ``clock_jump``, held, the state
+      re-initialised (what happened meanwhile is unknown) and the clock re-synchronised;
+    * later by k > 1 intervals: the k − 1 unseen ones are stepped with the last inputs
+      in closed form (:meth:`Compensator.advance_idle`, O(log k)); more than
+      ``stale_after_s`` also raises ``gap:time_s``.
+    """
+    alarms = list(alarms)
+    if t is None:
+        return comp.step(values, alarms, advance=not clock_only), replace(clock, missed=0)
+    last = clock.last_t
+    if last is None:
+        return comp.step(values, alarms), Clock(t, 0)
+    dt = t - last
+    if dt == 0:                                     # a repeated sample
+        return comp.step(values, alarms + [f"stale:{nm}" for nm in values],
+                         advance=False), Clock(last, 0)
+    if dt < 0:
+        return comp.step(values, alarms + ["clock_backwards"], advance=False), Clock(t, 0)
+    if dt > max_clock_jump_s:
+        comp.reinitialise()
+        return comp.step(values, alarms + ["clock_jump"], advance=False), Clock(t, 0)
+    if dt > stale_after_s:
+        alarms.append("gap:time_s")                 # the inputs in between were not seen
+    missed = max(int(round(dt / comp.model.dtau_s)) - 1, 0)
+    comp.advance_idle(missed)
+    return comp.step(values, alarms), Clock(t, missed)
+
+
+# ------------------------------------------------------------------- the cycle log
+
+def model_sha(model) -> str:
+    """12 hex digits naming the model's numbers (a warm start needs the same model)."""
+    d = model.to_dict()
+    d.pop("arfem_version", None)
+    d.pop("description", None)
+    return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
+
+
+class CycleLog:
+    """The append-only cycle log: one JSON object a line, flushed (and fsync'ed) per
+    line, so that it is ahead of anything the process sends. A torn last line (kill -9
+    in the middle of a write) is closed by a newline before anything is appended."""
+
+    def __init__(self, path: str, fsync: bool = True):
+        self.path, self.fsync = path, fsync
+        self.f = open(path, "a+b")
+        self.f.seek(0, os.SEEK_END)
+        if self.f.tell() > 0:
+            self.f.seek(-1, os.SEEK_END)
+            if self.f.read(1) != b"\n":
+                self.f.write(b"\n")
+
+    def write(self, obj: dict) -> None:
+        self.f.write((json.dumps(obj) + "\n").encode())
+        self.f.flush()
+        if self.fsync:
+            os.fsync(self.f.fileno())
+
+    def close(self) -> None:
+        self.f.close()
+
+
+@dataclass(frozen=True)
+class WarmStart:
+    """What the log gave a starting loop: ``mode`` "warm" or "cold", ``reason``,
+    and from the last good line its machine time [s] and offset [µm] (None if none)."""
+
+    mode: str
+    reason: str
+    time_s: float | None = None
+    offset_um: float | None = None
+
+
+def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
+    """Restore ``comp``'s state from the last line of the log at ``path`` that holds one
+    for this model (:func:`model_sha`); torn or unreadable lines are skipped. Reads at
+    most the last MiB."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            size = f.tell()
+            f.seek(max(0, size - _TAIL))
+            tail = f.read()
+    except FileNotFoundError:
+        return WarmStart("cold", "no log yet")
+    except OSError as exc:
+        return WarmStart("cold", f"log unreadable: {exc.strerror or exc}")
+    other = False
+    for raw in reversed(tail.split(b"\n")):
+        try:
+            doc = json.loads(raw)
+        except Exception:                           # torn, or cut by the tail window
+            continue
+        if not isinstance(doc, dict) or not isinstance(doc.get("state"), dict):
+            continue
+        if doc.get("model") != sha:
+            other = True
+            break
+        try:
+            comp.restore(doc["state"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        t, off = doc.get("time_s"), doc.get("offset_um")
+        t = float(t) if _num(t) else None
+        off = float(off) if _num(off) else None
+        return WarmStart("warm", f"state of the log's line at time_s = {t}", t, off)
+    return WarmStart("cold", "the log's last state is of another model" if other
+                     else "no state in the log")
+
+
+def _num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def faults(cyc) -> list:
+    """The alarms of a cycle that are faults (not the informative ``clamped``,
+    ``rate_limited``, ``extrapolated``)."""
+    return sorted({a for a in cyc.alarms if a.split(":")[0] not in INFORMATIVE})
+
+
+class Status:
+    """The terminal status of a live loop (standard error): a line every ``every``
+    cycles, and whenever the set of faults changes (raised or cleared)."""
+
+    def __init__(self, every: int, stream=None):
+        self.every, self.stream, self.last = every, stream, None
+
+    def say(self, text: str) -> None:
+        print(f"arfem compensate: {text}", file=self.stream or sys.stderr, flush=True)
+
+    def cycle(self, n: int, t, cyc) -> None:
+        f = faults(cyc)
+        if f != self.last or (self.every and n % self.every == 0):
+            when = f"t = {t:g} s, " if isinstance(t, (int, float)) else ""
+            self.say(f"cycle {n}, {when}offset {cyc.offset_um:+.3f} um, "
+                     + (f"ALARM {', '.join(f)}" if f else "no alarm"))
+        self.last = f
+
+
+# ------------------------------------------------------------------ JSON lines
+
+def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> int:
+    """The JSON-lines loop; returns 0 when the input ends or a signal stops it. No line
+    of input ends it otherwise."""
     stdin = sys.stdin if stdin is None else stdin
     stdout = sys.stdout if stdout is None else stdout
-    comp = Compensator(model, max_offset_um=cfg.max_offset_um, max_step_um=cfg.max_step_um)
+    status = status or Status(cfg.status_every)
+    comp = Compensator(model, max_offset_um=cfg.max_offset_um, max_step_um=cfg.max_step_um,
+                       ranges=cfg.ranges_dict())
     stop = {"signal": None, "busy": False}
 
     def on_signal(signum, frame):
@@ -129,28 +395,40 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None) -> int:
             raise _Stop                       # (inside a cycle: after it, below)
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    names = [i.name for i in model.inputs]
-    state = {"last_t": -math.inf}
+    sha = model_sha(model)
+    ws = warm_start(cfg.log, comp, sha)
+    if ws.offset_um is not None:              # what the gateway may have been sent last
+        comp.resume(ws.offset_um)
+    run = _JsonRun(comp, [i.name for i in model.inputs], cfg, sha, Clock(ws.time_s),
+                   stdout, status)
     n = 0
     try:
-        with open(cfg.log, "a", encoding="utf-8", buffering=1) as log:
-            log.write(json.dumps({"event": "started", "model": model.kind,
-                                  "wall_time": time.time()}) + "\n")
-            log.flush()
+        run.log = CycleLog(cfg.log, cfg.fsync)
+        try:
+            run.log.write({"event": "started", "model": sha, "kind": model.kind,
+                           "transport": "jsonl", "start": ws.mode, "start_reason": ws.reason,
+                           "offset_um": comp.offset_um, "wall_time": time.time()})
+            status.say(f"live (JSON lines), {ws.mode} start ({ws.reason}); log {cfg.log}")
             try:
-                for line in stdin:
+                while True:
+                    line, oversized = _read_line(stdin)
+                    if line == "" and not oversized:
+                        break
                     stop["busy"] = True
-                    n += _cycle(line, comp, names, cfg, state, stdout, log)
+                    n += run.cycle(line, oversized, n)
                     stop["busy"] = False
                     if stop["signal"] or (cfg.cycles and n >= cfg.cycles):
                         break
             except _Stop:
                 pass
-            log.write(json.dumps({"event": "stopped", "cycles": n,
-                                  "reason": stop["signal"] or (
-                                      "cycles done" if cfg.cycles and n >= cfg.cycles
-                                      else "end of input"),
-                                  "last_offset_um": comp.offset_um}) + "\n")
+            reason = stop["signal"] or ("cycles done" if cfg.cycles and n >= cfg.cycles
+                                        else "end of input")
+            run.log.write({"event": "stopped", "cycles": n, "reason": reason,
+                           "last_offset_um": comp.offset_um, "wall_time": time.time()})
+            status.say(f"stopped after {n} cycles ({reason}); last offset "
+                       f"{comp.offset_um:+.3f} um")
+        finally:
+            run.log.close()
     finally:
         for s_, h in old.items():
             signal.signal(s_, h)
@@ -161,63 +439,85 @@ class _Stop(Exception):
     """Raised by the SIGINT/SIGTERM handler to leave the loop after a cycle or a wait."""
 
 
-def _cycle(line, comp, names, cfg, state, stdout, log) -> int:
-    """One input line → one answer line and one log line; returns 1."""
-    alarms, t, values = [], None, {}
+def _read_line(stdin) -> tuple[str, bool]:
+    """The next line (at most :data:`MAX_LINE` characters kept) and whether it was
+    longer (the rest is read and dropped, so memory stays bounded)."""
+    line = stdin.readline(MAX_LINE + 1)
+    if len(line) <= MAX_LINE or line.endswith("\n"):
+        return line, False
+    while True:
+        rest = stdin.readline(MAX_LINE)
+        if rest == "" or rest.endswith("\n"):
+            return line[:80], True
+
+
+def _parse(line: str, oversized: bool) -> tuple[dict | None, str | None]:
+    """A line as a reading (a JSON object), or None and why not."""
+    if oversized:
+        return None, "oversized_line"
+    if not line.strip():
+        return None, "blank_line"
     try:
         doc = json.loads(line)
-        if not isinstance(doc, dict):
-            raise ValueError
-    except ValueError:
-        doc = {}
-        alarms.append("malformed_line")
-    t = doc.get("time_s")
-    if not isinstance(t, (int, float)) or isinstance(t, bool) \
-            or not math.isfinite(t):
-        alarms.append("missing:time_s")
+    except RecursionError:
+        return None, "nested_line"
+    except Exception:                               # ValueError, and anything else
+        return None, "malformed_line"
+    if not isinstance(doc, dict):
+        return None, "malformed_line"
+    return doc, None
+
+
+@dataclass
+class _JsonRun:
+    comp: Compensator
+    names: list
+    cfg: LiveConfig
+    sha: str
+    clock: Clock
+    stdout: object
+    status: Status
+    log: CycleLog | None = None
+
+    def cycle(self, line: str, oversized: bool, n: int) -> int:
+        """One input line → one log line, then one answer line; returns 1. The log line
+        is written (and fsync'ed) first: it is ahead of the offset it names."""
+        doc, bad = _parse(line, oversized)
+        values = {nm: None for nm in self.names}
         t = None
-    for nm in names:
-        v = doc.get(nm)
-        values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
-            else None
-    cyc = clocked_step(comp, values, t, state, cfg.stale_after_s, alarms)
-    out = {"time_s": t, "offset_um": cyc.offset_um,
-           "predicted_growth_um": None if math.isnan(cyc.predicted_growth_um)
-           else cyc.predicted_growth_um,
-           "alarms": list(cyc.alarms), "held": cyc.held}
-    stdout.write(json.dumps(out) + "\n")
-    stdout.flush()
-    log.write(json.dumps({"time_s": t, "inputs": values, **out}) + "\n")
-    log.flush()
-    return 1
-
-
-def clocked_step(comp, values: dict, t, state: dict, stale_after_s: float, alarms: list,
-                 clock_only: bool = False):
-    """One cycle with the machine's sample time ``t`` [s] (None: not known; one interval
-    is assumed, or, with ``clock_only`` -- the machine has a clock and it could not be
-    read -- none: the model waits for the clock to say how many passed). A time not newer than the last (``state["last_t"]``) is stale: the
-    offset is held and the model does not advance (no interval passed). A time more
-    than one Δτ after the last means intervals this loop did not see: the model advances
-    through them first (held, with the last inputs), so that it stays on time; more than
-    ``stale_after_s`` after it also raises ``gap:time_s``. Used by every transport."""
-    last = state.get("last_t", -math.inf)
-    names = list(values)
-    state["missed"] = 0
-    if t is None and clock_only:
-        return comp.step(values, alarms, advance=False)
-    if t is not None and t <= last:                  # a repeated or out-of-order sample
-        return comp.step(values, alarms + [f"stale:{nm}" for nm in names], advance=False)
-    if t is not None and last > -math.inf:
-        if t - last > stale_after_s:
-            alarms = alarms + ["gap:time_s"]         # the inputs in between were not seen
-        missed = max(int(round((t - last) / comp.model.dtau_s)) - 1, 0)
-        state["missed"] = missed
-        for _ in range(missed):
-            comp.step({nm: None for nm in names}, alarms=["missed_interval"])
-    if t is not None:
-        state["last_t"] = t
-    return comp.step(values, alarms)
+        if bad is not None:                  # not a reading: hold, do not advance
+            cyc = self.comp.step(values, [bad], advance=False)
+        else:
+            alarms = []
+            t = doc.get("time_s")
+            if not _num(t):
+                alarms.append("missing:time_s")
+                t = None
+            for nm in self.names:
+                v = doc.get(nm)
+                values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
+                    else None
+            held = doc.get("controller_offset_um")
+            if _num(held):
+                self.comp.resume(held)
+            cyc, self.clock = clocked_step(
+                self.comp, values, t, self.clock, stale_after_s=self.cfg.stale_after_s,
+                max_clock_jump_s=self.cfg.max_clock_jump_s, alarms=alarms)
+        g = cyc.predicted_growth_um
+        out = {"time_s": t, "offset_um": cyc.offset_um,
+               "predicted_growth_um": None if math.isnan(g) else g,
+               "alarms": list(cyc.alarms), "held": cyc.held}
+        entry = {"time_s": t, "inputs": values, **out, "model": self.sha,
+                 "state": self.comp.state()}
+        if bad is not None:
+            entry["line"] = line[:80]
+        if self.clock.missed:
+            entry["missed_intervals"] = self.clock.missed
+        self.log.write(entry)                # write-ahead: the log first
+        self.stdout.write(json.dumps(out) + "\n")
+        self.stdout.flush()
+        self.status.cycle(n + 1, t, cyc)
+        return 1
 
 
 def run_live(args) -> int:

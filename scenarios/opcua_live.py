@@ -33,21 +33,27 @@ writes the offset node and the alarm node in one request. The config::
     [opcua.inputs]                          # one node per input the model reads
     speed_rpm = "ns=2;s=Spindle.speed_rpm"
 
-Before any offset is written the endpoint is reached, every node is read (a node id
-that does not exist, or an offset node that cannot be written, is refused in one line
-naming the key and node) and the model's inputs are matched with ``[opcua.inputs]``.
+Before any offset is written the endpoint is reached, every node is read and the
+model's inputs are matched with ``[opcua.inputs]``: a node id that does not exist, an
+offset node that this client cannot write, or one whose type is not Double or Float, is
+refused in one line naming the key and node (exit 2).
 
-Per cycle: a bad status or a non-finite value holds the offset (``missing:NAME`` /
-``nonfinite:NAME``); with ``time_node``, a time that does not advance holds it
-(``stale:NAME``) and one more than ``stale_after_s`` after the last one raises
-``gap:time_s``; a failed request drops the connection (``connection_lost``, offset
-held by the controller), which is retried with backoff; a deadline missed by a whole
-period counts a cycle of its own (``overrun``: the model's state advances with the
-last inputs, so that it stays on time) -- unless ``time_node`` is given: then the
-machine's clock counts the intervals, a late cycle simply runs late, and intervals the
-loop did not see (the time advanced by more than one Δτ) advance the state, held
-(``missed_intervals`` in the log); while it cannot be read (a lost connection) the
-state waits for it. Every cycle is one flushed line of the log.
+Bumpless: the offset the controller holds is read on start and on every reconnect, and
+the rate limit counts from it (the first write is at most ``max_step_um`` from it); the
+state is warm-started from the cycle log (:func:`arfem.scenarios.live.warm_start`).
+
+Per cycle: a bad status, a non-finite value or one outside its plausible range holds
+the offset (``missing:NAME`` / ``nonfinite:NAME`` / ``out_of_range:NAME``); the machine
+clock (``time_node``) is handled by :func:`arfem.scenarios.live.clocked_step` (stale,
+backwards, jump, missed intervals in closed form). The cycle's log line is written and
+fsync'ed before the write request leaves (write-ahead). Every write is checked: a
+refused offset write (``write_refused:STATUS``, e.g. a read-only or deleted node) puts
+the command back to the controller's last accepted value and raises the alarm until a
+write is accepted; a failed or timed-out request drops the connection
+(``connection_lost``), which is retried with backoff, and on reconnect the controller's
+offset is read back. A deadline missed by whole periods without a machine clock is one
+``overrun`` cycle that steps the missed intervals in closed form. SIGINT/SIGTERM end the
+loop within one period in every state (a pending request is abandoned).
 """
 from __future__ import annotations
 
@@ -58,11 +64,12 @@ import math
 import os
 import signal
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from arfem.models.compensator import Compensator
 from arfem.params import InputError, one_line
-from arfem.scenarios.live import clocked_step
+from arfem.scenarios.live import (Clock, CycleLog, Status, clocked_step, faults, model_sha,
+                                  warm_start)
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
@@ -226,17 +233,26 @@ async def _drop(c) -> None:
         pass
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Nodes:
-    ids: list            # input node ids (+ the time node last, if any)
+    """The resolved nodes: input ids (+ the time node last, if any), the offset node and
+    its variant type, the alarm node and its type, and the offset the controller holds
+    (None where it is not a finite number)."""
+
+    ids: list
     offset: object
     offset_type: object
     alarm: object = None
     alarm_type: object = None
+    held_um: float | None = None
+
+
+_FLOATS = ("Double", "Float")
 
 
 async def _resolve(c, cfg: OpcuaConfig) -> _Nodes:
-    """Check every node exists (and the offset/alarm nodes can be written); one-line
+    """Check every node exists, the offset/alarm nodes can be written and the offset
+    node is a Double or Float; read the offset the controller holds. One-line
     :class:`InputError` naming the key and node otherwise."""
     ua = _ua()
     keys = [(f"{cfg.where}.inputs.{nm}", nid) for nm, nid in cfg.inputs]
@@ -251,50 +267,93 @@ async def _resolve(c, cfg: OpcuaConfig) -> _Nodes:
         if dv.StatusCode.value == ua.StatusCodes.BadNodeIdUnknown:
             raise InputError(f"node {nid} does not exist on {cfg.endpoint}", key)
     acc = await c.uaclient.read_attributes(ids[len(keys):], ua.AttributeIds.UserAccessLevel)
+    dtype = (await c.uaclient.read_attributes([ids[len(keys)]], ua.AttributeIds.DataType))[0]
     types = []
     for (key, nid), a, dv in zip(outs, acc, dvs[len(keys):]):
         level = a.Value.Value if a.StatusCode.is_good() else 0
         if not level & ua.AccessLevel.CurrentWrite.mask:
             raise InputError(f"node {nid} is not writable by this client", key)
-        types.append(dv.Value.VariantType if dv.Value is not None else ua.VariantType.Double)
-    n = _Nodes(ids[:len(keys)], ids[len(keys)], types[0])
+        types.append(dv.Value.VariantType if dv.Value is not None
+                     and dv.Value.VariantType != ua.VariantType.Null else None)
+    okey, onid = outs[0]
+    tname = _type_name(ua, dtype, types[0])
+    if tname not in _FLOATS:
+        raise InputError(f"node {onid} has type {tname}; the offset needs a Double or Float "
+                         "node (an integer node would round or refuse every offset)", okey)
+    ovt = getattr(ua.VariantType, tname)
+    v = dvs[len(keys)].Value.Value if dvs[len(keys)].Value is not None else None
+    held = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) \
+        and math.isfinite(v) else None
+    alarm, atype = None, None
     if cfg.alarm_node:
-        n.alarm, n.alarm_type = ids[len(keys) + 1], types[1]
-    return n
+        alarm, atype = ids[len(keys) + 1], types[1] or ua.VariantType.String
+    return _Nodes(ids[:len(keys)], ids[len(keys)], ovt, alarm, atype, held)
+
+
+def _type_name(ua, dtype, vtype) -> str:
+    """The offset node's type: its DataType attribute where it names a built-in type,
+    else the type of the value it holds."""
+    if dtype.StatusCode.is_good() and dtype.Value is not None:
+        nid = dtype.Value.Value
+        if isinstance(nid, ua.NodeId) and nid.NamespaceIndex == 0 \
+                and isinstance(nid.Identifier, int):
+            try:
+                return ua.VariantType(nid.Identifier).name
+            except ValueError:
+                pass
+    return vtype.name if vtype is not None else "unknown"
 
 
 def _alarm_value(ua, vtype, cyc):
+    """The alarm node's value: Boolean -- set while the offset is held or any fault
+    lasts; String -- the alarm names; an integer type -- their number."""
     if vtype == ua.VariantType.Boolean:
-        return ua.Variant(bool(cyc.held), vtype)
+        return ua.Variant(bool(cyc.held or faults(cyc)), vtype)
     if vtype == ua.VariantType.String:
         return ua.Variant(",".join(cyc.alarms), vtype)
     return ua.Variant(len(cyc.alarms), vtype)
 
 
+def _err(exc) -> str:
+    return one_line(f"{type(exc).__name__}: {exc}")
+
+
 class _Loop:
     """The live cycle over OPC UA; :meth:`run` returns the exit status."""
 
-    def __init__(self, model, cfg):
+    def __init__(self, model, cfg, status=None):
         self.model, self.cfg, self.o = model, cfg, cfg.opcua
         self.comp = Compensator(model, max_offset_um=cfg.max_offset_um,
-                                max_step_um=cfg.max_step_um)
+                                max_step_um=cfg.max_step_um, ranges=cfg.ranges_dict())
         self.names = [i.name for i in model.inputs]
+        self.sha = model_sha(model)
+        self.status = status or Status(cfg.status_every)
         self.client = None
         self.nodes = None
-        self.last_t = -math.inf
+        self.clock = Clock()
+        self.accepted = 0.0           # the offset the controller holds (last accepted)
+        self.write_fault = None       # the last write's refusal, until one is accepted
         self.backoff = self.o.reconnect_initial_s
         self.next_try = 0.0
         self.stop = None
         self.reason = None
+        self.log = None
 
     def _log(self, obj):
-        self.log.write(json.dumps(obj) + "\n")
-        self.log.flush()
+        self.log.write(obj)
+
+    def _take_controller(self, held_um, event):
+        """The controller's offset, read back: the rate limit counts from it."""
+        if held_um is None:
+            self.status.say(f"{event}: the controller's offset is not a finite number; "
+                            "ramping from 0")
+            held_um = 0.0
+        self.accepted = held_um
+        self.comp.resume(held_um)
 
     async def _lose(self, exc, now):
         self._log({"event": "connection_lost", "wall_time": time.time(),
-                   "error": one_line(f"{type(exc).__name__}: {exc}"),
-                   "retry_in_s": self.backoff})
+                   "error": _err(exc), "retry_in_s": self.backoff})
         if self.client is not None:
             await _drop(self.client)
         self.client = None
@@ -302,91 +361,108 @@ class _Loop:
         self.backoff = min(2 * self.backoff, self.o.reconnect_max_s)
 
     async def _reconnect(self, now):
+        c = None
         try:
             c = await _client(self.o)
-            self.nodes = await _resolve(c, self.o)
-        except InputError:
-            raise
-        except Exception as exc:               # still unreachable: wait longer
+            nodes = await asyncio.wait_for(_resolve(c, self.o), self.o.timeout_s * 2)
+        except Exception as exc:               # unreachable, or a node gone: wait longer
+            if c is not None:
+                await _drop(c)
             self._log({"event": "reconnect_failed", "wall_time": time.time(),
-                       "error": one_line(f"{type(exc).__name__}: {exc}"),
-                       "retry_in_s": self.backoff})
+                       "error": _err(exc), "retry_in_s": self.backoff})
             self.next_try = now + self.backoff
             self.backoff = min(2 * self.backoff, self.o.reconnect_max_s)
             return
-        self.client = c
+        self.client, self.nodes = c, nodes
         self.backoff = self.o.reconnect_initial_s
-        self._log({"event": "reconnected", "wall_time": time.time()})
+        self._take_controller(nodes.held_um, "reconnected")
+        self._log({"event": "reconnected", "wall_time": time.time(),
+                   "controller_offset_um": nodes.held_um})
+        self.status.say(f"reconnected; the controller holds {self.accepted:+.3f} um")
 
-    async def _cycle(self, loop, k, deadline, overrun=False):
+    async def _read(self, ua, values, transport):
+        """Read the inputs (and the time); returns the machine time or None."""
+        try:
+            dvs = await asyncio.wait_for(self.client.uaclient.read_attributes(
+                self.nodes.ids, ua.AttributeIds.Value), self.o.timeout_s)
+        except Exception as exc:
+            await self._lose(exc, asyncio.get_running_loop().time())
+            transport.append("connection_lost")
+            return None
+        for nm, dv in zip(self.names, dvs):
+            if dv.StatusCode.is_good() and dv.Value is not None:
+                values[nm] = dv.Value.Value
+        if not self.o.time_node:
+            return None
+        dv = dvs[-1]
+        v = dv.Value.Value if dv.StatusCode.is_good() and dv.Value is not None else None
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+            return float(v)
+        transport.append("missing:time_s")
+        return None
+
+    async def _write(self, ua, k, cyc):
+        """Send the offset (and alarm) and check the answer."""
+        nodes = [self.nodes.offset]
+        vals = [ua.DataValue(ua.Variant(cyc.offset_um, self.nodes.offset_type))]
+        if self.nodes.alarm is not None:
+            nodes.append(self.nodes.alarm)
+            vals.append(ua.DataValue(_alarm_value(ua, self.nodes.alarm_type, cyc)))
+        try:
+            res = await asyncio.wait_for(self.client.uaclient.write_attributes(
+                nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
+        except Exception as exc:               # unknown whether it landed: read it back
+            await self._lose(exc, asyncio.get_running_loop().time())
+            return
+        if res[0].is_good():
+            self.accepted, self.write_fault = cyc.offset_um, None
+        else:
+            self.write_fault = f"write_refused:{res[0].name}"
+            self.comp.resume(self.accepted)     # never run away from what it holds
+            self._log({"event": "write_refused", "cycle": k, "status": res[0].name,
+                       "offset_um": cyc.offset_um, "controller_offset_um": self.accepted,
+                       "wall_time": time.time()})
+        if len(res) > 1 and not res[1].is_good():
+            self._log({"event": "alarm_write_refused", "cycle": k, "status": res[1].name})
+
+    async def _cycle(self, loop, k, deadline, missed_periods=0):
         ua = _ua()
         start = loop.time()
         transport, values, t = [], {nm: None for nm in self.names}, None
-        if overrun:
-            transport.append("overrun")
+        if self.client is None and start >= self.next_try:
+            await self._reconnect(start)
+        if self.client is None:
+            transport.append("connection_lost")
         else:
-            if self.client is None and start >= self.next_try:
-                await self._reconnect(start)
-            if self.client is None:
-                transport.append("connection_lost")
-            else:
-                try:
-                    dvs = await asyncio.wait_for(self.client.uaclient.read_attributes(
-                        self.nodes.ids, ua.AttributeIds.Value), self.o.timeout_s)
-                except Exception as exc:
-                    await self._lose(exc, loop.time())
-                    transport.append("connection_lost")
-                else:
-                    for nm, dv in zip(self.names, dvs):
-                        if dv.StatusCode.is_good() and dv.Value is not None:
-                            values[nm] = dv.Value.Value
-                    if self.o.time_node:
-                        dv = dvs[-1]
-                        if dv.StatusCode.is_good() and isinstance(
-                                dv.Value.Value, (int, float)) and math.isfinite(dv.Value.Value):
-                            t = float(dv.Value.Value)
-                        else:
-                            transport.append("missing:time_s")
+            t = await self._read(ua, values, transport)
         values = {nm: (v if isinstance(v, (int, float)) and not isinstance(v, bool) else None)
                   for nm, v in values.items()}
-        clock = {"last_t": self.last_t}
-        cyc = clocked_step(self.comp, values, t, clock, self.cfg.stale_after_s, transport,
-                           clock_only=bool(self.o.time_node))
-        self.last_t = clock["last_t"]
-        missed = clock["missed"]
-        written = False
-        if self.client is not None and not overrun:
-            nodes = [self.nodes.offset]
-            vals = [ua.DataValue(ua.Variant(cyc.offset_um, self.nodes.offset_type))]
-            if self.nodes.alarm is not None:
-                nodes.append(self.nodes.alarm)
-                vals.append(ua.DataValue(_alarm_value(ua, self.nodes.alarm_type, cyc)))
-            try:
-                res = await asyncio.wait_for(self.client.uaclient.write_attributes(
-                    nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
-                written = all(r.is_good() for r in res)
-            except Exception as exc:
-                await self._lose(exc, loop.time())
-        end = loop.time()
+        if missed_periods:                     # no machine clock: the loop's periods count
+            transport.append("overrun")
+            self.comp.advance_idle(missed_periods)
+        cyc, self.clock = clocked_step(
+            self.comp, values, t, self.clock, stale_after_s=self.cfg.stale_after_s,
+            max_clock_jump_s=self.cfg.max_clock_jump_s, alarms=transport,
+            clock_only=bool(self.o.time_node))
+        if self.write_fault:                   # the alarm lasts until a write is accepted;
+            cyc = replace(cyc, alarms=cyc.alarms + (self.write_fault,))  # the inputs still
+        send = self.client is not None         # feed the state (they were read)
         g = cyc.predicted_growth_um
+        missed = self.clock.missed + missed_periods
         self._log({"cycle": k, "time_s": t, "wall_time": time.time(),
-                   "lateness_s": start - deadline, "cycle_s": end - start,
-                   "inputs": values, "transport_alarms": transport,
-                   "offset_um": cyc.offset_um,
+                   "lateness_s": start - deadline, "inputs": values,
+                   "transport_alarms": transport, "offset_um": cyc.offset_um,
                    "predicted_growth_um": None if math.isnan(g) else g,
-                   "alarms": list(cyc.alarms), "held": cyc.held, "written": written,
+                   "alarms": list(cyc.alarms), "held": cyc.held, "sent": send,
+                   "controller_offset_um": self.accepted, "model": self.sha,
+                   "state": self.comp.state(),
                    **({"missed_intervals": missed} if missed else {})})
+        if send:                               # the log line above is ahead of it
+            await self._write(ua, k, cyc)
+        self.status.cycle(k + 1, t, cyc)
 
-    async def run(self) -> int:
-        loop = asyncio.get_running_loop()
-        self.stop = asyncio.Event()
-
-        def on_signal(sig):
-            self.reason = sig.name
-            self.stop.set()
-        for s in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(s, on_signal, s)
-        # refuse an unreachable endpoint or a bad node before any offset is written
+    async def _start(self):
+        """Connect and resolve (refused in one line), read the controller's offset."""
         try:
             self.client = await _client(self.o)
         except InputError:
@@ -400,37 +476,76 @@ class _Loop:
         except BaseException:
             await _drop(self.client)
             raise
+        self._take_controller(self.nodes.held_um, "start")
+
+    async def _guarded(self, coro):
+        """Run one cycle unless a signal comes first (then the cycle is abandoned: its
+        log line, if written, is ahead of any write that may have left)."""
+        task = asyncio.ensure_future(coro)
+        stop = asyncio.ensure_future(self.stop.wait())
+        await asyncio.wait({task, stop}, return_when=asyncio.FIRST_COMPLETED)
+        stop.cancel()
+        if not task.done():
+            task.cancel()
+            try:
+                await task
+            except BaseException:
+                pass
+            return False
+        task.result()
+        return True
+
+    async def run(self) -> int:
+        loop = asyncio.get_running_loop()
+        self.stop = asyncio.Event()
+
+        def on_signal(sig):
+            self.reason = sig.name
+            self.stop.set()
+        for s in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(s, on_signal, s)
         period, n = self.cfg.period_s, 0
         try:
-            with open(self.cfg.log, "a", encoding="utf-8", buffering=1) as self.log:
-                self._log({"event": "started", "model": self.model.kind, "transport": "opcua",
-                           "endpoint": self.o.endpoint, "period_s": period,
-                           "wall_time": time.time()})
-                t0, k = loop.time(), 0                 # k: deadline index; n: cycles run
-                while not self.stop.is_set() and not (self.cfg.cycles and n >= self.cfg.cycles):
+            await self._start()                # refused before any offset is written
+            ws = warm_start(self.cfg.log, self.comp, self.sha)
+            self.clock = Clock(ws.time_s)
+            self.log = CycleLog(self.cfg.log, self.cfg.fsync)
+            self._log({"event": "started", "model": self.sha, "kind": self.model.kind,
+                       "transport": "opcua", "endpoint": self.o.endpoint,
+                       "period_s": period, "start": ws.mode, "start_reason": ws.reason,
+                       "controller_offset_um": self.nodes.held_um,
+                       "wall_time": time.time()})
+            self.status.say(f"live (OPC UA {self.o.endpoint}), {ws.mode} start "
+                            f"({ws.reason}); the controller holds {self.accepted:+.3f} um; "
+                            f"log {self.cfg.log}")
+            t0, k = loop.time(), 0                 # k: deadline index; n: cycles run
+            while not self.stop.is_set() and not (self.cfg.cycles and n >= self.cfg.cycles):
+                deadline = t0 + k * period
+                wait = deadline - loop.time()
+                if wait > 0:
+                    try:
+                        await asyncio.wait_for(self.stop.wait(), wait)
+                        break
+                    except asyncio.TimeoutError:
+                        pass
+                behind = int((loop.time() - deadline) // period)
+                if behind >= 1:                    # whole periods missed
+                    k += behind
                     deadline = t0 + k * period
-                    wait = deadline - loop.time()
-                    if wait > 0:
-                        try:
-                            await asyncio.wait_for(self.stop.wait(), wait)
-                            break
-                        except asyncio.TimeoutError:
-                            pass
-                    behind = int((loop.time() - deadline) // period)
-                    if behind >= 1:                    # whole periods missed
-                        if not self.o.time_node:       # no machine clock: count them
-                            for j in range(behind):
-                                await self._cycle(loop, n, deadline + j * period, overrun=True)
-                                n += 1
-                        k += behind                    # (with one, its time tells)
-                        deadline = t0 + k * period
-                    await self._cycle(loop, n, deadline)
-                    n += 1
-                    k += 1
-                self._log({"event": "stopped", "cycles": n,
-                           "reason": self.reason or "cycles done",
-                           "last_offset_um": self.comp.offset_um, "wall_time": time.time()})
+                missed = behind if behind >= 1 and not self.o.time_node else 0
+                if not await self._guarded(self._cycle(loop, n, deadline, missed)):
+                    break
+                n += 1
+                k += 1
+            self._log({"event": "stopped", "cycles": n,
+                       "reason": self.reason or "cycles done",
+                       "last_offset_um": self.comp.offset_um,
+                       "controller_offset_um": self.accepted, "wall_time": time.time()})
+            self.status.say(f"stopped after {n} cycles ({self.reason or 'cycles done'}); "
+                            f"the controller holds {self.accepted:+.3f} um")
         finally:
+            if self.log is not None:
+                self.log.close()
             if self.client is not None:
                 await _drop(self.client)
             for s in (signal.SIGINT, signal.SIGTERM):

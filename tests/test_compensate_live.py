@@ -65,7 +65,7 @@ def test_safety_rules_on_a_stream(setup):
     assert max(abs(o) for o in offs) <= 0.3 + 1e-12
     assert max(abs(b - a) for a, b in zip(offs, offs[1:])) <= 0.05 + 1e-12
     tail = out[len(good):]
-    want = ["malformed_line", "nonfinite:q_W_m2", "missing:q_W_m2", None, "stale:q_W_m2",
+    want = ["malformed_line", "nonfinite:q_W_m2", "missing:q_W_m2", None, "clock_backwards",
             "gap:time_s"]
     for o, w in zip(tail, want):
         if w is None:
@@ -115,21 +115,23 @@ def test_the_machine_clock_decides_how_far_the_model_advances():
     """clocked_step (every transport): a stale time holds the offset without advancing
     the state (no interval passed); a time two intervals on advances through the unseen
     one first (held, last inputs); with clock_only and no readable time, nothing moves.
-    The reference steps a Compensator interval by interval by hand."""
+    The reference steps a Compensator interval by interval by hand (== : up to
+    EXACT_STEPS missed intervals are stepped one by one, the replay's floats)."""
     from arfem.models.compensator import Compensator
-    from arfem.scenarios.live import clocked_step
+    from arfem.scenarios.live import Clock, clocked_step
     m = ar1_model(0.9, 0.01, dtau_s=60.0)
-    c, ref, state = Compensator(m), Compensator(m), {}
+    c, ref, clock = Compensator(m), Compensator(m), Clock()
+    kw = {"stale_after_s": 600.0}
     for t, q in ((60.0, 100.0), (120.0, 200.0)):
-        clocked_step(c, {"q_W_m2": q}, t, state, 600.0, [])
+        _, clock = clocked_step(c, {"q_W_m2": q}, t, clock, **kw)
         ref.step({"q_W_m2": q})
     x = c.x.copy()
-    cyc = clocked_step(c, {"q_W_m2": 900.0}, 120.0, state, 600.0, [])
+    cyc, clock = clocked_step(c, {"q_W_m2": 900.0}, 120.0, clock, **kw)
     assert cyc.held and "stale:q_W_m2" in cyc.alarms and np.array_equal(c.x, x)
-    cyc = clocked_step(c, {"q_W_m2": 900.0}, None, state, 600.0, [], clock_only=True)
+    cyc, clock = clocked_step(c, {"q_W_m2": 900.0}, None, clock, clock_only=True, **kw)
     assert np.array_equal(c.x, x)
-    cyc = clocked_step(c, {"q_W_m2": 300.0}, 240.0, state, 600.0, [])
+    cyc, clock = clocked_step(c, {"q_W_m2": 300.0}, 240.0, clock, **kw)
     ref.step({"q_W_m2": None})                      # the unseen interval: last inputs
     want = ref.step({"q_W_m2": 300.0})
-    assert state["missed"] == 1 and not cyc.held
+    assert clock.missed == 1 and not cyc.held
     assert cyc.predicted_growth_um == want.predicted_growth_um

@@ -133,7 +133,8 @@ def test_live_equals_replay_and_limits_hold(tmp_path, procs, model_file):
     assert r.returncode == 0, r.stderr
     assert twin.wait(timeout=30) == 0              # the twin ended after its n intervals
     cyc = [c for c in log_lines(tmp_path) if "cycle" in c]
-    assert len(cyc) == n and not any(c["held"] for c in cyc) and all(c["written"] for c in cyc)
+    assert len(cyc) == n and not any(c["held"] for c in cyc) and all(c["sent"] for c in cyc)
+    assert not any(e.get("event") == "write_refused" for e in log_lines(tmp_path))
     rec = read_csv(tmp_path / "twin.csv")
     live_off = rec["offset_um"]
     assert np.array_equal(live_off, [c["offset_um"] for c in cyc])
@@ -277,6 +278,6 @@ def test_signed_and_encrypted_with_credentials_from_the_environment(tmp_path, pr
     assert r.returncode == 0, r.stderr
     assert twin.wait(timeout=60) == 0
     cyc = [c for c in log_lines(tmp_path) if "cycle" in c]
-    assert len(cyc) == 20 and all(c["written"] and not c["held"] for c in cyc)
+    assert len(cyc) == 20 and all(c["sent"] and not c["held"] for c in cyc)
     rec = read_csv(tmp_path / "twin.csv")
     assert np.array_equal(rec["offset_um"], [c["offset_um"] for c in cyc])
