@@ -450,7 +450,8 @@ class _Loop:
         g = cyc.predicted_growth_um
         missed = self.clock.missed + missed_periods
         self._log({"cycle": k, "time_s": t, "wall_time": time.time(),
-                   "lateness_s": start - deadline, "inputs": values,
+                   "lateness_s": start - deadline, "cycle_s": loop.time() - start,
+                   "inputs": values,
                    "transport_alarms": transport, "offset_um": cyc.offset_um,
                    "predicted_growth_um": None if math.isnan(g) else g,
                    "alarms": list(cyc.alarms), "held": cyc.held, "sent": send,
