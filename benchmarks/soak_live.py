@@ -33,10 +33,23 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-from live_fault_machine import FaultMachine, free_port  # noqa: E402
-from test_live_faults import (CLAMP, STEP, log_lines, paper_model,  # noqa: E402
-                              start_compensator, until, write_config)
+
+
+def _fault_machine():
+    """``tests/live_fault_machine.py``, loaded from its file (the tests' helper)."""
+    import importlib.util
+    path = Path(__file__).resolve().parent.parent / "tests" / "live_fault_machine.py"
+    spec = importlib.util.spec_from_file_location("live_fault_machine", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+_fm = _fault_machine()
+FaultMachine, free_port, CLAMP, STEP = _fm.FaultMachine, _fm.free_port, _fm.CLAMP, _fm.STEP
+log_lines, paper_model, start_compensator = _fm.log_lines, _fm.paper_model, \
+    _fm.start_compensator
+until, write_config = _fm.until, _fm.write_config
 
 
 def in_process_jump_times() -> dict:

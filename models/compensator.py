@@ -373,8 +373,9 @@ class Cycle:
         The model's growth [µm] (NaN where the inputs were not usable).
     alarms : tuple of str
         ``missing:NAME``, ``nonfinite:NAME``, ``out_of_range:NAME``, ``stale:NAME`` and
-        any other alarm from the transport: the offset is held; ``clamped``, ``rate_limited``, ``extrapolated:NAME`` (an input
-        beyond its map's fitted points): informative.
+        any other alarm from the transport: the offset is held; ``clamped``,
+        ``rate_limited``, ``extrapolated:NAME`` (an input beyond its map's fitted points):
+        informative (:data:`INFORMATIVE`).
     held : bool
         True when the last offset was kept because an input was not usable.
     """

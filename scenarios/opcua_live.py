@@ -58,7 +58,6 @@ loop within one period in every state (a pending request is abandoned).
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import math
 import os

@@ -31,81 +31,16 @@ What is verified and why (clamp 20 µm, step limit 0.5 µm, the paper's AR(1)):
   ``stopped`` line long before the timeout would have.
 """
 import asyncio
-import json
-import os
 import signal
-import sys
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("asyncua")
 
-sys.path.insert(0, str(Path(__file__).parent))
-from live_fault_machine import NODE, FaultMachine, free_port  # noqa: E402
-
-from arfem.models.ar1 import c1_paper, c2_paper  # noqa: E402
-from arfem.models.compensator import ar1_model  # noqa: E402
-from arfem.params import Rod  # noqa: E402
-from arfem.scenarios.model_file import write_model  # noqa: E402
-
-CLAMP, STEP = 20.0, 0.5
-WAIT_S = 120.0                       # how long to wait for the compensator at most
-
-
-def paper_model(d: Path) -> Path:
-    rod = Rod()
-    m = ar1_model(c1_paper(rod, 60.0), c2_paper(rod, 60.0, 1.0) * 1e6, dtau_s=60.0)
-    write_model(d / "model.json", m)
-    return d / "model.json"
-
-
-def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=0.5, name="live.toml"):
-    (d / name).write_text(
-        f'[live]\ntransport = "opcua"\nmax_offset_um = {CLAMP}\nmax_step_um = {STEP}\n'
-        f'period_s = 0.05\nstale_after_s = 1000\nmax_clock_jump_s = 3600\n'
-        f'status_every = 0\nlog = "{log}"\n'
-        f'[opcua]\nendpoint = "{endpoint}"\noffset_node = "{NODE.format("offset_um")}"\n'
-        f'alarm_node = "{NODE.format("alarm")}"\ntime_node = "{NODE.format("time_s")}"\n'
-        f'timeout_s = {timeout_s}\nreconnect_initial_s = 0.1\nreconnect_max_s = 0.4\n'
-        f'[opcua.inputs]\nq_W_m2 = "{NODE.format("q_W_m2")}"\n')
-    return d / name
-
-
-async def start_compensator(d: Path, cfg: Path, tag: str):
-    out = open(d / f"{tag}.stdout", "w")
-    err = open(d / f"{tag}.stderr", "w")
-    p = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "arfem", "compensate", str(d / "model.json"), "--live",
-        str(cfg), stdout=out, stderr=err)
-    out.close()
-    err.close()
-    return p
-
-
-def log_lines(path: Path) -> list:
-    if not path.exists():
-        return []
-    out = []
-    for x in path.read_text().splitlines():
-        try:
-            out.append(json.loads(x))
-        except ValueError:
-            pass                                   # a line torn by kill -9
-    return out
-
-
-async def until(pred, what: str, proc=None, timeout=WAIT_S):
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout
-    while loop.time() < end:
-        if pred():
-            return
-        if proc is not None and proc.returncode is not None:
-            raise AssertionError(f"compensator exited ({proc.returncode}) waiting for {what}")
-        await asyncio.sleep(0.02)
-    raise AssertionError(f"timed out waiting for {what}")
-
+from live_fault_machine import (CLAMP, STEP, WAIT_S, FaultMachine, free_port,  # noqa: E402
+                                log_lines, paper_model, start_compensator, until,
+                                write_config)
 
 def events(path, name):
     return sum(e.get("event") == name for e in log_lines(path))
