@@ -283,7 +283,11 @@ class CycleLog:
 
     def __init__(self, path: str, fsync: bool = True):
         self.path, self.fsync = path, fsync
-        self.f = open(path, "a+b")
+        try:
+            self.f = open(path, "a+b")
+        except OSError as exc:
+            raise InputError(f"cannot write the cycle log: {exc.strerror or exc}",
+                             str(path)) from None
         self.f.seek(0, os.SEEK_END)
         if self.f.tell() > 0:
             self.f.seek(-1, os.SEEK_END)

@@ -6,7 +6,10 @@ What is verified and why:
 * the safety rules on a stream: clamp and rate limit hold; a malformed line, a missing
   or NaN input, a repeated time (stale) and a gap hold the offset with an alarm;
 * SIGTERM while the loop waits for a line ends it with exit 0 and a final log line, and
-  every cycle before it is already in the log (flushed per line: what kill -9 leaves);
+  every cycle before it is already in the log: the log is write-ahead (a cycle's line is
+  written, flushed and fsync'ed before its answer reaches standard output), so reading
+  an answer implies its line is in the file -- the ordering the test relies on, not a
+  race it usually wins (issue 28: it once failed 3 == 4 when stdout came first);
 * a config naming an unknown key, no bounds, or the OPC UA transport without its table is
   refused in one line with exit status 2 before any offset is written.
 """
