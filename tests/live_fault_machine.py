@@ -70,6 +70,7 @@ class FaultMachine:
         from asyncua import Server, ua
         from asyncua.common.callback import CallbackType
         logging.getLogger("asyncua").setLevel(logging.CRITICAL)
+        self.release = asyncio.Event()       # (stop() released the reads of the last run)
         s = Server()
         await s.init()
         s.set_endpoint(self.endpoint)
@@ -176,7 +177,7 @@ def paper_model(d: Path) -> Path:
     return d / "model.json"
 
 
-def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=0.5, name="live.toml"):
+def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name="live.toml"):
     (d / name).write_text(
         f'[live]\ntransport = "opcua"\nmax_offset_um = {CLAMP}\nmax_step_um = {STEP}\n'
         f'period_s = 0.05\nstale_after_s = 1000\nmax_clock_jump_s = 3600\n'

@@ -6,7 +6,8 @@ request to its offset node and runs in lockstep (its clock, the ``time_s`` node 
 compensator reads, advances one Δτ per write request), so a fault injected after write n
 is what the compensator reads for write n + 1, whatever the load: nothing below depends
 on timing except the bounds on how long to wait for the compensator (minutes, far above
-its 0.05 s period).
+its 0.05 s period; the client's timeout is 2 s, so that load does not lose the
+connection where the test does not mean to).
 
 What is verified and why (clamp 20 µm, step limit 0.5 µm, the paper's AR(1)):
 
@@ -98,9 +99,9 @@ async def _scenario(d: Path):
                         (22, "out_of_range:q_W_m2"), (26, "out_of_range:q_W_m2"),
                         (36, "clock_jump"), (41, "clock_backwards")):
             assert want in alarm_of(m, n), (n, alarm_of(m, n))
-        for n in (19, 24, 28, 31, 34, 44):          # recovered: no fault alarm
-            assert not any(a.split(":")[0] not in ("clamped", "rate_limited")
-                           for a in alarm_of(m, n).split(",") if a), (n, alarm_of(m, n))
+        for n in (19, 24, 28, 31, 34, 39, 44):      # recovered: the input faults are gone
+            assert not any(f in alarm_of(m, n) for f in ("nonfinite", "out_of_range",
+                                                         "clock_")), (n, alarm_of(m, n))
         cyc = [c for c in log_lines(log) if "cycle" in c]
         jump = next(c for c in cyc if c.get("missed_intervals"))
         assert jump["missed_intervals"] == 10 and not jump["held"]
@@ -146,7 +147,7 @@ async def _scenario(d: Path):
             if fault == "stall":
                 m.stalled.set()
             else:
-                m.read_delay_s = 1.0                # twice the client's timeout
+                m.read_delay_s = 4.0                # twice the client's timeout
             await until(lambda: events(log, "connection_lost") > lost, f"{fault}: lost", p)
             m.stalled.clear()
             m.release.set()
@@ -169,7 +170,7 @@ async def _scenario(d: Path):
                 await q.wait()
         await m.stop()
     # --- every write, across every fault and restart
-    assert len(m.writes) > 120
+    assert len(m.writes) >= 105                # 70 + 10 + 10 + 5 + 5 + 5: every phase ran
     for w in m.writes:
         assert abs(w.value) <= CLAMP + 1e-12, w
         assert abs(w.value - w.held_before_um) <= STEP + 1e-9, w
@@ -187,7 +188,8 @@ def test_an_offset_node_that_cannot_take_an_offset_is_refused_at_start(tmp_path,
         try:
             if fault == "read_only":
                 await m.set_offset_writable(False)
-            p = await start_compensator(tmp_path, write_config(tmp_path, m.endpoint), "c")
+            cfg = write_config(tmp_path, m.endpoint, timeout_s=10.0)
+            p = await start_compensator(tmp_path, cfg, "c")
             rc = await asyncio.wait_for(p.wait(), WAIT_S)
         finally:
             await m.stop()
