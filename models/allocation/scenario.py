@@ -223,10 +223,19 @@ class _Reader:
         lo, hi = self.vector(d, key, path, 2, default, bound=1e3)
         if lo < 0:
             raise self.err(path, f"lower bound must be >= 0 (an error magnitude), got {lo:g}")
+        for v in (lo, hi):
+            if 0 < v < MIN_BOUND:
+                raise self.err(path, f"a bound of {v:g} is below {MIN_BOUND:g} (a nanometre "
+                                     "or nanoradian: no part is made or measured finer); "
+                                     "use 0 or at least that")
         if not hi > lo:
             raise self.err(path, f"upper bound must exceed the lower, got [{lo:g}, {hi:g}]")
         return float(lo), float(hi)
 
+
+#: Smallest nonzero bound of a tolerance [mm or mrad]: 1 nm, 1 nrad. Below it no part is
+#: made or measured, and reciprocal costs overflow (a bound of 1e-320 did, issue 29).
+MIN_BOUND = 1e-6
 
 _UNIT_KEYS = {"name", "motion", "axis", "branch", "offset_mm", "rpy_deg", "joint_mm", "joint_deg",
               "free", "translation_mm", "rotation_mrad", "fixed"}
@@ -332,6 +341,14 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         units.append(_unit(rd, d, i, {u.name for u in units}))
     if not any(u.free for u in units):
         raise rd.err("units", "no unit has a free component: nothing to allocate")
+    if formula != "paper_literal" and settings.cost_model == "reciprocal_power":
+        for i, u in enumerate(units):
+            for c, (lo, _) in u.bounds.items():
+                if lo == 0.0:
+                    which = "rotation_mrad" if c in ROTATIONS else "translation_mm"
+                    raise rd.err(f"units[{i}].{which}", "lower bound 0 with the "
+                                 "reciprocal_power cost (A + B/t^k): a zero tolerance costs "
+                                 "infinitely much; give a lower bound > 0")
     byname = {u.name: u for u in units}
     if formula == "screw" and not any(u.branch == "tool" for u in units):
         raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
