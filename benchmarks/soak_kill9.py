@@ -92,7 +92,7 @@ def inputs(d: Path) -> dict:
                     empty_fraction=0.0, n_outliers=0)
     rec = write_case(case, d / "rec")
     alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
-    alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 300", alloc)
+    alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
     (d / "alloc.toml").write_text(alloc, "utf-8")
     return {"run": ["run", str(d / "base.toml")],
             "sweep": ["sweep", str(d / "soak.toml"), "--workers", "2", "--no-progress"],

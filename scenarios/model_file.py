@@ -35,6 +35,8 @@ def read_model(path) -> StateSpaceModel:
                          "model must be finite)", str(path))
     try:
         doc = json.loads(text, parse_constant=constant)
+    except InputError:
+        raise
     except json.JSONDecodeError as exc:
         raise InputError(f"is not JSON ({exc.msg} at line {exc.lineno})", str(path)) from None
     except (ValueError, RecursionError) as exc:     # an integer of > 4300 digits, nesting
