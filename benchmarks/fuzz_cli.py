@@ -22,12 +22,15 @@ stderr in files, killed at the bound. Commands and what is mutated:
 
 Counted and printed (targets: all 0):
 
-- tracebacks: an exit status other than 0, 2 or 130, or the word ``Traceback`` on
-  stderr;
+- tracebacks: an exit status other than 0, 2 or 130 (or 1 where documented: a failed
+  ``check``, a failed sweep point), or a Python traceback on stderr;
 - hangs: killed at the bound;
 - not one line: exit 2 with other than exactly one ``arfem: error:`` line;
 - non-finite results of an exit 0: ``NaN``/``Infinity`` tokens in a JSON file written,
-  ``nan``/``inf`` cells in a CSV file written, or a ``nan``/``inf`` number on stdout;
+  ``nan``/``inf`` cells in a CSV file written (except in columns that echo the record's
+  readings -- a reading the record lacks stays missing -- and, in ``compensated.csv``,
+  except a held cycle's prediction: there only ``offset_um``, the number sent to the
+  machine, is checked), or a ``nan``/``inf`` number on stdout;
 - user files changed: an input file or a user's ``report.html`` whose bytes changed.
 
 Run:  nice -n 10 python benchmarks/fuzz_cli.py [--runs 1100] [--jobs 2] [--seed 1]
@@ -394,7 +397,10 @@ def judge(case: dict, rc, hung: bool) -> list[str]:
     probs = []
     if hung:
         return ["hang"]
-    if rc not in (0, 2, 130) or "Traceback (most recent call last)" in err:
+    # exit 1 is documented for ``check`` (a check failed) and ``sweep`` (a point failed);
+    # anything else but 0, 2, 130 -- or any Python traceback -- is a crash
+    legit1 = rc == 1 and case["cmd"] in ("check", "sweep")
+    if (rc not in (0, 2, 130) and not legit1) or "Traceback (most recent call last)" in err:
         tail = [ln for ln in err.splitlines() if ln.strip()][-1:] or [""]
         probs.append(f"traceback: exit {rc}: {tail[0][:160]}")
     if rc == 2:
@@ -429,6 +435,13 @@ def nonfinite(case: dict, stdout: str) -> str | None:
                 continue
             if isinstance(o, dict) and o.get("offset_um") == "NONFINITE":
                 return f"live offset: {ln[:100]}"
+    # columns of the case's own CSV files (the record): an output that echoes a reading
+    # the record lacks (an empty cell) may hold NaN there; a number arfem computed may not
+    echoed = set()
+    for p in w.glob("**/*.csv"):
+        if p.parent == w or p.parent.name == "rec":
+            with open(p, encoding="utf-8", errors="replace") as fh:
+                echoed |= {c.strip() for c in fh.readline().split(",")}
     for p in w.rglob("*"):
         if not p.is_file() or p.name in ("stdout.txt", "stderr.txt", "stdin.txt") \
                 or p.relative_to(w).as_posix() in case["protect"] or p.name == "model.json" \
@@ -450,7 +463,10 @@ def nonfinite(case: dict, stdout: str) -> str | None:
             # and marks a held cycle's prediction NaN (docs/commands/compensate); the
             # number sent to the machine, offset_um, must always be finite
             cols = ([hdr.index("offset_um")] if p.name == "compensated.csv"
-                    and "offset_um" in hdr else None)
+                    and "offset_um" in hdr else
+                    [j for j, h in enumerate(hdr) if h not in echoed
+                     and h not in ("growth_um", "q_W_m2", "speed_rpm", "ambient_C")
+                     and not re.match(r"^T_.+_C$", h)])
             for k, ln in enumerate(lines):
                 cells = ln.split(",")
                 for c in (cells if cols is None else [cells[j] for j in cols if j < len(cells)]):

@@ -295,8 +295,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     tol = rd.table(data["tolerance"], "tolerance",
                    {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
                     "yield_draws"}, required=("delta_E_mm",))
-    dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True)
-    rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0)
+    # upper bounds (issue 29): a kinematic tolerance of 1e308 mm made the figures' axis
+    # limits inf (a traceback); no machine's allowance exceeds a metre, no cost factor 1e12
+    dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True,
+                   high=1000.0)
+    rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0,
+                   high=1e5)
     co = rd.table(data.get("cost", {}), "cost",
                   {"model", "A", "B", "k", "b_um", "angular_length_mm", "a", "b_mm"})
     op = rd.table(data.get("optimizer", {}), "optimizer",
@@ -311,14 +315,15 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         yield_draws=rd.integer(tol, "yield_draws", "tolerance.yield_draws", 10_000, 10_000,
                                1_000_000),
         cost_model=rd.choice(co, "model", "cost.model", COST_MODELS, "reciprocal_power"),
-        cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0),
-        cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True),
+        cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0, high=1e12),
+        cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True, high=1e12),
         cost_k=rd.number(co, "k", "cost.k", default=1.0, low=0.0, low_open=True, high=10.0),
-        cost_b_um=rd.number(co, "b_um", "cost.b_um", default=1.0, low=0.0, low_open=True),
+        cost_b_um=rd.number(co, "b_um", "cost.b_um", default=1.0, low=0.0, low_open=True,
+                            high=1e9),
         angular_length_mm=rd.number(co, "angular_length_mm", "cost.angular_length_mm",
-                                    default=100.0, low=0.0, low_open=True),
-        a=rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True),
-        b_mm=rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True),
+                                    default=100.0, low=0.0, low_open=True, high=1e5),
+        a=rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True, high=1e6),
+        b_mm=rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True, high=1e5),
         pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 200, 4, 1_000_000),
         n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 1000, 1, 100_000_000),
         converge=rd.boolean(op, "converge", "optimizer.converge", True),
