@@ -348,12 +348,14 @@ def _check_input(values: dict, lines, csv_path: Path, label, notes: list) -> Non
 TEMPERATURE_CELL_RANGE_C = (-273.15, 1000.0)
 
 
-def _check_temperature_cells(values: dict, lines, csv_path: Path, label) -> None:
-    """Every cell of ``ambient_C`` (the plausible ambient range) and of each
-    ``T_<name>_C`` (:data:`TEMPERATURE_CELL_RANGE_C`) that is given, one line naming the
-    row and column of the first one out of range."""
+def _check_temperature_cells(values: dict, lines, csv_path: Path, label,
+                             ambient: bool = False) -> None:
+    """Every cell of each ``T_<name>_C`` (:data:`TEMPERATURE_CELL_RANGE_C`), and with
+    ``ambient`` of ``ambient_C`` (the plausible ambient range; :func:`_ambient` asks after
+    its median check, whose message names a column in K), that is given: one line naming
+    the row and column of the first one out of range."""
     for key, v in values.items():
-        if key != "ambient_C" and not _TEMP_RE.match(key):
+        if not (key == "ambient_C" and ambient or _TEMP_RE.match(key)):
             continue
         fin = np.flatnonzero(np.isfinite(v))
         if np.any(np.isinf(v)):
@@ -382,6 +384,7 @@ def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
     if amb is not None:
         med = float(np.nanmedian(amb))
         check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
+        _check_temperature_cells({"ambient_C": amb}, lines, csv_path, label, ambient=True)
         nan = np.isnan(amb)
         if nan.sum() > MAX_MISSING_FRACTION * amb.size:
             i = int(np.flatnonzero(nan)[0])
@@ -491,8 +494,8 @@ def load_dataset(toml_path) -> Dataset:
     t = values["time_s"]
     dt = _check_time(t, lines, csv_path, label)
     _check_input(values, lines, csv_path, label, notes)
-    _check_temperature_cells(values, lines, csv_path, label)
     amb = _ambient(values, t, lines, csv_path, label, notes)
+    _check_temperature_cells(values, lines, csv_path, label)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():
