@@ -33,7 +33,13 @@ Counted and printed (targets: all 0):
   machine, is checked), or a ``nan``/``inf`` number on stdout;
 - user files changed: an input file or a user's ``report.html`` whose bytes changed.
 
+Issue 16's parts run on request: ``--hypothesis N`` (tests/test_fuzz.py with N examples per
+test, the ``fuzz`` profile) and ``--hangs`` (extreme ``arfem sweep`` invocations as
+subprocesses: ``--workers 100000``, ``--connect-timeout 1e308`` against a closed port, a
+Dask scheduler without a worker, a 100³ grid).
+
 Run:  nice -n 10 python benchmarks/fuzz_cli.py [--runs 1100] [--jobs 2] [--seed 1]
+          [--hypothesis 500] [--hangs]
 """
 from __future__ import annotations
 
@@ -45,6 +51,8 @@ import random
 import re
 import shutil
 import signal
+import socket
+import subprocess
 import sys
 import tempfile
 import time
@@ -484,6 +492,104 @@ def _raise(tok):
     raise _NonFinite(f"holds {tok}")
 
 
+# -- issue 16's parts (optional: --hypothesis, --hangs) -------------------------------------
+
+HYP_BASE = (ROOT / "tests" / "test_fuzz.py").read_text("utf-8").split('BASE = """', 1)[1] \
+    .split('"""', 1)[0]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def arfem(*argv, timeout: float) -> tuple[int | None, float, str]:
+    """(exit status or None if killed at ``timeout``, wall time [s], last stderr line)."""
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, "-m", "arfem", *map(str, argv)], capture_output=True,
+                           text=True, timeout=timeout, cwd=tempfile.gettempdir())
+        rc, err = p.returncode, p.stderr
+    except subprocess.TimeoutExpired as exc:
+        rc, err = None, (exc.stderr or b"").decode(errors="replace")
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    return rc, time.perf_counter() - t0, (lines[-1] if lines else "")[:150]
+
+
+def hypothesis_part(examples: int) -> int:
+    """Issue 16's part: tests/test_fuzz.py under the ``fuzz`` profile."""
+    env = dict(os.environ, ARFEM_FUZZ_PROFILE="fuzz", ARFEM_FUZZ_EXAMPLES=str(examples))
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                        "--hypothesis-show-statistics", str(ROOT / "tests" / "test_fuzz.py")],
+                       capture_output=True, text=True, cwd=ROOT, env=env)
+    wall = time.perf_counter() - t0
+    print(f"1. property-based fuzzing (profile 'fuzz', up to {examples} examples per test)")
+    name = None
+    total = 0
+    for ln in p.stdout.splitlines():
+        m = re.match(r".*::(test_\w+)", ln)
+        if m:
+            name = m.group(1)
+        m = re.search(r"- (\d+) passing(?: examples)?, (\d+) failing(?: examples)?, "
+                      r"(?:and )?(\d+) invalid", ln)
+        if m and name:
+            total += int(m.group(1)) + int(m.group(2))
+            print(f"   {name:<28} {m.group(1):>5} passing {m.group(2):>3} failing "
+                  f"{m.group(3):>4} invalid")
+    tail = [ln for ln in p.stdout.splitlines() if re.search(r"passed|failed", ln)]
+    print(f"   {total} examples in {wall:.0f} s; pytest: {tail[-1] if tail else p.returncode}")
+    if p.returncode:
+        print("\n".join(p.stdout.splitlines()[-60:]))
+    return p.returncode
+
+
+def hang_part() -> int:
+    """Issue 16's part: extreme ``arfem sweep`` invocations as subprocesses, bounded."""
+    print("\n2. extreme invocations (subprocesses, killed at the bound)")
+    bad = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        (d / "base.toml").write_text(HYP_BASE, "utf-8")
+        (d / "s.toml").write_text('[sweep]\nname = "s"\nbase = "base.toml"\n[sweep.grid]\n'
+                                  'dtau_s = [300, 600]\nh_W_m2K = [20, 55, 150]\n', "utf-8")
+        v = lambda a: "[" + ", ".join(str(a + i) for i in range(100)) + "]"
+        (d / "big.toml").write_text('[sweep]\nname = "big"\nbase = "base.toml"\n[sweep.grid]\n'
+                                    f'h_W_m2K = {v(5)}\nq_W_m2 = {v(1000)}\n'
+                                    f'"fem.mesh.nz" = {v(4)}\n', "utf-8")
+        port = free_port()
+        cases = [("--workers 100000", 120, 0, ["--workers", 100000]),
+                 ("--connect-timeout 1e308, closed port", 120, 2,
+                  ["--scheduler", f"tcp://127.0.0.1:{port}", "--connect-timeout", "1e308"]),
+                 ("100³ grid", 60, 2, None)]
+        sched_port = free_port()
+        sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                                  "--port", str(sched_port), "--no-dashboard"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            time.sleep(4)
+            cases.append(("scheduler with no worker, --worker-wait 5", 90, 2,
+                          ["--scheduler", f"tcp://127.0.0.1:{sched_port}", "--worker-wait", 5]))
+            for i, (label, bound, want, flags) in enumerate(cases):
+                out = d / f"o{i}"
+                if flags is None:
+                    rc, wall, err = arfem("sweep", d / "big.toml", "--out", out,
+                                          "--no-progress", timeout=bound)
+                else:
+                    rc, wall, err = arfem("sweep", d / "s.toml", "--out", out, "--no-progress",
+                                          *flags, timeout=bound)
+                ok = rc == want
+                bad += not ok
+                print(f"   {'ok ' if ok else 'BAD'} {label:<42} exit {rc} (want {want}) "
+                      f"{wall:6.1f} s (bound {bound} s)\n       {err}")
+        finally:
+            sched.kill()
+            sched.wait()
+    return bad
+
+
+
 # -- main -----------------------------------------------------------------------------------
 
 #: share of the runs per command (every command gets some)
@@ -500,7 +606,16 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--keep", action="store_true", help="keep the work folder")
+    ap.add_argument("--hypothesis", type=int, metavar="N", default=0,
+                    help="also run tests/test_fuzz.py with N examples per test (issue 16)")
+    ap.add_argument("--hangs", action="store_true",
+                    help="also run issue 16's extreme sweep invocations as subprocesses")
     args = ap.parse_args(argv)
+    extra = 0
+    if args.hypothesis:
+        extra += hypothesis_part(args.hypothesis)
+    if args.hangs:
+        extra += hang_part()
     import arfem.scenarios.cli as cli                        # noqa: F401 - imported once
     for mod in ("arfem.scenarios.run", "arfem.scenarios.compensate", "arfem.scenarios.sweep",
                 "arfem.scenarios.diagnose", "arfem.scenarios.allocate", "arfem.scenarios.check",
@@ -571,7 +686,7 @@ def main(argv=None) -> int:
         shutil.rmtree(tmp, ignore_errors=True)
     bad = total["traceback"] + total["hang"] + total["non-finite result"] + \
         total["not one line"] + total["user file changed"]
-    return 1 if bad else 0
+    return 1 if (bad or extra) else 0
 
 
 class contextlib_suppress:
