@@ -1,33 +1,42 @@
-"""kill -9 soak (issue 16): every writing command killed at random times, then run again;
-nothing may be lost, duplicated or half-written.
+"""kill -9 soak (issues 16 and 29): every writing command killed at random times, then
+``arfem report`` on what the kill left, then the command again; nothing may be lost,
+duplicated, half-written or left behind, and no folder made unresumable.
 
-For each of ``sweep``, ``diagnose``, ``reproduce`` and ``allocate``: one clean run into a
-reference folder (its wall time sets the range of kill times), then rounds of [start the
-command into its soak folder, SIGKILL it at a uniformly random time between 0.05 and 0.9 x
-its fastest run so far, run the same command again to the end] until each command has
-been killed ``--kills`` times (default 5: 20 kills). After every
+Commands: ``run``, ``sweep``, ``compensate``, ``allocate`` and ``diagnose``. For each, one
+clean run into a reference folder (its wall time bounds the kill times); then rounds of
+
+1. a fresh start (the soak folder removed) or a ``--force`` re-run into the finished
+   folder (a sweep: its resume), chosen at random;
+2. SIGKILL of the whole process group at a uniformly random time in 0.3 s .. min(6 s,
+   0.9 x the command's fastest run so far);
+3. ``arfem report`` on the soak folder: exit 0, or exit 2 in one line when the folder is
+   absent or arfem's manifest does not show it wrote it (then no ``report.html`` may
+   appear); never a traceback;
+4. the command again (``--force`` except for the sweep, which resumes) to the end,
+
+until each command has been killed ``--kills`` times (default 10: 50 kills). After every
 re-run the soak folder is checked against the clean one:
 
-- the same files (relative paths), and no staging debris (no hidden temporary file
-  inside, no ``.NAME.staging-*`` folder beside it);
+- exit 0; the same files (relative paths); no staging folder ``.arfem-staging-*`` left
+  inside it or beside it (counted), no hidden temporary file;
 - every file parses: JSON, CSV (every row as wide as the header, as many rows as the
   clean run's), TOML, Markdown (UTF-8), PNG (signature and IEND chunk), XDMF (XML);
-- the sweep store holds each point once (``points/<key>.json`` = the sweep's keys) and
-  ``results.csv`` one row per point with the clean run's numbers (timing excepted).
+- ``report.html`` is listed in ``.arfem-outputs.json`` with its current SHA-256;
+- the sweep store holds each point once and ``results.csv`` one row per point with the
+  clean run's numbers (timing excepted).
 
-Inputs are kept small so a round takes seconds: a 12-point coarse sweep, the shipped
-recording's first 2000 samples (8.3 h) for ``diagnose``, ``pallet_changer`` for
-``allocate``; ``reproduce`` runs the paper's two scenarios as shipped.
+Prints kills per command, fresh/force rounds, report exits, failures (with what failed),
+staging folders left after the re-run, orphans left after a kill, and time.
 
-Prints kills per command, failures (with what failed), orphans left after a kill, and time.
-
-Run:  python benchmarks/soak_kill9.py [--kills 5] [--seed 1]
+Run:  nice -n 10 python benchmarks/soak_kill9.py [--kills 10] [--seed 1]
 """
 from __future__ import annotations
 
 import argparse
 import csv
+import hashlib
 import json
+import shutil
 import os
 import random
 import signal
@@ -60,25 +69,43 @@ nr = 3
 nz = 10
 """
 SWEEP = ('[sweep]\nname = "soak"\nbase = "base.toml"\n[sweep.grid]\n'
-         'dtau_s = [300, 600]\nh_W_m2K = [20, 55, 150]\nq_W_m2 = [2000, 3000]\n')
+         'dtau_s = [300, 600]\nh_W_m2K = [20, 55, 150]\n')
 
 
 def inputs(d: Path) -> dict:
-    """Command lines (without --out) of the four commands, on inputs written into ``d``."""
+    """Command lines (without --out and --force) of the five commands, on inputs written
+    into ``d``."""
+    import re
+    from arfem.api import Rod, ar1, ar1_model, paper_cycle
+    from arfem.models.diagnosis.synth import generate
+    from arfem.scenarios.model_file import write_model
+    from arfem.scenarios.synth_files import write_case
     (d / "base.toml").write_text(BASE, "utf-8")
     (d / "soak.toml").write_text(SWEEP, "utf-8")
     with open(FL / "fl_thermal_whole.csv", encoding="utf-8") as fh:
         (d / "fl_thermal_whole.csv").write_text("".join(next(fh) for _ in range(2001)), "utf-8")
     (d / "case.toml").write_text((FL / "fl_thermal_ch1.toml").read_text("utf-8"), "utf-8")
-    return {"sweep": ["sweep", str(d / "soak.toml"), "--workers", "2", "--no-progress"],
-            "diagnose": ["diagnose", str(d / "case.toml"), "--force"],
-            "reproduce": ["reproduce", "--force"],
-            "allocate": ["allocate", str(ROOT / "scenarios" / "pallet_changer.toml"), "--force"]}
+    a = ar1(Rod(), paper_cycle(2000.0), dtau_s=15.0)
+    write_model(d / "model.json", ar1_model(a.C1, a.C2_um_per_W_m2, dtau_s=15.0,
+                                             Q_um2=0.01, R_um2=0.01))
+    case = generate("none", 46, duration_h=46.3, interval_s=15, jitter_s=0.0, n_gaps=0,
+                    empty_fraction=0.0, n_outliers=0)
+    rec = write_case(case, d / "rec")
+    alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
+    alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
+    (d / "alloc.toml").write_text(alloc, "utf-8")
+    return {"run": ["run", str(d / "base.toml")],
+            "sweep": ["sweep", str(d / "soak.toml"), "--workers", "2", "--no-progress"],
+            "compensate": ["compensate", str(d / "model.json"), str(rec), "--probe-every",
+                           "1h"],
+            "allocate": ["allocate", str(d / "alloc.toml")],
+            "diagnose": ["diagnose", str(d / "case.toml")]}
 
 
 def run(argv, out: Path, timeout=900) -> tuple[int, float, str]:
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "arfem", *argv, "--out", str(out)],
+    tail = ["--out", str(out)] if argv[0] != "report" else []
+    p = subprocess.run([sys.executable, "-m", "arfem", *argv, *tail],
                        capture_output=True, text=True, timeout=timeout, cwd=out.parent)
     return p.returncode, time.perf_counter() - t0, p.stderr.strip().splitlines()[-1:] and \
         p.stderr.strip().splitlines()[-1]
@@ -130,12 +157,20 @@ def parse_errors(d: Path, clean: Path) -> list[str]:
     got, want = files(d), files(clean)
     if got != want:
         errs.append(f"files differ: missing {sorted(want - got)[:3]}, extra {sorted(got - want)[:3]}")
-    hidden = [f for f in got if any(part.startswith(".") for part in Path(f).parts)]
+    hidden = [f for f in got if any(part.startswith(".") for part in Path(f).parts)
+              and f != ".arfem-outputs.json"]
     if hidden:
         errs.append(f"hidden temporaries {hidden[:3]}")
-    debris = list(d.parent.glob(f".{d.name}.staging-*")) + list(d.parent.glob(f".{d.name}.*"))
+    debris = staging(d)
     if debris:
-        errs.append(f"staging debris {[p.name for p in debris][:3]}")
+        errs.append(f"staging folders left {debris[:3]}")
+    try:
+        man = json.loads((d / ".arfem-outputs.json").read_text("utf-8"))["files"]
+        h = hashlib.sha256((d / "report.html").read_bytes()).hexdigest()
+        if man.get("report.html") != h:
+            errs.append("report.html not in .arfem-outputs.json with its current hash")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        errs.append(f"manifest or report.html unreadable: {exc}"[:120])
     for rel in sorted(got & want):
         p = d / rel
         try:
@@ -163,6 +198,12 @@ def parse_errors(d: Path, clean: Path) -> list[str]:
     return errs
 
 
+def staging(d: Path) -> list[str]:
+    """Staging folders of arfem inside ``d`` and beside it."""
+    return [p.name for p in list(d.glob(".arfem-staging-*"))
+            + list(d.parent.glob(".arfem-staging-*"))]
+
+
 def sweep_errors(d: Path, clean: Path) -> list[str]:
     errs = []
     keys = json.loads((clean / "summary.json").read_text("utf-8"))
@@ -183,11 +224,12 @@ def sweep_errors(d: Path, clean: Path) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kills", type=int, default=5, help="kills per command (4 commands)")
+    ap.add_argument("--kills", type=int, default=10, help="kills per command (5 commands)")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     rng = random.Random(args.seed)
     t_start = time.perf_counter()
+    print(f"load average {os.getloadavg()[0]:.2f}", flush=True)
     with tempfile.TemporaryDirectory(prefix="arfem-soak-") as tmp:
         d = Path(tmp)
         cmds = inputs(d)
@@ -196,50 +238,84 @@ def main(argv=None) -> int:
         for name, argv_ in cmds.items():
             rc, wall, err = run(argv_, d / f"clean_{name}")
             clean_s[name] = wall
-            print(f"   {name:<10} exit {rc} in {wall:6.1f} s")
+            print(f"   {name:<10} exit {rc} in {wall:6.1f} s", flush=True)
             if rc != 0:
                 print(f"   clean run failed: {err}")
                 return 1
-        stats = {n: {"kills": 0, "finished_first": 0, "failures": 0, "orphans": 0}
-                 for n in cmds}
+        stats = {n: {"kills": 0, "finished_first": 0, "fresh": 0, "force": 0, "failures": 0,
+                     "orphans": 0, "report_0": 0, "report_2": 0, "report_bad": 0,
+                     "staging_left": 0} for n in cmds}
         fails = []
-        # rounds until every command has been killed --kills times (a command that ends
-        # before its kill time is a round without a kill); kill times track the fastest run
         want = {n: args.kills for n in cmds}
         i = 0
         while any(stats[n]["kills"] < want[n] for n in cmds) and i < 4 * args.kills * len(cmds):
             name = rng.choice([n for n in cmds if stats[n]["kills"] < want[n]])
             i += 1
-            out = d / f"soak_{name}"
-            at = rng.uniform(0.05, 0.9) * clean_s[name]
-            killed, orphans = kill_at(cmds[name], out, at)
+            # each command in its own folder: the parent holds only its staging folders
+            out = d / f"soak_{name}" / "out"
+            out.parent.mkdir(exist_ok=True)
+            fresh = not out.is_dir() or rng.random() < 0.4
+            if fresh:
+                shutil.rmtree(out, ignore_errors=True)
             st = stats[name]
+            st["fresh" if fresh else "force"] += 1
+            force = [] if name == "sweep" else ["--force"]
+            at = rng.uniform(0.3, max(0.35, min(6.0, 0.9 * clean_s[name])))
+            killed, orphans = kill_at(cmds[name] + force, out, at)
             st["kills" if killed else "finished_first"] += 1
             st["orphans"] += orphans
-            rc, wall, err = run(cmds[name], out)
+            errs = []
+            had_manifest = (out / ".arfem-outputs.json").is_file()
+            had_report = (out / "report.html").is_file()
+            p = subprocess.run([sys.executable, "-m", "arfem", "report", str(out)],
+                               capture_output=True, text=True, timeout=300, cwd=d)
+            lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+            if p.returncode == 0:
+                st["report_0"] += 1
+            elif p.returncode == 2 and len(lines) == 1 and lines[0].startswith("arfem: error:"):
+                st["report_2"] += 1
+                if out.is_dir() and had_manifest:
+                    errs.append(f"report refused an arfem folder: {lines[0][:160]}")
+            else:
+                st["report_bad"] += 1
+                errs.append(f"report exit {p.returncode}: {(lines[-1] if lines else '')[:160]}")
+            if not had_manifest and not had_report and (out / "report.html").exists():
+                errs.append("report wrote into a folder arfem's manifest does not own")
+            rc, wall, err = run(cmds[name] + force, out)
             clean_s[name] = min(clean_s[name], wall)
-            errs = [f"re-run exit {rc}: {err}"] if rc != 0 else []
-            errs += parse_errors(out, d / f"clean_{name}")
+            if rc != 0:
+                errs.append(f"re-run exit {rc}: {err}")
+            left = staging(out)
+            st["staging_left"] += len(left)
+            if not errs:
+                errs += parse_errors(out, d / f"clean_{name}")
             if name == "sweep" and not errs:
                 errs += sweep_errors(out, d / f"clean_{name}")
             if errs:
                 st["failures"] += 1
                 fails.append((name, at, errs))
-            print(f"   round {i:>2}: {name:<10} killed at {at:6.2f} s "
-                  f"{'(had finished)' if not killed else '':<15} re-run {wall:5.1f} s "
+            print(f"   round {i:>2}: {name:<10} {'fresh' if fresh else 'force':<5} killed at "
+                  f"{at:5.2f} s {'(had finished)' if not killed else '':<15} report exit "
+                  f"{p.returncode}, re-run {wall:5.1f} s, staging left {len(left)} "
                   f"{'OK' if not errs else 'FAIL: ' + '; '.join(errs)[:200]}", flush=True)
-        order = range(i)
+        n_rounds = i
     total = time.perf_counter() - t_start
-    print(f"\n{'command':<10} {'kills':>6} {'ended first':>12} {'failures':>9} {'orphans':>8}")
+    print(f"\n{'command':<10} {'kills':>6} {'ended 1st':>9} {'fresh':>6} {'force':>6} "
+          f"{'report 0':>9} {'report 2':>9} {'report ?':>9} {'failures':>9} {'staging':>8} "
+          f"{'orphans':>8}")
     for name, st in stats.items():
-        print(f"{name:<10} {st['kills']:>6} {st['finished_first']:>12} {st['failures']:>9} "
-              f"{st['orphans']:>8}")
+        print(f"{name:<10} {st['kills']:>6} {st['finished_first']:>9} {st['fresh']:>6} "
+              f"{st['force']:>6} {st['report_0']:>9} {st['report_2']:>9} {st['report_bad']:>9} "
+              f"{st['failures']:>9} {st['staging_left']:>8} {st['orphans']:>8}")
     n_k = sum(s["kills"] for s in stats.values())
     n_f = sum(s["failures"] for s in stats.values())
-    print(f"\n{n_k} kills in {len(order)} rounds, {n_f} failures, {total:.0f} s in all")
+    n_s = sum(s["staging_left"] for s in stats.values())
+    print(f"\n{n_k} kills in {n_rounds} rounds, each followed by arfem report and a re-run: "
+          f"{n_f} failures, {n_s} staging folders left after the re-runs, "
+          f"{total:.0f} s in all (load average now {os.getloadavg()[0]:.2f})")
     for name, at, errs in fails:
         print(f"  {name} killed at {at:.2f} s: {errs}")
-    return 1 if n_f else 0
+    return 1 if (n_f or n_s) else 0
 
 
 if __name__ == "__main__":

@@ -29,9 +29,9 @@ import numpy as np
 
 from arfem.params import InputError
 
-__all__ = ["MODEL_VERSION", "InputSpec", "StateSpaceModel", "Cycle", "Compensator",
-           "ar1_model", "fit_speed_ar1_model", "fit_mlr_model", "plausible_ranges",
-           "propagate", "INFORMATIVE"]
+__all__ = ["MODEL_VERSION", "MAX_ABS_NUMBER", "InputSpec", "StateSpaceModel", "Cycle",
+           "Compensator", "ar1_model", "fit_speed_ar1_model", "fit_mlr_model",
+           "plausible_ranges", "propagate", "INFORMATIVE"]
 
 #: version of the ``model.json`` layout this module reads and writes
 MODEL_VERSION = 1
@@ -138,6 +138,11 @@ class StateSpaceModel:
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
         """Validate a ``model.json`` document; :class:`InputError` names the key.
 
+        One strict reading (:func:`_read_model_doc`) checks what ``docs/model.schema.json``
+        states (every key's type, strings where strings go, numbers that are JSON numbers
+        -- not booleans -- finite and within :data:`MAX_ABS_NUMBER`, variances >= 0) and
+        what a schema cannot (shapes that agree, an A that settles, maps that increase).
+
         Examples
         --------
         >>> m = ar1_model(0.99, 1e-4, dtau_s=30.0)
@@ -147,89 +152,197 @@ class StateSpaceModel:
         Traceback (most recent call last):
         ...
         arfem.params.InputError: model: model_version: is 7; this arfem reads version 1
+        >>> StateSpaceModel.from_dict({**m.to_dict(), "d0_um": float("nan")})
+        Traceback (most recent call last):
+        ...
+        arfem.params.InputError: model: d0_um: must be a finite number of µm, got nan
         """
-        if not isinstance(d, dict):
-            raise InputError("must be a JSON object", where)
-        known = {"model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C", "D",
-                 "d0_um", "x0", "noise", "input_maps", "input_offsets", "fit_window_s",
-                 "description", "arfem_version"}
-        extra = sorted(set(d) - known)
+        return _read_model_doc(cls, d, where)
+
+
+#: Largest magnitude of any number in a ``model.json`` (matrix entries, d0_um, variances,
+#: map points, offsets, the fit window, Δτ). Far beyond any physical model (growth in µm,
+#: inputs in W/m², 1/min, °C, s) and far enough from the float range that a stable model
+#: run on any accepted record stays finite; ``docs/model.schema.json`` states the same.
+MAX_ABS_NUMBER = 1e12
+
+#: The keys of ``model.json`` (``docs/model.schema.json``), required ones first.
+MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C",
+                  "D", "d0_um", "x0")
+MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
+                  "arfem_version")
+#: input names of the measured-data contract (the schema's ``pattern``)
+INPUT_NAME_PATTERN = r"^(q_W_m2|speed_rpm|ambient_C|T_[A-Za-z0-9_]+_C)$"
+
+
+def _is_number(v) -> bool:
+    """A JSON number: int or float, not a bool."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _number(v, key: str, what: str = "a finite number", low: float = -MAX_ABS_NUMBER,
+            low_open: bool = False) -> float:
+    """``v`` as a float if it is a JSON number, finite, in [low, MAX_ABS_NUMBER]
+    (``low_open``: > low); else one :class:`InputError` naming ``key``."""
+    ok = _is_number(v) and (math.isfinite(v) if isinstance(v, float) else True)
+    if ok:
+        ok = (v > low if low_open else v >= low) and v <= MAX_ABS_NUMBER
+    if not ok:
+        raise InputError(f"must be {what}, got {_short_repr(v)}", key)
+    return float(v)
+
+
+def _short_repr(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def _object(v, key: str, allowed=None, required=()) -> dict:
+    """``v`` if it is a JSON object with string keys, only ``allowed`` ones (if given)
+    and every ``required`` one."""
+    if not isinstance(v, dict) or not all(isinstance(k, str) for k in v):
+        raise InputError(f"must be a JSON object, got {_short_repr(v)}", key)
+    if allowed is not None:
+        extra = sorted(set(v) - set(allowed))
         if extra:
-            raise InputError(f"unknown key {extra[0]!r}", where)
-        if d.get("model_version") != MODEL_VERSION:
-            raise InputError(f"is {d.get('model_version')!r}; this arfem reads version "
-                             f"{MODEL_VERSION}", f"{where}: model_version")
+            raise InputError(f"unknown key {extra[0]!r}", key)
+    for k in required:
+        if k not in v:
+            raise InputError("missing", f"{key}.{k}")
+    return v
 
-        def mat(key, shape=None):
-            try:
-                a = np.asarray(d[key], float)
-            except KeyError:
-                raise InputError("missing", f"{where}: {key}") from None
-            except (TypeError, ValueError):
-                raise InputError("must be numbers", f"{where}: {key}") from None
-            if not np.all(np.isfinite(a)):
-                raise InputError("must be finite", f"{where}: {key}")
-            if a.size == 0 and (shape is None or 0 in shape):
-                # a model without state (the MLR): JSON keeps [] and [[]] of (0, m) etc.
-                a = a.reshape(shape if shape is not None else (0, 0))
-            if shape is not None and a.shape != shape:
-                raise InputError(f"has shape {a.shape}, needs {shape}", f"{where}: {key}")
-            return a
 
-        dtau = d.get("dtau_s")
-        if not isinstance(dtau, (int, float)) or not math.isfinite(dtau) or dtau <= 0:
-            raise InputError(f"must be a positive number of seconds, got {dtau!r}",
-                             f"{where}: dtau_s")
-        ins = d.get("inputs")
-        if not isinstance(ins, list) or not all(isinstance(i, dict) and isinstance(
-                i.get("name"), str) and isinstance(i.get("unit"), str) for i in ins):
-            raise InputError("must be a list of {name, unit}", f"{where}: inputs")
-        A = mat("A")
-        if A.ndim != 2 or A.shape[0] != A.shape[1]:
-            raise InputError(f"must be square, got shape {A.shape}", f"{where}: A")
-        n, m = A.shape[0], len(ins)
-        B, C, D = mat("B", (n, m)), mat("C", (1, n)), mat("D", (1, m))
-        x0 = mat("x0", (n,))
-        if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
-            raise InputError("has an eigenvalue on or outside the unit circle: the model "
-                             "would not settle", f"{where}: A")
-        maps = {}
-        for name, mp in (d.get("input_maps") or {}).items():
-            key = f"{where}: input_maps.{name}"
-            if name not in {i["name"] for i in ins}:
-                raise InputError("maps an input the model does not read", key)
-            try:
-                x, y = np.asarray(mp["x"], float), np.asarray(mp["y"], float)
-            except (KeyError, TypeError, ValueError):
-                raise InputError("needs numeric lists x and y", key) from None
-            if x.ndim != 1 or x.shape != y.shape or x.size == 0 or np.any(np.diff(x) <= 0) \
-                    or not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-                raise InputError("x must increase strictly and match y, all finite", key)
-            maps[name] = (x, y)
-        offsets = {}
-        for name, v in (d.get("input_offsets") or {}).items():
-            key = f"{where}: input_offsets.{name}"
-            if name not in {i["name"] for i in ins}:
-                raise InputError("offsets an input the model does not read", key)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-                raise InputError(f"must be a finite number, got {v!r}", key)
-            offsets[name] = float(v)
-        fw = d.get("fit_window_s")
-        if fw is not None:
-            if not (isinstance(fw, list) and len(fw) == 2 and all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool)
-                    and math.isfinite(v) for v in fw) and fw[0] <= fw[1]):
-                raise InputError(f"must be [first, last] sample times in seconds, got {fw!r}",
-                                 f"{where}: fit_window_s")
-            fw = (float(fw[0]), float(fw[1]))
-        noise = d.get("noise") or {}
-        return cls(kind=str(d.get("kind", "")), dtau_s=float(dtau), A=A, B=B, C=C, D=D,
-                   inputs=tuple(InputSpec(i["name"], i["unit"]) for i in ins), x0=x0,
-                   d0_um=float(d.get("d0_um", 0.0)), Q=float(noise.get("Q_um2", 0.0)),
-                   R=float(noise.get("R_um2", 0.0)),
-                   description=str(d.get("description", "")),
-                   arfem_version=str(d.get("arfem_version", "")), input_maps=maps,
-                   input_offsets=offsets, fit_window_s=fw)
+def _numbers(v, key: str, ndim: int, min_len: int = 0) -> np.ndarray:
+    """A list (``ndim`` 1) or list of equally long lists (``ndim`` 2) of JSON numbers,
+    each finite and within :data:`MAX_ABS_NUMBER`, as a float array."""
+    what = "a list of numbers" if ndim == 1 else "a list of lists of numbers"
+    if not isinstance(v, list) or len(v) < min_len:
+        raise InputError(f"must be {what}" + (f" (at least {min_len})" if min_len else "")
+                         + f", got {_short_repr(v)}", key)
+    rows = v if ndim == 2 else [v]
+    for i, row in enumerate(rows):
+        if not isinstance(row, list):
+            raise InputError(f"must be {what}, got {_short_repr(row)} in row {i}", key)
+        for j, x in enumerate(row):
+            at = f"{key}[{i}][{j}]" if ndim == 2 else f"{key}[{j}]"
+            _number(x, at)
+    if ndim == 2 and len({len(r) for r in rows}) > 1:
+        raise InputError("rows must have the same length", key)
+    a = np.array(v, dtype=float)
+    if ndim == 2 and a.ndim == 1:                   # [] → shape (0,): no rows
+        a = a.reshape(0, 0)
+    return a
+
+
+def _shaped(a: np.ndarray, shape: tuple, key: str) -> np.ndarray:
+    """``a`` in ``shape``; an empty array takes any empty shape (a model without state
+    keeps ``[]`` and ``[[]]``)."""
+    if a.size == 0 and 0 in shape:
+        return a.reshape(shape)
+    if a.shape != shape:
+        raise InputError(f"has shape {a.shape}, needs {shape}", key)
+    return a
+
+
+def _string(v, key: str) -> str:
+    if not isinstance(v, str):
+        raise InputError(f"must be a string, got {_short_repr(v)}", key)
+    return v
+
+
+def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
+    """The one strict reading of a ``model.json`` document (see
+    :meth:`StateSpaceModel.from_dict`); every refusal is one :class:`InputError`
+    ``<where>: <key>: <what is wrong>``."""
+    import re
+    if not isinstance(d, dict):
+        raise InputError("must be a JSON object", where)
+    extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL), key=str)
+    if extra:
+        raise InputError(f"unknown key {extra[0]!r}", where)
+    k = lambda name: f"{where}: {name}"              # noqa: E731 - the key's label
+    if d.get("model_version") != MODEL_VERSION or isinstance(d.get("model_version"), bool):
+        raise InputError(f"is {_short_repr(d.get('model_version'))}; this arfem reads "
+                         f"version {MODEL_VERSION}", k("model_version"))
+    for name in MODEL_REQUIRED:
+        if name not in d:
+            raise InputError("missing", k(name))
+    kind = _string(d["kind"], k("kind"))
+    dtau = _number(d["dtau_s"], k("dtau_s"), "a positive number of seconds", 0.0, True)
+    ins = d["inputs"]
+    if not isinstance(ins, list):
+        raise InputError(f"must be a list of {{name, unit}}, got {_short_repr(ins)}",
+                         k("inputs"))
+    names = []
+    for i, spec in enumerate(ins):
+        key = k(f"inputs[{i}]")
+        _object(spec, key, ("name", "unit"), ("name", "unit"))
+        name = _string(spec["name"], f"{key}.name")
+        _string(spec["unit"], f"{key}.unit")
+        if not re.match(INPUT_NAME_PATTERN, name):
+            raise InputError(f"{name!r} is not an input of the measured-data contract "
+                             "(q_W_m2, speed_rpm, ambient_C, T_<name>_C)", f"{key}.name")
+        if name in names:
+            raise InputError(f"{name!r} is read twice", f"{key}.name")
+        names.append(name)
+    out = _object(d["output"], k("output"), ("name", "unit"), ("name", "unit"))
+    if out["name"] != "growth_um" or out["unit"] != "µm":
+        raise InputError(f"must be {{\"name\": \"growth_um\", \"unit\": \"µm\"}}, got "
+                         f"{_short_repr(out)}", k("output"))
+    A = _numbers(d["A"], k("A"), 2)
+    if A.shape[0] != (A.shape[1] if A.ndim == 2 else 0):
+        raise InputError(f"must be square, got shape {A.shape}", k("A"))
+    n, m = A.shape[0], len(names)
+    B = _shaped(_numbers(d["B"], k("B"), 2), (n, m), k("B"))
+    C = _numbers(d["C"], k("C"), 2)
+    if C.shape[0] != 1:
+        raise InputError(f"must be one row, got {C.shape[0]}", k("C"))
+    C = _shaped(C, (1, n), k("C"))
+    D = _numbers(d["D"], k("D"), 2)
+    if D.shape[0] != 1:
+        raise InputError(f"must be one row, got {D.shape[0]}", k("D"))
+    D = _shaped(D, (1, m), k("D"))
+    x0 = _shaped(_numbers(d["x0"], k("x0"), 1), (n,), k("x0"))
+    if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
+        raise InputError("has an eigenvalue on or outside the unit circle: the model "
+                         "would not settle", k("A"))
+    d0 = _number(d["d0_um"], k("d0_um"), "a finite number of µm")
+    noise = _object(d.get("noise", {}), k("noise"), ("Q_um2", "R_um2"))
+    Q, R = (_number(noise.get(q, 0.0), k(f"noise.{q}"), "a finite variance >= 0 [µm²]", 0.0)
+            for q in ("Q_um2", "R_um2"))
+    maps = {}
+    for name, mp in _object(d.get("input_maps", {}), k("input_maps")).items():
+        key = k(f"input_maps.{name}")
+        _object(mp, key, ("x", "y"), ("x", "y"))
+        x = _numbers(mp["x"], f"{key}.x", 1, 1)
+        y = _numbers(mp["y"], f"{key}.y", 1, 1)
+        if name not in names:
+            raise InputError("maps an input the model does not read", key)
+        if x.shape != y.shape or np.any(np.diff(x) <= 0):
+            raise InputError("x must increase strictly and match y, all finite", key)
+        maps[name] = (x, y)
+    offsets = {}
+    for name, v in _object(d.get("input_offsets", {}), k("input_offsets")).items():
+        key = k(f"input_offsets.{name}")
+        offsets[name] = _number(v, key)
+        if name not in names:
+            raise InputError("offsets an input the model does not read", key)
+    fw = None
+    if "fit_window_s" in d:                          # null is not a window: refused
+        fw = d["fit_window_s"]
+        bad = InputError(f"must be [first, last] sample times in seconds, got "
+                         f"{_short_repr(fw)}", k("fit_window_s"))
+        if not (isinstance(fw, list) and len(fw) == 2):
+            raise bad
+        fw = tuple(_number(v, k("fit_window_s")) for v in fw)
+        if fw[0] > fw[1]:
+            raise bad
+    description = _string(d.get("description", ""), k("description"))
+    version = _string(d.get("arfem_version", ""), k("arfem_version"))
+    return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
+               inputs=tuple(InputSpec(s["name"], s["unit"]) for s in ins), x0=x0,
+               d0_um=d0, Q=Q, R=R, description=description, arfem_version=version,
+               input_maps=maps, input_offsets=offsets, fit_window_s=fw)
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",

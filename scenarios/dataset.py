@@ -342,6 +342,39 @@ def _check_input(values: dict, lines, csv_path: Path, label, notes: list) -> Non
                      "speed_rpm is carried along")
 
 
+#: A temperature reading of a machine tool outside this range [°C] is not one (below
+#: absolute zero, or far above any spindle part): the cell is refused (issue 29: a
+#: reading of -1e308 °C made a hold-out RMSE of inf with exit 0).
+TEMPERATURE_CELL_RANGE_C = (-273.15, 1000.0)
+
+
+def _check_temperature_cells(values: dict, lines, csv_path: Path, label,
+                             ambient: bool = False) -> None:
+    """Every cell of each ``T_<name>_C`` (:data:`TEMPERATURE_CELL_RANGE_C`), and with
+    ``ambient`` of ``ambient_C`` (the plausible ambient range; :func:`_ambient` asks after
+    its median check, whose message names a column in K), that is given: one line naming
+    the row and column of the first one out of range."""
+    for key, v in values.items():
+        if not (key == "ambient_C" and ambient or _TEMP_RE.match(key)):
+            continue
+        fin = np.flatnonzero(np.isfinite(v))
+        if np.any(np.isinf(v)):
+            i = int(np.flatnonzero(np.isinf(v))[0])
+            _fail(f"{v[i]:g} is not a temperature", f"{csv_path}: line {lines[i]}, "
+                                                   f"column {label(key)}")
+        if not fin.size:
+            continue
+        for i in (int(fin[np.argmin(v[fin])]), int(fin[np.argmax(v[fin])])):
+            where = f"{csv_path}: line {lines[i]}, column {label(key)}"
+            if key == "ambient_C":
+                check_plausible("ambient_C", float(v[i]), where)
+            else:
+                lo, hi = TEMPERATURE_CELL_RANGE_C
+                if not lo <= v[i] <= hi:
+                    _fail(f"{v[i]:g} °C is outside [{lo:g}, {hi:g}] °C, no machine "
+                          "reading", where)
+
+
 def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
     """ambient_C with short gaps filled (None where absent or empty throughout)."""
     amb = values.get("ambient_C")
@@ -351,6 +384,7 @@ def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
     if amb is not None:
         med = float(np.nanmedian(amb))
         check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
+        _check_temperature_cells({"ambient_C": amb}, lines, csv_path, label, ambient=True)
         nan = np.isnan(amb)
         if nan.sum() > MAX_MISSING_FRACTION * amb.size:
             i = int(np.flatnonzero(nan)[0])
@@ -461,6 +495,7 @@ def load_dataset(toml_path) -> Dataset:
     dt = _check_time(t, lines, csv_path, label)
     _check_input(values, lines, csv_path, label, notes)
     amb = _ambient(values, t, lines, csv_path, label, notes)
+    _check_temperature_cells(values, lines, csv_path, label)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():

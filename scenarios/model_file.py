@@ -1,8 +1,11 @@
 """``model.json``: the state-space model a compensator runs (``docs/model-json.md``).
 
-Reading refuses, in one line naming the file and the key, a file that is not JSON, of
-another ``model_version``, with matrices of the wrong shape or not finite, or a model
-that would not settle; :func:`check_inputs` refuses a model whose inputs the record or
+Reading refuses, in one line naming the file and the key, a file that is not JSON
+(the non-standard tokens ``NaN`` and ``Infinity`` included), of another ``model_version``,
+with a key of the wrong type, matrices of the wrong shape or not finite, a negative
+variance, or a model that would not settle (one strict reading,
+:meth:`arfem.models.compensator.StateSpaceModel.from_dict`, which
+``docs/model.schema.json`` states as a JSON Schema); :func:`check_inputs` refuses a model whose inputs the record or
 stream lacks, before any offset is computed.
 """
 from __future__ import annotations
@@ -26,10 +29,19 @@ def read_model(path) -> StateSpaceModel:
         ``<file>: <key>: <what is wrong>``.
     """
     text = read_text_utf8(path)
+
+    def constant(token):
+        raise InputError(f"holds {token}, which is not a JSON number (every number of a "
+                         "model must be finite)", str(path))
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_constant=constant)
+    except InputError:
+        raise
     except json.JSONDecodeError as exc:
         raise InputError(f"is not JSON ({exc.msg} at line {exc.lineno})", str(path)) from None
+    except (ValueError, RecursionError) as exc:     # an integer of > 4300 digits, nesting
+        raise InputError(f"is not JSON arfem can read ({' '.join(str(exc).split())[:80]})",
+                         str(path)) from None
     return StateSpaceModel.from_dict(doc, str(path))
 
 

@@ -45,6 +45,7 @@ from arfem.params import InputError
 
 __all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir", "check_replaceable",
            "recover_out_dir", "owned_files", "adopt_outputs", "lock_out_dir",
+           "arfem_wrote", "replace_owned_file",
            "OWNERSHIP_MANIFEST"]
 
 #: The ownership manifest arfem keeps in every ``--out`` it writes: {file: sha256}.
@@ -301,8 +302,13 @@ def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
     if out.is_dir():
         cands += [(d, out) for d in out.glob(_STAGE + "*") if d.is_dir() and d != _skip]
     if out.parent.is_dir():
-        cands += [(d, None) for d in out.parent.glob(_sibling_prefix(out) + "*")
-                  if d.is_dir() and d != _skip]
+        mine = _sibling_prefix(out)
+        # beside out: this out's staging directories (their switch, if any, went into
+        # out), and any other staging directory of a killed run there (of another --out
+        # in the same folder, or of the folder itself): removed when dead and holding no
+        # switch journal, i.e. nothing of it was ever moved anywhere
+        cands += [(d, out if d.name.startswith(mine) else None)
+                  for d in out.parent.glob(_STAGE + "*") if d.is_dir() and d != _skip]
     if not cands:
         return done
     for txn, target in cands:      # each one's own lock: one recoverer, never a live run
@@ -310,8 +316,10 @@ def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
         if fd is None:
             continue
         try:
-            if target is not None and (txn / _JOURNAL).exists() \
-                    and not (txn / _COMMITTED).exists():
+            journal = (txn / _JOURNAL).exists() and not (txn / _COMMITTED).exists()
+            if journal and target is None:
+                continue               # another folder's switch: recovered from there
+            if journal:
                 _rollback(txn, target)
                 done.append(f"rolled back an interrupted switch into {target}")
             else:
@@ -320,6 +328,53 @@ def recover_out_dir(out: str | os.PathLike, _skip=None) -> list[str]:
         finally:
             os.close(fd)
     return done
+
+
+def arfem_wrote(out: str | os.PathLike) -> bool:
+    """True when ``out``'s ownership manifest (or an older ``arfem reproduce``
+    ``MANIFEST.json``) shows that arfem wrote this folder: it is arfem's and lists at
+    least one file that is there."""
+    out = Path(out)
+    own = owned_files(out)
+    return any((out / rel).is_file() for rel in own
+               if rel not in (OWNERSHIP_MANIFEST, _LEGACY_MANIFEST))
+
+
+def replace_owned_file(out: str | os.PathLike, rel: str, write, force: bool = False,
+                       who: str = "arfem report") -> Path:
+    """Write ``out/rel`` (by ``write(path)``, which must write it atomically) into a
+    folder arfem wrote, and record its SHA-256 in the ownership manifest.
+
+    Refused (:class:`InputError`, nothing written): ``out`` is not a directory; its
+    manifest does not show arfem wrote it (:func:`arfem_wrote`); ``out/rel`` exists and
+    is not arfem's (not in the manifest), is a directory, or (without ``force``) was
+    changed since arfem wrote it; another arfem command is writing there (its lock is
+    held: a running sweep). A run killed there before is recovered first
+    (:func:`recover_out_dir`). The manifest lists ``rel`` before the file is replaced
+    and with the new file's hash after, so a kill at any instant leaves the file
+    arfem's in the manifest (the next command may replace it; a resumed sweep does).
+    """
+    out = Path(out)
+    if not out.is_dir():
+        raise InputError("is not a directory", str(out))
+    rel = Path(rel).as_posix()
+    with lock_out_dir(out, wait=False, who="arfem command"):
+        recover_out_dir(out)
+        if not arfem_wrote(out):
+            raise InputError(f"arfem did not write this folder (no {OWNERSHIP_MANIFEST} "
+                             f"listing its files); {who} writes only into a folder arfem "
+                             "wrote, and never replaces a file arfem did not write",
+                             str(out))
+        check_replaceable(out, [rel], force=force)
+        own = {k: v for k, v in owned_files(out).items() if k != OWNERSHIP_MANIFEST}
+        dst = out / rel
+        if dst.exists() or dst.is_symlink() or rel not in own:
+            own[rel] = None          # arfem's from now on, whatever a kill leaves there
+            _io.atomic_write_text(out / OWNERSHIP_MANIFEST, _manifest_text(own))
+        write(dst)
+        own[rel] = _io.sha256_file(dst)
+        _io.atomic_write_text(out / OWNERSHIP_MANIFEST, _manifest_text(own))
+    return dst
 
 
 # -- staging and the switch ----------------------------------------------------------

@@ -226,6 +226,44 @@ def add_parser(sub) -> None:
     p.set_defaults(func=main)
 
 
+#: Bounds of the twin's flags [unit]: (flag, attribute, low, high, what). A physical
+#: spindle: Δτ 10 ms to a day, an ambient swing of at most 50 K, a sensor noise of at most
+#: 1 mm, a warm-up of at most 30 days; a wall-clock period of 1 ms to an hour.
+FLAG_BOUNDS = (("--dtau-s", "dtau_s", 0.01, 86400.0, "seconds"),
+               ("--period-s", "period_s", 0.001, 3600.0, "seconds"),
+               ("--ambient-amplitude-K", "ambient_amplitude_K", 0.0, 50.0, "K"),
+               ("--noise-um", "noise_um", 0.0, 1000.0, "µm"),
+               ("--start-h", "start_h", 0.0, 720.0, "hours"))
+#: Most intervals ``--start-h`` may run before serving (at Δτ = 60 s, 30 days are 43200).
+MAX_START_STEPS = 100_000
+
+
+def check_flags(args) -> None:
+    """Every flag of ``arfem twin`` bounded (issue 29): one :class:`InputError` naming
+    the flag, before anything is built or served."""
+    for flag, name, lo, hi, unit in FLAG_BOUNDS:
+        v = getattr(args, name)
+        if not (math.isfinite(v) and lo <= v <= hi) or (name in ("dtau_s", "period_s")
+                                                        and v <= 0):
+            raise InputError(f"must be a number of {unit} from {lo:g} to {hi:g}, got {v!r}",
+                             flag)
+    if not 0 <= args.port < 65536:
+        raise InputError(f"must be a TCP port (0-65535), got {args.port}", "--port")
+    if not 0 <= args.steps <= 10**9:
+        raise InputError(f"must be from 0 to 1e9, got {args.steps}", "--steps")
+    if not 0 <= args.seed < 2**63:
+        raise InputError(f"must be a whole number from 0 to 2^63 - 1, got {args.seed}",
+                         "--seed")
+    if not -1 <= args.nan_at_step <= 10**9:
+        raise InputError(f"must be -1 (never) or a step from 0 to 1e9, got "
+                         f"{args.nan_at_step}", "--nan-at-step")
+    n = args.start_h * 3600.0 / args.dtau_s
+    if n > MAX_START_STEPS:
+        raise InputError(f"asks for {n:.0f} intervals of Δτ = {args.dtau_s:g} s before "
+                         f"serving; at most {MAX_START_STEPS} (a longer --dtau-s or a "
+                         "shorter --start-h)", "--start-h")
+
+
 def main(args) -> int:
     from pathlib import Path
 
@@ -235,17 +273,14 @@ def main(args) -> int:
     except ImportError:
         raise InputError("needs the asyncua package: pip install 'arfem[opcua]'",
                          "arfem twin") from None
-    for name in ("dtau_s", "period_s"):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v > 0):
-            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
-    if not 0 <= args.port < 65536:
-        raise InputError(f"must be a TCP port (0-65535), got {args.port}", "--port")
-    if args.steps < 0:
-        raise InputError(f"must be >= 0, got {args.steps}", "--steps")
-    if args.record is not None and Path(args.record).exists() and (
-            Path(args.record) / "twin.csv").exists():
-        raise InputError("already holds a twin.csv; choose another directory", "--record")
+    check_flags(args)
+    if args.record is not None:
+        for name in ("twin.csv", "twin.toml"):      # never over a file already there
+            if (Path(args.record) / name).exists() or (Path(args.record) / name).is_symlink():
+                raise InputError(f"already holds a {name}; choose another directory",
+                                 "--record")
+        if Path(args.record).exists() and not Path(args.record).is_dir():
+            raise InputError("exists and is not a directory", "--record")
     twin = SpindleTwin(TwinProgram(dtau_s=args.dtau_s,
                                    ambient_amplitude_K=args.ambient_amplitude_K,
                                    growth_noise_um=args.noise_um, seed=args.seed,

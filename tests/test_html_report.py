@@ -155,6 +155,8 @@ def test_report_discovers_other_layouts(tmp_path):
 def test_report_command(tmp_path, capsys):
     """`arfem report DIR` writes the page; a missing DIR is one error line, status 2."""
     (tmp_path / "summary.json").write_text('{"a_um": 1.5}', encoding="utf-8")
+    from arfem.scenarios.outdir import adopt_outputs
+    adopt_outputs(tmp_path, ["summary.json"])      # an arfem folder (issue 29: only there)
     assert main(["report", str(tmp_path)]) == 0
     assert (tmp_path / "report.html").is_file()
     assert main(["report", str(tmp_path / "nope")]) == 2

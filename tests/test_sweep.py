@@ -296,7 +296,19 @@ def _flaky_point(data, source):
     h = data["rod"]["convection_W_m2K"]
     if h == 55:
         raise RuntimeError("solver blew up")
-    return {"metrics": {"h_W_m2K": h, "fem_peak_um": 2.0 * h}, "run_time_s": 0.0}
+    return {"metrics": valid_metrics(h), "run_time_s": 0.0}
+
+
+def valid_metrics(h: float, peak_um: float = 10.0) -> dict:
+    """Metrics a stored point must hold to be trusted on resume (physical ranges and the
+    identities between them, ``sweep.store.record_problem``), with h as the marker."""
+    return {"dtau_s": 300.0, "h_W_m2K": h, "q_W_m2": 2000.0, "biot": 0.1, "C1": 0.99,
+            "C1_fitted": 0.99, "corrected_C1": 0.99, "fem_peak_um": peak_um,
+            "ar_peak_um": peak_um + 0.1, "fem_peak_time_h": 4.0, "max_abs_diff_um": 0.2,
+            "max_abs_diff_pct_of_peak": 100 * 0.2 / peak_um, "rmse_um": 0.1,
+            "corrected_max_abs_diff_um": 0.02,
+            "corrected_max_abs_diff_pct_of_peak": 100 * 0.02 / peak_um,
+            "corrected_rmse_um": 0.01, "fem_dofs": 100, "n_samples": 50}
 
 
 def test_failed_points_are_not_stored_and_are_retried(tmp_path):

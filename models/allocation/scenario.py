@@ -223,10 +223,19 @@ class _Reader:
         lo, hi = self.vector(d, key, path, 2, default, bound=1e3)
         if lo < 0:
             raise self.err(path, f"lower bound must be >= 0 (an error magnitude), got {lo:g}")
+        for v in (lo, hi):
+            if 0 < v < MIN_BOUND:
+                raise self.err(path, f"a bound of {v:g} is below {MIN_BOUND:g} (a nanometre "
+                                     "or nanoradian: no part is made or measured finer); "
+                                     "use 0 or at least that")
         if not hi > lo:
             raise self.err(path, f"upper bound must exceed the lower, got [{lo:g}, {hi:g}]")
         return float(lo), float(hi)
 
+
+#: Smallest nonzero bound of a tolerance [mm or mrad]: 1 nm, 1 nrad. Below it no part is
+#: made or measured, and reciprocal costs overflow (a bound of 1e-320 did, issue 29).
+MIN_BOUND = 1e-6
 
 _UNIT_KEYS = {"name", "motion", "axis", "branch", "offset_mm", "rpy_deg", "joint_mm", "joint_deg",
               "free", "translation_mm", "rotation_mrad", "fixed"}
@@ -286,8 +295,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     tol = rd.table(data["tolerance"], "tolerance",
                    {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
                     "yield_draws"}, required=("delta_E_mm",))
-    dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True)
-    rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0)
+    # upper bounds (issue 29): a kinematic tolerance of 1e308 mm made the figures' axis
+    # limits inf (a traceback); no machine's allowance exceeds a metre, no cost factor 1e12
+    dE = rd.number(tol, "delta_E_mm", "tolerance.delta_E_mm", low=0.0, low_open=True,
+                   high=1000.0)
+    rw = rd.number(tol, "working_radius_mm", "tolerance.working_radius_mm", default=0.0, low=0.0,
+                   high=1e5)
     co = rd.table(data.get("cost", {}), "cost",
                   {"model", "A", "B", "k", "b_um", "angular_length_mm", "a", "b_mm"})
     op = rd.table(data.get("optimizer", {}), "optimizer",
@@ -302,14 +315,15 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         yield_draws=rd.integer(tol, "yield_draws", "tolerance.yield_draws", 10_000, 10_000,
                                1_000_000),
         cost_model=rd.choice(co, "model", "cost.model", COST_MODELS, "reciprocal_power"),
-        cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0),
-        cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True),
+        cost_A=rd.number(co, "A", "cost.A", default=0.0, low=0.0, high=1e12),
+        cost_B=rd.number(co, "B", "cost.B", default=1.0, low=0.0, low_open=True, high=1e12),
         cost_k=rd.number(co, "k", "cost.k", default=1.0, low=0.0, low_open=True, high=10.0),
-        cost_b_um=rd.number(co, "b_um", "cost.b_um", default=1.0, low=0.0, low_open=True),
+        cost_b_um=rd.number(co, "b_um", "cost.b_um", default=1.0, low=0.0, low_open=True,
+                            high=1e9),
         angular_length_mm=rd.number(co, "angular_length_mm", "cost.angular_length_mm",
-                                    default=100.0, low=0.0, low_open=True),
-        a=rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True),
-        b_mm=rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True),
+                                    default=100.0, low=0.0, low_open=True, high=1e5),
+        a=rd.number(co, "a", "cost.a", default=1.2, low=0.0, low_open=True, high=1e6),
+        b_mm=rd.number(co, "b_mm", "cost.b_mm", default=1.6, low=0.0, low_open=True, high=1e5),
         pop_size=rd.integer(op, "pop_size", "optimizer.pop_size", 200, 4, 1_000_000),
         n_gen=rd.integer(op, "n_gen", "optimizer.n_gen", 1000, 1, 100_000_000),
         converge=rd.boolean(op, "converge", "optimizer.converge", True),
@@ -332,6 +346,14 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
         units.append(_unit(rd, d, i, {u.name for u in units}))
     if not any(u.free for u in units):
         raise rd.err("units", "no unit has a free component: nothing to allocate")
+    if formula != "paper_literal" and settings.cost_model == "reciprocal_power":
+        for i, u in enumerate(units):
+            for c, (lo, _) in u.bounds.items():
+                if lo == 0.0:
+                    which = "rotation_mrad" if c in ROTATIONS else "translation_mm"
+                    raise rd.err(f"units[{i}].{which}", "lower bound 0 with the "
+                                 "reciprocal_power cost (A + B/t^k): a zero tolerance costs "
+                                 "infinitely much; give a lower bound > 0")
     byname = {u.name: u for u in units}
     if formula == "screw" and not any(u.branch == "tool" for u in units):
         raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")

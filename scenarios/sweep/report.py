@@ -23,7 +23,7 @@ def results_rows(sweep: Sweep, store) -> list[dict]:
     """One row per stored point of ``sweep``, in grid order: inputs, then metrics."""
     rows = []
     for p in sweep.points:
-        rec = store.get(p.key)
+        rec = store.get(p.key, p.inputs)          # validated: never a corrupt point
         if rec is None:
             continue
         m = dict(rec["metrics"])

@@ -18,10 +18,11 @@ from arfem.scenarios.sweep.executors import (DaskExecutor, LocalExecutor, blas_t
                                             evaluate_point)
 from arfem.scenarios.sweep.report import write_outputs
 from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, canonical
+from arfem.scenarios.outdir import adopt_outputs
 from arfem.scenarios.sweep.store import (STORE_MANIFEST, DirLock, PointStore,
                                          append_run_log, open_store)
 
-__all__ = ["RunReport", "run_sweep", "usable_cores", "check_wait", "check_workers",
+__all__ = ["RunReport", "run_sweep", "stored_or_todo", "bad_points_line", "usable_cores", "check_wait", "check_workers",
            "n_local_workers", "MAX_WAIT_S", "MAX_CONNECT_S",
            "DEFAULT_WORKER_WAIT_S"]
 
@@ -140,8 +141,12 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
             man = out / STORE_MANIFEST
             if mode != "resume" or not man.is_file():
                 write_json(man, sweep.manifest())
-            stored = store.keys()
-            todo = [p for p in sweep.points if p.key not in stored or store.get(p.key) is None]
+            # the folder is arfem's from its first file on (``arfem report`` writes only
+            # into a folder whose ownership manifest says so, and lists its page there)
+            adopt_outputs(out, [STORE_MANIFEST])
+            todo, bad = stored_or_todo(sweep, store)
+            if bad:
+                warn(bad_points_line(bad))
             seen, unique = set(), []
             for p in todo:                                  # identical inputs: compute once
                 if p.key not in seen:
@@ -175,6 +180,29 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
         if isinstance(executor, DaskExecutor):
             executor.close()
     return rep
+
+
+def stored_or_todo(sweep: Sweep, store: PointStore) -> tuple[list, list]:
+    """The points of ``sweep`` to compute (absent, or stored but not valid), and
+    [(point, why)] for the stored files that failed validation
+    (:func:`arfem.scenarios.sweep.store.record_problem`): they are recomputed, never
+    trusted."""
+    todo, bad = [], []
+    for p in sweep.points:
+        rec, why = store.check(p.key, p.inputs)
+        if rec is None:
+            todo.append(p)
+            if why is not None:
+                bad.append((p, why))
+    return todo, bad
+
+
+def bad_points_line(bad: list) -> str:
+    """One line for the stored points that are recomputed because they were not valid."""
+    p, why = bad[0]
+    more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+    return (f"{len(bad)} stored point(s) not valid, recomputed: points/{p.key}.json: "
+            f"{why}{more}")
 
 
 #: Write errors that are the disk's, not arfem's: no space, quota, read-only, I/O.

@@ -3,6 +3,7 @@ manifest and run log beside it, and the lock that keeps two sweeps out of one fo
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -14,11 +15,97 @@ from arfem.scenarios.outdir import check_out_path, check_replaceable, lock_out_d
 #: runs.jsonl, is checked above by its manifest)
 SWEEP_WRITES = ("README.md", "results.csv", "summary.json", "report.html")
 
-__all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs"]
+__all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs",
+           "record_problem", "PEAK_RANGE_UM"]
 
 STORE_MANIFEST = "sweep.json"
 _POINTS = "points"
 _RUNS_LOG = "runs.jsonl"
+
+#: A growth peak outside this range [µm] is not a rod's (a picometre's thousandth to a
+#: kilometre): a stored point claiming one is corrupt and recomputed.
+PEAK_RANGE_UM = (1e-9, 1e9)
+#: Relative tolerance of the identities between stored metrics (each is written from the
+#: same float64 numbers; a corrupted value breaks them by far more).
+_REL = 1e-9
+
+# (metric, lowest, lowest allowed itself?) of the metrics every stored point must hold;
+# the upper bound of every one is "finite"
+_REQUIRED = (("dtau_s", 0.0, False), ("h_W_m2K", 0.0, False), ("q_W_m2", 0.0, True),
+             ("biot", 0.0, False), ("C1", 0.0, False), ("C1_fitted", -math.inf, False),
+             ("corrected_C1", 0.0, False),
+             ("fem_peak_um", PEAK_RANGE_UM[0], True), ("ar_peak_um", PEAK_RANGE_UM[0], True),
+             ("fem_peak_time_h", 0.0, True),
+             ("max_abs_diff_um", 0.0, True), ("max_abs_diff_pct_of_peak", 0.0, True),
+             ("rmse_um", 0.0, True), ("corrected_max_abs_diff_um", 0.0, True),
+             ("corrected_max_abs_diff_pct_of_peak", 0.0, True),
+             ("corrected_rmse_um", 0.0, True), ("fem_dofs", 1, True), ("n_samples", 1, True))
+# metrics that may be absent or null (non-finite values are stored as null), else numbers
+_OPTIONAL = ("C2_um", "C2_fitted_um", "corrected_C2_um", "ar_corrected_peak_um",
+             "C2_fitted_um_at_q0", "corrected_peak_diff_pct", "fem_wall_s", "wall_s")
+
+
+def _num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def record_problem(rec, key: str, inputs: dict | None = None) -> str | None:
+    """Why a stored point record cannot be trusted, or None if it can.
+
+    Checked: the layout (an object with this ``key``, the store version, an object of
+    metrics), the point's inputs (``inputs``: the sweep's, when given), every metric the
+    tables and thresholds read is a finite number (not a string, not a boolean) in its
+    physical range (Δτ, h, Biot > 0; 0 < C1 < 1; peaks in :data:`PEAK_RANGE_UM`; errors
+    and counts >= 0), and the identities between them (the % errors are
+    100·error/peak; an RMS is at most the max; the AR peak is within the max error of
+    the FEM peak), so that a corrupted value (a negative error, a peak of 1e-320) is
+    caught, not only a malformed one.
+
+    Examples
+    --------
+    >>> record_problem({"key": "k"}, "k")
+    'store_version is None, not 2'
+    """
+    from arfem.scenarios.sweep.spec import STORE_VERSION
+    if not isinstance(rec, dict):
+        return "not a JSON object"
+    if rec.get("key") != key:
+        return f"key is {rec.get('key')!r}, not the file's name"
+    if rec.get("store_version") != STORE_VERSION or isinstance(rec.get("store_version"), bool):
+        return f"store_version is {rec.get('store_version')!r}, not {STORE_VERSION}"
+    if inputs is not None and rec.get("inputs") != inputs:
+        return "inputs are not this point's"
+    m = rec.get("metrics")
+    if not isinstance(m, dict):
+        return "metrics is not a JSON object"
+    for name, low, closed in _REQUIRED:
+        v = m.get(name)
+        if not _num(v) or v < low or (v == low and not closed):
+            return f"metrics.{name} is {v!r}"
+    if not m["C1"] < 1.0 or not m["corrected_C1"] < 1.0:
+        return f"metrics.C1 is {m['C1']!r} (must be < 1)"
+    for name in ("fem_peak_um", "ar_peak_um"):
+        if m[name] > PEAK_RANGE_UM[1]:
+            return f"metrics.{name} is {m[name]!r}"
+    for name in _OPTIONAL:
+        if m.get(name) is not None and not _num(m[name]):
+            return f"metrics.{name} is {m[name]!r}"
+    peak = m["fem_peak_um"]
+    for pre in ("", "corrected_"):
+        err, pct, rms = (m[f"{pre}max_abs_diff_um"], m[f"{pre}max_abs_diff_pct_of_peak"],
+                         m[f"{pre}rmse_um"])
+        if not math.isclose(pct, 100.0 * err / peak, rel_tol=_REL, abs_tol=1e-300):
+            return (f"metrics.{pre}max_abs_diff_pct_of_peak ({pct!r}) is not "
+                    f"100·{pre}max_abs_diff_um/fem_peak_um")
+        if rms > err * (1 + _REL):
+            return f"metrics.{pre}rmse_um ({rms!r}) exceeds {pre}max_abs_diff_um"
+    if abs(m["ar_peak_um"] - peak) > m["max_abs_diff_um"] * (1 + _REL) + 1e-12 * peak:
+        return "metrics.ar_peak_um differs from fem_peak_um by more than max_abs_diff_um"
+    rt = rec.get("run_time_s")
+    if rt is not None and (not _num(rt) or rt < 0):
+        return f"run_time_s is {rt!r}"
+    return None
+
 
 class PointStore:
     """Finished points, one JSON file each, written atomically: ``DIR/points/<key>.json``.
@@ -38,15 +125,26 @@ class PointStore:
             return set()
         return {p.stem for p in self.dir.glob("*.json") if not p.name.startswith(".")}
 
-    def get(self, key: str) -> dict | None:
-        """The stored record of ``key``, or None (absent or unreadable → recompute)."""
+    def get(self, key: str, inputs: dict | None = None) -> dict | None:
+        """The stored record of ``key``, or None (absent, unreadable or not valid:
+        :func:`record_problem` → recompute)."""
+        return self.check(key, inputs)[0]
+
+    def check(self, key: str, inputs: dict | None = None) -> tuple[dict | None, str | None]:
+        """(record, None) for a valid stored point; (None, why) for a file that cannot
+        be trusted; (None, None) when there is no file."""
         try:
-            rec = json.loads(self.path(key).read_text("utf-8"))
-        except (OSError, ValueError):
-            return None
-        if not isinstance(rec, dict) or rec.get("key") != key or "metrics" not in rec:
-            return None
-        return rec
+            text = self.path(key).read_text("utf-8")
+        except FileNotFoundError:
+            return None, None
+        except (OSError, UnicodeDecodeError) as exc:
+            return None, f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
+        try:
+            rec = json.loads(text, parse_constant=lambda t: float(t))
+        except (ValueError, RecursionError):
+            return None, "is not JSON"
+        why = record_problem(rec, key, inputs)
+        return (None, why) if why else (rec, None)
 
     def put(self, record: dict) -> None:
         write_json(self.path(record["key"]), record)
