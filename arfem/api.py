@@ -305,7 +305,7 @@ def compare(scenario) -> Comparison:
     >>> round(c.metrics["max_abs_diff_pct_of_peak"], 2)
     2.57
     """
-    from arfem.scenarios.run import evaluate
+    from arfem.scenarios.evaluation import evaluate
     ev = evaluate(_scenario(scenario))
     return Comparison(ev.times_s, ev.fem_growth_um, ev.ar_growth_um,
                       ev.ar_corrected_growth_um, dict(ev.metrics))

@@ -19,18 +19,19 @@ from pathlib import Path
 
 import numpy as np
 
-from arfem.io import read_toml, write_csv, write_json
+from arfem.io import write_csv, write_json
 from arfem.models.allocation import tolerance
 from arfem.models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, MAX_EVALUATIONS,
                                              ROTATIONS, allocate, unit_values,
                                              with_settings, work_estimate,
                                              worst_case_over_cycle)
-from arfem.models.allocation.scenario import AllocationScenario, build_chain, parse_scenario
+from arfem.models.allocation.scenario import AllocationScenario, build_chain
 from arfem.params import InputError
+from arfem.scenarios.allocation_file import load_allocation_scenario
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
-__all__ = ["add_parser", "main", "run_allocation", "load_allocation_scenario"]
+__all__ = ["add_parser", "main", "run_allocation"]
 
 #: Okabe-Ito colours (distinguishable with the common colour-vision deficiencies)
 OKABE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
@@ -44,12 +45,6 @@ WRITES = ("pareto.csv", "allocation.json", "pareto.png", "convergence.png", "sta
 MC_SEED = 1_000_003
 #: the converged run of the paper_literal model (the paper's own optimum)
 CONVERGED = {"pop_size": 200, "n_gen": 1000, "converge": True}
-
-
-def load_allocation_scenario(path) -> AllocationScenario:
-    """Read and validate an allocation scenario file; :class:`InputError` names the file and key."""
-    p = Path(path)
-    return parse_scenario(read_toml(p), str(p))
 
 
 def add_parser(subparsers) -> None:

@@ -1,6 +1,6 @@
 """``arfem check``: "the AR(1) model tracks the FEM" as a gate for a user's CI.
 
-Each scenario is run (FEM and AR(1) on its cycle, :func:`arfem.scenarios.run.evaluate`)
+Each scenario is run (FEM and AR(1) on its cycle, :func:`arfem.scenarios.evaluation.evaluate`)
 and the chosen AR(1) model (the paper's eqs. 12-14, or the radial-mode corrected one) is
 held to two criteria, the ones of :func:`arfem.models.checks.check_ar_tracks_fem`:
 
@@ -169,7 +169,7 @@ def check_scenario(scenario: Scenario, max_abs_pct: float | None = None,
         The rod the AR(1) is built from; None: the scenario's rod with its
         ``[check] ar_rod`` values (none: the FEM's own rod).
     """
-    from arfem.scenarios.run import evaluate
+    from arfem.scenarios.evaluation import evaluate
 
     lim = scenario.check
     pct = _resolve(max_abs_pct, lim.max_abs_diff_pct_of_peak, DEFAULT_MAX_ABS_PCT)

@@ -9,7 +9,7 @@ from arfem.models.allocation import screw, tolerance
 from arfem.models.allocation.problem import (allocate, evaluate_design, knee_index,
                                              unit_values, with_settings)
 from arfem.models.allocation.scenario import build_chain
-from arfem.scenarios.allocate import load_allocation_scenario
+from arfem.scenarios.allocation_file import load_allocation_scenario
 from arfem.scenarios.cli import main
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios"

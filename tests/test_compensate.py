@@ -116,17 +116,17 @@ def test_replay_compensates_and_writes_every_output(workspace):
 
 def test_replay_is_causal(workspace):
     """Offsets up to row k do not depend on rows after k."""
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.model_file import read_model
     import dataclasses
     d, rec = workspace
     model, ds = read_model(d / "run" / "model.json"), load_dataset(rec)
-    full = replay(model, ds)["series"]["offset_um"]
+    full = replay(model, ds).series.offset_um
     k = ds.n_rows // 2
     cut = dataclasses.replace(ds, time_s=ds.time_s[:k], growth_um=ds.growth_um[:k],
                               q_W_m2=ds.q_W_m2[:k])
-    part = replay(model, cut)["series"]["offset_um"]
+    part = replay(model, cut).series.offset_um
     assert np.array_equal(part, full[:k])
 
 

@@ -101,7 +101,7 @@ def test_the_cli_flag_sets_allow_large(tmp_path, monkeypatch):
 def test_estimate_matches_the_built_models():
     """The unknown counts of the estimate are exact for the meshes arfem builds (the
     memory/work figures are built on them), checked against assembled models."""
-    from arfem.scenarios.run import build_model
+    from arfem.scenarios.evaluation import build_model
     for tables in ({"fem.mesh": {"nr": 3, "nz": 10}},
                    {"fem": {"model": "3d", "order": 1},
                     "fem.mesh": {"n_core": 2, "n_ring": 1, "nz": 4}},

@@ -23,7 +23,7 @@ import pytest
 from arfem.params import InputError
 from arfem.scenarios.cli import main
 from arfem.scenarios.config import scenario_from_dict
-from arfem.scenarios.run import evaluate
+from arfem.scenarios.evaluation import evaluate
 from arfem.scenarios.sweep import (PointStore, TIMING_COLUMNS, biot_threshold, load_sweep,
                              point_key, run_sweep)
 

@@ -49,7 +49,7 @@ def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
     dict
         ``{"metrics": {...}, "run_time_s": float, "worker": "host:pid"}``.
     """
-    from arfem.scenarios.run import evaluate
+    from arfem.scenarios.evaluation import evaluate
     t0 = time.perf_counter()
     scenario = scenario_from_dict(data, source)
     if len(_WORKER_CACHE) > _WORKER_CACHE_MAX:
