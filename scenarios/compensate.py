@@ -73,7 +73,8 @@ def _markdown(res: Replay) -> str:
     m = res.summary
     rate = m.compensation_rate_rms_pct
     text = (f"Compensating with `{m.model_kind}` {'reduces' if rate and rate > 0 else 'does not reduce'} "
-            f"the thermal error of `{m.dataset}`: RMS {m.rms_before_um:.3g} → "
+            f"the thermal error of `{m.dataset}` ({m.score_window_text()}): RMS "
+            f"{m.rms_before_um:.3g} → "
             f"{m.rms_after_um:.3g} µm ({rate:.0f} %), peak to peak "
             f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
             "replayed strictly causally.")
@@ -120,9 +121,11 @@ def add_parser(sub) -> None:
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
                         "correct the model's state (Kalman update); default: never")
-    p.add_argument("--score-from", type=float, default=0.0, metavar="SECONDS",
-                   help="measure the error from this time on [s] (e.g. the end of the "
-                        "model's fit window); the replay itself always starts at the first row")
+    p.add_argument("--score-from", type=float, default=None, metavar="SECONDS",
+                   help="measure the error from this time on [s]; default: after the "
+                        "model's fit window (fit_window_s in model.json), or every row for "
+                        "a model without one; 0 scores every row. The replay itself "
+                        "always starts at the first row")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
 
@@ -146,7 +149,7 @@ def main(args) -> int:
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model)
     ds = load_dataset(args.record)
-    if not math.isfinite(args.score_from):
+    if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")
     res = replay(model, ds, max_offset_um=args.max_offset_um, max_step_um=args.max_step_um,
@@ -158,7 +161,8 @@ def main(args) -> int:
         _figure(res, stage / "figure.png")
         write_html_report(stage)
     m = res.summary
-    print(f"{m.dataset}: {m.model_kind}: RMS {m.rms_before_um:.3g} -> "
-          f"{m.rms_after_um:.3g} µm, peak to peak {m.peak_to_peak_before_um:.3g} -> "
-          f"{m.peak_to_peak_after_um:.3g} µm; wrote {args.out}")
+    print(f"{m.dataset}: {m.model_kind}, {m.score_window_text()}: RMS "
+          f"{m.rms_before_um:.3g} -> {m.rms_after_um:.3g} µm, peak to peak "
+          f"{m.peak_to_peak_before_um:.3g} -> {m.peak_to_peak_after_um:.3g} µm; "
+          f"wrote {args.out}")
     return 0

@@ -21,7 +21,10 @@ from arfem.models.compensator import Compensator, StateSpaceModel
 from arfem.params import InputError
 from arfem.scenarios.model_file import check_inputs
 
-__all__ = ["Replay", "ReplaySummary", "ReplaySeries", "replay"]
+__all__ = ["Replay", "ReplaySummary", "ReplaySeries", "replay", "scored_from_s"]
+
+#: How the first scored row was chosen (``ReplaySummary.score_basis``)
+SCORE_BASES = ("after_fit_window", "no_fit_window", "given")
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,9 @@ class ReplaySummary:
     Error measures are over the scored rows (``time_s >= score_from_s``): RMS and peak
     to peak of the measured growth ("before") and of the residual ("after") [µm], and
     the compensation rates 100 (1 − after / before) [%] (None where "before" is 0).
+    ``score_basis`` says how ``score_from_s`` was chosen: ``after_fit_window`` (the
+    first row after the model's ``fit_window_s``, the default), ``no_fit_window`` (the
+    model carries none, so every row is scored) or ``given`` (``--score-from``).
     """
 
     model_kind: str
@@ -55,10 +61,37 @@ class ReplaySummary:
     probe_every_s: float | None
     n_probes: int
     probe_gain_mean: float | None
+    score_basis: str = "given"
+    score_to_s: float = math.nan
+    fit_window_s: tuple | None = None
 
     def to_dict(self) -> dict:
-        """The ``summary.json`` document."""
-        return dataclasses.asdict(self)
+        """The ``summary.json`` document (the fit window as a list, or absent)."""
+        d = dataclasses.asdict(self)
+        if self.fit_window_s is None:
+            del d["fit_window_s"]
+        else:
+            d["fit_window_s"] = [float(v) for v in self.fit_window_s]
+        return d
+
+    def score_window_text(self) -> str:
+        """Which rows the figures are taken over, in words, for a headline.
+
+        >>> s = ReplaySummary("ar1", "", "r", 60.0, 10, 111132.0, 5, *[1.0] * 4, 0.0,
+        ...                   0.0, 0.0, None, None, 0, 0, 0, None, 0, None,
+        ...                   "after_fit_window", 166680.0, (0.0, 111072.0))
+        >>> s.score_window_text()
+        'scored on 30.9–46.3 h, the part not fitted'
+        """
+        span = f"{self.score_from_s / 3600:.1f}–{self.score_to_s / 3600:.1f} h"
+        if self.score_basis == "after_fit_window":
+            return f"scored on {span}, the part not fitted"
+        if self.score_basis == "no_fit_window":
+            return (f"scored on every row, {span} (the model carries no fit window, so "
+                    "the rows it was fitted on, if any, are scored too)")
+        if self.fit_window_s is not None and self.score_from_s <= self.fit_window_s[1]:
+            return f"scored on {span}, which includes rows the model was fitted on"
+        return f"scored on {span}"
 
 
 @dataclass(frozen=True)
@@ -103,9 +136,38 @@ def _record_inputs(ds) -> dict:
     return cols
 
 
+def scored_from_s(model: StateSpaceModel, time_s, score_from_s: float | None
+                  ) -> tuple[float, str]:
+    """The first time [s] a replay scores, and why (one of :data:`SCORE_BASES`).
+
+    ``score_from_s`` given: that time (``given``). None: the first row after the end of
+    the model's ``fit_window_s`` (``after_fit_window``), so the figure is out of sample;
+    for a model without a fit window (the paper's AR(1) from the rod's values), 0
+    (``no_fit_window``).
+
+    >>> from arfem.models.compensator import ar1_model
+    >>> import dataclasses
+    >>> m = dataclasses.replace(ar1_model(0.99, 1e-4, dtau_s=60.0), fit_window_s=(0.0, 120.0))
+    >>> scored_from_s(m, [0.0, 60.0, 120.0, 180.0, 240.0], None)
+    (180.0, 'after_fit_window')
+    >>> scored_from_s(m, [0.0, 60.0], 0.0)
+    (0.0, 'given')
+    """
+    if score_from_s is not None:
+        return float(score_from_s), "given"
+    if model.fit_window_s is None:
+        return 0.0, "no_fit_window"
+    t = np.asarray(time_s, float)
+    after = t[t > float(model.fit_window_s[1])]
+    # nothing after the window: score from past its end, which finds no row to score
+    start = float(after[0]) if after.size else math.nextafter(float(model.fit_window_s[1]),
+                                                              math.inf)
+    return start, "after_fit_window"
+
+
 def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
            max_step_um: float = math.inf, probe_every_s: float | None = None,
-           score_from_s: float = 0.0, where: str = "record") -> Replay:
+           score_from_s: float | None = None, where: str = "record") -> Replay:
     """Step ``model`` through the dataset ``ds`` causally; the series and the figures.
 
     Parameters
@@ -119,11 +181,11 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
         Limits of the offset written [µm] and of its change per cycle [µm].
     probe_every_s : float, optional
         Use the measured growth only every this many seconds, as a Kalman update.
-    score_from_s : float
-        The error measures are taken over the rows at or after this time [s] (e.g. the
-        end of the model's fit window, for an out-of-sample figure). The whole record is
-        stepped through either way (the state starts at the model's ``x0`` at the first
-        row).
+    score_from_s : float, optional
+        The error measures are taken over the rows at or after this time [s]. None (the
+        default): after the model's fit window (:func:`scored_from_s`), or every row for
+        a model that carries none. The whole record is stepped through either way (the
+        state starts at the model's ``x0`` at the first row).
     where : str
         Names the record in error messages.
 
@@ -166,10 +228,13 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
             gains.append(comp.probe(float(g[k])))
             next_probe += probe_every_s
     resid = g + off
-    ok = np.isfinite(g) & (t >= score_from_s)
+    start, basis = scored_from_s(model, t, score_from_s)
+    ok = np.isfinite(g) & (t >= start)
     ok[:first] = False
     if not ok.any():
-        raise InputError(f"has no row at or after {score_from_s:g} s to score", where)
+        why = (f" (the end of the model's fit window, {model.fit_window_s[1]:g} s; score "
+               "the fitted rows with --score-from 0)" if basis == "after_fit_window" else "")
+        raise InputError(f"has no row at or after {start:g} s to score{why}", where)
 
     def rms(x):
         return float(np.sqrt(np.mean(x[ok] ** 2)))
@@ -179,7 +244,7 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
 
     summary = ReplaySummary(
         model_kind=model.kind, model_description=model.description, dataset=ds.name,
-        dtau_s=model.dtau_s, n_cycles=int(n - first), score_from_s=float(score_from_s),
+        dtau_s=model.dtau_s, n_cycles=int(n - first), score_from_s=start,
         n_scored=int(ok.sum()), rms_before_um=rms(g), rms_after_um=rms(resid),
         peak_to_peak_before_um=pp(g), peak_to_peak_after_um=pp(resid),
         compensation_rate_rms_pct=100.0 * (1.0 - rms(resid) / rms(g)) if rms(g) else None,
@@ -189,7 +254,9 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
         max_step_um=max_step_um if math.isfinite(max_step_um) else None,
         cycles_held=int(held), cycles_clamped=int(clamped), cycles_rate_limited=int(limited),
         probe_every_s=probe_every_s, n_probes=len(gains),
-        probe_gain_mean=float(np.mean(gains)) if gains else None)
+        probe_gain_mean=float(np.mean(gains)) if gains else None,
+        score_basis=basis, score_to_s=float(t[ok][-1]),
+        fit_window_s=None if model.fit_window_s is None else tuple(model.fit_window_s))
     series = ReplaySeries(time_s=t, inputs={nm: inputs[nm] for nm in names},
                           measured_growth_um=g, predicted_growth_um=pred, offset_um=off,
                           residual_um=resid)
