@@ -78,11 +78,12 @@ def _percentile_of(values, x) -> float:
     return float(100.0 * (np.sum(v < x) + 0.5 * np.sum(v == x)) / len(v))
 
 
-def run_allocation(scenario_path, seeds: int | None = None, work_limit=MAX_EVALUATIONS) -> dict:
+def run_allocation(scenario_path, seeds: int | None = None, work_limit=MAX_EVALUATIONS,
+                   limits=None) -> dict:
     """Everything the writers need: scenario, chain, the runs of every seed, the pick."""
     if seeds is not None and not 1 <= seeds <= 100:
         raise InputError(f"must be 1 to 100, got {seeds}", "--seeds")
-    sc = load_allocation_scenario(scenario_path)
+    sc = load_allocation_scenario(scenario_path, limits)
     _check_work(sc, work_limit)
     chain, spindle = build_chain(sc)
     st = sc.settings
@@ -551,7 +552,8 @@ def main(args) -> int:
     out = prepare_out_dir(args.out, args.force, inputs=[args.scenario],
                           writes=WRITES)            # refuse early, before computing
     limit = None if getattr(args, "no_work_limit", False) else MAX_EVALUATIONS
-    run = run_allocation(args.scenario, getattr(args, "seeds", None), limit)
+    run = run_allocation(args.scenario, getattr(args, "seeds", None), limit,
+                         getattr(args, "limits", None))
     alloc = _allocation_json(run)
     command = f"arfem allocate {args.scenario} --out {args.out}" + (" --force" if args.force else "")
     st = run["result"].settings

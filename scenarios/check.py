@@ -92,7 +92,7 @@ def _kind(data: dict, in_dir: bool) -> str | None:
     return None
 
 
-def collect(paths) -> tuple[list[Scenario], list[Skipped]]:
+def collect(paths, limits=None) -> tuple[list[Scenario], list[Skipped]]:
     """Load every scenario named by ``paths`` (files, directories, built-in names).
 
     A directory contributes its ``*.toml`` files (not its subdirectories); those that are
@@ -126,7 +126,7 @@ def collect(paths) -> tuple[list[Scenario], list[Skipped]]:
             if key in seen:
                 continue
             seen.add(key)
-            data = read_toml(f)
+            data = read_toml(f, limits)
             why = _kind(data, not explicit) if isinstance(data, dict) else None
             if why is not None:
                 if explicit:
@@ -134,7 +134,7 @@ def collect(paths) -> tuple[list[Scenario], list[Skipped]]:
                                      "scenario files (see arfem run)", str(f))
                 skipped.append(Skipped(str(f), why))
                 continue
-            scenarios.append(scenario_from_dict(data, str(f)))
+            scenarios.append(scenario_from_dict(data, str(f), limits))
     if not scenarios:
         raise InputError("no scenario file among them (skipped: " +
                          "; ".join(f"{s.path}: {s.reason}" for s in skipped) + ")",
@@ -210,13 +210,14 @@ def check_scenario(scenario: Scenario, max_abs_pct: float | None = None,
                           time.perf_counter() - t0, scenario.rod.biot)
 
 
-def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print):
+def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print,
+               limits=None):
     """Collect, validate and check every scenario; returns (results, skipped)."""
     if max_abs_pct is not None:
         max_abs_pct = check_limit("max_abs_diff_pct_of_peak", max_abs_pct, "--max-abs-pct")
     if max_c1_diff is not None:
         max_c1_diff = check_limit("max_C1_abs_diff", max_c1_diff, "--max-c1-diff")
-    scenarios, skipped = collect(paths)
+    scenarios, skipped = collect(paths, limits)
     for s in skipped:
         echo(f"SKIP {s.path}: {s.reason}")
     cache: dict = {}
@@ -304,7 +305,8 @@ def _main(args) -> int:
     junit = _check_report_path(args.junit, "--junit") if args.junit else None
     jpath = _check_report_path(args.json, "--json") if args.json else None
     t0 = time.perf_counter()
-    results, skipped = run_checks(args.paths, args.max_abs_pct, args.max_c1_diff, args.model)
+    results, skipped = run_checks(args.paths, args.max_abs_pct, args.max_c1_diff, args.model,
+                                  limits=args.limits)
     wall = time.perf_counter() - t0
     n_ok = sum(r.passed for r in results)
     if junit is not None:

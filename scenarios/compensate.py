@@ -147,8 +147,8 @@ def main(args) -> int:
             raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
-    model = read_model(args.model)
-    ds = load_dataset(args.record)
+    model = read_model(args.model, args.limits)
+    ds = load_dataset(args.record, args.limits)
     if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")

@@ -322,11 +322,11 @@ def _write_fields(ev: Evaluation, out_dir: Path, progress=no_progress) -> dict:
     return extra
 
 
-def run_scenario(path, out, force: bool = False, progress=None) -> Evaluation:
+def run_scenario(path, out, force: bool = False, progress=None, limits=None) -> Evaluation:
     """Load, evaluate and write one scenario into ``out`` (atomically); ``progress`` as in
-    :func:`evaluate`."""
+    :func:`evaluate`, ``limits`` (:class:`arfem.limits.Limits`) as the user allows."""
     progress = progress or no_progress
-    scenario = load_scenario(path)
+    scenario = load_scenario(path, limits)
     prepare_out_dir(out, force, writes=WRITES)
     ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
@@ -497,7 +497,8 @@ def _print_summary(ev: Evaluation, out) -> None:
 def _main_run(args) -> int:
     from arfem.scenarios.progress import Progress
     with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
-        ev = run_scenario(args.scenario, args.out, args.force, progress=progress)
+        ev = run_scenario(args.scenario, args.out, args.force, progress=progress,
+                          limits=args.limits)
     _print_summary(ev, args.out)
     return 0
 

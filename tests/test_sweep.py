@@ -291,7 +291,7 @@ def test_biot_threshold_interpolates_and_reports_unreached():
     assert math.isnan(biot_threshold([0.1, 0.2], [1.0, 2.0], 3.0))
 
 
-def _flaky_point(data, source):
+def _flaky_point(data, source, limits=None):
     """Stand-in for evaluate_point: fails for h = 55, else returns h as its 'metric'."""
     h = data["rod"]["convection_W_m2K"]
     if h == 55:
