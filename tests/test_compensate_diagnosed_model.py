@@ -88,7 +88,7 @@ def test_twin_extended_model_beats_the_paper_ar1_threefold(tmp_path):
     from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.twin import write_record
+    from arfem.scenarios.twin_record import write_record
     tw = SpindleTwin(TwinProgram(seed=3))
     rows = [tw.advance() for _ in range(4 * 1440)]        # four days at 60 s
     write_record(tmp_path / "fit", rows[:2880])            # the first two: diagnosed

@@ -215,7 +215,7 @@ def test_killed_server_holds_retries_and_recovers(tmp_path, procs, model_file):
 ])
 def test_bad_live_input_is_one_line_exit_2_before_any_offset(tmp_path, procs, model_file,
                                                               case, msg):
-    from arfem.scenarios.twin import free_port
+    from arfem.scenarios.twin_record import free_port
     mpath, _ = model_file
     twin = None
     if case == "unreachable":

@@ -186,7 +186,6 @@ _DIAGNOSE = ("scenarios/diagnose.py is reworked in parallel (issue 30: verdict, 
              "after that merges")
 _SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
           "reworked in parallel; its CLI moves to sweep/command.py after that merges")
-_TWIN = "free_port and write_record still live in the twin command"
 _RUN_WRITERS = ("tests or times the writers of arfem run (write_outputs, reproduce, "
                 "run_scenario), which still live in the command module")
 _CHECK = "check_scenario and run_checks still live in the check command"
@@ -205,13 +204,10 @@ KNOWN_COMMAND_IMPORTS = {
     ("benchmarks/bench_diagnosis_outside.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("benchmarks/bench_reproduce.py", "arfem.scenarios.run"): _RUN_WRITERS,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("benchmarks/bench_twin_compensation.py", "arfem.scenarios.twin"): _TWIN,
     ("reports/fl_thermal/compensation.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("reports/fl_thermal/regenerate.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_allocation_paper.py", "arfem.scenarios.allocate"): "tests the command's converged-run setting (CONVERGED, patched smaller)",
-    ("tests/test_compensate_diagnosed_model.py", "arfem.scenarios.twin"): _TWIN,
     ("tests/test_compensate_diagnosed_model.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_compensate_opcua.py", "arfem.scenarios.twin"): _TWIN,
     ("tests/test_diagnosis_coverage.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_hidden.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
