@@ -588,9 +588,12 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
 
 def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=None,
                           max_frames: int | None = 200, title: str | None = None,
-                          heat_flux_W_m2: float | None = None) -> dict:
+                          heat_flux_W_m2: float | None = None,
+                          fields_xdmf: str | None = "fields.xdmf3",
+                          picture_png: str | None = "temperature_3d.png",
+                          progress=None) -> dict:
     """Field outputs of one scenario: ``fields.xdmf3`` + ``fields.h5`` (+ ``peak.xdmf``)
-    and ``temperature_3d.png``.
+    and ``temperature_3d.png`` (what ``arfem run`` writes, where the scenario asks).
 
     The picture shows the stored field with the largest growth (the peak).
 
@@ -610,11 +613,16 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         Picture caption (the time of the frame is appended).
     heat_flux_W_m2 : float, optional
         Flux at the heated end at the peak instant [W/m²], for the picture.
+    fields_xdmf, picture_png : str or None
+        Where each goes, relative to ``out_dir``; None: not written.
+    progress : callable, optional
+        Called with the name of each of the two slow steps as it starts.
 
     Returns
     -------
     dict
-        ``{"fields_xdmf": Path, "picture_png": Path, "picture_time_s": float}``.
+        ``{"fields_xdmf": Path or None, "picture_png": Path or None,
+        "picture_time_s": float}``.
     """
     from arfem.fem.elastic import ThermoElastic
     out = Path(out_dir)
@@ -622,10 +630,16 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         raise InputError("has no stored fields; solve with store_fields=True", "result")
     el = elastic if elastic is not None else ThermoElastic.build(model)
     k = int(np.argmax(result.growth_m))
-    xdmf = write_fields(model, result, out / "fields.xdmf3", elastic=el, max_frames=max_frames,
-                        peak_index=k)
+    xdmf = png = None
+    progress = progress or (lambda step: None)
+    if fields_xdmf is not None:
+        progress("fields.xdmf3 + fields.h5")
+        xdmf = write_fields(model, result, out / fields_xdmf, elastic=el,
+                            max_frames=max_frames, peak_index=k)
     t = float(result.times_s[k])
     cap = f"{title + ': ' if title else ''}temperature at peak growth, t = {t / 3600:.2f} h"
-    png = render_png(model, np.asarray(result.fields[k]), out / "temperature_3d.png",
-                     elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
+    if picture_png is not None:
+        progress("3D picture")
+        png = render_png(model, np.asarray(result.fields[k]), out / picture_png,
+                         elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
     return {"fields_xdmf": xdmf, "picture_png": png, "picture_time_s": t}

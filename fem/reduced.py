@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, _output_times
+from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, breakpoints
 from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.params import InputError, Schedule
 
@@ -359,11 +359,8 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     True
     """
     q, h, amb = _inputs(model, schedule)
-    edges = schedule.edges_s
-    out_t = _output_times(schedule, output_times_s)
-    bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
-    seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
-    d = np.diff(bps)
+    b = breakpoints(schedule, output_times_s)       # segment edges and output times
+    bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
     cache = {} if mode_cache is None else mode_cache
     x = _initial(model, theta0)
     nb = bps.size
@@ -433,7 +430,7 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
         bound[after] += b_e * w
     if not rigorous or runs > 1:
         bound[1:] = np.nan
-    pick = np.searchsorted(bps, np.clip(out_t, 0.0, edges[-1]))
+    pick = b.pick
     rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
     return ReducedResult(out_t.copy(), growth[pick], rhoc * heat[pick],
                          states[pick] if store_fields else None,

@@ -306,19 +306,14 @@ def _write_fields(ev: Evaluation, out_dir: Path, progress=no_progress) -> dict:
             "elastic_growth_axis_um_at_peak": float(axis) * 1e6,
             "reciprocity_rel_diff": abs(float(face) - vol) / abs(vol) if vol else 0.0,
         })
-    k = int(np.argmax(res.growth_m))
-    if sc.outputs.fields:
-        progress("fields.xdmf3 + fields.h5")
-        export.write_fields(model, res, out_dir / "fields" / "fields.xdmf3", elastic=el,
-                            peak_index=k)
-    if sc.outputs.picture:
-        progress("3D picture")
+    if sc.outputs.fields or sc.outputs.picture:
         # the flux on the AR interval that ends at the FEM peak: the heating that made it
         q_peak = float(ev.q_W_m2[int(np.argmax(np.abs(ev.fem_growth_um)))])
-        export.render_png(model, np.asarray(res.fields[k]), out_dir / "temperature_3d.png",
-                          elastic=el, heat_flux_W_m2=q_peak,
-                          title=f"{sc.name}: temperature at peak growth, "
-                                f"t = {res.times_s[k] / 3600:.2f} h")
+        export.write_scenario_fields(
+            model, res, out_dir, elastic=el, title=sc.name, heat_flux_W_m2=q_peak,
+            fields_xdmf="fields/fields.xdmf3" if sc.outputs.fields else None,
+            picture_png="temperature_3d.png" if sc.outputs.picture else None,
+            progress=progress)
     return extra
 
 

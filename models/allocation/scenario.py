@@ -49,6 +49,7 @@ from arfem.models.allocation.problem import (COMPONENTS, COMPONENT_UNIT, CONSTRA
                                              COST_MODELS, FORMULAS, PICKS, ROTATIONS, Chain,
                                              Settings, Thermal, Unit)
 from arfem.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
+from arfem import strict
 from arfem.strict import check_keys
 
 __all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "TransmissionSpec", "parse_scenario",
@@ -123,11 +124,18 @@ class AllocationScenario:
 
 
 class _Reader:
+    """The allocation file's reader: defaults, ranges and key paths around the one
+    strict reader (:mod:`arfem.strict`), which checks every type, finiteness and unknown
+    key."""
+
     def __init__(self, where: str):
         self.where = where
 
+    def at(self, key: str) -> str:
+        return f"{self.where}: {key}"
+
     def err(self, key: str, msg: str) -> InputError:
-        return InputError(msg, f"{self.where}: {key}")
+        return InputError(msg, self.at(key))
 
     def table(self, d, key, allowed, required=()):
         if not isinstance(d, dict):
@@ -147,12 +155,7 @@ class _Reader:
             if default is None:
                 raise self.err(path, "is required")
             return float(default)
-        v = d[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.err(path, f"must be a number, got {type(v).__name__} {v!r}")
-        v = float(v)
-        if not math.isfinite(v):
-            raise self.err(path, f"must be finite, got {v!r}")
+        v = strict.number(d[key], self.at(path))
         if low is not None and (v < low or (low_open and v == low)):
             raise self.err(path, f"must be {'>' if low_open else '>='} {low:g}, got {v:g}")
         if high is not None and (v > high or (high_open and v == high)):
@@ -176,19 +179,14 @@ class _Reader:
             if default is None:
                 raise self.err(path, "is required")
             return default
-        v = d[key]
-        if not isinstance(v, str) or v not in options:
-            raise self.err(path, f"must be one of {', '.join(map(repr, options))}, got {v!r}")
-        return v
+        return strict.string(d[key], self.at(path), choices=options)
 
     def string(self, d, key, path, default=None, pattern=None):
         if key not in d:
             if default is None:
                 raise self.err(path, "is required")
             return default
-        v = d[key]
-        if not isinstance(v, str):
-            raise self.err(path, f"must be a string, got {type(v).__name__} {v!r}")
+        v = strict.string(d[key], self.at(path))
         if pattern is not None and not pattern.match(v):
             raise self.err(path, f"must be a name of letters, digits, '_' or '-', got {v!r}")
         return v
@@ -196,10 +194,7 @@ class _Reader:
     def boolean(self, d, key, path, default):
         if key not in d:
             return default
-        v = d[key]
-        if not isinstance(v, bool):
-            raise self.err(path, f"must be true or false, got {v!r}")
-        return v
+        return strict.boolean(d[key], self.at(path))
 
     def vector(self, d, key, path, n=3, default=None, bound=1e5):
         """``n`` finite numbers, each within ±``bound`` (in the unit the key names: a
