@@ -165,6 +165,62 @@ def scored_from_s(model: StateSpaceModel, time_s, score_from_s: float | None
     return start, "after_fit_window"
 
 
+@dataclass(frozen=True)
+class _Stepped:
+    """What stepping a compensator through a record gave, row by row and in counts."""
+
+    predicted_um: np.ndarray
+    offset_um: np.ndarray
+    held: int
+    clamped: int
+    rate_limited: int
+    probe_gains: tuple
+
+
+def _step_causally(comp: Compensator, inputs: dict, t, g, first: int,
+                   probe_every_s: float | None) -> _Stepped:
+    """Step ``comp`` through rows ``first``… of the record: each row's offset from the
+    inputs of rows up to it only, and a probe (the measured growth ``g`` [µm]) at every
+    ``probe_every_s`` [s]; the predicted growth and offset [µm] per row (NaN and 0
+    before ``first``)."""
+    n = t.size
+    pred, off = np.full(n, np.nan), np.zeros(n)
+    held = clamped = limited = 0
+    next_probe = probe_every_s if probe_every_s else math.inf
+    gains = []
+    for k in range(first, n):
+        cyc = comp.step({nm: col[k] for nm, col in inputs.items()})
+        pred[k], off[k] = cyc.predicted_growth_um, cyc.offset_um
+        held += cyc.held
+        clamped += "clamped" in cyc.alarms
+        limited += "rate_limited" in cyc.alarms
+        if t[k] >= next_probe:                       # a touch probe at this instant
+            gains.append(comp.probe(float(g[k])))
+            next_probe += probe_every_s
+    return _Stepped(pred, off, int(held), int(clamped), int(limited), tuple(gains))
+
+
+def _scored_rows(model, t, g, first: int, start: float, basis: str, where: str):
+    """The rows a replay scores: a measured growth, at or after ``start`` [s], an
+    interval closed (from ``first``); refused in one line when there is none."""
+    ok = np.isfinite(g) & (t >= start)
+    ok[:first] = False
+    if not ok.any():
+        why = (f" (the end of the model's fit window, {model.fit_window_s[1]:g} s; score "
+               "the fitted rows with --score-from 0)" if basis == "after_fit_window" else "")
+        raise InputError(f"has no row at or after {start:g} s to score{why}", where)
+    return ok
+
+
+def _check_interval(model: StateSpaceModel, t: np.ndarray, where: str) -> None:
+    """Refuse a record whose median sample interval is not the model's Δτ (within 1 %)."""
+    dt = np.diff(t)
+    med = float(np.median(dt)) if dt.size else float("nan")
+    if not (abs(med - model.dtau_s) <= 0.01 * model.dtau_s):
+        raise InputError(f"is sampled every {med:g} s, the model steps every "
+                         f"{model.dtau_s:g} s; make a model at the record's interval", where)
+
+
 def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
            max_step_um: float = math.inf, probe_every_s: float | None = None,
            score_from_s: float | None = None, where: str = "record") -> Replay:
@@ -202,39 +258,19 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um: float = math.inf,
     inputs = _record_inputs(ds)
     check_inputs(model, inputs, where)
     t = np.asarray(ds.time_s, float)
-    dt = np.diff(t)
-    med = float(np.median(dt)) if dt.size else float("nan")
-    if not (abs(med - model.dtau_s) <= 0.01 * model.dtau_s):
-        raise InputError(f"is sampled every {med:g} s, the model steps every "
-                         f"{model.dtau_s:g} s; make a model at the record's interval", where)
+    _check_interval(model, t, where)
     g = np.asarray(ds.growth_um, float)
     comp = Compensator(model, max_offset_um=max_offset_um, max_step_um=max_step_um)
-    n = t.size
-    pred, off = np.full(n, np.nan), np.zeros(n)
-    held = clamped = limited = 0
-    next_probe = probe_every_s if probe_every_s else math.inf
-    gains = []
     names = [i.name for i in model.inputs]
     # a first row at t = 0 is the equilibrium start, no interval ends there; a later
     # first row closes the interval that began at t = 0 (the contract), so it is stepped
     first = 1 if t[0] <= 0.0 else 0
-    for k in range(first, n):
-        cyc = comp.step({nm: inputs[nm][k] for nm in names})
-        pred[k], off[k] = cyc.predicted_growth_um, cyc.offset_um
-        held += cyc.held
-        clamped += "clamped" in cyc.alarms
-        limited += "rate_limited" in cyc.alarms
-        if t[k] >= next_probe:                       # a touch probe at this instant
-            gains.append(comp.probe(float(g[k])))
-            next_probe += probe_every_s
+    run = _step_causally(comp, {nm: inputs[nm] for nm in names}, t, g, first, probe_every_s)
+    n, pred, off, gains = t.size, run.predicted_um, run.offset_um, run.probe_gains
+    held, clamped, limited = run.held, run.clamped, run.rate_limited
     resid = g + off
     start, basis = scored_from_s(model, t, score_from_s)
-    ok = np.isfinite(g) & (t >= start)
-    ok[:first] = False
-    if not ok.any():
-        why = (f" (the end of the model's fit window, {model.fit_window_s[1]:g} s; score "
-               "the fitted rows with --score-from 0)" if basis == "after_fit_window" else "")
-        raise InputError(f"has no row at or after {start:g} s to score{why}", where)
+    ok = _scored_rows(model, t, g, first, start, basis, where)
 
     def rms(x):
         return float(np.sqrt(np.mean(x[ok] ** 2)))
