@@ -20,10 +20,9 @@ MAX_LINES = 80
 LONG_FUNCTIONS = {
     "models/diagnosis/speed_frame.py::fit_frame_thermometers": 155,
     "scenarios/diagnosis_report.py::_markdown": 139,
-    "models/allocation/scenario.py::parse_scenario": 132,
     "scenarios/html_report.py::write_html_report": 130,
     "models/diagnosis/speed.py::fit_speed_candidate": 129,
-    "fem/reduced.py::solve_reduced": 120,
+    "fem/reduced.py::solve_reduced": 90,
     "models/diagnosis/candidates.py::fit_causes": 120,
     "models/diagnosis/stats.py::slow_noise_sandwich": 119,
     "models/diagnosis/engine.py::_diagnose_fem": 115,

@@ -278,6 +278,31 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     desc = rd.string(sc, "description", "scenario.description", default="")
     formula = rd.choice(sc, "formula", "scenario.formula", FORMULAS, "screw")
     constraint = rd.choice(sc, "constraint", "scenario.constraint", CONSTRAINTS, "worst_case")
+    settings = _settings(rd, data, formula, constraint)
+    tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
+    tool = screw.pose(rd.vector(tl, "offset_mm", "tool.offset_mm"),
+                      rd.vector(tl, "rpy_deg", "tool.rpy_deg"))
+    ulist = data["units"]
+    if not isinstance(ulist, list) or not ulist:
+        raise rd.err("units", "must be a non-empty array of tables ([[units]])")
+    units = []
+    for i, d in enumerate(ulist):
+        units.append(_unit(rd, d, i, {u.name for u in units}))
+    if not any(u.free for u in units):
+        raise rd.err("units", "no unit has a free component: nothing to allocate")
+    byname = {u.name: u for u in units}
+    if formula == "screw" and not any(u.branch == "tool" for u in units):
+        raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
+    trans = _transmission(rd, data, units, byname)
+    travel_unit, angles = _travel(rd, data, byname)
+    spindle = _spindle(rd, data, byname)
+    ref = _reference(rd, sc, byname)
+    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref,
+                              trans, travel_unit, angles)
+
+
+def _settings(rd: _Reader, data: dict, formula: str, constraint: str) -> Settings:
+    """The [tolerance], [cost] and [optimizer] tables as :class:`Settings`."""
     tol = rd.table(data["tolerance"], "tolerance",
                    {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
                     "yield_draws"}, required=("delta_E_mm",))
@@ -316,20 +341,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                                low_open=True),
         seed=rd.integer(op, "seed", "optimizer.seed", 1, 0, 2**32 - 1),
         pick=rd.choice(op, "pick", "optimizer.pick", PICKS, "knee"))
-    tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
-    tool = screw.pose(rd.vector(tl, "offset_mm", "tool.offset_mm"),
-                      rd.vector(tl, "rpy_deg", "tool.rpy_deg"))
-    ulist = data["units"]
-    if not isinstance(ulist, list) or not ulist:
-        raise rd.err("units", "must be a non-empty array of tables ([[units]])")
-    units = []
-    for i, d in enumerate(ulist):
-        units.append(_unit(rd, d, i, {u.name for u in units}))
-    if not any(u.free for u in units):
-        raise rd.err("units", "no unit has a free component: nothing to allocate")
-    byname = {u.name: u for u in units}
-    if formula == "screw" and not any(u.branch == "tool" for u in units):
-        raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
+    return settings
+
+
+def _transmission(rd: _Reader, data: dict, units, byname) -> TransmissionSpec | None:
+    """The [transmission] table (a rack and pinion from the drive branch to a rotation
+    unit); required when a unit has branch = "drive"."""
     trans = None
     if "transmission" in data:
         tr = rd.table(data["transmission"], "transmission",
@@ -354,6 +371,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
             rd.choice(tr, "rack_axis", "transmission.rack_axis", tuple(_AXES), "x"))
     elif any(u.branch == "drive" for u in units):
         raise rd.err("transmission", "is required when a unit has branch = \"drive\"")
+    return trans
+
+
+def _travel(rd: _Reader, data: dict, byname) -> tuple:
+    """The [travel] table: the rotation unit whose angles are visited and its 1 to 36
+    angles [°]; (None, ()) without one."""
     travel_unit, angles = None, ()
     if "travel" in data:
         tv = rd.table(data["travel"], "travel", {"unit", "angles_deg"},
@@ -366,6 +389,11 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
             raise rd.err("travel.angles_deg", f"must be a list of 1 to 36 angles, got {av!r}")
         angles = tuple(float(rd.vector(tv, "angles_deg", "travel.angles_deg", n=len(av),
                                        bound=3600.0)[j]) for j in range(len(av)))
+    return travel_unit, angles
+
+
+def _spindle(rd: _Reader, data: dict, byname) -> SpindleSpec | None:
+    """The [spindle] table: the tool-branch unit that heats, its flux and thermal model."""
     spindle = None
     if "spindle" in data:
         sp = rd.table(data["spindle"], "spindle",
@@ -391,14 +419,18 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                           low=0.0, high=100.0)
         seed = rd.integer(sp, "noise_seed", "spindle.noise_seed", 0, 0, 2**32 - 1)
         spindle = SpindleSpec(sunit, q, model, dtau, comp, cmodel, noise, seed)
+    return spindle
+
+
+def _reference(rd: _Reader, sc: dict, byname) -> dict | None:
+    """``scenario.reference_accuracy_mm``: a published allocation to compare with [mm]."""
     ref = None
     if "reference_accuracy_mm" in sc:
         names = set(byname)
         rt = rd.table(sc["reference_accuracy_mm"], "scenario.reference_accuracy_mm", names)
         ref = {k: rd.number(rt, k, f"scenario.reference_accuracy_mm.{k}", low=0.0)
                for k in rt}
-    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref,
-                              trans, travel_unit, angles)
+    return ref
 
 
 def _blk(R) -> np.ndarray:
