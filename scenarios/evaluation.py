@@ -2,7 +2,7 @@
 
 Data flow: :class:`~arfem.scenarios.config.Scenario` → :func:`evaluate` (FEM, paper
 AR(1), corrected AR(1), least-squares fit) → :class:`Evaluation`. No file is read or
-written here; the writers are in :mod:`arfem.scenarios.run` (``arfem run``), and
+written here; the writers are in :mod:`arfem.scenarios.run_outputs` (``arfem run``), and
 ``arfem check``, the sweep workers and the Python API call :func:`evaluate` directly.
 """
 from __future__ import annotations

@@ -10,7 +10,7 @@ import pytest
 
 from arfem.scenarios.config import scenario_from_dict
 from arfem.scenarios.evaluation import evaluate
-from arfem.scenarios.run import growth_figure, write_outputs
+from arfem.scenarios.run_outputs import growth_figure, write_outputs
 
 UNIT = re.compile(r"\[[^\]]+\]")          # "[µm]", "[h]", "[°C]"
 

@@ -186,8 +186,6 @@ _DIAGNOSE = ("scenarios/diagnose.py is reworked in parallel (issue 30: verdict, 
              "after that merges")
 _SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
           "reworked in parallel; its CLI moves to sweep/command.py after that merges")
-_RUN_WRITERS = ("tests or times the writers of arfem run (write_outputs, reproduce, "
-                "run_scenario), which still live in the command module")
 _CHECK = "check_scenario and run_checks still live in the check command"
 #: (importing file, command module) -> why it is still allowed
 KNOWN_COMMAND_IMPORTS = {
@@ -197,12 +195,11 @@ KNOWN_COMMAND_IMPORTS = {
     ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/compensate.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/diagnose.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/run.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
     ("benchmarks/bench_check.py", "arfem.scenarios.check"): _CHECK,
     ("benchmarks/bench_diagnosis.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("benchmarks/bench_diagnosis_outside.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("benchmarks/bench_reproduce.py", "arfem.scenarios.run"): _RUN_WRITERS,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
     ("reports/fl_thermal/compensation.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("reports/fl_thermal/regenerate.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
@@ -213,11 +210,8 @@ KNOWN_COMMAND_IMPORTS = {
     ("tests/test_diagnosis_hidden.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_real.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_record_mistakes.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_figures.py", "arfem.scenarios.run"): _RUN_WRITERS,
     ("tests/test_fuzz.py", "arfem.scenarios.sweep"): _SWEEP,
     ("tests/test_html_report.py", "arfem.scenarios.html_report"): _REPORT,
-    ("tests/test_outdir.py", "arfem.scenarios.run"): "makes a writer of arfem run fail (disk full) inside the command",
-    ("tests/test_progress.py", "arfem.scenarios.run"): _RUN_WRITERS,
     ("tests/test_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
 }
 #: folders of scripts that are checked besides the package (a test of a command module

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-# regenerate.py beside this file: the script's folder is the first entry of sys.path
-# when it runs, so it imports as a plain module (loading it also sets one BLAS thread
+# regenerate.py beside this file: Python puts the running script's folder first on the
+# module search path, so it imports as a plain module (loading it also sets one BLAS thread
 # per process)
 import regenerate as R
 
