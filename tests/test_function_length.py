@@ -38,7 +38,7 @@ LONG_FUNCTIONS = {
     "models/diagnosis/export.py::fem_state_space": 91,
     "scenarios/allocate.py::_report": 90,
     "fem/elastic.py::ThermoElastic.build": 89,
-    "scenarios/run.py::growth_figure": 89,
+    "scenarios/run_outputs.py::growth_figure": 89,
     "models/diagnosis/engine.py::_diagnose_speed": 88,
     "scenarios/sweep/runner.py::run_sweep": 88,
     "models/diagnosis/engine.py::diagnose": 81,

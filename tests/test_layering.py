@@ -186,10 +186,8 @@ _DIAGNOSE = ("scenarios/diagnose.py is reworked in parallel (issue 30: verdict, 
              "after that merges")
 _SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
           "reworked in parallel; its CLI moves to sweep/command.py after that merges")
-_CHECK = "check_scenario and run_checks still live in the check command"
 #: (importing file, command module) -> why it is still allowed
 KNOWN_COMMAND_IMPORTS = {
-    ("arfem/api.py", "arfem.scenarios.check"): _CHECK,
     ("arfem/api.py", "arfem.scenarios.sweep"): _SWEEP,
     ("arfem/api.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
@@ -197,7 +195,6 @@ KNOWN_COMMAND_IMPORTS = {
     ("scenarios/diagnose.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
-    ("benchmarks/bench_check.py", "arfem.scenarios.check"): _CHECK,
     ("benchmarks/bench_diagnosis.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("benchmarks/bench_diagnosis_outside.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
