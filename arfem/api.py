@@ -305,7 +305,7 @@ def compare(scenario) -> Comparison:
     >>> round(c.metrics["max_abs_diff_pct_of_peak"], 2)
     2.57
     """
-    from arfem.scenarios.run import evaluate
+    from arfem.scenarios.evaluation import evaluate
     ev = evaluate(_scenario(scenario))
     return Comparison(ev.times_s, ev.fem_growth_um, ev.ar_growth_um,
                       ev.ar_corrected_growth_um, dict(ev.metrics))
@@ -358,7 +358,7 @@ def check(scenario, *, max_abs_pct: float | None = None, max_c1_diff: float | No
     >>> r.passed, [c["name"] for c in r.criteria]
     (True, ['max_abs_diff_pct_of_peak', 'C1_abs_diff'])
     """
-    from arfem.scenarios.check import check_scenario
+    from arfem.scenarios.checking import check_scenario
     from arfem.scenarios.config import check_limit
     if max_abs_pct is not None:
         max_abs_pct = check_limit("max_abs_diff_pct_of_peak", max_abs_pct, "max_abs_pct")

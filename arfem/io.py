@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arfem.limits import Limits, resolve
 from arfem.params import InputError
 
 try:  # Python >= 3.11
@@ -41,18 +42,14 @@ def files_read() -> frozenset:
     return frozenset(_FILES_READ)
 
 
-def allow_large() -> bool:
-    """True if the user lifted arfem's size limits (``--allow-large`` or
-    ``ARFEM_ALLOW_LARGE=1``, which local worker processes inherit)."""
-    return os.environ.get("ARFEM_ALLOW_LARGE", "") not in ("", "0")
-
-
 def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
-                   max_bytes: int | None = None, record: bool = True) -> str:
+                   max_bytes: int | None = None, record: bool = True,
+                   limits: Limits | None = None) -> str:
     """The text of a UTF-8 file (a leading BOM dropped).
 
     A missing file, a directory, an unreadable file, a file larger than ``max_bytes``
-    [bytes] (default :data:`MAX_TEXT_BYTES`; unless :func:`allow_large`), a NUL byte (checked in the first 64 KiB
+    [bytes] (default :data:`MAX_TEXT_BYTES`; unless ``limits.large``, see
+    :class:`arfem.limits.Limits`), a NUL byte (checked in the first 64 KiB
     before the rest is read) or bytes that are not UTF-8 raise :class:`InputError`
     naming the file (and, for bad bytes, the line).
 
@@ -80,7 +77,7 @@ def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
         if record:
             _FILES_READ.add(os.path.abspath(p))
         size = p.stat().st_size
-        if size > max_bytes and not allow_large():
+        if size > max_bytes and not resolve(limits).large:
             raise InputError(f"is {size / 1024 ** 2:.0f} MiB; arfem reads at most "
                              f"{max_bytes / 1024 ** 2:.0f} MiB (pass --allow-large to lift "
                              "the limit)", str(p))
@@ -103,9 +100,9 @@ def read_text_utf8(path: str | os.PathLike, missing: str = "file not found",
                          f"{p}: line {line}") from None
 
 
-def read_toml(path: str | os.PathLike) -> dict:
+def read_toml(path: str | os.PathLike, limits: Limits | None = None) -> dict:
     """Parse a UTF-8 TOML file; anything wrong is one :class:`InputError` line."""
-    text = read_text_utf8(path)
+    text = read_text_utf8(path, limits=limits)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -355,37 +355,6 @@ class Schedule:
             return np.full(self.n_segments, rod.convection_W_m2K)
         return np.asarray(self.h_W_m2K)
 
-    def value_at(self, name: str, t_s, rod: Rod | None = None) -> np.ndarray:
-        """Value of input ``name`` holding on the segment that contains each time.
-
-        A time on a boundary belongs to the segment that *ends* there (the
-        zero-order-hold convention of the measured-data contract).
-
-        Parameters
-        ----------
-        name : {"q_W_m2", "ambient_C", "h_W_m2K"}
-            Which input.
-        t_s : float or array_like
-            Time(s) [s]; times before 0 or after the end take the first or last segment.
-        rod : Rod, optional
-            Supplies the nominal ambient and h where the schedule gives none
-            (required then).
-
-        Returns
-        -------
-        ndarray
-            The input at each time, in the unit its name carries: heat flux [W/m²],
-            ambient [°C] or convection coefficient [W/(m²·K)].
-        """
-        values = {
-            "q_W_m2": self.q_W_m2,
-            "ambient_C": self.ambient_for(rod) if rod else self.ambient_C,
-            "h_W_m2K": self.h_for(rod) if rod else self.h_W_m2K,
-        }[name]
-        idx = np.searchsorted(self.edges_s, np.asarray(t_s, dtype=float), side="left") - 1
-        idx = np.clip(idx, 0, self.n_segments - 1)
-        return np.asarray(values)[idx]
-
     def subdivided(self, dt_s: float) -> "Schedule":
         """Split every segment into pieces of exactly ``dt_s``.
 

@@ -24,7 +24,7 @@ from arfem.models.allocation import tolerance
 from arfem.models.allocation.problem import allocate, unit_values, with_settings
 from arfem.models.allocation.scenario import UnitSpec, build_chain, chain_maps
 from arfem.models.allocation import screw
-from arfem.scenarios.allocate import load_allocation_scenario
+from arfem.scenarios.allocation_file import load_allocation_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

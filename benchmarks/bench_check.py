@@ -68,7 +68,7 @@ def main() -> int:
             print(f"    -> {last}")
             ok &= rc == 0 and (target is None or best <= target)
     # in-process: the check without interpreter start-up and imports
-    from arfem.scenarios.check import run_checks
+    from arfem.scenarios.checking import run_checks
     t0 = time.perf_counter()
     results, skipped = run_checks([str(ROOT / "scenarios")], echo=lambda s: None)
     inproc = time.perf_counter() - t0

@@ -21,7 +21,7 @@ def main() -> int:
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.compensator import Compensator
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.synth_files import write_case
 
@@ -46,9 +46,9 @@ def main() -> int:
         t0 = time.perf_counter()
         res = replay(model, ds, max_offset_um=50.0, max_step_um=1.0)
         best = min(best, time.perf_counter() - t0)
-    s = res["summary"]
-    print(f"replay of {s['n_cycles']} cycles (46.3 h at 15 s): best of 3 {best:.3f} s "
-          f"(target ≤ 0.5 s); RMS {s['rms_before_um']:.3g} -> {s['rms_after_um']:.3g} µm")
+    s = res.summary
+    print(f"replay of {s.n_cycles} cycles (46.3 h at 15 s): best of 3 {best:.3f} s "
+          f"(target ≤ 0.5 s); RMS {s.rms_before_um:.3g} -> {s.rms_after_um:.3g} µm")
     return 0
 
 

@@ -321,20 +321,3 @@ class ThermoElastic:
         face = th @ self.growth_face
         return face, th @ self.growth_axis
 
-    def component_values(self, u: np.ndarray) -> np.ndarray:
-        """Displacement at the mesh vertices, shape (n_vertices, dim) [m].
-
-        Parameters
-        ----------
-        u : ndarray, shape (ndofs,)
-            Displacement dofs [m] of one field, as from :meth:`displacement`.
-
-        Returns
-        -------
-        ndarray, shape (n_vertices, dim)
-            Nodal displacement components [m]: (u_r, u_z) axisymmetric,
-            (u_x, u_y, u_z) in 3D.
-        """
-        u = np.asarray(u, float)
-        return np.stack([u[self.basis.nodal_dofs[c]] for c in range(self.basis.mesh.dim())],
-                        axis=-1)

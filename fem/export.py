@@ -409,6 +409,121 @@ def _render(grid, undeformed, clim, window_size):
         vtkLogger.SetStderrVerbosity(verbosity)
 
 
+def _scene(model: HeatFEM, theta: np.ndarray, elastic, exaggeration):
+    """The rod as pyvista grids for :func:`picture_figure`: (deformed grid, undeformed
+    grid, colour limits [°C], growth ΔL [m] or None, displacement scale factor [-]); an
+    axisymmetric section revolved through 270° with the missing quarter facing the
+    camera."""
+    import pyvista as pv
+    rod = model.rod
+    L = rod.length_m
+    pts, kind, cells, tdofs = vertex_grid(model)
+    T = theta[tdofs] + rod.ambient_C
+    disp = _vertex_displacement(model, elastic, theta)[0] if elastic is not None else None
+    growth = None
+    if elastic is not None:
+        growth = float(np.atleast_1d(elastic.growth(theta)[0])[0])
+    if model.axisymmetric:
+        # the missing quarter faces the camera, so the two cut planes show the core
+        P, hexes, phi, n = _revolve(pts, cells, start_deg=np.rad2deg(np.arctan2(_VIEW[1],
+                                                                                  _VIEW[0])) + 45)
+        T = np.tile(T, phi.size)
+        if disp is not None:
+            ur, uz = disp[:, 0], disp[:, 2]
+            disp = np.concatenate([np.column_stack([ur * np.cos(f), ur * np.sin(f), uz])
+                                   for f in phi])
+        pts, cells = P, hexes
+    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, pts)
+    grid.point_data["T_C"] = T
+    undeformed = grid.copy()
+    scale = 0.0
+    if disp is not None:
+        umax = float(np.max(np.linalg.norm(disp, axis=1)))
+        scale = (_nice_factor(0.08 * L / umax) if umax > 0 else 1.0) \
+            if exaggeration is None else float(exaggeration)
+        grid.point_data["displacement_m"] = disp
+        grid = grid.warp_by_vector("displacement_m", factor=scale)
+    clim = [float(T.min()), float(T.max())]
+    if clim[1] - clim[0] < 1e-9:
+        clim[1] = clim[0] + 1.0
+    return grid, undeformed, clim, growth, scale
+
+
+def _crop(img: np.ndarray, pad: int, heat_c, z0, far_x: float):
+    """Crop the empty margins of the rendering, keeping room for the arrows left of the
+    heated end (``heat_c`` [px]), the ruler below ``z0`` [px] and the grown end at
+    ``far_x`` [px]; returns the image and the (column, row) offset of its corner."""
+    content = np.argwhere(np.any(img[..., :3] < 250, axis=-1))
+    r0, c0 = content.min(axis=0)
+    r1, c1 = content.max(axis=0)
+    c0 = max(0, min(c0, int(heat_c[0]) - 9 * pad) - pad)
+    c1 = min(img.shape[1], max(c1, int(far_x)) + 9 * pad)
+    r0 = max(0, r0 - pad)
+    r1 = min(img.shape[0], max(r1, int(z0[1])) + 3 * pad)
+    return img[r0:r1, c0:c1], np.array([c0, r0])
+
+
+def _draw_ruler(ax, a, b, L: float, R: float, px_per_m: float, pad: int) -> None:
+    """The ruler along z from ``a`` to ``b`` [px] in mm (the picture's axis and scale)
+    and a 100 mm bar across the axis (screen-up is perpendicular to the view: to scale)."""
+    ink = dict(color="black", fontsize=8)
+    # ruler along z: the axes of the picture and its scale bar
+    ax.plot([a[0], b[0]], [a[1], b[1]], color="black", lw=1.2)
+    step = 0.1 if L >= 0.3 else 0.05 if L >= 0.1 else 0.01
+    for zt in np.arange(0.0, L + 1e-12, step):
+        x = a[0] + zt * px_per_m
+        ax.plot([x, x], [a[1], a[1] + 8], color="black", lw=1)
+        ax.text(x, a[1] + 12, f"{zt * 1e3:.0f}", ha="center", va="top", **ink)
+    ax.text((a[0] + b[0]) / 2, a[1] + 45, "axial position z [mm] (undeformed; drawn to scale)",
+            ha="center", va="top", **ink)
+    # a 100 mm scale bar across the axis (screen-up is perpendicular to the view: to scale)
+    bar = 0.1 if R >= 0.05 else 0.01
+    x = a[0] - 2 * pad
+    ax.plot([x, x], [a[1], a[1] - bar * px_per_m], color="black", lw=2.5, solid_capstyle="butt")
+    ax.text(x - 6, a[1] - bar * px_per_m / 2, f"{bar * 1e3:.0f} mm", ha="right", va="center",
+            rotation=90, **ink)
+
+
+def _landmarks(to_px, L: float, R: float):
+    """Where the annotations go on the rendering [px]: the ruler's ends under the rod
+    (z = 0 and L), the heated end's centre and top, the far end's top and bottom."""
+    v = np.array(_VIEW) / np.linalg.norm(_VIEW)
+    up = np.array([1.0, 0.0, 0.0]) - v[0] * v
+    up /= np.linalg.norm(up)                                     # screen-up direction
+    below = -1.8 * R * up                                        # ruler line, under the rod
+    z0, zL = to_px(below), to_px(below + [0, 0, L])
+    heat_c, heat_top = to_px((0, 0, 0)), to_px(R * up)
+    far_top, far_bot = to_px(1.15 * R * up + [0, 0, L]), to_px(-1.15 * R * up + [0, 0, L])
+    return z0, zL, heat_c, heat_top, far_top, far_bot
+
+
+def _draw_ends(ax, hc, ht, ft, fb, growth, scale: float, px_per_m: float, pad: int,
+               heat_flux_W_m2) -> None:
+    """The heated end (centre ``hc``, top ``ht`` [px]) with its flux arrows, and the far
+    end (top ``ft``, bottom ``fb`` [px]): undeformed (dashed) and grown by ``growth``
+    [m] drawn × ``scale`` (solid), with ΔL written beside it."""
+    ink = dict(color="black", fontsize=8)
+    # heated end
+    qtxt = f"q = {heat_flux_W_m2:g} W/m²" if heat_flux_W_m2 is not None else "heat flux q"
+    for f in (-0.5, 0.0, 0.5) if heat_flux_W_m2 is None or heat_flux_W_m2 > 0 else ():
+        y = hc[1] + f * (hc[1] - ht[1])
+        ax.annotate("", xy=(hc[0] - 4, y), xytext=(hc[0] - 4 * pad, y),
+                    arrowprops=dict(arrowstyle="-|>", color="#b2182b", lw=1.6))
+    ax.text(hc[0] - 4.5 * pad, hc[1], f"heated end\nz = 0\n{qtxt}", ha="right", va="center",
+            color="#b2182b", fontsize=8)
+    # far end: undeformed position and the grown end
+    ax.plot([ft[0], fb[0]], [ft[1], fb[1]], ls="--", color="black", lw=1)
+    if growth is not None:
+        xg = ft[0] + growth * scale * px_per_m
+        ax.plot([xg, xg], [ft[1], fb[1]], ls="-", color="#2166ac", lw=1.4)
+        ax.annotate("", xy=(xg, fb[1] - 6), xytext=(ft[0], fb[1] - 6),
+                    arrowprops=dict(arrowstyle="-|>", color="#2166ac", lw=1.2))
+        ax.text(xg + 10, (ft[1] + fb[1]) / 2, f"grown end\nΔL = {growth * 1e6:.2f} µm\n"
+                f"(displacement\ndrawn × {scale:g})", ha="left", va="center",
+                color="#2166ac", fontsize=8)
+        ax.text(ft[0], ft[1] - 4, "undeformed end", ha="center", va="bottom", **ink)
+
+
 def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
                    exaggeration: float | None = None, title: str | None = None,
                    heat_flux_W_m2: float | None = None, window_size=(1800, 900)):
@@ -441,66 +556,21 @@ def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
     -------
     matplotlib.figure.Figure
     """
-    import pyvista as pv
     from matplotlib.figure import Figure
     from matplotlib import cm, colors
     theta = np.asarray(theta, float)
     if theta.shape != (model.ndofs,):
         raise InputError(f"needs {model.ndofs} values", "theta")
-    rod = model.rod
-    L, R = rod.length_m, rod.radius_m
-    pts, kind, cells, tdofs = vertex_grid(model)
-    T = theta[tdofs] + rod.ambient_C
-    disp = _vertex_displacement(model, elastic, theta)[0] if elastic is not None else None
-    growth = None
-    if elastic is not None:
-        growth = float(np.atleast_1d(elastic.growth(theta)[0])[0])
-    if model.axisymmetric:
-        # the missing quarter faces the camera, so the two cut planes show the core
-        P, hexes, phi, n = _revolve(pts, cells, start_deg=np.rad2deg(np.arctan2(_VIEW[1],
-                                                                                  _VIEW[0])) + 45)
-        T = np.tile(T, phi.size)
-        if disp is not None:
-            ur, uz = disp[:, 0], disp[:, 2]
-            disp = np.concatenate([np.column_stack([ur * np.cos(f), ur * np.sin(f), uz])
-                                   for f in phi])
-        pts, cells = P, hexes
-    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, pts)
-    grid.point_data["T_C"] = T
-    undeformed = grid.copy()
-    scale = 0.0
-    if disp is not None:
-        umax = float(np.max(np.linalg.norm(disp, axis=1)))
-        scale = (_nice_factor(0.08 * L / umax) if umax > 0 else 1.0) \
-            if exaggeration is None else float(exaggeration)
-        grid.point_data["displacement_m"] = disp
-        grid = grid.warp_by_vector("displacement_m", factor=scale)
-    clim = [float(T.min()), float(T.max())]
-    if clim[1] - clim[0] < 1e-9:
-        clim[1] = clim[0] + 1.0
+    L, R = model.rod.length_m, model.rod.radius_m
+    grid, undeformed, clim, growth, scale = _scene(model, theta, elastic, exaggeration)
     img, to_px, pl = _render(grid, undeformed, clim, window_size)
     try:
-        v = np.array(_VIEW) / np.linalg.norm(_VIEW)
-        up = np.array([1.0, 0.0, 0.0]) - v[0] * v
-        up /= np.linalg.norm(up)                                     # screen-up direction
-        below = -1.8 * R * up                                        # ruler line, under the rod
-        z0, zL = to_px(below), to_px(below + [0, 0, L])
-        px_per_m = (zL[0] - z0[0]) / L
-        heat_c, heat_top = to_px((0, 0, 0)), to_px(R * up)
-        far_top, far_bot = to_px(1.15 * R * up + [0, 0, L]), to_px(-1.15 * R * up + [0, 0, L])
+        z0, zL, heat_c, heat_top, far_top, far_bot = _landmarks(to_px, L, R)
     finally:
         pl.close()
-    # crop the empty margins of the rendering (keep the ruler's and the arrows' room)
-    content = np.argwhere(np.any(img[..., :3] < 250, axis=-1))
-    r0, c0 = content.min(axis=0)
-    r1, c1 = content.max(axis=0)
+    px_per_m = (zL[0] - z0[0]) / L
     pad = int(0.02 * img.shape[1])
-    c0 = max(0, min(c0, int(heat_c[0]) - 9 * pad) - pad)
-    c1 = min(img.shape[1], max(c1, int(zL[0] + (growth or 0) * scale * px_per_m)) + 9 * pad)
-    r0 = max(0, r0 - pad)
-    r1 = min(img.shape[0], max(r1, int(z0[1])) + 3 * pad)
-    img = img[r0:r1, c0:c1]
-    off = np.array([c0, r0])
+    img, off = _crop(img, pad, heat_c, z0, zL[0] + (growth or 0) * scale * px_per_m)
     sh = lambda p: p - off                                           # noqa: E731
 
     fig = Figure(figsize=(10, 10 * img.shape[0] / img.shape[1] + 0.9), dpi=150,
@@ -510,44 +580,10 @@ def picture_figure(model: HeatFEM, theta: np.ndarray, elastic=None,
     ax.set_axis_off()
     ax.set_xlim(0, img.shape[1])
     ax.set_ylim(img.shape[0], -0.02 * img.shape[0])
-    ink = dict(color="black", fontsize=8)
-    # ruler along z: the axes of the picture and its scale bar
     a, b = sh(z0), sh(zL)
-    ax.plot([a[0], b[0]], [a[1], b[1]], color="black", lw=1.2)
-    step = 0.1 if L >= 0.3 else 0.05 if L >= 0.1 else 0.01
-    for zt in np.arange(0.0, L + 1e-12, step):
-        x = a[0] + zt * px_per_m
-        ax.plot([x, x], [a[1], a[1] + 8], color="black", lw=1)
-        ax.text(x, a[1] + 12, f"{zt * 1e3:.0f}", ha="center", va="top", **ink)
-    ax.text((a[0] + b[0]) / 2, a[1] + 45, "axial position z [mm] (undeformed; drawn to scale)",
-            ha="center", va="top", **ink)
-    # a 100 mm scale bar across the axis (screen-up is perpendicular to the view: to scale)
-    bar = 0.1 if R >= 0.05 else 0.01
-    x = a[0] - 2 * pad
-    ax.plot([x, x], [a[1], a[1] - bar * px_per_m], color="black", lw=2.5, solid_capstyle="butt")
-    ax.text(x - 6, a[1] - bar * px_per_m / 2, f"{bar * 1e3:.0f} mm", ha="right", va="center",
-            rotation=90, **ink)
-    # heated end
-    hc, ht = sh(heat_c), sh(heat_top)
-    qtxt = f"q = {heat_flux_W_m2:g} W/m²" if heat_flux_W_m2 is not None else "heat flux q"
-    for f in (-0.5, 0.0, 0.5) if heat_flux_W_m2 is None or heat_flux_W_m2 > 0 else ():
-        y = hc[1] + f * (hc[1] - ht[1])
-        ax.annotate("", xy=(hc[0] - 4, y), xytext=(hc[0] - 4 * pad, y),
-                    arrowprops=dict(arrowstyle="-|>", color="#b2182b", lw=1.6))
-    ax.text(hc[0] - 4.5 * pad, hc[1], f"heated end\nz = 0\n{qtxt}", ha="right", va="center",
-            color="#b2182b", fontsize=8)
-    # far end: undeformed position and the grown end
-    ft, fb = sh(far_top), sh(far_bot)
-    ax.plot([ft[0], fb[0]], [ft[1], fb[1]], ls="--", color="black", lw=1)
-    if growth is not None:
-        xg = ft[0] + growth * scale * px_per_m
-        ax.plot([xg, xg], [ft[1], fb[1]], ls="-", color="#2166ac", lw=1.4)
-        ax.annotate("", xy=(xg, fb[1] - 6), xytext=(ft[0], fb[1] - 6),
-                    arrowprops=dict(arrowstyle="-|>", color="#2166ac", lw=1.2))
-        ax.text(xg + 10, (ft[1] + fb[1]) / 2, f"grown end\nΔL = {growth * 1e6:.2f} µm\n"
-                f"(displacement\ndrawn × {scale:g})", ha="left", va="center",
-                color="#2166ac", fontsize=8)
-        ax.text(ft[0], ft[1] - 4, "undeformed end", ha="center", va="bottom", **ink)
+    _draw_ruler(ax, a, b, L, R, px_per_m, pad)
+    _draw_ends(ax, sh(heat_c), sh(heat_top), sh(far_top), sh(far_bot), growth, scale,
+               px_per_m, pad, heat_flux_W_m2)
     norm = colors.Normalize(*clim)
     cb = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=CMAP), ax=ax, orientation="horizontal",
                       fraction=0.05, shrink=0.5, pad=0.01, aspect=40)
@@ -588,9 +624,12 @@ def render_png(model: HeatFEM, theta: np.ndarray, path, elastic=None,
 
 def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=None,
                           max_frames: int | None = 200, title: str | None = None,
-                          heat_flux_W_m2: float | None = None) -> dict:
+                          heat_flux_W_m2: float | None = None,
+                          fields_xdmf: str | None = "fields.xdmf3",
+                          picture_png: str | None = "temperature_3d.png",
+                          progress=None) -> dict:
     """Field outputs of one scenario: ``fields.xdmf3`` + ``fields.h5`` (+ ``peak.xdmf``)
-    and ``temperature_3d.png``.
+    and ``temperature_3d.png`` (what ``arfem run`` writes, where the scenario asks).
 
     The picture shows the stored field with the largest growth (the peak).
 
@@ -610,11 +649,16 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         Picture caption (the time of the frame is appended).
     heat_flux_W_m2 : float, optional
         Flux at the heated end at the peak instant [W/m²], for the picture.
+    fields_xdmf, picture_png : str or None
+        Where each goes, relative to ``out_dir``; None: not written.
+    progress : callable, optional
+        Called with the name of each of the two slow steps as it starts.
 
     Returns
     -------
     dict
-        ``{"fields_xdmf": Path, "picture_png": Path, "picture_time_s": float}``.
+        ``{"fields_xdmf": Path or None, "picture_png": Path or None,
+        "picture_time_s": float}``.
     """
     from arfem.fem.elastic import ThermoElastic
     out = Path(out_dir)
@@ -622,10 +666,16 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         raise InputError("has no stored fields; solve with store_fields=True", "result")
     el = elastic if elastic is not None else ThermoElastic.build(model)
     k = int(np.argmax(result.growth_m))
-    xdmf = write_fields(model, result, out / "fields.xdmf3", elastic=el, max_frames=max_frames,
-                        peak_index=k)
+    xdmf = png = None
+    progress = progress or (lambda step: None)
+    if fields_xdmf is not None:
+        progress("fields.xdmf3 + fields.h5")
+        xdmf = write_fields(model, result, out / fields_xdmf, elastic=el,
+                            max_frames=max_frames, peak_index=k)
     t = float(result.times_s[k])
     cap = f"{title + ': ' if title else ''}temperature at peak growth, t = {t / 3600:.2f} h"
-    png = render_png(model, np.asarray(result.fields[k]), out / "temperature_3d.png",
-                     elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
+    if picture_png is not None:
+        progress("3D picture")
+        png = render_png(model, np.asarray(result.fields[k]), out / picture_png,
+                         elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
     return {"fields_xdmf": xdmf, "picture_png": png, "picture_time_s": t}

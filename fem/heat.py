@@ -357,6 +357,41 @@ def _output_times(schedule: Schedule, output_times_s) -> np.ndarray:
     return out_t
 
 
+@dataclass(frozen=True)
+class Breakpoints:
+    """The instants a modal solve steps between: every segment edge and output time.
+
+    ``times_s`` (b,) [s], sorted, from 0; ``segment`` (b − 1,): the schedule segment of
+    each step (times_s[i], times_s[i + 1]]; ``dt_s`` (b − 1,): its length [s];
+    ``output_times_s`` (m,) [s] as asked; ``pick`` (m,): the index in ``times_s`` of each
+    output time.
+    """
+
+    times_s: np.ndarray
+    segment: np.ndarray
+    dt_s: np.ndarray
+    output_times_s: np.ndarray
+    pick: np.ndarray
+
+
+def breakpoints(schedule: Schedule, output_times_s=None) -> Breakpoints:
+    """The :class:`Breakpoints` of ``schedule`` with the output times asked (default:
+    t = 0 and every segment end), for :func:`solve_modal` and
+    :func:`arfem.fem.reduced.solve_reduced`.
+
+    >>> from arfem.params import Schedule
+    >>> b = breakpoints(Schedule([3600.0, 3600.0], [1.0, 0.0]), [0.0, 1800.0, 7200.0])
+    >>> b.times_s.tolist(), b.segment.tolist(), b.pick.tolist()
+    ([0.0, 1800.0, 3600.0, 7200.0], [0, 0, 1], [0, 1, 3])
+    """
+    edges = schedule.edges_s
+    out_t = _output_times(schedule, output_times_s)
+    bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
+    seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
+    pick = np.searchsorted(bps, np.clip(out_t, 0.0, edges[-1]))
+    return Breakpoints(bps, seg, np.diff(bps), out_t, pick)
+
+
 def _initial(model: HeatFEM, theta0) -> np.ndarray:
     if theta0 is None:
         return np.zeros(model.ndofs)
@@ -550,12 +585,8 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
         return solve_reduced(model, schedule, output_times_s, store_fields=store_fields,
                              theta0=theta0, mode_cache=mode_cache)
     q, h, amb = _inputs(model, schedule)
-    edges = schedule.edges_s
-    out_t = _output_times(schedule, output_times_s)
-    # all breakpoints: segment edges and output times
-    bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
-    seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
-    d = np.diff(bps)
+    b = breakpoints(schedule, output_times_s)       # segment edges and output times
+    bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
 
     cache = {} if mode_cache is None else mode_cache
     x = _initial(model, theta0)
@@ -586,7 +617,7 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
             states[k + 1:j + 2] = C @ md.phi.T
         x = md.phi @ c
         k = j + 1
-    pick = np.searchsorted(bps, np.clip(out_t, 0.0, edges[-1]))
+    pick = b.pick
     rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
     return HeatResult(out_t.copy(), growth[pick], rhoc * heat[pick],
                       states[pick] if store_fields else None)

@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, _output_times
+from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, breakpoints
 from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.params import InputError, Schedule
 
@@ -316,6 +316,75 @@ class ReducedResult(HeatResult):
     n_modes: int = 0
 
 
+def _runs_of_equal(values: np.ndarray):
+    """(first, last) index of each run of equal consecutive ``values`` (e.g. the h of
+    each interval: one modal basis per run).
+
+    >>> list(_runs_of_equal(np.array([5.0, 5.0, 9.0, 5.0])))
+    [(0, 1), (2, 2), (3, 3)]
+    """
+    k = 0
+    while k < values.size:
+        j = k
+        while j + 1 < values.size and values[j + 1] == values[k]:
+            j += 1
+        yield k, j
+        k = j + 1
+
+
+def _modal_steps(md, U: np.ndarray, dt_s: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """The kept modes' coordinates at the end of each interval (intervals × k), exact for
+    inputs ``U`` held over intervals of ``dt_s`` [s] from the coordinates ``c``: each
+    relaxes towards its steady value at its rate ``mu``."""
+    css = U @ md.Fk.T / md.mu
+    decay = np.exp(-np.outer(dt_s, md.mu))
+    C = np.empty((dt_s.size, md.mu.size))
+    for n in range(dt_s.size):
+        c = css[n] + decay[n] * (c - css[n])
+        C[n] = c
+    return C
+
+
+def _omitted_mode_events(md, U: np.ndarray, times_s: np.ndarray, e0: float,
+                        u_prev) -> list:
+    """The error events of the modes a run of one h leaves out: (time [s], size of the
+    estimate [m], size of the bound [m], decay rate [1/s]) at the run's start (the
+    mismatch ``e0`` [m] the state carries in, plus, for a Ritz basis, the step from the
+    previous run's inputs ``u_prev``) and at every change of its inputs ``U``
+    (intervals × 2: flux [W/m²], h × ambient [W/m²]). With eigenmodes each decays at
+    the first omitted rate and has a bound; a Ritz (Krylov) basis has no first omitted
+    mode: every input jump may leave the last block's change of the step response, which
+    is not assumed to decay, and no bound is given (NaN)."""
+    krylov = md.method == "krylov"
+    if krylov:
+        du0 = U[0] - (u_prev if u_prev is not None else 0.0)
+        events = [(times_s[0], abs(e0) + float(md.step_change @ np.abs(du0)), np.nan, 0.0)]
+    else:
+        b0 = np.sqrt(md.g_rest * max(float(U[0] @ md.G_rest @ U[0]), 0.0))
+        events = [(times_s[0], abs(e0), b0, md.mu_next)]
+    for m_ in np.flatnonzero(np.any(np.diff(U, axis=0) != 0.0, axis=1)) + 1:
+        du = U[m_] - U[m_ - 1]
+        if krylov:
+            events.append((times_s[m_], float(md.step_change @ np.abs(du)), np.nan, 0.0))
+        else:
+            events.append((times_s[m_], abs(float(md.Dg @ du)),
+                           np.sqrt(md.g_rest * max(float(du @ md.G_rest @ du), 0.0)),
+                           md.mu_next))
+    return events
+
+
+def _error_curves(events: list, times_s: np.ndarray):
+    """The error estimate and bound [m] at ``times_s``: each event's size from its time
+    on, decaying at its rate."""
+    est, bound = np.zeros(times_s.size), np.zeros(times_s.size)
+    for t_e, a_e, b_e, r_e in events:
+        after = times_s > t_e
+        w = np.exp(-r_e * (times_s[after] - t_e))
+        est[after] += a_e * w
+        bound[after] += b_e * w
+    return est, bound
+
+
 def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
                   store_fields: bool = False, theta0=None, n_modes: int | None = None,
                   mode_cache: dict | None = None,
@@ -359,16 +428,12 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     True
     """
     q, h, amb = _inputs(model, schedule)
-    edges = schedule.edges_s
-    out_t = _output_times(schedule, output_times_s)
-    bps = np.union1d(edges, np.clip(out_t, 0.0, edges[-1]))
-    seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, schedule.n_segments - 1)
-    d = np.diff(bps)
+    b = breakpoints(schedule, output_times_s)       # segment edges and output times
+    bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
     cache = {} if mode_cache is None else mode_cache
     x = _initial(model, theta0)
     nb = bps.size
     growth, heat = np.empty(nb), np.empty(nb)
-    est, bound = np.zeros(nb), np.zeros(nb)
     states = np.empty((nb, model.ndofs)) if store_fields else None
     growth[0], heat[0] = model.growth @ x, model.volume @ x
     if store_fields:
@@ -377,11 +442,7 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     events = []                          # (time, estimate size, bound size, decay rate)
     runs = n_kept = 0
     u_prev = None
-    k = 0
-    while k < seg.size:
-        j = k
-        while j + 1 < seg.size and h[seg[j + 1]] == h[seg[k]]:
-            j += 1
+    for k, j in _runs_of_equal(h[seg]):
         hk = float(h[seg[k]])
         key = (hk, n_modes, method)
         if key not in cache:
@@ -392,48 +453,23 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
         c = md.phi.T @ (model.M @ x)
         # the omitted modes' mismatch at the run's start: exact, the state is continuous
         e0 = float(model.growth @ x - md.gk @ c - md.Dg @ U[0])
-        krylov = md.method == "krylov"
-        if krylov:
-            # a Ritz basis has no first omitted mode: every input jump may leave the
-            # last block's change of the step response, and nothing is assumed to decay
-            rigorous = False
-            du0 = U[0] - (u_prev if u_prev is not None else 0.0)
-            events.append((bps[k], abs(e0) + float(md.step_change @ np.abs(du0)),
-                           np.nan, 0.0))
-        else:
-            b0 = np.sqrt(md.g_rest * max(float(U[0] @ md.G_rest @ U[0]), 0.0))
-            events.append((bps[k], abs(e0), b0, md.mu_next))
-        for m_ in np.flatnonzero(np.any(np.diff(U, axis=0) != 0.0, axis=1)) + 1:
-            du = U[m_] - U[m_ - 1]
-            if krylov:
-                events.append((bps[k + m_], float(md.step_change @ np.abs(du)), np.nan, 0.0))
-            else:
-                events.append((bps[k + m_], abs(float(md.Dg @ du)),
-                               np.sqrt(md.g_rest * max(float(du @ md.G_rest @ du), 0.0)),
-                               md.mu_next))
+        # a Ritz basis has no first omitted mode: nothing is assumed to decay, no bound
+        rigorous = rigorous and md.method != "krylov"
+        events += _omitted_mode_events(md, U, bps[k:j + 2], e0, u_prev)
         u_prev = U[-1]
         n_kept = max(n_kept, md.n_modes)
-        css = U @ md.Fk.T / md.mu                                      # (intervals, k)
-        decay = np.exp(-np.outer(d[idx], md.mu))
-        C = np.empty((idx.size, md.mu.size))
-        for n in range(idx.size):
-            c = css[n] + decay[n] * (c - css[n])
-            C[n] = c
+        C = _modal_steps(md, U, d[idx], c)                             # (intervals, k)
+        c = C[-1]
         growth[k + 1:j + 2] = C @ md.gk + U @ md.Dg
         heat[k + 1:j + 2] = C @ md.vk + U @ md.Dv
         if store_fields:
             states[k + 1:j + 2] = C @ md.phi.T + U @ md.X.T
         x = md.phi @ c + md.X @ U[-1]     # nodal state carried into the next run of h
         runs += 1
-        k = j + 1
-    for t_e, a_e, b_e, r_e in events:
-        after = bps > t_e
-        w = np.exp(-r_e * (bps[after] - t_e))
-        est[after] += a_e * w
-        bound[after] += b_e * w
+    est, bound = _error_curves(events, bps)
     if not rigorous or runs > 1:
         bound[1:] = np.nan
-    pick = np.searchsorted(bps, np.clip(out_t, 0.0, edges[-1]))
+    pick = b.pick
     rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
     return ReducedResult(out_t.copy(), growth[pick], rhoc * heat[pick],
                          states[pick] if store_fields else None,

@@ -13,13 +13,13 @@ displacement sensor reads (the true growth plus white noise).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from arfem.params import InputError, Rod
 
-__all__ = ["TwinProgram", "SpindleTwin", "DEFAULT_PROGRAM"]
+__all__ = ["TwinProgram", "SpindleTwin", "TwinReading", "DEFAULT_PROGRAM"]
 
 #: (duration [h], speed [1/min]) segments of the default 20 h program, repeated
 DEFAULT_PROGRAM = ((3.0, 3000.0), (1.0, 0.0), (4.0, 4500.0), (2.0, 0.0), (2.0, 6000.0),
@@ -93,6 +93,30 @@ class TwinProgram:
                      * (np.sin(w * tm - phase) - np.sin(-phase)))
 
 
+@dataclass(frozen=True)
+class TwinReading:
+    """What the twin reads at the end of one Δτ (the inputs held over it).
+
+    ``time_s`` [s], ``speed_rpm`` [1/min], ``q_W_m2`` [W/m²] (NaN at the program's
+    ``nan_at_step``), ``ambient_C``, ``T_face_C`` (centre of the heated face) and
+    ``T_mid_C`` (surface at mid-length) [°C], each with the program's temperature noise;
+    ``true_growth_um`` (the FEM's) and ``growth_um`` (measured: plus the sensor noise) [µm].
+    """
+
+    time_s: float
+    speed_rpm: float
+    q_W_m2: float
+    ambient_C: float
+    T_face_C: float
+    T_mid_C: float
+    true_growth_um: float
+    growth_um: float
+
+    def as_dict(self) -> dict:
+        """Reading name → value, in the order above (a record's columns)."""
+        return asdict(self)
+
+
 @dataclass
 class SpindleTwin:
     """The FEM rod stepped through a :class:`TwinProgram`, one Δτ per :meth:`advance`.
@@ -101,9 +125,9 @@ class SpindleTwin:
     --------
     >>> tw = SpindleTwin(TwinProgram(growth_noise_um=0.0), nr=2, nz=8)
     >>> r = [tw.advance() for _ in range(60)]
-    >>> r[-1]["time_s"], r[-1]["speed_rpm"], round(r[-1]["q_W_m2"], 6)
+    >>> r[-1].time_s, r[-1].speed_rpm, round(r[-1].q_W_m2, 6)
     (3600.0, 3000.0, 2000.0)
-    >>> 0 < r[0]["growth_um"] < r[-1]["growth_um"]
+    >>> 0 < r[0].growth_um < r[-1].growth_um
     True
     """
 
@@ -122,13 +146,8 @@ class SpindleTwin:
         R, L = self.rod.radius_m, self.rod.length_m
         self._points = {"T_face_C": (0.0, 0.0), "T_mid_C": (R, 0.5 * L)}
 
-    def advance(self) -> dict:
-        """Step one Δτ; returns the readings at its end (inputs held over it).
-
-        Keys: ``time_s`` [s], ``speed_rpm`` [1/min], ``q_W_m2`` [W/m²], ``ambient_C``,
-        ``T_face_C``, ``T_mid_C`` [°C], ``growth_um`` (measured) and ``true_growth_um``
-        [µm].
-        """
+    def advance(self) -> TwinReading:
+        """Step one Δτ; returns the readings at its end (inputs held over it)."""
         p, rod = self.program, self.rod
         self.step_index += 1
         t = self.step_index * p.dtau_s
@@ -137,12 +156,11 @@ class SpindleTwin:
         amb = p.ambient_C(rod, t)
         g = self._stepper.step(q, rod.convection_W_m2K, amb - rod.ambient_C)
         noise = self._rng.standard_normal(4)
-        out = {"time_s": float(t), "speed_rpm": rpm, "q_W_m2": float(q),
-               "ambient_C": float(amb + p.temperature_noise_K * noise[0])}
-        for j, (name, pt) in enumerate(self._points.items()):
-            out[name] = float(self._stepper.temperature_C(pt) + p.temperature_noise_K * noise[1 + j])
-        out["true_growth_um"] = g
-        out["growth_um"] = float(g + p.growth_noise_um * noise[3])
-        if self.step_index == p.nan_at_step:
-            out["q_W_m2"] = float("nan")
-        return out
+        temps = {name: float(self._stepper.temperature_C(pt)
+                             + p.temperature_noise_K * noise[1 + j])
+                 for j, (name, pt) in enumerate(self._points.items())}
+        return TwinReading(
+            time_s=float(t), speed_rpm=rpm,
+            q_W_m2=float("nan") if self.step_index == p.nan_at_step else float(q),
+            ambient_C=float(amb + p.temperature_noise_K * noise[0]), **temps,
+            true_growth_um=g, growth_um=float(g + p.growth_noise_um * noise[3]))

@@ -19,18 +19,19 @@ from pathlib import Path
 
 import numpy as np
 
-from arfem.io import read_toml, write_csv, write_json
+from arfem.io import write_csv, write_json
 from arfem.models.allocation import tolerance
 from arfem.models.allocation.problem import (COMPONENT_UNIT, COMPONENTS, MAX_EVALUATIONS,
                                              ROTATIONS, allocate, unit_values,
                                              with_settings, work_estimate,
                                              worst_case_over_cycle)
-from arfem.models.allocation.scenario import AllocationScenario, build_chain, parse_scenario
+from arfem.models.allocation.scenario import AllocationScenario, build_chain
 from arfem.params import InputError
+from arfem.scenarios.allocation_file import load_allocation_scenario
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
-__all__ = ["add_parser", "main", "run_allocation", "load_allocation_scenario"]
+__all__ = ["add_parser", "main", "run_allocation"]
 
 #: Okabe-Ito colours (distinguishable with the common colour-vision deficiencies)
 OKABE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
@@ -44,12 +45,6 @@ WRITES = ("pareto.csv", "allocation.json", "pareto.png", "convergence.png", "sta
 MC_SEED = 1_000_003
 #: the converged run of the paper_literal model (the paper's own optimum)
 CONVERGED = {"pop_size": 200, "n_gen": 1000, "converge": True}
-
-
-def load_allocation_scenario(path) -> AllocationScenario:
-    """Read and validate an allocation scenario file; :class:`InputError` names the file and key."""
-    p = Path(path)
-    return parse_scenario(read_toml(p), str(p))
 
 
 def add_parser(subparsers) -> None:
@@ -83,11 +78,12 @@ def _percentile_of(values, x) -> float:
     return float(100.0 * (np.sum(v < x) + 0.5 * np.sum(v == x)) / len(v))
 
 
-def run_allocation(scenario_path, seeds: int | None = None, work_limit=MAX_EVALUATIONS) -> dict:
+def run_allocation(scenario_path, seeds: int | None = None, work_limit=MAX_EVALUATIONS,
+                   limits=None) -> dict:
     """Everything the writers need: scenario, chain, the runs of every seed, the pick."""
     if seeds is not None and not 1 <= seeds <= 100:
         raise InputError(f"must be 1 to 100, got {seeds}", "--seeds")
-    sc = load_allocation_scenario(scenario_path)
+    sc = load_allocation_scenario(scenario_path, limits)
     _check_work(sc, work_limit)
     chain, spindle = build_chain(sc)
     st = sc.settings
@@ -556,7 +552,8 @@ def main(args) -> int:
     out = prepare_out_dir(args.out, args.force, inputs=[args.scenario],
                           writes=WRITES)            # refuse early, before computing
     limit = None if getattr(args, "no_work_limit", False) else MAX_EVALUATIONS
-    run = run_allocation(args.scenario, getattr(args, "seeds", None), limit)
+    run = run_allocation(args.scenario, getattr(args, "seeds", None), limit,
+                         getattr(args, "limits", None))
     alloc = _allocation_json(run)
     command = f"arfem allocate {args.scenario} --out {args.out}" + (" --force" if args.force else "")
     st = run["result"].settings

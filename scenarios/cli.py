@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
 
 from arfem import __version__
+from arfem.limits import Limits
 from arfem.params import InputError, one_line
 
 #: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
@@ -98,19 +98,17 @@ def _error(message: str) -> int:
 def main(argv=None) -> int:
     parser = build_parser(command_in(sys.argv[1:] if argv is None else argv))
     args = parser.parse_args(argv)
-    flags = {"ARFEM_ALLOW_LARGE": getattr(args, "allow_large", False),
-             "ARFEM_ALLOW_CSV_OUTSIDE": getattr(args, "allow_csv_outside", False)}
-    saved = {k: os.environ.get(k) for k, on in flags.items() if on}
-    for k in saved:                            # for this command (and its worker processes)
-        os.environ[k] = "1"
-    try:
-        return _run(args)
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+    # the permissions, passed by the commands to their readers and workers as a value
+    args.limits = limits_of(args)
+    return _run(args)
+
+
+def limits_of(args) -> Limits:
+    """The :class:`arfem.limits.Limits` of a command's flags (``--allow-large``,
+    ``--allow-csv-outside``), joined with those the user set in the environment."""
+    return Limits(large=getattr(args, "allow_large", False),
+                  csv_outside=getattr(args, "allow_csv_outside", False)) \
+        | Limits.from_environment()
 
 
 def _run(args) -> int:

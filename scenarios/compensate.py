@@ -1,9 +1,9 @@
 """``arfem compensate MODEL.json RECORD.toml --out DIR``: replay a compensator on a record.
 
-Strictly causal: the record is stepped through row by row, and the offset for interval
-k is computed by :meth:`arfem.models.compensator.Compensator.step` from the inputs of
-rows up to k only (the same call a live loop makes). What is left after the offset is
-applied -- the residual the seed paper's Fig. 8 shows -- is measured growth + offset.
+Strictly causal (:func:`arfem.scenarios.replay.replay`): the record is stepped through
+row by row, and the offset for interval k is computed from the inputs of rows up to k
+only (the same call a live loop makes). What is left after the offset is applied -- the
+residual the seed paper's Fig. 8 shows -- is measured growth + offset.
 
 Writes ``compensated.csv`` (per row: inputs, measured and predicted growth, offset,
 residual), ``summary.json``, ``summary.md`` (the verdict first), ``figure.png``
@@ -18,16 +18,14 @@ from __future__ import annotations
 import math
 import re
 
-import numpy as np
-
 from arfem.io import atomic_write_text, write_csv, write_json
-from arfem.models.compensator import Compensator
 from arfem.params import InputError
 from arfem.scenarios.html_report import write_html_report
-from arfem.scenarios.model_file import check_inputs, read_model
+from arfem.scenarios.model_file import read_model
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+from arfem.scenarios.replay import Replay, replay
 
-__all__ = ["replay", "parse_duration_s", "add_parser", "main", "WRITES"]
+__all__ = ["parse_duration_s", "add_parser", "main", "WRITES"]
 
 WRITES = ("compensated.csv", "summary.json", "summary.md", "figure.png", "report.html")
 
@@ -47,136 +45,54 @@ def parse_duration_s(text: str, where: str = "--probe-every") -> float:
     return v
 
 
-def _record_inputs(ds) -> dict:
-    cols = {}
-    for name in ("q_W_m2", "speed_rpm", "ambient_C"):
-        v = getattr(ds, name)
-        if v is not None:
-            cols[name] = np.asarray(v, float)
-    cols.update({k: np.asarray(v, float) for k, v in ds.temperatures.items()})
-    return cols
-
-
-def replay(model, ds, *, max_offset_um=math.inf, max_step_um=math.inf,
-           probe_every_s: float | None = None, score_from_s: float = 0.0,
-           where: str = "record") -> dict:
-    """Step ``model`` through the dataset ``ds`` causally; the series and the figures.
-
-    The whole record is stepped through (the state starts at the model's ``x0`` at the
-    first row); the error measures are taken over the rows at or after ``score_from_s``
-    [s] (e.g. the end of the model's fit window, for an out-of-sample figure).
-
-    Returns a dict with the per-row ``series`` and the ``summary`` numbers.
-    """
-    inputs = _record_inputs(ds)
-    check_inputs(model, inputs, where)
-    t = np.asarray(ds.time_s, float)
-    dt = np.diff(t)
-    med = float(np.median(dt)) if dt.size else float("nan")
-    if not (abs(med - model.dtau_s) <= 0.01 * model.dtau_s):
-        raise InputError(f"is sampled every {med:g} s, the model steps every "
-                         f"{model.dtau_s:g} s; make a model at the record's interval", where)
-    g = np.asarray(ds.growth_um, float)
-    comp = Compensator(model, max_offset_um=max_offset_um, max_step_um=max_step_um)
-    n = t.size
-    pred, off = np.full(n, np.nan), np.zeros(n)
-    held = clamped = limited = 0
-    next_probe = probe_every_s if probe_every_s else math.inf
-    gains = []
-    names = [i.name for i in model.inputs]
-    # a first row at t = 0 is the equilibrium start, no interval ends there; a later
-    # first row closes the interval that began at t = 0 (the contract), so it is stepped
-    first = 1 if t[0] <= 0.0 else 0
-    for k in range(first, n):
-        cyc = comp.step({nm: inputs[nm][k] for nm in names})
-        pred[k], off[k] = cyc.predicted_growth_um, cyc.offset_um
-        held += cyc.held
-        clamped += "clamped" in cyc.alarms
-        limited += "rate_limited" in cyc.alarms
-        if t[k] >= next_probe:                       # a touch probe at this instant
-            gains.append(comp.probe(float(g[k])))
-            next_probe += probe_every_s
-    resid = g + off
-    ok = np.isfinite(g) & (t >= score_from_s)
-    ok[:first] = False
-    if not ok.any():
-        raise InputError(f"has no row at or after {score_from_s:g} s to score", where)
-
-    def rms(x):
-        return float(np.sqrt(np.mean(x[ok] ** 2)))
-
-    def pp(x):
-        return float(np.ptp(x[ok]))
-
-    summary = {
-        "model_kind": model.kind, "model_description": model.description,
-        "dataset": ds.name, "dtau_s": model.dtau_s, "n_cycles": int(n - first),
-        "score_from_s": float(score_from_s), "n_scored": int(ok.sum()),
-        "rms_before_um": rms(g), "rms_after_um": rms(resid),
-        "peak_to_peak_before_um": pp(g), "peak_to_peak_after_um": pp(resid),
-        "compensation_rate_rms_pct": 100.0 * (1.0 - rms(resid) / rms(g)) if rms(g) else None,
-        "compensation_rate_pp_pct": 100.0 * (1.0 - pp(resid) / pp(g)) if pp(g) else None,
-        "largest_offset_step_um": float(np.max(np.abs(np.diff(off)))) if n > 1 else 0.0,
-        "max_offset_um": max_offset_um if math.isfinite(max_offset_um) else None,
-        "max_step_um": max_step_um if math.isfinite(max_step_um) else None,
-        "cycles_held": int(held), "cycles_clamped": int(clamped),
-        "cycles_rate_limited": int(limited),
-        "probe_every_s": probe_every_s, "n_probes": len(gains),
-        "probe_gain_mean": float(np.mean(gains)) if gains else None,
-    }
-    series = {"time_s": t, **{nm: inputs[nm] for nm in names}, "measured_growth_um": g,
-              "predicted_growth_um": pred, "offset_um": off, "residual_um": resid}
-    return {"summary": summary, "series": series}
-
-
-def _figure(res, path) -> None:
+def _figure(res: Replay, path) -> None:
     from matplotlib.figure import Figure
-    s = res["series"]
-    th = s["time_s"] / 3600.0
+    s = res.series
+    th = s.time_s / 3600.0
     fig = Figure(figsize=(8.0, 6.0), dpi=130, layout="constrained")
     ax, bx = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    ax.plot(th, s["measured_growth_um"], color="#0072B2", lw=1.2,
+    ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
             label="without compensation (measured growth)")
-    ax.plot(th, s["residual_um"], color="#D55E00", lw=1.2,
+    ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
             label="with compensation (measured + offset)")
     ax.axhline(0.0, color="0.5", lw=0.8)
-    m = res["summary"]
-    ax.set_title(f"{m['dataset']}: {m['model_kind']}, RMS {m['rms_before_um']:.3g} → "
-                 f"{m['rms_after_um']:.3g} µm")
+    m = res.summary
+    ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
+                 f"{m.rms_after_um:.3g} µm")
     ax.set_ylabel("thermal error [µm]")
     ax.legend(loc="upper left", fontsize=8)
-    for nm in [k for k in s if k not in ("time_s", "measured_growth_um",
-                                          "predicted_growth_um", "offset_um", "residual_um")]:
-        bx.plot(th, s[nm], lw=1.0, label=nm)
+    for nm, values in s.inputs.items():
+        bx.plot(th, values, lw=1.0, label=nm)
     bx.set_xlabel("time [h]")
     bx.set_ylabel("inputs")
     bx.legend(loc="upper right", fontsize=8)
     fig.savefig(path)
 
 
-def _markdown(res) -> str:
-    m = res["summary"]
-    rate = m["compensation_rate_rms_pct"]
-    text = (f"Compensating with `{m['model_kind']}` {'reduces' if rate and rate > 0 else 'does not reduce'} "
-            f"the thermal error of `{m['dataset']}`: RMS {m['rms_before_um']:.3g} → "
-            f"{m['rms_after_um']:.3g} µm ({rate:.0f} %), peak to peak "
-            f"{m['peak_to_peak_before_um']:.3g} → {m['peak_to_peak_after_um']:.3g} µm, "
+def _markdown(res: Replay) -> str:
+    m = res.summary
+    rate = m.compensation_rate_rms_pct
+    text = (f"Compensating with `{m.model_kind}` {'reduces' if rate and rate > 0 else 'does not reduce'} "
+            f"the thermal error of `{m.dataset}` ({m.score_window_text()}): RMS "
+            f"{m.rms_before_um:.3g} → "
+            f"{m.rms_after_um:.3g} µm ({rate:.0f} %), peak to peak "
+            f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
             "replayed strictly causally.")
-    if m["cycles_held"]:
-        text += f" The offset was held in {m['cycles_held']} cycles (an input was not usable)."
-    L = [f"# Compensation replay: `{m['dataset']}`", "", "## Verdict", "", text, "",
+    if m.cycles_held:
+        text += f" The offset was held in {m.cycles_held} cycles (an input was not usable)."
+    L = [f"# Compensation replay: `{m.dataset}`", "", "## Verdict", "", text, "",
          "![thermal error with and without compensation, inputs below](figure.png)", "",
          "| measure | without | with compensation |", "|---|---|---|",
-         f"| RMS [µm] | {m['rms_before_um']:.4g} | {m['rms_after_um']:.4g} |",
-         f"| peak to peak [µm] | {m['peak_to_peak_before_um']:.4g} | "
-         f"{m['peak_to_peak_after_um']:.4g} |", "", "## The replay", "",
-         f"Model: {m['model_description'] or m['model_kind']}; Δτ = {m['dtau_s']:g} s; "
-         f"{m['n_cycles']} cycles. Largest offset step {m['largest_offset_step_um']:.4g} µm; "
-         f"clamped in {m['cycles_clamped']} and rate-limited in {m['cycles_rate_limited']} "
-         f"cycles (limits: ±{m['max_offset_um'] or '∞'} µm, "
-         f"±{m['max_step_um'] or '∞'} µm per cycle).",
-         "", (f"Probes every {m['probe_every_s']:g} s: {m['n_probes']} Kalman updates, mean gain "
-              f"{m['probe_gain_mean']:.3g}." if m["n_probes"] else "No probe updates."), "",
+         f"| RMS [µm] | {m.rms_before_um:.4g} | {m.rms_after_um:.4g} |",
+         f"| peak to peak [µm] | {m.peak_to_peak_before_um:.4g} | "
+         f"{m.peak_to_peak_after_um:.4g} |", "", "## The replay", "",
+         f"Model: {m.model_description or m.model_kind}; Δτ = {m.dtau_s:g} s; "
+         f"{m.n_cycles} cycles. Largest offset step {m.largest_offset_step_um:.4g} µm; "
+         f"clamped in {m.cycles_clamped} and rate-limited in {m.cycles_rate_limited} "
+         f"cycles (limits: ±{m.max_offset_um or '∞'} µm, "
+         f"±{m.max_step_um or '∞'} µm per cycle).",
+         "", (f"Probes every {m.probe_every_s:g} s: {m.n_probes} Kalman updates, mean gain "
+              f"{m.probe_gain_mean:.3g}." if m.n_probes else "No probe updates."), "",
          "Files: `compensated.csv` (every cycle), `summary.json`, `figure.png`, "
          "`report.html`."]
     return "\n".join(L) + "\n"
@@ -205,9 +121,11 @@ def add_parser(sub) -> None:
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
                         "correct the model's state (Kalman update); default: never")
-    p.add_argument("--score-from", type=float, default=0.0, metavar="SECONDS",
-                   help="measure the error from this time on [s] (e.g. the end of the "
-                        "model's fit window); the replay itself always starts at the first row")
+    p.add_argument("--score-from", type=float, default=None, metavar="SECONDS",
+                   help="measure the error from this time on [s]; default: after the "
+                        "model's fit window (fit_window_s in model.json), or every row for "
+                        "a model without one; 0 scores every row. The replay itself "
+                        "always starts at the first row")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
 
@@ -229,21 +147,22 @@ def main(args) -> int:
             raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
-    model = read_model(args.model)
-    ds = load_dataset(args.record)
-    if not math.isfinite(args.score_from):
+    model = read_model(args.model, args.limits)
+    ds = load_dataset(args.record, args.limits)
+    if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")
     res = replay(model, ds, max_offset_um=args.max_offset_um, max_step_um=args.max_step_um,
                  probe_every_s=probe, score_from_s=args.score_from, where=str(args.record))
     with staged_out_dir(args.out, args.force) as stage:
-        write_csv(stage / "compensated.csv", res["series"])
-        write_json(stage / "summary.json", res["summary"])
+        write_csv(stage / "compensated.csv", res.series.columns())
+        write_json(stage / "summary.json", res.summary.to_dict())
         atomic_write_text(stage / "summary.md", _markdown(res))
         _figure(res, stage / "figure.png")
         write_html_report(stage)
-    m = res["summary"]
-    print(f"{m['dataset']}: {m['model_kind']}: RMS {m['rms_before_um']:.3g} -> "
-          f"{m['rms_after_um']:.3g} µm, peak to peak {m['peak_to_peak_before_um']:.3g} -> "
-          f"{m['peak_to_peak_after_um']:.3g} µm; wrote {args.out}")
+    m = res.summary
+    print(f"{m.dataset}: {m.model_kind}, {m.score_window_text()}: RMS "
+          f"{m.rms_before_um:.3g} -> {m.rms_after_um:.3g} µm, peak to peak "
+          f"{m.peak_to_peak_before_um:.3g} -> {m.peak_to_peak_after_um:.3g} µm; "
+          f"wrote {args.out}")
     return 0

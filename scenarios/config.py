@@ -55,6 +55,7 @@ from typing import Any
 
 from arfem.params import InputError, Rod, Schedule, check_plausible, steps_per_segment
 from arfem.io import read_toml
+from arfem.limits import Limits, resolve
 from arfem.strict import boolean as _bool
 from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
@@ -160,17 +161,19 @@ def builtin_scenario_path(name: str) -> Path:
     return Path(str(p))
 
 
-def load_scenario(path) -> Scenario:
-    """Load and validate a scenario file (or a built-in name such as ``paper_fig2``)."""
+def load_scenario(path, limits: Limits | None = None) -> Scenario:
+    """Load and validate a scenario file (or a built-in name such as ``paper_fig2``);
+    ``limits`` (:class:`arfem.limits.Limits`) as the user allows."""
     p = Path(path)
     if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
         p = builtin_scenario_path(p.name)
-    return scenario_from_dict(read_toml(p), str(p))
+    return scenario_from_dict(read_toml(p, limits), str(p), limits)
 
 
 # -- validation helpers ---------------------------------------------------------------
 
-def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
+def scenario_from_dict(data: dict, source: str = "<scenario>",
+                       limits: Limits | None = None) -> Scenario:
     """Validate a scenario given as a dict (as read from TOML).
 
     Errors name ``source`` and the key path, e.g.
@@ -178,7 +181,7 @@ def scenario_from_dict(data: dict, source: str = "<scenario>") -> Scenario:
     """
     try:
         sc = _from_dict(data, source)
-        check_size(sc)
+        check_size(sc, limits)
         return sc
     except InputError as exc:
         if exc.where and exc.where.startswith(source):
@@ -420,7 +423,7 @@ __all__ += ["estimate_cost", "check_size", "MAX_TIME_STEPS", "MAX_MEMORY_BYTES",
 
 #: Size limits checked on the estimate of :func:`estimate_cost` before any work; each
 #: is far above the paper's case (441 unknowns, 2880 steps, ~70 MB) and is lifted by
-#: ``--allow-large`` (or ``ARFEM_ALLOW_LARGE=1``).
+#: ``--allow-large`` (:class:`arfem.limits.Limits`; or ``ARFEM_ALLOW_LARGE=1``).
 MAX_TIME_STEPS = 2_000_000          # AR samples or FEM θ-steps over the cycle
 MAX_MEMORY_BYTES = 2 * 1024 ** 3    # estimated peak of the arrays one run holds [bytes]
 MAX_WORK_FLOP = 5e11                # estimated floating-point operations (minutes)
@@ -478,12 +481,11 @@ def estimate_cost(sc: Scenario) -> dict:
             "work_flop": work}
 
 
-def check_size(sc: Scenario) -> dict:
+def check_size(sc: Scenario, limits: Limits | None = None) -> dict:
     """Refuse (one line) a scenario whose :func:`estimate_cost` exceeds the limits
     (:data:`MAX_TIME_STEPS`, :data:`MAX_MEMORY_BYTES`, :data:`MAX_WORK_FLOP`) unless
-    the user lifted them with ``--allow-large``, or that asks for more than
-    :data:`MAX_FIELD_SNAPSHOTS` snapshots (not lifted). Returns the estimate."""
-    from arfem.io import allow_large
+    the user lifted them (``limits.large``, ``--allow-large``), or that asks for more
+    than :data:`MAX_FIELD_SNAPSHOTS` snapshots (not lifted). Returns the estimate."""
     n_snap = sc.schedule.total_s / sc.outputs.field_interval_s
     if (sc.outputs.picture or sc.fem.elastic) and n_snap > MAX_FIELD_SNAPSHOTS:
         # the snapshots are solved for the picture and the elastic growth too
@@ -492,7 +494,7 @@ def check_size(sc: Scenario) -> dict:
                          f"{MAX_FIELD_SNAPSHOTS} (or set outputs.fields, outputs.picture and "
                          "fem.elastic to false)", "outputs.field_interval_s")
     c = estimate_cost(sc)
-    if allow_large():
+    if resolve(limits).large:
         return c
     lift = "pass --allow-large to run it anyway"
     if c["n_samples"] > MAX_TIME_STEPS:

@@ -18,23 +18,21 @@ equilibrium with the nominal ambient) or ``"unknown"``.
 """
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
-import os
 import re
 from pathlib import Path
 
 import numpy as np
 
 from arfem.io import read_text_utf8, read_toml
+from arfem.limits import Limits, resolve
 from arfem.strict import check_keys
 from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
 from arfem.models.diagnosis.stats import resolution
 from arfem.params import InputError, Rod, check_plausible
 
-__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
-           "allow_csv_outside"]
+__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES"]
 
 #: ``[rod]`` keys of the contract (a subset of :class:`arfem.params.Rod`'s fields).
 ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
@@ -73,7 +71,7 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _parse_meta(path: Path, doc: dict):
+def _parse_meta(path: Path, doc: dict, limits: Limits):
     """Validate the TOML tables; return (name, csv_path, initial_known, rod, columns, sensors)."""
     where = str(path)
     try:
@@ -132,7 +130,7 @@ def _parse_meta(path: Path, doc: dict):
                 _fail(f"must be a string, got {v!r}", f"{where}: sensors.{key}.{k}")
         sensors[key] = table.get("description", "")
     csv_path = path.parent / csv_name
-    if not _inside(csv_path, path.parent) and not _csv_anywhere():
+    if not _inside(csv_path, path.parent) and not limits.csv_outside:
         _fail(f"{csv_name!r} is outside the dataset's folder; arfem reads only files beside "
               "the TOML (pass --allow-csv-outside to read it anyway)", f"{where}: dataset.csv")
     return name, csv_path, initial == "unknown", rod, dict(columns), sensors
@@ -147,33 +145,12 @@ def _inside(p: Path, folder: Path) -> bool:
         return False
 
 
-def _csv_anywhere() -> bool:
-    return os.environ.get("ARFEM_ALLOW_CSV_OUTSIDE", "") not in ("", "0")
-
-
-@contextlib.contextmanager
-def allow_csv_outside():
-    """Within this block (and in processes it starts) a dataset TOML may name a CSV
-    outside its folder, as ``arfem diagnose --allow-csv-outside`` does; the cells of such
-    a file are still never shown in error messages."""
-    old = os.environ.get("ARFEM_ALLOW_CSV_OUTSIDE")
-    os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = "1"
-    try:
-        yield
-    finally:
-        if old is None:
-            os.environ.pop("ARFEM_ALLOW_CSV_OUTSIDE", None)
-        else:
-            os.environ["ARFEM_ALLOW_CSV_OUTSIDE"] = old
-
-
-def _read_csv(path: Path, toml_path: Path):
+def _read_csv(path: Path, toml_path: Path, limits: Limits):
     """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
-    from arfem.io import allow_large
     text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})",
-                          max_bytes=MAX_CSV_BYTES)
+                          max_bytes=MAX_CSV_BYTES, limits=limits)
     n_rows = text.count("\n") - 1                 # minus the header
-    if n_rows > MAX_ROWS and not allow_large():
+    if n_rows > MAX_ROWS and not limits.large:
         _fail(f"has about {n_rows:,} rows; arfem diagnoses at most {MAX_ROWS:,} (resample "
               "the record, or pass --allow-large)", str(path))
     reader = csv.reader(io.StringIO(text, newline=""), strict=True)
@@ -448,7 +425,7 @@ def _frozen(a) -> np.ndarray:
     return a
 
 
-def load_dataset(toml_path) -> Dataset:
+def load_dataset(toml_path, limits: Limits | None = None) -> Dataset:
     """Load and validate a measured dataset per the measured-data contract.
 
     Parameters
@@ -456,6 +433,9 @@ def load_dataset(toml_path) -> Dataset:
     toml_path : str or path-like
         The dataset's TOML file; its ``[dataset] csv`` (default ``<stem>.csv``) is
         read relative to it.
+    limits : arfem.limits.Limits, optional
+        What the user allows: a larger file or more rows (``large``), a CSV outside the
+        TOML's folder (``csv_outside``). Default: :meth:`Limits.from_environment`.
 
     Returns
     -------
@@ -477,9 +457,10 @@ def load_dataset(toml_path) -> Dataset:
     ('q_W_m2', [0.0, 0.2, 0.4], 55.0)
     """
     toml_path = Path(toml_path)
-    doc = read_toml(toml_path)
-    name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc)
-    header, rows, lines = _read_csv(csv_path, toml_path)
+    limits = resolve(limits)
+    doc = read_toml(toml_path, limits)
+    name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc, limits)
+    header, rows, lines = _read_csv(csv_path, toml_path, limits)
     notes: list[str] = []
     col, extra = _column_indices(mapping, header, toml_path, csv_path)
 

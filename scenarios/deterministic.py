@@ -29,7 +29,7 @@ another machine with the same package versions, leaves ``git diff`` clean:
 * wall times and host facts are printed, never written into committed files.
 
 :func:`compare_summary` and :func:`compare_timeseries` (used by
-:func:`arfem.scenarios.run.check_reproduction`) compare recomputed numbers with committed ones
+:func:`arfem.scenarios.run_outputs.check_reproduction`) compare recomputed numbers with committed ones
 within :data:`TOLERANCE_UNITS` units in the last written decimal (plus 1e-9 relative):
 a real change of the physics or numerics moves them by far more, a machine's round-off by
 far less.

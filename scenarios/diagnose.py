@@ -99,12 +99,13 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
 
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
-                  progress=None, drift_last: bool = False) -> Diagnosis:
+                  progress=None, drift_last: bool = False, limits=None) -> Diagnosis:
     """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` and
-    ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`."""
+    ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`, ``limits``
+    (:class:`arfem.limits.Limits`) as :func:`arfem.scenarios.dataset.load_dataset`."""
     if progress is not None:
         progress("reading the dataset")
-    return diagnose(load_dataset(toml_path), holdout_start_s, frame_search, progress,
+    return diagnose(load_dataset(toml_path, limits), holdout_start_s, frame_search, progress,
                     drift_last=drift_last)
 
 
@@ -135,7 +136,7 @@ def add_parser(subparsers):
 
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
-                  progress=None, drift_last=False):
+                  progress=None, drift_last=False, limits=None):
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
@@ -143,7 +144,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
     if progress is not None:
         progress("reading the dataset")
-    ds = load_dataset(case)
+    ds = load_dataset(case, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     if progress is not None:
         progress("writing outputs")
@@ -161,7 +162,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
 def main(args) -> int:
     with Progress(12, "arfem diagnose", enabled=not args.no_progress) as progress:
         s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
-                          args.frame_search, progress, args.drift_last)
+                          args.frame_search, progress, args.drift_last, args.limits)
     h = s["holdout"]
     named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
     print(f"{s['dataset']}: cause = {named}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
-from arfem.models.diagnosis.speed_intervals import EDGE_TOL, SEARCH_RANGES
+from arfem.models.diagnosis.speed_intervals import at_search_edge
 from arfem.io import atomic_write_text, write_csv, write_json
 
 __all__ = ["write_all"]
@@ -175,12 +175,10 @@ def _sentences(item: str) -> list[str]:
 
 def _unbounded(name, ci) -> str:
     """A note when a 95 % interval reaches an end of the range the fit can return: the
-    data do not bound the parameter there (e.g. a frame time constant 0.1-200 h)."""
-    lo, hi = SEARCH_RANGES.get(name, (None, None))
-    ends = [e for e, v in ((lo, ci[0]), (hi, ci[1]))
-            if e is not None and abs(v - e) <= EDGE_TOL * e]
+    data do not bound the parameter there (e.g. a frame time constant 0.1-200 h); the
+    one test of an end, :func:`arfem.models.diagnosis.speed_intervals.at_search_edge`."""
     return ("; reaches the end of the range the fit can return, so the data do not bound it"
-            if ends else "")
+            if at_search_edge(name, ci[0]) or at_search_edge(name, ci[1]) else "")
 
 
 #: what an engineer can do about each named cause (the verdict's last sentence)

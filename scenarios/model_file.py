@@ -20,7 +20,7 @@ from arfem.params import InputError
 __all__ = ["read_model", "write_model", "check_inputs"]
 
 
-def read_model(path) -> StateSpaceModel:
+def read_model(path, limits=None) -> StateSpaceModel:
     """Read and validate ``model.json``.
 
     Raises
@@ -28,7 +28,7 @@ def read_model(path) -> StateSpaceModel:
     InputError
         ``<file>: <key>: <what is wrong>``.
     """
-    text = read_text_utf8(path)
+    text = read_text_utf8(path, limits=limits)
 
     def constant(token):
         raise InputError(f"holds {token}, which is not a JSON number (every number of a "

@@ -27,44 +27,16 @@ import asyncio
 import logging
 import math
 import signal
-import socket
 import sys
 
 from arfem.params import InputError
+from arfem.scenarios.twin_record import TwinCycle, free_port, write_record
 
-__all__ = ["NAMESPACE", "READINGS", "serve", "add_parser", "main", "write_record"]
+__all__ = ["NAMESPACE", "READINGS", "serve", "add_parser", "main"]
 
 NAMESPACE = "urn:arfem:twin"
 READINGS = ("time_s", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C", "T_mid_C",
             "growth_um", "true_growth_um", "error_um")
-
-
-def free_port() -> int:
-    """A TCP port free on 127.0.0.1 now (the OS's choice)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def write_record(directory, rows: list, name: str = "twin") -> None:
-    """The twin's history as a measured-data record (contract TOML + CSV), atomically;
-    a NaN reading is an empty cell, every number is written exactly (repr)."""
-    from pathlib import Path
-
-    from arfem.io import atomic_write_text
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
-    cols = ("time_s", "growth_um", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C", "T_mid_C",
-            "true_growth_um", "offset_um", "error_um", "alarm_set")
-
-    def cell(v):
-        return "" if v is None or not math.isfinite(v) else repr(float(v))
-    lines = [",".join(cols)] + [",".join(cell(r.get(c)) for c in cols) for r in rows]
-    atomic_write_text(d / f"{name}.csv", "\n".join(lines) + "\n")
-    atomic_write_text(d / f"{name}.toml", (
-        "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
-        "# a daily ambient swing; growth_um = true growth + sensor noise\n"
-        f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n'))
 
 
 def _user_manager(name: str, secret: str):
@@ -83,7 +55,7 @@ def _user_manager(name: str, secret: str):
 async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
                 ready=None, secure_dir=None, credentials=None) -> list:
     """Run the server until ``steps`` intervals are done (0 = until cancelled or a
-    signal); returns the history (one dict of readings per interval).
+    signal); returns the history (one :class:`TwinCycle` per interval).
 
     ``secure_dir``: serve Basic256Sha256 SignAndEncrypt only, with a self-signed server
     certificate kept there (made on first use); ``credentials``: (user, password), the
@@ -129,21 +101,21 @@ async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
     state = {"offset": 0.0, "alarm": "", "now": None}
     done = asyncio.Event()
 
-    async def publish(r):
+    async def publish(values: dict):
         for name in READINGS:
-            if name in r:
+            if name in values:
                 await server.write_attribute_value(
-                    nodes[name].nodeid, ua.DataValue(ua.Variant(r[name], ua.VariantType.Double)))
+                    nodes[name].nodeid,
+                    ua.DataValue(ua.Variant(values[name], ua.VariantType.Double)))
 
     def close():
         """The interval in force ends: its offset, alarm and error go to the history."""
         r = state.pop("now", None)
         state["now"] = None
         if r is not None:
-            r["offset_um"] = state["offset"]
-            r["alarm_set"] = 1.0 if state["alarm"] else 0.0
-            r["error_um"] = r["true_growth_um"] + state["offset"]
-            history.append(r)
+            history.append(TwinCycle(r, offset_um=state["offset"],
+                                     alarm_set=1.0 if state["alarm"] else 0.0,
+                                     error_um=r.true_growth_um + state["offset"]))
 
     async def advance():
         """Close the interval in force and start the next (unless ``steps`` are done)."""
@@ -152,9 +124,8 @@ async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
             done.set()
             return
         r = twin.advance()
-        r["error_um"] = r["true_growth_um"] + state["offset"]
         state["now"] = r
-        await publish(r)
+        await publish({**r.as_dict(), "error_um": r.true_growth_um + state["offset"]})
 
     async def on_write(event, dispatcher):
         ids = [w.NodeId for w in event.request_params.NodesToWrite]

@@ -9,7 +9,8 @@ from arfem.models.allocation import screw, tolerance
 from arfem.models.allocation.problem import (allocate, evaluate_design, knee_index,
                                              unit_values, with_settings)
 from arfem.models.allocation.scenario import build_chain
-from arfem.scenarios.allocate import load_allocation_scenario
+from arfem.params import InputError
+from arfem.scenarios.allocation_file import load_allocation_scenario
 from arfem.scenarios.cli import main
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios"
@@ -181,3 +182,21 @@ def test_idle_tolerances_are_left_at_their_upper_bound(chain_settings):
     for k, n in enumerate(names):
         if n.startswith(("piston_", "rack_")) and not n.split("_")[1] == "dx":
             assert np.all(res.front_X[:, k] == hi[k]), n
+
+
+def test_the_allocation_reader_refuses_as_the_strict_reader_does():
+    """Issue 31: one strict reader. The allocation file's type and finiteness checks are
+    arfem.strict's, so a wrong value gets the same one line in every file kind (here a
+    boolean for a number, a huge integer, a number for a string)."""
+    from arfem import strict
+    from arfem.models.allocation.scenario import _Reader
+    rd = _Reader("a.toml")
+    for value, reader, check in ((True, rd.number, strict.number),
+                                 (10 ** 400, rd.number, strict.number),
+                                 (3, rd.string, strict.string),
+                                 ("yes", rd.boolean, strict.boolean)):
+        with pytest.raises(InputError) as mine:
+            reader({"k": value}, "k", "t.k", *(() if reader != rd.boolean else (False,)))
+        with pytest.raises(InputError) as theirs:
+            check(value, "a.toml: t.k")
+        assert str(mine.value) == str(theirs.value)

@@ -116,17 +116,17 @@ def test_replay_compensates_and_writes_every_output(workspace):
 
 def test_replay_is_causal(workspace):
     """Offsets up to row k do not depend on rows after k."""
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.model_file import read_model
     import dataclasses
     d, rec = workspace
     model, ds = read_model(d / "run" / "model.json"), load_dataset(rec)
-    full = replay(model, ds)["series"]["offset_um"]
+    full = replay(model, ds).series.offset_um
     k = ds.n_rows // 2
     cut = dataclasses.replace(ds, time_s=ds.time_s[:k], growth_um=ds.growth_um[:k],
                               q_W_m2=ds.q_W_m2[:k])
-    part = replay(model, cut)["series"]["offset_um"]
+    part = replay(model, cut).series.offset_um
     assert np.array_equal(part, full[:k])
 
 
@@ -172,3 +172,69 @@ def test_speed_model_maps_and_flags_extrapolation():
     assert mid.predicted_growth_um == pytest.approx(0.1) and not mid.alarms
     far = c.step({"speed_rpm": 2000.0})
     assert "extrapolated:speed_rpm" in far.alarms and not far.held
+
+
+def _with_fit_window(src, dst, window):
+    doc = json.loads(src.read_text())
+    doc["fit_window_s"] = list(window)
+    dst.write_text(json.dumps(doc))
+    return dst
+
+
+def test_replay_scores_after_the_fit_window_by_default(workspace):
+    """Issue 30 item 3: a model that carries ``fit_window_s`` is scored, by default, on
+    the rows after it only (an out-of-sample figure), and the headline of summary.md and
+    the terminal line say which hours were scored; ``--score-from 0`` still scores every
+    row and says that the fitted rows are in it. Exact row counts: the record is sampled
+    every 60 s from t = 0, so nothing here needs a tolerance."""
+    from arfem.scenarios.dataset import load_dataset
+    d, rec = workspace
+    t = np.asarray(load_dataset(rec).time_s, float)
+    model = _with_fit_window(d / "run" / "model.json", d / "fitted.json", (0.0, 12 * 3600.0))
+    r = _cli(model, rec, "--out", d / "after")
+    assert r.returncode == 0, r.stderr
+    s = json.loads((d / "after" / "summary.json").read_text())
+    assert s["score_basis"] == "after_fit_window"
+    assert s["score_from_s"] == float(t[t > 12 * 3600.0][0])
+    assert s["n_scored"] == int(np.sum(t > 12 * 3600.0))
+    assert s["fit_window_s"] == [0.0, 12 * 3600.0]
+    span = f"scored on {s['score_from_s'] / 3600:.1f}–{t[-1] / 3600:.1f} h, the part not fitted"
+    assert span in (d / "after" / "summary.md").read_text()
+    assert span in r.stdout
+
+    r = _cli(model, rec, "--out", d / "all", "--score-from", "0")
+    assert r.returncode == 0, r.stderr
+    s0 = json.loads((d / "all" / "summary.json").read_text())
+    assert s0["score_basis"] == "given" and s0["score_from_s"] == 0.0
+    assert s0["n_scored"] == int(np.sum(t > 0.0))        # a first row at t = 0 is no interval
+    assert "includes rows the model was fitted on" in (d / "all" / "summary.md").read_text()
+    # the same replay, only scored on more rows: the offsets are the same
+    a = np.loadtxt(d / "after" / "compensated.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(d / "all" / "compensated.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_replay_of_a_model_without_fit_window_scores_every_row_and_says_so(workspace):
+    """The paper's AR(1) from the rod's values (arfem run's model.json) was fitted on
+    nothing: the default scores from t = 0, and the headline says why."""
+    d, rec = workspace
+    assert "fit_window_s" not in json.loads((d / "run" / "model.json").read_text())
+    r = _cli(d / "run" / "model.json", rec, "--out", d / "nowindow")
+    assert r.returncode == 0, r.stderr
+    s = json.loads((d / "nowindow" / "summary.json").read_text())
+    assert s["score_basis"] == "no_fit_window" and s["score_from_s"] == 0.0
+    assert "fit_window_s" not in s
+    assert "the model carries no fit window" in (d / "nowindow" / "summary.md").read_text()
+
+
+def test_a_fit_window_covering_the_record_is_one_line(workspace):
+    """Nothing after the fit window: exit 2, one line pointing at --score-from 0, and no
+    --out written."""
+    from arfem.scenarios.dataset import load_dataset
+    d, rec = workspace
+    t_end = float(np.asarray(load_dataset(rec).time_s)[-1])
+    model = _with_fit_window(d / "run" / "model.json", d / "whole.json", (0.0, t_end))
+    r = _cli(model, rec, "--out", d / "nothing")
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and "--score-from 0" in r.stderr
+    assert not (d / "nothing").exists() or not any((d / "nothing").iterdir())

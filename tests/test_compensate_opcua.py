@@ -123,7 +123,7 @@ def read_csv(path):
 
 
 def test_live_equals_replay_and_limits_hold(tmp_path, procs, model_file):
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     mpath, model = model_file
     n = 240                                         # 4 h at Δτ = 60 s: heating and a stop
@@ -146,8 +146,8 @@ def test_live_equals_replay_and_limits_hold(tmp_path, procs, model_file):
     # replay of the twin's record (its inputs as it served them) through the same step
     res = replay(model, load_dataset(tmp_path / "twin.toml"), max_offset_um=12.0,
                  max_step_um=0.3)
-    assert np.array_equal(res["series"]["offset_um"], live_off)
-    err = rec["true_growth_um"] + res["series"]["offset_um"]
+    assert np.array_equal(res.series.offset_um, live_off)
+    err = rec["true_growth_um"] + res.series.offset_um
     assert np.max(np.abs(err - rec["error_um"])) <= 1e-12
 
 
@@ -216,7 +216,7 @@ def test_killed_server_holds_retries_and_recovers(tmp_path, procs, model_file):
 ])
 def test_bad_live_input_is_one_line_exit_2_before_any_offset(tmp_path, procs, model_file,
                                                               case, msg):
-    from arfem.scenarios.twin import free_port
+    from arfem.scenarios.twin_record import free_port
     mpath, _ = model_file
     twin = None
     if case == "unreachable":

@@ -163,3 +163,24 @@ def test_average_search_end_to_end_uses_the_median_block_ratio_rule(tmp_path):
         assert s["cause"] == min(sig, key=lambda c: c["median_block_ratio"])["cause"]
     else:
         assert s["cause"] == "none"
+
+
+def test_on_fit_reports_every_candidate_without_changing_the_diagnosis(tmp_path):
+    """The engine's on_fit hook (issue 31: explore_candidates.py studies every candidate
+    through it instead of replacing engine functions) is called with each speed cause's
+    fit on its boolean rows, and the diagnosis it watches is the same, to the bit, as
+    one without it (the hook only observes)."""
+    from arfem.models.diagnosis.engine import diagnose
+    from arfem.models.diagnosis.speed import SPEED_CAUSES
+    from arfem.scenarios.dataset import load_dataset
+    t, speed, y, temps = _record()
+    ds = load_dataset(_write(tmp_path, t, speed, y, temps))
+    seen = []
+    watched = diagnose(ds, HOLDOUT_S, intervals=False,
+                       on_fit=lambda c, rows, f: seen.append((c, rows.dtype, f)))
+    plain = diagnose(ds, HOLDOUT_S, intervals=False)
+    assert set(SPEED_CAUSES) <= {c for c, _, _ in seen}
+    assert all(dt == bool for _, dt, _ in seen)
+    assert watched.summary["cause"] == plain.summary["cause"]
+    assert np.array_equal(watched.series["extended_um"], plain.series["extended_um"],
+                          equal_nan=True)

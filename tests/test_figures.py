@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from arfem.scenarios.config import scenario_from_dict
-from arfem.scenarios.run import evaluate, growth_figure, write_outputs
+from arfem.scenarios.evaluation import evaluate
+from arfem.scenarios.run_outputs import growth_figure, write_outputs
 
 UNIT = re.compile(r"\[[^\]]+\]")          # "[µm]", "[h]", "[°C]"
 

@@ -337,7 +337,7 @@ ALLOC_SEEDS = sorted((REPO / "scenarios").glob("pallet_changer*.toml"))
 @given(seed=st.sampled_from(ALLOC_SEEDS), data=st.data())
 def test_fuzz_allocation_file(tmp_path, seed, data):
     """Mutated allocation scenarios: accepted or one line."""
-    from arfem.scenarios.allocate import load_allocation_scenario
+    from arfem.scenarios.allocation_file import load_allocation_scenario
     p = tmp_path / "a.toml"
     if data.draw(st.integers(0, 3)):
         p.write_text(to_toml(data.draw(mutated(_read(seed)))), "utf-8")

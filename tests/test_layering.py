@@ -167,3 +167,135 @@ def test_only_arfem_is_installed():
     assert all(p == "arfem" or p.startswith("arfem.") for p in st["packages"])
     assert set(st["package-dir"]) == set(FOLDERS.values())
     assert cfg["project"]["scripts"]["arfem"].startswith("arfem.")
+
+
+# -- command modules are entry points only --------------------------------------------
+#
+# A command module (one that defines ``add_parser``, which scenarios/cli.py registers) is
+# the CLI's: what another module, a report script, a benchmark or a test needs from it
+# lives in a library module (issue 31). The pairs below still break the rule; each names
+# why it is not moved yet. The list may only shrink: an entry that no longer occurs fails
+# too, so it is removed when its import goes.
+
+#: the one module that may import a command module
+CLI = "arfem.scenarios.cli"
+_REPORT = ("the report's ownership is reworked in parallel (issue 30); write_html_report "
+           "moves out of the `report` command after that merges")
+_DIAGNOSE = ("scenarios/diagnose.py is reworked in parallel (issue 30: verdict, speed); "
+             "diagnose_file, run_diagnosis and compensator_models move to a library module "
+             "after that merges")
+_SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
+          "reworked in parallel; its CLI moves to sweep/command.py after that merges")
+#: (importing file, command module) -> why it is still allowed
+KNOWN_COMMAND_IMPORTS = {
+    ("arfem/api.py", "arfem.scenarios.sweep"): _SWEEP,
+    ("arfem/api.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/compensate.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/diagnose.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
+    ("benchmarks/bench_diagnosis.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("benchmarks/bench_diagnosis_outside.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
+    ("reports/fl_thermal/compensation.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("reports/fl_thermal/regenerate.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_allocation_paper.py", "arfem.scenarios.allocate"): "tests the command's converged-run setting (CONVERGED, patched smaller)",
+    ("tests/test_compensate_diagnosed_model.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_coverage.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_hidden.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_real.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_record_mistakes.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_fuzz.py", "arfem.scenarios.sweep"): _SWEEP,
+    ("tests/test_html_report.py", "arfem.scenarios.html_report"): _REPORT,
+    ("tests/test_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
+}
+#: folders of scripts that are checked besides the package (a test of a command module
+#: runs it through arfem.scenarios.cli.main)
+SCRIPT_FOLDERS = ("benchmarks", "reports", "tests")
+
+
+def defines_command(source: str) -> bool:
+    """True for a command module: it defines ``add_parser`` at its top level."""
+    return any(isinstance(n, ast.FunctionDef) and n.name == "add_parser"
+               for n in ast.parse(source).body)
+
+
+def imported_names(source: str, module: str) -> list[tuple[int, str]]:
+    """Every module name ``source`` imports, with each ``from X import y`` also as X.y."""
+    out = []
+    pkg = module if module.count(".") == 0 else module.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg.rsplit(".", node.level - 1)[0] if node.level > 1 else pkg
+                name = f"{base}.{node.module}" if node.module else base
+            else:
+                name = node.module or ""
+            out.append((node.lineno, name))
+            out += [(node.lineno, f"{name}.{a.name}") for a in node.names]
+    return out
+
+
+def command_imports(source: str, module: str, commands: set[str]) -> list[tuple[int, str]]:
+    """(line, command module) for every command module ``source`` imports, unless it is
+    the CLI or the command module itself."""
+    if module == CLI:
+        return []
+    return sorted({(line, name) for line, name in imported_names(source, module)
+                   if name in commands and name != module})
+
+
+def command_module_names() -> set[str]:
+    return {name for path, name in package_modules()
+            if defines_command(path.read_text(encoding="utf-8"))}
+
+
+def checked_files():
+    """(path relative to the repository, module name) of every file the rule covers."""
+    for path, name in package_modules():
+        yield path.relative_to(REPO).as_posix(), name, path
+    for folder in SCRIPT_FOLDERS:
+        for path in sorted((REPO / folder).rglob("*.py")):
+            yield path.relative_to(REPO).as_posix(), "script", path
+
+
+def test_the_command_checker_flags_a_command_import():
+    """The checker itself: importing a command module from a library module, a script or
+    through ``from package import command`` is caught; the CLI, the command's own module
+    and a library module beside it are not (so a green run means something)."""
+    cmds = {"arfem.scenarios.run", "arfem.scenarios.compensate"}
+    src = "from arfem.scenarios.run import evaluate\n"
+    assert command_imports(src, "arfem.scenarios.check", cmds) == [(1, "arfem.scenarios.run")]
+    assert command_imports(src, "script", cmds) == [(1, "arfem.scenarios.run")]
+    assert command_imports("def f():\n    from arfem.scenarios import compensate\n",
+                           "arfem.api", cmds) == [(2, "arfem.scenarios.compensate")]
+    assert command_imports("import arfem.scenarios.run as r\n", "script", cmds)
+    assert command_imports("from .run import evaluate\n", "arfem.scenarios.check", cmds)
+    assert command_imports(src, CLI, cmds) == []
+    assert command_imports(src, "arfem.scenarios.run", cmds) == []
+    assert command_imports("from arfem.scenarios.evaluation import evaluate\n"
+                           "from arfem.scenarios.replay import replay\n", "script", cmds) == []
+    assert defines_command("def add_parser(sub):\n    pass\n")
+    assert not defines_command("def f():\n    def add_parser(sub):\n        pass\n")
+
+
+def test_command_modules_are_imported_by_the_cli_only():
+    """No module, report script, benchmark or test imports a command module (``run``,
+    ``compensate``, ``diagnose``, ``check``, ``sweep``, ``allocate``, ``twin``,
+    ``report``…) but scenarios/cli.py, except the pairs of KNOWN_COMMAND_IMPORTS; and
+    every one of those still occurs (the list only shrinks)."""
+    cmds = command_module_names()
+    assert {"arfem.scenarios.run", "arfem.scenarios.compensate"} <= cmds
+    found = {}
+    for rel, name, path in checked_files():
+        for line, cmd in command_imports(path.read_text(encoding="utf-8"), name, cmds):
+            found.setdefault((rel, cmd), line)
+    new = sorted(f"{rel}:{line} imports the command module {cmd}"
+                 for (rel, cmd), line in found.items() if (rel, cmd) not in KNOWN_COMMAND_IMPORTS)
+    assert new == [], "move what it needs into a library module"
+    stale = sorted(set(KNOWN_COMMAND_IMPORTS) - set(found))
+    assert stale == [], "remove these from KNOWN_COMMAND_IMPORTS: they no longer occur"

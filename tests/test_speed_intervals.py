@@ -211,3 +211,17 @@ def test_an_estimate_the_data_do_not_bound_gets_an_honest_interval():
     ci = jackknife_ci95(lambda r: fixed, fixed, np.zeros(400), rows,
                         ["frame_time_constant_h"], blocks=8)
     assert ci["frame_time_constant_h"] == list(SEARCH_RANGES["frame_time_constant_h"])
+
+
+def test_the_report_and_the_engine_share_one_search_edge_test():
+    """Issue 31: the report's 'reaches the end of the range' note uses the engine's
+    at_search_edge, so the two cannot disagree (they did for an interval beyond an
+    end: abs(v - e) <= tol e called 250 h not at the 200 h end)."""
+    from arfem.models.diagnosis.speed_intervals import SEARCH_RANGES, at_search_edge
+    from arfem.scenarios.diagnosis_report import _unbounded
+    name = "frame_time_constant_h"
+    lo, hi = SEARCH_RANGES[name]
+    for v in (0.5 * lo, lo, 1.005 * lo, 1.02 * lo, 10.0, 0.98 * hi, 0.995 * hi, hi, 1.25 * hi):
+        assert bool(_unbounded(name, (v, v))) == at_search_edge(name, v), v
+    assert _unbounded(name, (3.0, 1.25 * hi))                     # beyond the end: unbounded
+    assert not _unbounded(name, (3.0, 0.9 * hi))

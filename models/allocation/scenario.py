@@ -49,6 +49,7 @@ from arfem.models.allocation.problem import (COMPONENTS, COMPONENT_UNIT, CONSTRA
                                              COST_MODELS, FORMULAS, PICKS, ROTATIONS, Chain,
                                              Settings, Thermal, Unit)
 from arfem.params import PAPER_PHASES_S, PLAUSIBLE_RANGES, InputError, steps_per_segment
+from arfem import strict
 from arfem.strict import check_keys
 
 __all__ = ["AllocationScenario", "SpindleSpec", "UnitSpec", "TransmissionSpec", "parse_scenario",
@@ -123,11 +124,18 @@ class AllocationScenario:
 
 
 class _Reader:
+    """The allocation file's reader: defaults, ranges and key paths around the one
+    strict reader (:mod:`arfem.strict`), which checks every type, finiteness and unknown
+    key."""
+
     def __init__(self, where: str):
         self.where = where
 
+    def at(self, key: str) -> str:
+        return f"{self.where}: {key}"
+
     def err(self, key: str, msg: str) -> InputError:
-        return InputError(msg, f"{self.where}: {key}")
+        return InputError(msg, self.at(key))
 
     def table(self, d, key, allowed, required=()):
         if not isinstance(d, dict):
@@ -147,12 +155,7 @@ class _Reader:
             if default is None:
                 raise self.err(path, "is required")
             return float(default)
-        v = d[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise self.err(path, f"must be a number, got {type(v).__name__} {v!r}")
-        v = float(v)
-        if not math.isfinite(v):
-            raise self.err(path, f"must be finite, got {v!r}")
+        v = strict.number(d[key], self.at(path))
         if low is not None and (v < low or (low_open and v == low)):
             raise self.err(path, f"must be {'>' if low_open else '>='} {low:g}, got {v:g}")
         if high is not None and (v > high or (high_open and v == high)):
@@ -176,19 +179,14 @@ class _Reader:
             if default is None:
                 raise self.err(path, "is required")
             return default
-        v = d[key]
-        if not isinstance(v, str) or v not in options:
-            raise self.err(path, f"must be one of {', '.join(map(repr, options))}, got {v!r}")
-        return v
+        return strict.string(d[key], self.at(path), choices=options)
 
     def string(self, d, key, path, default=None, pattern=None):
         if key not in d:
             if default is None:
                 raise self.err(path, "is required")
             return default
-        v = d[key]
-        if not isinstance(v, str):
-            raise self.err(path, f"must be a string, got {type(v).__name__} {v!r}")
+        v = strict.string(d[key], self.at(path))
         if pattern is not None and not pattern.match(v):
             raise self.err(path, f"must be a name of letters, digits, '_' or '-', got {v!r}")
         return v
@@ -196,10 +194,7 @@ class _Reader:
     def boolean(self, d, key, path, default):
         if key not in d:
             return default
-        v = d[key]
-        if not isinstance(v, bool):
-            raise self.err(path, f"must be true or false, got {v!r}")
-        return v
+        return strict.boolean(d[key], self.at(path))
 
     def vector(self, d, key, path, n=3, default=None, bound=1e5):
         """``n`` finite numbers, each within ±``bound`` (in the unit the key names: a
@@ -292,6 +287,39 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
     desc = rd.string(sc, "description", "scenario.description", default="")
     formula = rd.choice(sc, "formula", "scenario.formula", FORMULAS, "screw")
     constraint = rd.choice(sc, "constraint", "scenario.constraint", CONSTRAINTS, "worst_case")
+    settings = _settings(rd, data, formula, constraint)
+    tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
+    tool = screw.pose(rd.vector(tl, "offset_mm", "tool.offset_mm"),
+                      rd.vector(tl, "rpy_deg", "tool.rpy_deg"))
+    ulist = data["units"]
+    if not isinstance(ulist, list) or not ulist:
+        raise rd.err("units", "must be a non-empty array of tables ([[units]])")
+    units = []
+    for i, d in enumerate(ulist):
+        units.append(_unit(rd, d, i, {u.name for u in units}))
+    if not any(u.free for u in units):
+        raise rd.err("units", "no unit has a free component: nothing to allocate")
+    if formula != "paper_literal" and settings.cost_model == "reciprocal_power":
+        for i, u in enumerate(units):
+            for c, (lo, _) in u.bounds.items():
+                if lo == 0.0:
+                    which = "rotation_mrad" if c in ROTATIONS else "translation_mm"
+                    raise rd.err(f"units[{i}].{which}", "lower bound 0 with the "
+                                 "reciprocal_power cost (A + B/t^k): a zero tolerance costs "
+                                 "infinitely much; give a lower bound > 0")
+    byname = {u.name: u for u in units}
+    if formula == "screw" and not any(u.branch == "tool" for u in units):
+        raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
+    trans = _transmission(rd, data, units, byname)
+    travel_unit, angles = _travel(rd, data, byname)
+    spindle = _spindle(rd, data, byname)
+    ref = _reference(rd, sc, byname)
+    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref,
+                              trans, travel_unit, angles)
+
+
+def _settings(rd: _Reader, data: dict, formula: str, constraint: str) -> Settings:
+    """The [tolerance], [cost] and [optimizer] tables as :class:`Settings`."""
     tol = rd.table(data["tolerance"], "tolerance",
                    {"delta_E_mm", "working_radius_mm", "target_yield", "yield_dist",
                     "yield_draws"}, required=("delta_E_mm",))
@@ -335,28 +363,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                                low_open=True),
         seed=rd.integer(op, "seed", "optimizer.seed", 1, 0, 2**32 - 1),
         pick=rd.choice(op, "pick", "optimizer.pick", PICKS, "knee"))
-    tl = rd.table(data.get("tool", {}), "tool", {"offset_mm", "rpy_deg"})
-    tool = screw.pose(rd.vector(tl, "offset_mm", "tool.offset_mm"),
-                      rd.vector(tl, "rpy_deg", "tool.rpy_deg"))
-    ulist = data["units"]
-    if not isinstance(ulist, list) or not ulist:
-        raise rd.err("units", "must be a non-empty array of tables ([[units]])")
-    units = []
-    for i, d in enumerate(ulist):
-        units.append(_unit(rd, d, i, {u.name for u in units}))
-    if not any(u.free for u in units):
-        raise rd.err("units", "no unit has a free component: nothing to allocate")
-    if formula != "paper_literal" and settings.cost_model == "reciprocal_power":
-        for i, u in enumerate(units):
-            for c, (lo, _) in u.bounds.items():
-                if lo == 0.0:
-                    which = "rotation_mrad" if c in ROTATIONS else "translation_mm"
-                    raise rd.err(f"units[{i}].{which}", "lower bound 0 with the "
-                                 "reciprocal_power cost (A + B/t^k): a zero tolerance costs "
-                                 "infinitely much; give a lower bound > 0")
-    byname = {u.name: u for u in units}
-    if formula == "screw" and not any(u.branch == "tool" for u in units):
-        raise rd.err("units", "no unit has branch = \"tool\": the functional point needs one")
+    return settings
+
+
+def _transmission(rd: _Reader, data: dict, units, byname) -> TransmissionSpec | None:
+    """The [transmission] table (a rack and pinion from the drive branch to a rotation
+    unit); required when a unit has branch = "drive"."""
     trans = None
     if "transmission" in data:
         tr = rd.table(data["transmission"], "transmission",
@@ -381,6 +393,12 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
             rd.choice(tr, "rack_axis", "transmission.rack_axis", tuple(_AXES), "x"))
     elif any(u.branch == "drive" for u in units):
         raise rd.err("transmission", "is required when a unit has branch = \"drive\"")
+    return trans
+
+
+def _travel(rd: _Reader, data: dict, byname) -> tuple:
+    """The [travel] table: the rotation unit whose angles are visited and its 1 to 36
+    angles [°]; (None, ()) without one."""
     travel_unit, angles = None, ()
     if "travel" in data:
         tv = rd.table(data["travel"], "travel", {"unit", "angles_deg"},
@@ -393,6 +411,11 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
             raise rd.err("travel.angles_deg", f"must be a list of 1 to 36 angles, got {av!r}")
         angles = tuple(float(rd.vector(tv, "angles_deg", "travel.angles_deg", n=len(av),
                                        bound=3600.0)[j]) for j in range(len(av)))
+    return travel_unit, angles
+
+
+def _spindle(rd: _Reader, data: dict, byname) -> SpindleSpec | None:
+    """The [spindle] table: the tool-branch unit that heats, its flux and thermal model."""
     spindle = None
     if "spindle" in data:
         sp = rd.table(data["spindle"], "spindle",
@@ -418,14 +441,18 @@ def parse_scenario(data: dict, source: str = "<scenario>") -> AllocationScenario
                           low=0.0, high=100.0)
         seed = rd.integer(sp, "noise_seed", "spindle.noise_seed", 0, 0, 2**32 - 1)
         spindle = SpindleSpec(sunit, q, model, dtau, comp, cmodel, noise, seed)
+    return spindle
+
+
+def _reference(rd: _Reader, sc: dict, byname) -> dict | None:
+    """``scenario.reference_accuracy_mm``: a published allocation to compare with [mm]."""
     ref = None
     if "reference_accuracy_mm" in sc:
         names = set(byname)
         rt = rd.table(sc["reference_accuracy_mm"], "scenario.reference_accuracy_mm", names)
         ref = {k: rd.number(rt, k, f"scenario.reference_accuracy_mm.{k}", low=0.0)
                for k in rt}
-    return AllocationScenario(source, name, desc, settings, tuple(units), tool, spindle, ref,
-                              trans, travel_unit, angles)
+    return ref
 
 
 def _blk(R) -> np.ndarray:

@@ -384,13 +384,14 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
 
 
 def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnings,
-                    progress, intervals=True, drift_last=False):
+                    progress, intervals=True, drift_last=False, on_fit=None):
     """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
     speed-only cause fitted as an output-error AR(1) (the frame structure chosen by
     forward-chaining validation where there are thermometers), the cause named by
     validation, and its parameters' 95 % intervals by the grouped jackknife
     (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`; not computed, ``{}``,
-    with ``intervals=False``); ``drift_last`` as in :func:`diagnose`. Returns a dict of
+    with ``intervals=False``); ``drift_last`` and ``on_fit`` as in :func:`diagnose`.
+    Returns a dict of
     the kind :func:`_diagnose_fem` returns."""
     rod = ds.rod
     levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
@@ -407,8 +408,12 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
 
     def fit_c(c, tr, seen_, W_):
         if c == "frame_expansion" and frame_struct is not None:
-            return fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, frame_struct)
-        return fit_speed_candidate(c, t, y, sp, tr, seen_, W_, amb_K, rho_c_R)
+            f = fit_frame_thermometers(t, y, sp, tr, seen_, W_, temps, frame_struct)
+        else:
+            f = fit_speed_candidate(c, t, y, sp, tr, seen_, W_, amb_K, rho_c_R)
+        if on_fit is not None:
+            on_fit(c, tr, f)
+        return f
 
     fits, cvs = {}, {}
     for c in SPEED_CAUSES:
@@ -686,7 +691,8 @@ def _summary(ds, v2, bres, eres, holdout):
 
 
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
-             progress=None, intervals: bool = True, drift_last: bool = False) -> Diagnosis:
+             progress=None, intervals: bool = True, drift_last: bool = False,
+             on_fit=None) -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
@@ -708,6 +714,11 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         Speed-only records (post hoc option): name ``sensor_drift`` only if no
         input-driven cause passes the naming test
         (:func:`arfem.models.diagnosis.speed_select.drift_last`).
+    on_fit : callable, optional
+        Speed-only records: called as ``on_fit(cause, rows, fit)`` after each candidate
+        cause is fitted for naming (``rows``: the boolean fit rows; ``fit``: its
+        :class:`~arfem.models.diagnosis.candidates.CandidateFit`, or None where it failed),
+        for exploratory scripts that study every candidate, not only the one named.
     """
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
@@ -725,7 +736,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
     else:
         v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, warnings,
-                             step, intervals, drift_last)
+                             step, intervals, drift_last, on_fit)
     base, ext = v2["base"], v2["ext"]
 
     step("residuals and hold-out")

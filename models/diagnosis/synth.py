@@ -466,6 +466,59 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
     cause = "+".join(causes) or "none"
     rod = Rod() if rod is None else rod
     rng = np.random.default_rng(seed)
+    s = _settings(causes, cause, seed, rod, rng, overrides)
+
+    t, q_rec, phases, gaps = _grid(rng, s)
+    s["phases"] = [(d / 3600.0, qq) for d, qq in phases]
+    warm_s = float(s["warm_start_h"]) * 3600.0
+    t, q_rec, n_pre = _with_warm_up(t, q_rec, warm_s, float(s["warm_q_W_m2"]))
+    n = t.size
+    model = rod_model(rod)
+    q_true, amb, h, params = _true_inputs(causes, s, t, q_rec, rod)
+    rod_growth, h_rec = _rod_growth(model, causes, s, t, q_true, amb, h)
+    nominal = _modal_growth(model, t, q_rec).growth_um
+    frame_growth, temps, sensors = _frame(causes, s, t, q_true, amb, model, rng, params)
+
+    drift = np.zeros(n)
+    if "sensor_drift" in causes:
+        drift = float(s["drift_um_per_h"]) * np.maximum(t - warm_s, 0.0) / 3600.0
+    clean = rod_growth + frame_growth + drift
+    if n_pre:               # the record starts at the end of the warm-up
+        cut = slice(n_pre, None)
+        t = t[cut] - warm_s
+        q_rec, q_true, amb, h_rec = q_rec[cut], q_true[cut], amb[cut], h_rec[cut]
+        clean, rod_growth, nominal = clean[cut], rod_growth[cut], nominal[cut]
+        temps = {k: v[cut] for k, v in temps.items()}
+        q_rec[0] = q_true[0] = 0.0
+    meas, outl, empty, amb_rec = _measure(clean, amb, s, seed, rng)
+
+    return SynthCase(
+        name=name or f"synth-{seed:04d}", cause=cause, seed=int(seed), parameters=params,
+        settings=s, rod=rod, time_s=t, q_W_m2=q_rec, q_true_W_m2=q_true,
+        ambient_true_C=amb, h_true_W_m2K=h_rec, clean_growth_um=clean,
+        rod_growth_um=rod_growth, nominal_growth_um=nominal, growth_um=meas,
+        ambient_C=amb_rec, temperatures=temps, outlier_rows=outl, empty_rows=empty,
+        gaps=gaps, sensors=sensors, causes=causes, initial_known=not warm_s > 0,
+        declared_rod=rod.with_(**s["declared_rod"]) if s["declared_rod"] else None)
+
+
+def _with_warm_up(t, q_rec, warm_s: float, warm_q_W_m2: float):
+    """The grid with a warm-up of ``warm_s`` [s] at ``warm_q_W_m2`` before the record
+    (every 300 s; cut off again once simulated), and the number of rows it adds."""
+    if not warm_s > 0:
+        return t, q_rec, 0
+    tp = np.arange(0.0, warm_s, 300.0)
+    n_pre = tp.size
+    t = np.concatenate([tp, warm_s + t])
+    q_rec = np.concatenate([np.full(n_pre, warm_q_W_m2), q_rec])
+    q_rec[0] = 0.0
+    q_rec[n_pre] = q_rec[n_pre - 1]
+    return t, q_rec, n_pre
+
+
+def _settings(causes, cause: str, seed: int, rod: Rod, rng, overrides: dict) -> dict:
+    """The record's settings: the common ones drawn from ``rng``, each cause's from its
+    own stream of ``seed``, then the caller's ``overrides`` (an unknown one refused)."""
     s = _common_settings(rng)
     for c in causes:
         s.update(_cause_settings(c, np.random.default_rng([seed, 1 + CAUSES.index(c)]), rod))
@@ -476,25 +529,16 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
         s[k] = v
     if not (s["duration_h"] > 0 and s["interval_s"] >= 1):
         raise InputError("duration_h and interval_s must be positive", "generate")
+    return s
 
-    t, q_rec, phases, gaps = _grid(rng, s)
-    s["phases"] = [(d / 3600.0, qq) for d, qq in phases]
-    warm_s = float(s["warm_start_h"]) * 3600.0
-    n_pre = 0
-    if warm_s > 0:          # heated before the record starts: simulate the warm-up, then cut
-        tp = np.arange(0.0, warm_s, 300.0)
-        n_pre = tp.size
-        t = np.concatenate([tp, warm_s + t])
-        q_rec = np.concatenate([np.full(n_pre, float(s["warm_q_W_m2"])), q_rec])
-        q_rec[0] = 0.0
-        q_rec[n_pre] = q_rec[n_pre - 1]
+
+def _true_inputs(causes, s: dict, t, q_rec, rod: Rod):
+    """What the rod truly gets where the causes change it: heat flux [W/m²], ambient
+    [°C] and h [W/(m²K)] per row, and the true parameters the diagnosis should find."""
     n = t.size
-    model = rod_model(rod)
-    h0 = rod.convection_W_m2K
-
     q_true = q_rec.copy()
     amb = np.full(n, rod.ambient_C)
-    h = np.full(n, h0)
+    h = np.full(n, rod.convection_W_m2K)
     params: dict = {}
     if "ambient_drift" in causes:
         tm = np.concatenate([[0.0], 0.5 * (t[1:] + t[:-1])])       # interval midpoints
@@ -517,28 +561,34 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
         params["drift_um_per_h"] = float(s["drift_um_per_h"])
     if "nonlinear_convection" in causes:
         params["exponent"] = float(s["exponent"])
+    return q_true, amb, h, params
 
-    # the rod
+
+def _rod_growth(model, causes, s: dict, t, q_true, amb, h):
+    """The rod's true growth [µm] per row, and the h [W/(m²K)] to record (NaN where the
+    convection is non-linear: no single h holds)."""
     if "nonlinear_convection" in causes:
         sched = Schedule(np.diff(t), q_true[1:])
         dt = float(s["nonlinear_dt_s"])
-        src = _nonlinear_source(model, sched, dt, h0, float(s["exponent"]),
-                                float(s["delta_T_ref_K"]))
+        src = _nonlinear_source(model, sched, dt, model.rod.convection_W_m2K,
+                                float(s["exponent"]), float(s["delta_T_ref_K"]))
         res = solve_theta(model, sched, dt, source=src)
         nsteps = np.maximum(1, np.ceil(sched.durations_s / dt - 1e-9).astype(int))
-        rod_growth = res.growth_um[np.concatenate([[0], np.cumsum(nsteps)])]
-        h_rec = np.full(n, np.nan)
-    else:
-        rod_growth = _modal_growth(model, t, q_true, amb, h).growth_um
-        h_rec = h
-    nominal = _modal_growth(model, t, q_rec).growth_um
+        return res.growth_um[np.concatenate([[0], np.cumsum(nsteps)])], np.full(t.size, np.nan)
+    return _modal_growth(model, t, q_true, amb, h).growth_um, h
 
-    # the frame body: always present physically; heated by the rod only in frame_expansion
+
+def _frame(causes, s: dict, t, q_true, amb, model, rng, params: dict):
+    """The machine frame: always present physically, heated by the rod only in
+    frame_expansion. Its growth [µm] per row, the thermometers it adds and their
+    descriptions; its true parameters go into ``params`` and its settings into ``s``."""
+    rod, n = model.rod, t.size
     frame_growth = np.zeros(n)
     temps: dict = {}
     sensors = {"ambient_C": "ambient air temperature beside the machine"}
     framed = "frame_expansion" in causes
     if framed or s["frame_sensor"]:
+        h0 = rod.convection_W_m2K
         tau_target = float(s.get("frame_time_constant_h", 4.0))
         fmodel, hf, tau = _frame_for_time_constant(tau_target, rod.ambient_C)
         frod = fmodel.rod
@@ -558,21 +608,15 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
             temps["T_frame_C"] = (rod.ambient_C + mean_theta
                                   + rng.normal(0, s["frame_noise_K"], n))
             sensors["T_frame_C"] = "machine frame, mid-length"
+    return frame_growth, temps, sensors
 
-    drift = np.zeros(n)
-    if "sensor_drift" in causes:
-        drift = float(s["drift_um_per_h"]) * np.maximum(t - warm_s, 0.0) / 3600.0
-    clean = rod_growth + frame_growth + drift
-    if n_pre:               # the record starts at the end of the warm-up
-        cut = slice(n_pre, None)
-        t = t[cut] - warm_s
-        q_rec, q_true, amb, h_rec = q_rec[cut], q_true[cut], amb[cut], h_rec[cut]
-        clean, rod_growth, nominal = clean[cut], rod_growth[cut], nominal[cut]
-        temps = {k: v[cut] for k, v in temps.items()}
-        q_rec[0] = q_true[0] = 0.0
-        n = t.size
 
-    # measurement: white or coloured (AR(1), stationary σ = noise_um) sensor noise
+def _measure(clean, amb, s: dict, seed: int, rng):
+    """What the sensors record of the clean growth [µm] and the true ambient [°C]: white
+    or coloured (AR(1), stationary σ = noise_um) noise, a slow wander, empty cells,
+    outliers, quantisation and the unit; returns (growth, outlier rows, empty rows,
+    ambient)."""
+    n = clean.size
     white = rng.normal(0.0, s["noise_um"], n)
     rho = float(s["noise_ar1"])
     if rho:
@@ -599,16 +643,7 @@ def generate(cause, seed: int, name: str | None = None, rod: Rod | None = None,
         meas = np.round(meas / qs) * qs
     meas[empty] = np.nan
     meas = meas * float(s["growth_unit_factor"])
-    amb_rec = amb + rng.normal(0.0, s["ambient_noise_K"], n)
-
-    return SynthCase(
-        name=name or f"synth-{seed:04d}", cause=cause, seed=int(seed), parameters=params,
-        settings=s, rod=rod, time_s=t, q_W_m2=q_rec, q_true_W_m2=q_true,
-        ambient_true_C=amb, h_true_W_m2K=h_rec, clean_growth_um=clean,
-        rod_growth_um=rod_growth, nominal_growth_um=nominal, growth_um=meas,
-        ambient_C=amb_rec, temperatures=temps, outlier_rows=outl, empty_rows=empty,
-        gaps=gaps, sensors=sensors, causes=causes, initial_known=not warm_s > 0,
-        declared_rod=rod.with_(**s["declared_rod"]) if s["declared_rod"] else None)
+    return meas, outl, empty, amb + rng.normal(0.0, s["ambient_noise_K"], n)
 
 
 def random_case(seed: int, name: str | None = None) -> SynthCase:

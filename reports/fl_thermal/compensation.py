@@ -9,7 +9,7 @@ score on the rest, PREREGISTRATION.md):
   interpolated) and the MLR of eq. 18 on the 16 temperatures, both fitted before 28 h
   by the same function ``arfem diagnose`` uses to write model.json
   (``arfem.scenarios.diagnose.compensator_models``);
-* each replayed strictly causally over the whole record (``arfem compensate``'s replay;
+* each replayed strictly causally over the whole record (``arfem.scenarios.replay``, what ``arfem compensate`` runs;
   the AR(1) state runs from t = 0 on the speed alone) and scored after 28 h;
 * the diagnosis's extended model (``arfem diagnose`` with the hold-out at 28 h, its
   named cause exported by ``compensator_models`` as model_extended.json: the speed
@@ -32,7 +32,7 @@ from pathlib import Path
 
 
 from arfem.io import atomic_write_text, write_json
-from arfem.scenarios.compensate import replay
+from arfem.scenarios.replay import replay
 from arfem.scenarios.dataset import load_dataset
 from arfem.scenarios.diagnose import compensator_models
 
@@ -60,14 +60,14 @@ def run() -> dict:
             probes = PROBES if key != "mlr" else PROBES[:1]
             for label, every in probes:
                 r = replay(models[fname], ds, probe_every_s=every, score_from_s=FIT_END_S)
-                s = r["summary"]
+                s = r.summary
                 tag = key if every is None else f"{key}_probe_{int(every / 3600)}h"
-                entry[tag] = {"rms_um": s["rms_after_um"], "pp_um": s["peak_to_peak_after_um"],
-                              "n_probes": s["n_probes"]}
-                entry["uncompensated"] = {"rms_um": s["rms_before_um"],
-                                          "pp_um": s["peak_to_peak_before_um"]}
+                entry[tag] = {"rms_um": s.rms_after_um, "pp_um": s.peak_to_peak_after_um,
+                              "n_probes": s.n_probes}
+                entry["uncompensated"] = {"rms_um": s.rms_before_um,
+                                          "pp_um": s.peak_to_peak_before_um}
                 if every is None:
-                    series[(ch, key)] = r["series"]
+                    series[(ch, key)] = r.series
         rows.append(entry)
     return {"fit_end_s": FIT_END_S, "channels": rows,
             "note": "RMS and peak-to-peak of measured growth + offset over t >= 28 h [µm]; "
@@ -80,25 +80,25 @@ def _figure(series, path) -> None:
     axes = fig.subplots(5, 1, sharex=True)
     for ch, ax in zip(range(1, 6), axes):
         m = series[(ch, "mlr")]
-        th = m["time_s"] / 3600
+        th = m.time_s / 3600
         late = th >= FIT_END_S / 3600
-        ax.plot(th[late], m["measured_growth_um"][late], color="0.45", lw=1,
+        ax.plot(th[late], m.measured_growth_um[late], color="0.45", lw=1,
                 label="uncompensated")
         if (ch, "ar1") in series:
             s = series[(ch, "ar1")]
-            ax.plot(th[late], s["residual_um"][late], color="#0072B2", lw=1,
+            ax.plot(th[late], s.residual_um[late], color="#0072B2", lw=1,
                     label="paper AR(1), eq. 17")
         else:
             ax.text(0.5, 0.9, "paper AR(1): eq. 17 gives C1 ≥ 1, no compensator",
                     transform=ax.transAxes, ha="center", fontsize=8, color="#0072B2")
         if (ch, "extended") in series:
             s = series[(ch, "extended")]
-            ax.plot(th[late], s["residual_um"][late], color="#009E73", lw=1.2,
+            ax.plot(th[late], s.residual_um[late], color="#009E73", lw=1.2,
                     label="extended (diagnosis)")
         else:
             ax.text(0.5, 0.9, "extended: no cause named before 28 h", transform=ax.transAxes,
                     ha="center", fontsize=8, color="#009E73")
-        ax.plot(th[late], m["residual_um"][late], color="#D55E00", lw=1, label="MLR, eq. 18")
+        ax.plot(th[late], m.residual_um[late], color="#D55E00", lw=1, label="MLR, eq. 18")
         ax.axhline(0, color="k", lw=0.6)
         ax.set_ylabel(f"ch{ch} [µm]")
     handles = {}

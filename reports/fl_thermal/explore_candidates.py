@@ -7,8 +7,8 @@ For every channel at the development origins (the odd ones: 16.13, 24.13, 32.13,
 rolling evaluation does (``regenerate._roll_fit``: fitted on the growth before the
 origin) and records, besides the three models' block RMSEs [µm], the block RMSE of
 *every* candidate cause's fit and each candidate's naming test -- which the diagnosis
-itself does not keep. The candidates are caught by wrapping the engine's two fitting
-functions (the fit on the most rows is the one on the whole fit window). This is what
+itself does not keep. The candidates are caught through the engine's ``on_fit`` hook
+(the fit on the most rows is the one on the whole fit window). This is what
 the drift-last variant was chosen from; it was run once, before the confirmation
 origins were scored. ~18 min on 2 processes of the loaded shared machine.
 """
@@ -21,43 +21,28 @@ from pathlib import Path
 
 import numpy as np
 
-import importlib.util  # noqa: E402
+# regenerate.py beside this file: Python puts the running script's folder first on the
+# module search path, so it imports as a plain module (loading it also sets one BLAS thread
+# per process)
+import regenerate as R
 
-# regenerate.py beside this file (a script, not a package module); loading it also sets
-# one BLAS thread per process
-_spec = importlib.util.spec_from_file_location("regenerate",
-                                               Path(__file__).with_name("regenerate.py"))
-R = importlib.util.module_from_spec(_spec)
-sys.modules["regenerate"] = R
-_spec.loader.exec_module(R)
-
-from arfem.models.diagnosis import engine as E  # noqa: E402
-from arfem.models.diagnosis.rolling import blocks, speed_step_origins  # noqa: E402
+from arfem.models.diagnosis import engine as E
+from arfem.models.diagnosis.rolling import blocks, speed_step_origins
 
 _CAUGHT: dict = {}
-_FSC, _FFT = E.fit_speed_candidate, E.fit_frame_thermometers
 
 
 def _keep(cause, rows, f):
+    """The engine's on_fit hook: keep each cause's fit on the most rows."""
     n = int(rows.sum())
     if f is not None and n >= _CAUGHT.get((cause, "n"), 0):
         _CAUGHT[(cause, "n")] = n
         _CAUGHT[cause] = f
-    return f
-
-
-def _fsc(c, t, y, sp, rows, *a, **k):
-    return _keep(c, rows, _FSC(c, t, y, sp, rows, *a, **k))
-
-
-def _fft(t, y, sp, rows, *a, **k):
-    return _keep("frame_expansion", rows, _FFT(t, y, sp, rows, *a, **k))
 
 
 def one(ch, o_idx, search="average"):
     """Channel ``ch`` at origin number ``o_idx`` (from 0): models', candidates' block
     RMSEs [µm] and the naming tests."""
-    E.fit_speed_candidate, E.fit_frame_thermometers = _fsc, _fft
     toml = str(R.DATA / f"fl_thermal_ch{ch}.toml")
     ds = R._dataset(toml)
     t, y = np.asarray(ds.time_s), np.asarray(ds.growth_um)
@@ -65,7 +50,7 @@ def one(ch, o_idx, search="average"):
     m = blocks(t, org)[o_idx] & ~ds.outliers
     n = int(np.searchsorted(t, org[o_idx]))
     _CAUGHT.clear()
-    d = E.diagnose(R.origin_dataset(ds, n, y[:n]), float(t[n]), search)
+    d = E.diagnose(R.origin_dataset(ds, n, y[:n]), float(t[n]), search, on_fit=_keep)
 
     def rm(p):
         return float(np.sqrt(np.mean((y - p)[m] ** 2)))

@@ -68,10 +68,13 @@ PREREG_HOLDOUT_S = 100800.0
 
 
 def _one(job):
-    data, ch, hs, search, out = job
+    """(channel, hold-out, search) and the diagnosis of one job (data, ch, hs, search,
+    out[, limits]): written into ``out``, or numbers only where ``out`` is None."""
+    data, ch, hs, search, out, *rest = job
+    limits = rest[0] if rest else None
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
-        return job[1:4], diagnose_file(toml, hs, search).summary
+        return job[1:4], diagnose_file(toml, hs, search, limits=limits).summary
     return job[1:4], run_diagnosis(toml, out, hs, True, search)
 
 
@@ -115,11 +118,12 @@ def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    from arfem.scenarios.dataset import allow_csv_outside
+    from arfem.limits import Limits
     csv = Path(csv).resolve()
-    with tempfile.TemporaryDirectory() as tmp, allow_csv_outside():   # csv is elsewhere
+    outside = Limits(csv_outside=True)                                 # csv is elsewhere
+    with tempfile.TemporaryDirectory() as tmp:
         retarget(data, csv, tmp, channels)
-        args = [(tmp, ch, holdout_s, search, None) for ch in channels]
+        args = [(tmp, ch, holdout_s, search, None, outside) for ch in channels]
         if jobs == 1:
             res = list(map(_one, args))
         else:

@@ -90,10 +90,11 @@ def add_parser(subparsers) -> None:
 def main(args) -> int:
     if args.max_points is not None and args.max_points < 1:
         raise InputError(f"must be a whole number >= 1, got {args.max_points}", "--max-points")
-    sweep = load_sweep(args.sweep_file, max_points=args.max_points)
+    sweep = load_sweep(args.sweep_file, max_points=args.max_points, limits=args.limits)
     rep = run_sweep(sweep, args.out, workers=args.workers, scheduler=args.scheduler,
                     force=args.force, progress=not args.no_progress,
-                    timeout_s=args.connect_timeout, worker_wait_s=args.worker_wait)
+                    timeout_s=args.connect_timeout, worker_wait_s=args.worker_wait,
+                    limits=args.limits)
     print(f"sweep {sweep.name!r}: {rep.n_points} points ({rep.n_stored_before} already "
           f"stored, {rep.n_computed} computed, {rep.n_failed} failed) in {rep.wall_s:.1f} s "
           f"[{rep.executor}] -> {Path(args.out) / 'results.csv'}")

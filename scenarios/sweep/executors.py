@@ -13,6 +13,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 import numpy as np
 
+from arfem.limits import Limits
 from arfem.params import InputError
 from arfem.scenarios.config import scenario_from_dict
 from arfem.scenarios.deterministic import blas_threads
@@ -30,7 +31,8 @@ _WORKER_CACHE: dict = {}
 _WORKER_CACHE_MAX = 128
 
 
-def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
+def evaluate_point(data: dict, source: str = "<sweep point>",
+                   limits: Limits | None = None) -> dict:
     """Evaluate one resolved scenario dict; return its JSON-able metrics and run time.
 
     Runs in a worker process (local pool or Dask worker). Assembled models and
@@ -43,15 +45,18 @@ def evaluate_point(data: dict, source: str = "<sweep point>") -> dict:
         Fully resolved scenario dict.
     source : str
         Name used in error messages.
+    limits : arfem.limits.Limits, optional
+        What the user allows past the size limits, passed from the parent (a worker
+        process or a Dask worker sees no flag of the command that started it).
 
     Returns
     -------
     dict
         ``{"metrics": {...}, "run_time_s": float, "worker": "host:pid"}``.
     """
-    from arfem.scenarios.run import evaluate
+    from arfem.scenarios.evaluation import evaluate
     t0 = time.perf_counter()
-    scenario = scenario_from_dict(data, source)
+    scenario = scenario_from_dict(data, source, limits)
     if len(_WORKER_CACHE) > _WORKER_CACHE_MAX:
         _WORKER_CACHE.clear()
     ev = evaluate(scenario, cache=_WORKER_CACHE)
@@ -79,10 +84,9 @@ def _plain(o):
 
 # -- executors ----------------------------------------------------------------------------
 
-#: Same single-threaded BLAS as a Dask nanny worker, so local and Dask runs agree bit for bit.
-_WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-
-#: BLAS limits kept for the life of a worker process.
+#: BLAS limits kept for the life of a worker process: the same single-threaded BLAS as a
+#: Dask nanny worker, so local and Dask runs agree bit for bit (threadpoolctl, set by the
+#: worker's initializer, after SciPy's own OpenBLAS is loaded; no environment is written).
 _LIMITED = []
 
 
@@ -117,19 +121,9 @@ class LocalExecutor:
 
     def __enter__(self):
         import multiprocessing as mp
-        saved = {k: os.environ.get(k) for k in _WORKER_ENV}
-        os.environ.update(_WORKER_ENV)
-        try:
-            self.pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
-                                            initializer=_worker_init, initargs=(os.getpid(),))
-            # start the workers now, while the environment is set
-            list(self.pool.map(abs, range(self.workers)))
-        finally:
-            for k, v in saved.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+        self.pool = ProcessPoolExecutor(self.workers, mp_context=mp.get_context("spawn"),
+                                        initializer=_worker_init, initargs=(os.getpid(),))
+        list(self.pool.map(abs, range(self.workers)))       # start the workers now
         return self
 
     def submit(self, fn, *args):

@@ -3,6 +3,7 @@ executor, store each as it finishes, then write the outputs from the store."""
 from __future__ import annotations
 
 import errno
+import functools
 import math
 import os
 import sys
@@ -12,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from arfem.limits import Limits, resolve
 from arfem.params import InputError
 from arfem.io import write_json
 from arfem.scenarios.sweep.executors import (DaskExecutor, LocalExecutor, blas_threads,
@@ -96,7 +98,7 @@ def n_local_workers(workers: int | None, n_todo: int, warn: Callable = note) -> 
 def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str | None = None,
               force: bool = False, progress: bool = True, timeout_s: float = 5.0,
               worker_wait_s: float = DEFAULT_WORKER_WAIT_S, point_fn: Callable = evaluate_point,
-              warn: Callable = note) -> RunReport:
+              warn: Callable = note, limits: Limits | None = None) -> RunReport:
     """Compute every point of ``sweep`` missing from the store in ``out``; write the results.
 
     Parameters
@@ -119,9 +121,13 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
         How long the Dask cluster may have no worker before the sweep ends [s] (at most
         :data:`MAX_WAIT_S`); the points stored so far are kept.
     point_fn : callable
-        ``point_fn(data, source) -> {"metrics": ..., "run_time_s": ...}`` (picklable).
+        ``point_fn(data, source, limits=...) -> {"metrics": ..., "run_time_s": ...}``
+        (picklable).
     warn : callable
         Receives one-line notes (caps applied to the flags).
+    limits : arfem.limits.Limits, optional
+        What the user allows past the size limits; passed to every point (each worker
+        validates its point again). Default: :meth:`Limits.from_environment`.
     """
     out = Path(out)
     mode = open_store(out, sweep, force)
@@ -162,7 +168,8 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
                     n = n_local_workers(workers, len(unique), warn)
                     executor = LocalExecutor(n) if n > 1 else None
                 rep.executor = executor.label if executor else "local, in-process"
-                _compute(sweep, unique, store, executor, point_fn, rep, run_id, progress)
+                fn = functools.partial(point_fn, limits=resolve(limits))
+                _compute(sweep, unique, store, executor, fn, rep, run_id, progress)
             else:
                 rep.executor = "nothing to compute"
                 if executor is not None:

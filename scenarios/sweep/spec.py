@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.io import read_toml
+from arfem.limits import Limits
 from arfem.params import InputError, check_finite
 from arfem.scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
                                     scenario_from_dict)
@@ -178,28 +179,29 @@ def _resolve_base(base: str, sweep_path: Path) -> tuple[Path, str]:
                      "sweep.base")
 
 
-def load_sweep(path, max_points: int | None = None) -> Sweep:
+def load_sweep(path, max_points: int | None = None, limits: Limits | None = None) -> Sweep:
     """Read and validate a sweep file; every point is resolved and checked up front.
 
     Errors are one line naming the file, the key (``sweep.grid.dtau_s[2]``) and what
     is wrong, e.g. a Δτ that does not divide the phases. A grid of more than
     ``max_points`` points (default :data:`MAX_POINTS`) is refused before any point is
-    resolved (:func:`check_size`).
+    resolved (:func:`check_size`). ``limits`` (:class:`arfem.limits.Limits`): what the
+    user allows past each point's size limits.
     """
     p = Path(path)
-    data = read_toml(p)
-    return sweep_from_dict(data, str(p), max_points=max_points)
+    data = read_toml(p, limits)
+    return sweep_from_dict(data, str(p), max_points=max_points, limits=limits)
 
 
 def sweep_from_dict(data: dict, source: str = "<sweep>", base_data: dict | None = None,
-                    max_points: int | None = None) -> Sweep:
+                    max_points: int | None = None, limits: Limits | None = None) -> Sweep:
     """Validate a sweep given as a dict (as read from TOML).
 
     ``base_data`` may be given to use a scenario dict instead of reading
     ``sweep.base`` (tests, programmatic sweeps).
     """
     try:
-        return _sweep_from_dict(data, source, base_data, max_points)
+        return _sweep_from_dict(data, source, base_data, max_points, limits)
     except InputError as exc:
         if exc.where and exc.where.startswith(source):
             raise
@@ -207,7 +209,7 @@ def sweep_from_dict(data: dict, source: str = "<sweep>", base_data: dict | None 
 
 
 def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
-                     max_points: int | None) -> Sweep:
+                     max_points: int | None, limits: Limits | None) -> Sweep:
     if not isinstance(data, dict) or set(data) != {"sweep"}:
         extra = sorted(set(data) - {"sweep"}) if isinstance(data, dict) else []
         raise InputError(f"unknown top-level key {extra[0]!r}; a sweep file holds one [sweep] "
@@ -230,11 +232,11 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
         if not isinstance(sw["base"], str):
             raise InputError(f"must be a string, got {sw['base']!r}", "sweep.base")
         base_path, base_name = _resolve_base(sw["base"], Path(source))
-        base_data = read_toml(base_path)
+        base_data = read_toml(base_path, limits)
         base_source = str(base_path)
     else:
         base_name, base_source = str(sw.get("base", "<base>")), "<base>"
-    base_sc = scenario_from_dict(base_data, base_source)   # the base itself must be valid
+    base_sc = scenario_from_dict(base_data, base_source, limits)   # the base must be valid
 
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
@@ -265,7 +267,7 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
             raise InputError(exc.message, where) from None
         for i, v in enumerate(values):        # each value alone on the base: names the culprit
             try:
-                scenario_from_dict(apply_override(base_data, key, v), base_source)
+                scenario_from_dict(apply_override(base_data, key, v), base_source, limits)
             except InputError as exc:
                 raise InputError(f"{v!r} is refused: {exc}", f"{where}[{i}]") from None
         grid[col], paths[col] = list(values), key
@@ -278,7 +280,7 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
             d = apply_override(d, paths[c], v)
         inputs = dict(zip(cols, combo))
         try:
-            sc = scenario_from_dict(d, base_source)
+            sc = scenario_from_dict(d, base_source, limits)
         except InputError as exc:
             raise InputError(f"point {inputs} is refused: {exc}", "sweep.grid") from None
         points.append(Point(i, inputs, d, point_key(resolved_inputs(sc))))

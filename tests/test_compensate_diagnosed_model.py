@@ -85,10 +85,10 @@ def test_mlr_model_survives_the_json_round_trip(tmp_path):
 
 def test_twin_extended_model_beats_the_paper_ar1_threefold(tmp_path):
     from arfem.models.twin import SpindleTwin, TwinProgram
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.twin import write_record
+    from arfem.scenarios.twin_record import write_record
     tw = SpindleTwin(TwinProgram(seed=3))
     rows = [tw.advance() for _ in range(4 * 1440)]        # four days at 60 s
     write_record(tmp_path / "fit", rows[:2880])            # the first two: diagnosed
@@ -100,7 +100,7 @@ def test_twin_extended_model_beats_the_paper_ar1_threefold(tmp_path):
     assert "cause = ambient_drift" in r.stdout
     ds = load_dataset(tmp_path / "new" / "twin.toml")
     rms = {f: replay(read_model(tmp_path / "d" / f), ds, score_from_s=48 * 3600.0)
-           ["summary"]["rms_after_um"] for f in ("model.json", "model_extended.json")}
+           .summary.rms_after_um for f in ("model.json", "model_extended.json")}
     assert rms["model_extended.json"] <= rms["model.json"] / 3.0, rms
 
 

@@ -1,0 +1,61 @@
+"""The twin's history (``arfem twin --record``) and what tests and benchmarks of the twin
+need besides the command: a typed cycle, the record writer, a free port."""
+from __future__ import annotations
+
+import math
+import socket
+from dataclasses import dataclass
+from pathlib import Path
+
+from arfem.io import atomic_write_text
+from arfem.models.twin import TwinReading
+
+__all__ = ["TwinCycle", "write_record", "free_port", "RECORD_COLUMNS"]
+
+#: the columns of the record's CSV, in order
+RECORD_COLUMNS = ("time_s", "growth_um", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C",
+                  "T_mid_C", "true_growth_um", "offset_um", "error_um", "alarm_set")
+
+
+@dataclass(frozen=True)
+class TwinCycle:
+    """One interval of the twin server: the readings at its end, the offset a client
+    wrote during it [µm], whether the alarm was set (1.0 or 0.0) and the error left,
+    true growth + offset [µm]."""
+
+    reading: TwinReading
+    offset_um: float
+    alarm_set: float
+    error_um: float
+
+    def as_dict(self) -> dict:
+        """Column name → value (the readings, then offset, alarm and error)."""
+        return {**self.reading.as_dict(), "offset_um": self.offset_um,
+                "alarm_set": self.alarm_set, "error_um": self.error_um}
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now (the OS's choice)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def write_record(directory, rows: list, name: str = "twin") -> None:
+    """The twin's history (:class:`TwinCycle`, or bare :class:`TwinReading` with no
+    offset) as a measured-data record (contract TOML + CSV), atomically; a NaN or absent
+    reading is an empty cell, every number is written exactly (repr)."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+
+    def cell(v):
+        return "" if v is None or not math.isfinite(v) else repr(float(v))
+    lines = [",".join(RECORD_COLUMNS)]
+    for r in rows:
+        values = r.as_dict()
+        lines.append(",".join(cell(values.get(c)) for c in RECORD_COLUMNS))
+    atomic_write_text(d / f"{name}.csv", "\n".join(lines) + "\n")
+    atomic_write_text(d / f"{name}.toml", (
+        "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
+        "# a daily ambient swing; growth_um = true growth + sensor noise\n"
+        f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n'))
