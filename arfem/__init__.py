@@ -1,4 +1,4 @@
-"""arfem: is your spindle's thermal simulation right, and what does it get wrong?
+"""Thermal growth of a machine-tool spindle: simulate it, check it, diagnose it, compensate it.
 
 arfem checks a finite-element (FEM) thermo-elastic simulation of a machine-tool spindle
 against the closed-form first-order autoregressive (AR(1)) thermal-growth model of
@@ -15,14 +15,14 @@ Start here::
     record = arfem.read_record("my_record.toml")           # a measured record
     diagnosis = arfem.diagnose(record)                     # what the simulation gets wrong
 
-The functions: :func:`solve_fem`, :func:`ar1`, :func:`compare`, :func:`check`,
-:func:`sweep`, :func:`read_record`, :func:`diagnose`, :func:`read_model` and the
-:class:`Compensator`; ``help(arfem.diagnose)`` and the others give each one's units and
-an example. The same work from the shell: ``arfem --help``. The documentation (command
-pages, file formats, the physics) is in the repository's ``docs/`` folder.
+What else there is: compare, check and sweep (the FEM against the AR(1) on a scenario
+file), read_model and Compensator (run a compensator), and the result classes; dir(arfem)
+lists them, and help(arfem.diagnose) and the others give each one's units and an
+example. The same work from the shell: arfem --help. The documentation (command pages,
+file formats, the physics) is in the repository's docs/ folder.
 
-``import arfem`` is fast: the FEM, the diagnosis engine and matplotlib load when a
-function first needs them.
+import arfem is fast: the FEM, the diagnosis engine and matplotlib load when a function
+first needs them.
 """
 from importlib import metadata as _metadata
 
