@@ -57,7 +57,7 @@ body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2em
 max-width:1100px;padding:0 1em;color:#222;line-height:1.4;overflow-wrap:break-word}
 .wide{max-width:100%;overflow-x:auto}img{max-width:100%;height:auto}
 @media (max-width:600px){body{margin:1em auto;padding:0 .6em}table{font-size:.8em}
-td,th{overflow-wrap:anywhere}}
+td{overflow-wrap:anywhere}}
 h1{font-size:1.5em}.verdict{background:#f3f7fb;border-left:4px solid #2a6ebb;
 padding:.2em 1em .6em;margin:1em 0 2em}.verdict h2{margin-top:.6em;border:0}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
 margin-top:2em}h3{font-size:1.05em;margin-top:1.4em}
