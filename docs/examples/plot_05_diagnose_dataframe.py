@@ -33,4 +33,4 @@ ax.plot(s.time_s / 3600, s.baseline_um, "--", label="simulation as assumed (h = 
 ax.plot(s.time_s / 3600, s.extended_um, "-", label=f"extended: {result.cause}")
 ax.set_xlabel("time [h]")
 ax.set_ylabel("axial growth [µm]")
-_ = ax.legend()
+_ = fig.legend(loc="outside lower center", ncol=3, fontsize=8, frameon=False)  # off the traces
