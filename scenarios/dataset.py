@@ -502,9 +502,14 @@ def _in_memory_error(exc: InputError, where: str) -> InputError:
 
 def _numeric_column(key: str, values, where: str) -> np.ndarray:
     """A column as floats (None/NaN = an empty cell); text or ±inf refused by row."""
-    raw = np.asarray(values, dtype=object)
+    raw = np.asarray(values)
     if raw.ndim != 1:
         _fail(f"must be one-dimensional, got shape {raw.shape}", f"{where}: column {key!r}")
+    if raw.dtype.kind in "fiu":                   # numbers already: one pass, no loop
+        out = raw.astype(float)
+        if not np.isinf(out).any():
+            return out
+    raw = raw.astype(object)
     out = np.empty(raw.size)
     for i, v in enumerate(raw):
         if v is None:
