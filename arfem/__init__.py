@@ -1,32 +1,42 @@
-"""arfem: checks a finite-element thermo-elastic simulation of a machine-tool spindle
-against the first-order autoregressive (AR(1)) thermal-growth model of Du et al. (2021),
-and diagnoses measured records.
+"""Thermal growth of a machine-tool spindle: simulate it, check it, diagnose it, compensate it.
 
-Layers, imported in one direction only (``tests/test_layering.py`` enforces it):
+arfem checks a finite-element (FEM) thermo-elastic simulation of a machine-tool spindle
+against the closed-form first-order autoregressive (AR(1)) thermal-growth model of
+Du et al. (2021), diagnoses measured records (what the simulation gets wrong, why, and
+how much an extended model gains), and compensates the thermal error on a machine.
 
-* ground -- :mod:`arfem.params` (physical inputs ``Rod``/``Schedule``, ``InputError``
-  and the checks) and :mod:`arfem.io` (reading user files, atomic writes);
-* :mod:`arfem.fem` -- meshes, transient heat, thermo-elasticity, field export;
-* :mod:`arfem.models` -- pure models: arrays and dataclasses in, results out, no files;
-* :mod:`arfem.scenarios` -- user files, the ``arfem`` command, runners and writers;
-* :mod:`arfem.api` -- the promised Python API, above everything, re-exported here lazily.
+Start here::
 
-The source folders ``fem/``, ``models/`` and ``scenarios/`` sit at the top of the
-repository and are installed under this package (setuptools ``package-dir``).
+    import arfem
+    rod = arfem.Rod(radius_m=0.05, length_m=0.5)          # SI units, unit in each name
+    cycle = arfem.paper_cycle(2000.0)                      # the paper's 24 h duty cycle
+    fem = arfem.solve_fem(rod, cycle, dtau_s=30.0)         # the FEM's axial growth [µm]
+    ar = arfem.ar1(rod, cycle, dtau_s=30.0)                # the paper's AR(1)
+    record = arfem.read_record("my_record.toml")           # a measured record
+    diagnosis = arfem.diagnose(record)                     # what the simulation gets wrong
+
+What else there is: compare, check and sweep (the FEM against the AR(1) on a scenario
+file), read_model and Compensator (run a compensator), and the result classes; dir(arfem)
+lists them, and help(arfem.diagnose) and the others give each one's units and an
+example. The same work from the shell: arfem --help. The documentation (command pages,
+file formats, the physics) is in the repository's docs/ folder.
+
+import arfem is fast: the FEM, the diagnosis engine and matplotlib load when a function
+first needs them.
 """
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib import metadata as _metadata
 
 try:
-    __version__ = _version("arfem")
-except PackageNotFoundError:  # pragma: no cover - running from an uninstalled tree
+    __version__ = _metadata.version("arfem")
+except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uninstalled tree
     __version__ = "0+unknown"
 
 #: The promised API (:mod:`arfem.api`), loaded on first use so that ``import arfem`` stays
 #: fast (the FEM, the diagnosis engine and matplotlib load only when a function runs).
 _API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult", "ar1",
         "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep", "diagnose",
-        "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model", "read_model",
-        "InputError")
+        "DiagnosisResult", "read_record", "Record", "Compensator", "StateSpaceModel",
+        "ar1_model", "read_model", "InputError")
 
 __all__ = ["__version__", *_API]
 
@@ -39,5 +49,6 @@ def __getattr__(name: str):
     raise AttributeError(f"module 'arfem' has no attribute {name!r}")
 
 
-def __dir__():
-    return sorted(set(globals()) | set(_API))
+def __dir__() -> list[str]:
+    """The promised names only (``dir(arfem)``), not the module's internals."""
+    return sorted(__all__)

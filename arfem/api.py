@@ -23,9 +23,11 @@ Quick start (the FEM and the paper's AR(1) on your own rod in a few lines):
 from __future__ import annotations
 
 import json
-import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,18 +36,26 @@ from arfem.io import json_text
 from arfem.models.compensator import Compensator, StateSpaceModel, ar1_model
 from arfem.params import InputError, Rod, Schedule, paper_cycle
 
+if TYPE_CHECKING:                     # names in annotations only; not loaded at import
+    import pandas
+    from numpy.typing import ArrayLike
+
+    from arfem.models.diagnosis.dataset import Dataset
+    from arfem.scenarios.config import Scenario
+    from arfem.scenarios.sweep.runner import RunReport
+
 __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult",
            "ar1", "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep",
            "diagnose", "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model",
-           "read_model", "InputError", "__version__"]
+           "read_model", "read_record", "Record", "InputError", "__version__"]
 
 
-def _frame(columns: dict):
+def _frame(columns: dict) -> pandas.DataFrame:
     import pandas as pd
     return pd.DataFrame(columns)
 
 
-def load_scenario(path):
+def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario TOML (or a built-in name such as ``"paper_fig2"``).
 
     Parameters
@@ -182,7 +192,10 @@ def solve_fem(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
 
 @dataclass(frozen=True)
 class AR1Result:
-    """The AR(1) growth ΔL_n = C1 ΔL_{n−1} + C2(q_n) (paper eq. 12) on a schedule.
+    r"""The paper's AR(1) growth on a duty cycle, with its two coefficients.
+
+    The growth follows :math:`\Delta L_n = C_1 \Delta L_{n-1} + C_2(q_n)` (paper
+    equation 12).
 
     Attributes
     ----------
@@ -191,7 +204,8 @@ class AR1Result:
     growth_um : ndarray
         ΔL [µm].
     C1 : float
-        e^{−bΔτ} (paper eq. 13), or the corrected model's slowest-radial-mode value.
+        :math:`e^{-b\Delta\tau}` (paper eq. 13), or the corrected model's value from the
+        slowest radial mode.
     C2_um_per_W_m2 : float
         C2 per unit heat flux [µm per W/m²] (paper eq. 14 is linear in q).
     corrected : bool
@@ -215,12 +229,15 @@ class AR1Result:
 
 def ar1(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
         corrected: bool = False) -> AR1Result:
-    """The closed-form AR(1) thermal-growth model (paper eqs. 12–14) on a duty cycle.
+    """Run the paper's closed-form AR(1) thermal-growth model on a duty cycle.
+
+    The model is equations 12–14 of Du et al. (2021); ``corrected=True`` runs arfem's
+    radial-mode corrected coefficients instead.
 
     Parameters
     ----------
     rod : Rod
-        Supplies a = λ/(ρc), b = 2h/(ρcR) and α.
+        Supplies a = λ/(ρc), b = 2h/(ρcR) and α (the thermal expansion coefficient).
     schedule : Schedule
         Heat flux q [W/m²] per segment; every segment a multiple of ``dtau_s``.
     dtau_s : float
@@ -281,12 +298,12 @@ class Comparison:
         return json_text(self.metrics)
 
 
-def _scenario(scenario):
+def _scenario(scenario: Scenario | str | Path) -> Scenario:
     from arfem.scenarios.config import Scenario
     return scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
 
 
-def compare(scenario) -> Comparison:
+def compare(scenario: Scenario | str | Path) -> Comparison:
     """Run the FEM and both AR(1) models on a scenario and compare them (``arfem run``,
     without writing files).
 
@@ -332,7 +349,7 @@ class CheckResult:
         return json_text(self.__dict__)
 
 
-def check(scenario, *, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
+def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
           model: str | None = None) -> CheckResult:
     """Does the AR(1) track the FEM on this scenario? (``arfem check``, one scenario.)
 
@@ -368,8 +385,8 @@ def check(scenario, *, max_abs_pct: float | None = None, max_c1_diff: float | No
     return CheckResult(r.scenario, r.passed, [dict(c.__dict__) for c in r.criteria])
 
 
-def sweep(sweep_toml, out, *, workers: int | None = None, force: bool = False,
-          progress: bool = False):
+def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None,
+          force: bool = False, progress: bool = False) -> RunReport:
     """Run a parameter sweep file into ``out`` (``arfem sweep``; resumable).
 
     Parameters
@@ -440,46 +457,152 @@ class DiagnosisResult:
         return json_text(self.summary)
 
 
-def _write_contract(df, folder: Path, rod: Rod | None, name: str, initial: str) -> Path:
-    """A DataFrame as a measured-data contract pair (CSV + TOML) in ``folder``."""
-    import csv
-    cols = [str(c) for c in df.columns]
-    with open(folder / "data.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(cols)
-        for row in df.itertuples(index=False):
-            w.writerow(["" if (isinstance(v, float) and np.isnan(v)) else repr(float(v))
-                        if isinstance(v, (float, np.floating)) else v for v in row])
-    lines = ["[dataset]", f"name = {json.dumps(name)}", 'csv = "data.csv"',
-             f"initial = {json.dumps(initial)}"]
-    if rod is not None:
-        from arfem.scenarios.dataset import ROD_KEYS
-        lines.append("[rod]")
-        lines += [f"{k} = {float(getattr(rod, k))!r}" for k in ROD_KEYS]
-    toml = folder / "data.toml"
-    toml.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return toml
+#: The unit of each contract column (``T_<name>_C`` columns are °C).
+_UNITS = {"time_s": "s", "growth_um": "µm", "q_W_m2": "W/m²", "speed_rpm": "1/min",
+          "ambient_C": "°C"}
 
 
-def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = None,
-             initial: str = "equilibrium", name: str = "dataframe",
+@dataclass(frozen=True)
+class Record:
+    """A measured record read by :func:`read_record`: its samples and what its TOML says.
+
+    Attributes
+    ----------
+    data : pandas.DataFrame
+        One row per kept sample, columns under the contract's names: ``time_s`` [s],
+        ``growth_um`` [µm], ``q_W_m2`` [W/m²] and/or ``speed_rpm`` [1/min], and where
+        recorded ``ambient_C`` [°C] and ``T_<name>_C`` [°C] (NaN where a cell was empty).
+    name : str
+        ``[dataset] name``.
+    initial : str
+        ``"equilibrium"`` or ``"unknown"`` (``[dataset] initial``): did the record start
+        at equilibrium with the ambient? :func:`diagnose` uses it.
+    units : dict of str to str
+        The unit of each column of ``data``.
+    rod : Rod
+        The rod the simulation assumes (``[rod]``, the seed paper's where not given).
+    source : pathlib.Path
+        The TOML file.
+    csv_path : pathlib.Path
+        The CSV file it names.
+    columns : dict of str to str
+        Contract name to the CSV's own column name (``[columns]``; the identity where the
+        CSV already uses the contract's name).
+    sensors : dict of str to str
+        ``[sensors.<column>] description``.
+    notes : tuple of str
+        What the reader did (rows dropped, gaps filled, outliers flagged) and noticed.
+    """
+
+    data: pandas.DataFrame = field(repr=False)
+    name: str
+    initial: str
+    units: dict
+    rod: Rod = field(repr=False)
+    source: Path
+    csv_path: Path
+    columns: dict = field(repr=False)
+    sensors: dict = field(repr=False)
+    notes: tuple = field(repr=False)
+    _dataset: Dataset = field(repr=False, compare=False)
+
+    def to_dataframe(self):
+        """The samples (:attr:`data`, a copy) as a pandas DataFrame."""
+        return self.data.copy()
+
+
+def _record_frame(ds):
+    """A loaded :class:`~arfem.models.diagnosis.dataset.Dataset` as a DataFrame."""
+    cols = {"time_s": ds.time_s, "growth_um": ds.growth_um}
+    for key in ("q_W_m2", "speed_rpm", "ambient_C"):
+        if getattr(ds, key) is not None:
+            cols[key] = getattr(ds, key)
+    cols.update(ds.temperatures)
+    return _frame({k: np.array(v, dtype=float) for k, v in cols.items()})
+
+
+def read_record(path: str | Path) -> Record:
+    """Read a measured record (a contract TOML and the CSV it names) into a DataFrame.
+
+    The CSV's own column names are mapped onto the contract's by the TOML's
+    ``[columns]`` table, and every check of ``docs/measured-data.md`` is applied (the
+    same reading as ``arfem diagnose``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The record's TOML file (``[dataset]``, ``[rod]``, ``[columns]``, ``[sensors.*]``).
+
+    Returns
+    -------
+    Record
+        ``data`` (the samples under the contract's names) and the metadata: ``initial``,
+        ``units``, ``rod``, ``source``, ``csv_path``, ``columns``, ``sensors``, ``notes``.
+
+    Raises
+    ------
+    InputError
+        A malformed TOML or CSV; the message names the file, the key or line, and what
+        is wrong.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> d = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (d / "r.csv").write_text("t,g,q\\n0,0,0\\n30,0.2,2000\\n60,0.4,2000\\n")
+    >>> _ = (d / "r.toml").write_text('[dataset]\\ninitial = "unknown"\\n'
+    ...                               '[columns]\\ntime_s = "t"\\ngrowth_um = "g"\\nq_W_m2 = "q"\\n')
+    >>> rec = read_record(d / "r.toml")
+    >>> rec.initial, list(rec.data.columns), rec.units["q_W_m2"]
+    ('unknown', ['time_s', 'growth_um', 'q_W_m2'], 'W/m²')
+    """
+    from arfem.io import read_toml
+    from arfem.scenarios.dataset import load_dataset
+    ds = load_dataset(path)
+    frame = _record_frame(ds)
+    mapping = read_toml(Path(path)).get("columns", {})
+    columns = {c: mapping.get(c, c) for c in frame.columns}
+    units = {c: _UNITS.get(c, "°C") for c in frame.columns}
+    return Record(frame, ds.name, "equilibrium" if ds.initial_known else "unknown", units,
+                  ds.rod, Path(path), ds.csv_path, columns, dict(ds.sensors),
+                  tuple(ds.notes), ds)
+
+
+def _initial_of(given: str | None, recorded: str, where: str) -> str:
+    """The record's ``initial``; an explicit value must not contradict it."""
+    if given is not None and given != recorded:
+        raise InputError(f"initial={given!r} contradicts the record's initial = "
+                         f"{recorded!r}; change [dataset] initial in the TOML instead",
+                         where)
+    return recorded
+
+
+def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLike], *,
+             rod: Rod | None = None, holdout_start_s: float | None = None,
+             initial: str | None = None, name: str = "dataframe",
              frame_search: str = "narrow") -> DiagnosisResult:
     """What does the simulation get wrong on a measured record, and why?
 
     Parameters
     ----------
-    data : pandas.DataFrame, dict of columns, or path-like
-        A record with the columns of ``docs/measured-data.md``: ``time_s`` [s],
-        ``growth_um`` [µm], and ``q_W_m2`` [W/m²] or ``speed_rpm`` [1/min]; optional
-        ``ambient_C`` [°C] and ``T_<name>_C`` [°C]. A path is a contract TOML file.
+    data : Record, path-like, pandas.DataFrame or dict of columns
+        A :class:`Record` from :func:`read_record`; the path of a contract TOML file (as
+        ``arfem diagnose`` takes); or the samples, with the columns of
+        ``docs/measured-data.md``: ``time_s`` [s], ``growth_um`` [µm], and ``q_W_m2``
+        [W/m²] or ``speed_rpm`` [1/min]; optional ``ambient_C`` [°C] and ``T_<name>_C``
+        [°C] (NaN = an empty cell). Samples are validated in memory, no file is written.
     rod : Rod, optional
-        The rod the simulation assumes (default: the seed paper's); not with a path.
+        The rod the simulation assumes (default: the seed paper's); only with samples
+        (a TOML's rod is its ``[rod]`` table).
     holdout_start_s : float, optional
         Start of the hold-out [s] (default: the last third of the record).
-    initial : {"equilibrium", "unknown"}
-        ``"unknown"`` when the record did not start at equilibrium with the ambient.
+    initial : {"equilibrium", "unknown"}, optional
+        Did the record start at equilibrium with the ambient? A TOML or a
+        :class:`Record` states it (``[dataset] initial``), and a value given here must
+        agree with it. For samples the default is ``"equilibrium"``, and the result's
+        warnings say it was assumed.
     name : str
-        The record's name in the result.
+        The record's name in the result (samples only).
     frame_search : {"narrow", "wide", "average"}
         Speed-only records: frame structures compared (see ``arfem diagnose --help``).
 
@@ -490,8 +613,8 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
     Raises
     ------
     InputError
-        A missing column, a unit that cannot be right, NaNs in time or input; for a
-        DataFrame the message names ``<DataFrame>`` and the column or row.
+        A missing column, a unit that cannot be right, NaNs in time or input; for
+        samples the message names ``<DataFrame>``, the row (from 0) and the column.
 
     Examples
     --------
@@ -502,32 +625,40 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
     >>> df = pd.DataFrame({"time_s": truth.times_s,
     ...                    "q_W_m2": np.r_[0.0, cycle.subdivided(300.0).q_W_m2],
     ...                    "growth_um": truth.growth_um + noise})
-    >>> d = diagnose(df)             # the simulation assumes the paper's h = 55 W/(m²K)
+    >>> d = diagnose(df, initial="equilibrium")   # the simulation assumes h = 55 W/(m²K)
     >>> d.cause, round(d.summary["causes"][0]["parameters"]["h_W_m2K"])
     ('convection_mismatch', 80)
     """
-    from arfem.scenarios.diagnose import diagnose_file
-    if isinstance(data, (str, Path)):
+    from arfem.models.diagnosis.engine import diagnose as _diagnose
+    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    assumed = []
+    if isinstance(data, (str, Path, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
-        d = diagnose_file(data, holdout_start_s, frame_search)
-        return DiagnosisResult(str(d.summary.get("cause", "")), d.summary, d.series)
-    if isinstance(data, dict):
-        data = _frame(data)
-    if initial not in ("equilibrium", "unknown"):
-        raise InputError(f"must be 'equilibrium' or 'unknown', got {initial!r}", "initial")
-    with tempfile.TemporaryDirectory(prefix="arfem-df-") as tmp:
-        toml = _write_contract(data, Path(tmp), rod, name, initial)
-        try:
-            d = diagnose_file(toml, holdout_start_s, frame_search)
-        except InputError as exc:
-            msg = str(exc).replace(str(Path(tmp) / "data.csv"), "<DataFrame>")
-            raise InputError(msg.replace(str(toml), "<DataFrame>")) from None
-    return DiagnosisResult(str(d.summary.get("cause", "")), d.summary, d.series)
+        ds = data._dataset if isinstance(data, Record) else load_dataset(data)
+        recorded = "equilibrium" if ds.initial_known else "unknown"
+        _initial_of(initial, recorded, str(ds.source))
+    else:
+        if initial is None:
+            initial = "equilibrium"
+            assumed.append('initial = "equilibrium" was assumed (the record starts at '
+                           'equilibrium with the ambient); pass initial="unknown" if it '
+                           'did not')
+        ds = dataset_from_columns(data, name=name, rod=rod, initial=initial)
+    d = _diagnose(ds, holdout_start_s, frame_search)
+    summary = d.summary
+    if assumed:
+        summary = {**summary, "warnings": [*summary.get("warnings", []), *assumed]}
+    return DiagnosisResult(str(summary.get("cause", "")), summary, d.series)
 
 
-def read_model(path) -> StateSpaceModel:
-    """Read and validate a ``model.json`` (written by ``arfem run``) for a compensator.
+def read_model(path: str | Path) -> StateSpaceModel:
+    """Read and validate a compensator's model file (``model.json`` and its kin).
+
+    ``arfem run`` writes ``model.json`` (the paper's AR(1) of the scenario);
+    ``arfem diagnose`` writes ``model.json`` (the baseline), ``model_extended.json`` (the
+    baseline extended by the named cause) and ``model_mlr.json`` (the thermometer
+    regression) where they apply. ``arfem compensate`` replays any of them.
 
     Parameters
     ----------

@@ -4,12 +4,13 @@ Build (warnings are errors, cross-references checked, the gallery executed):
 
     pip install -e ".[docs]"
     python -m sphinx -W --keep-going -n -b html docs docs/_build/html
+
+The command pages' option tables are generated from the parsers by
+``docs/gen_cli_reference.py`` and committed (so they read as plain Markdown too);
+``tests/test_cli_reference.py`` fails when they differ from the installed commands.
 """
 import logging
 import os
-
-from docutils import nodes
-from sphinx.util.docutils import SphinxDirective
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # the examples' FEMs are small
 os.environ.setdefault("MPLBACKEND", "agg")
@@ -35,6 +36,8 @@ source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "examples/README.txt", "**/README.txt"]
 html_theme = "furo"
 html_title = f"arfem {version}"
+html_static_path = ["_static"]
+html_css_files = ["arfem.css"]          # tables that fit a phone
 myst_enable_extensions = ["dollarmath"]
 myst_heading_anchors = 3
 suppress_warnings = ["myst.header"]           # the moved README keeps its heading levels
@@ -57,26 +60,3 @@ sphinx_gallery_conf = {
     "abort_on_example_error": True,
     "within_subsection_order": "FileNameSortKey",
 }
-
-
-class ArfemHelp(SphinxDirective):
-    """``arfem-help COMMAND``: the command's ``--help`` text, generated at build time, so
-    that a command page can never disagree with the installed command about an option
-    or its unit."""
-
-    required_arguments = 1
-
-    def run(self):
-        from arfem.scenarios.cli import build_parser
-        command = self.arguments[0]
-        parser = build_parser(command)
-        sub = next(a for a in parser._actions
-                   if getattr(a, "choices", None) and command in a.choices)
-        text = sub.choices[command].format_help()
-        block = nodes.literal_block(text, text)
-        block["language"] = "text"
-        return [block]
-
-
-def setup(app):
-    app.add_directive("arfem-help", ArfemHelp)

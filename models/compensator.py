@@ -348,12 +348,15 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",
               Q_um2: float = 0.0, R_um2: float = 0.0, description: str = "",
               arfem_version: str = "") -> StateSpaceModel:
-    """The AR(1) ΔL_k = C1 ΔL_{k−1} + C2·q_k (paper eq. 12) as a one-state model.
+    r"""The paper's AR(1) as a one-state model that a :class:`Compensator` can run.
+
+    The state is the growth: :math:`\Delta L_k = C_1 \Delta L_{k-1} + C_2 q_k` (paper
+    equation 12).
 
     Parameters
     ----------
     c1 : float
-        C1 = e^{−bΔτ} (paper eq. 13) [-], in [0, 1).
+        :math:`C_1 = e^{-b\Delta\tau}` (paper eq. 13) [-], in [0, 1).
     c2_um_per_W_m2 : float
         C2 per unit heat flux (paper eq. 14 is linear in q) [µm per W/m²].
     dtau_s : float

@@ -46,26 +46,47 @@ def parse_duration_s(text: str, where: str = "--probe-every") -> float:
 
 
 def _figure(res: Replay, path) -> None:
+    """The error with and without compensation on top; below it the inputs, each kind
+    on its own axis (speed or heat flux, then the temperatures in °C, which would draw
+    as flat lines on a 0-5000 rpm axis), every legend outside its panel so that none
+    hides a trace."""
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
     s = res.series
-    th = s.time_s / 3600.0
-    fig = Figure(figsize=(8.0, 6.0), dpi=130, layout="constrained")
-    ax, bx = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
-    ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
-            label="without compensation (measured growth)")
-    ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
-            label="with compensation (measured + offset)")
-    ax.axhline(0.0, color="0.5", lw=0.8)
     m = res.summary
+    th = s.time_s / 3600.0
+    inputs = dict(s.inputs)
+    temps = [k for k in inputs if k.endswith("_C")]
+    drives = [k for k in inputs if k not in temps]
+    panels = [p for p in (drives, temps) if p]
+    fig = Figure(figsize=(9.0, 3.6 + 2.2 * len(panels)), dpi=130, layout="constrained")
+    axes = fig.subplots(1 + len(panels), 1, sharex=True, squeeze=False,
+                        gridspec_kw={"height_ratios": [2.2] + [1.4] * len(panels)})[:, 0]
+    ax = axes[0]
+    ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
+            label="without compensation
+(measured growth)")
+    ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
+            label="with compensation
+(measured + offset)")
+    ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
                  f"{m.rms_after_um:.3g} µm")
     ax.set_ylabel("thermal error [µm]")
-    ax.legend(loc="upper left", fontsize=8)
-    for nm, values in s.inputs.items():
-        bx.plot(th, values, lw=1.0, label=nm)
-    bx.set_xlabel("time [h]")
-    bx.set_ylabel("inputs")
-    bx.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    for bx, names in zip(axes[1:], panels):
+        if len(names) > 10:                   # 16 thermometers: no colour used twice
+            bx.set_prop_cycle(color=colormaps["tab20"].colors)
+        for nm in names:
+            bx.plot(th, inputs[nm], lw=1.0, label=nm)
+        if names is temps:
+            bx.set_ylabel("temperature [°C]")
+        else:
+            units = {"speed_rpm": "speed [1/min]", "q_W_m2": "heat flux [W/m²]"}
+            bx.set_ylabel(units.get(names[0], "input") if len(names) == 1 else "inputs")
+        bx.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
+                  ncol=1 + len(names) // 9)
+    axes[-1].set_xlabel("time [h]")
     fig.savefig(path)
 
 

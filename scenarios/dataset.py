@@ -503,3 +503,164 @@ def load_dataset(toml_path, limits: Limits | None = None) -> Dataset:
         initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
         sensors=sensors, csv_path=csv_path, line_numbers=lines, extra_columns=extra_cols,
         unobserved=unobserved, growth_resolution_um=res)
+
+
+# -- a record held in memory (a pandas DataFrame or a dict of columns) ------------------
+
+_ROW_RE = re.compile(r"\bline (\d+)")
+
+
+def _in_memory_error(exc: InputError, where: str) -> InputError:
+    """The file-reader's wording for an in-memory record: ``line N`` becomes ``row N``
+    (counted from 0, as ``DataFrame.iloc`` does)."""
+    return InputError(_ROW_RE.sub(r"row \1", str(exc)))
+
+
+def _numeric_column(key: str, values, where: str) -> np.ndarray:
+    """A column as floats (None/NaN = an empty cell); text or ±inf refused by row."""
+    raw = np.asarray(values)
+    if raw.ndim != 1:
+        _fail(f"must be one-dimensional, got shape {raw.shape}", f"{where}: column {key!r}")
+    if raw.dtype.kind in "fiu":                   # numbers already: one pass, no loop
+        out = raw.astype(float)
+        if not np.isinf(out).any():
+            return out
+    raw = raw.astype(object)
+    out = np.empty(raw.size)
+    for i, v in enumerate(raw):
+        if v is None:
+            out[i] = np.nan
+            continue
+        if isinstance(v, (bool, np.bool_)) or isinstance(v, (str, bytes)):
+            _fail(f"{v!r} is not a number", f"{where}: row {i}, column {key!r}")
+        try:
+            out[i] = float(v)
+        except (TypeError, ValueError):
+            _fail(f"{v!r} is not a number", f"{where}: row {i}, column {key!r}")
+        if np.isinf(out[i]):
+            _fail(f"{v!r} is not a finite number (use NaN for a missing value)",
+                  f"{where}: row {i}, column {key!r}")
+    return out
+
+
+def dataset_from_columns(columns, *, name: str = "dataframe", rod: Rod | None = None,
+                         initial: str = "equilibrium",
+                         where: str = "<DataFrame>") -> Dataset:
+    """A record held in memory, validated exactly as :func:`load_dataset` validates a file.
+
+    No file is written or read: the columns go through the contract's checks (time
+    strictly increasing from >= 0, an input >= 0 on every row, plausible units, at most
+    5 % rows without a growth, short ambient gaps filled, outliers flagged), and a
+    message names ``where``, the row (counted from 0) and the column.
+
+    Parameters
+    ----------
+    columns : mapping of str to array_like
+        Contract names (``time_s`` [s], ``growth_um`` [µm], ``q_W_m2`` [W/m²] or
+        ``speed_rpm`` [1/min], optional ``ambient_C`` [°C] and ``T_<name>_C`` [°C]), e.g.
+        a pandas DataFrame; other columns are carried and ignored, as in a CSV. NaN or
+        None is an empty cell.
+    name : str
+        The record's name in the results.
+    rod : Rod, optional
+        The rod the simulation assumes (default: the seed paper's).
+    initial : {"equilibrium", "unknown"}
+        ``"unknown"`` when the record did not start at equilibrium with the ambient.
+    where : str
+        What the messages call the record.
+
+    Returns
+    -------
+    Dataset
+
+    Raises
+    ------
+    arfem.params.InputError
+        One line naming ``where``, the row or column, and what is wrong.
+
+    Examples
+    --------
+    >>> ds = dataset_from_columns({"time_s": [0.0, 30.0, 60.0], "growth_um": [0, 0.2, 0.4],
+    ...                            "q_W_m2": [0.0, 2000.0, 2000.0]}, initial="unknown")
+    >>> ds.input_kind, ds.initial_known, str(ds.source)
+    ('q_W_m2', False, '<DataFrame>')
+    """
+    if initial not in _INITIAL_VALUES:
+        _fail(f"must be one of {', '.join(repr(v) for v in _INITIAL_VALUES)}, got {initial!r}",
+              "initial")
+    if not isinstance(name, str) or not name.strip():
+        _fail(f"must be a non-empty string, got {name!r}", "name")
+    rod = Rod() if rod is None else rod
+    for key in ROD_KEYS:
+        check_plausible(key, float(getattr(rod, key)), f"rod.{key}")
+    header = [str(c) for c in columns.keys()]
+    for i, h in enumerate(header):
+        if header.index(h) != i:
+            _fail(f"column {h!r} appears twice", where)
+    try:
+        col = {h: h for h in header if h in _BASE_COLUMNS or _TEMP_RE.match(h)}
+        extra = [h for h in header if h not in col]
+        for req in ("time_s", "growth_um"):
+            if req not in col:
+                _fail(f"required column {req!r} is missing (columns: {', '.join(header)})",
+                      where)
+        if "q_W_m2" not in col and "speed_rpm" not in col:
+            _fail("needs a q_W_m2 or a speed_rpm column; it has neither", where)
+        data = {str(k): v for k, v in columns.items()}
+        values = {k: _numeric_column(k, data[k], where) for k in col}
+        n = {k: v.size for k, v in values.items()}
+        if len(set(n.values())) != 1:
+            _fail(f"columns differ in length: {n}", where)
+        if not n["time_s"]:
+            _fail("has no rows", where)
+        lines = np.arange(n["time_s"])
+        return _dataset_from_values(values, lines, extra, {k: np.asarray(data[k], dtype=object)
+                                                            for k in extra},
+                                    name=name, rod=rod, initial_unknown=initial == "unknown",
+                                    where=where)
+    except InputError as exc:
+        raise _in_memory_error(exc, where) from None
+
+
+def _dataset_from_values(values, lines, extra, extra_raw, *, name, rod, initial_unknown,
+                         where) -> Dataset:
+    """The contract's processing of parsed columns (as :func:`load_dataset` does after
+    reading the CSV), for a record held in memory."""
+    source = Path(where)
+
+    def label(key):
+        return f"{key!r}"
+
+    notes: list[str] = []
+    values, lines, keep, unobserved = _drop_missing_rows(values, lines, source, notes)
+    notes = [s.replace("CSV lines", "rows") for s in notes]
+    t = values["time_s"]
+    dt = _check_time(t, lines, source, label)
+    _check_input(values, lines, source, label, notes)
+    amb = _ambient(values, t, lines, source, label, notes)
+    temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
+    for k, v in temps.items():
+        if np.isnan(v).any():
+            notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
+    g = values["growth_um"]
+    out_notes: list[str] = []
+    outliers, res = _growth_outliers(g, lines, source, label, out_notes)
+    notes += [s.replace("CSV lines", "rows") for s in out_notes]
+    gaps = sampling_gaps(t)
+    _record_notes(t, dt, gaps, extra, {}, values, initial_unknown, notes)
+    extra_cols = {}
+    for h in extra:
+        a = extra_raw[h][keep]
+        a.setflags(write=False)
+        extra_cols[h] = a
+    outliers.setflags(write=False)
+    lines.setflags(write=False)
+    return Dataset(
+        name=name, source=source, time_s=_frozen(t), growth_um=_frozen(g),
+        q_W_m2=_frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
+        speed_rpm=_frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
+        ambient_C=_frozen(amb) if amb is not None else None,
+        temperatures={k: _frozen(v) for k, v in temps.items()}, rod=rod,
+        initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
+        sensors={}, csv_path=None, line_numbers=lines, extra_columns=extra_cols,
+        unobserved=unobserved, growth_resolution_um=res)

@@ -54,12 +54,16 @@ _INPUT_KEYS = (".toml", ".csv")
 
 _CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:2em auto;
-max-width:1100px;padding:0 1em;color:#222;line-height:1.4}
+max-width:1100px;padding:0 1em;color:#222;line-height:1.4;overflow-wrap:break-word}
+.wide{max-width:100%;overflow-x:auto}img{max-width:100%;height:auto}
+@media (max-width:600px){body{margin:1em auto;padding:0 .6em}table{font-size:.8em}
+td{overflow-wrap:anywhere}}
 h1{font-size:1.5em}.verdict{background:#f3f7fb;border-left:4px solid #2a6ebb;
 padding:.2em 1em .6em;margin:1em 0 2em}.verdict h2{margin-top:.6em;border:0}h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;
 margin-top:2em}h3{font-size:1.05em;margin-top:1.4em}
 table{border-collapse:collapse;margin:.5em 0 1em;font-size:.88em}
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:left;vertical-align:top}
+td code,th code{overflow-wrap:anywhere}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 figure{margin:1em 0}figure img,.verdict img{max-width:100%;height:auto;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555}pre{background:#f7f7f7;padding:.6em;overflow-x:auto;
@@ -264,8 +268,28 @@ def _verdict(root: Path, shown: set) -> str:
         i = lines.index("## Verdict") + 1
         j = next((k for k in range(i, len(lines)) if lines[k].startswith("## ")), len(lines))
         body = _markdown("\n".join(lines[i:j]), root, root, embed=shown)
-        return f'<section class="verdict" id="verdict"><h2>Verdict</h2>{body}</section>'
-    return ""
+        return (f'<section class="verdict" id="verdict"><h2>Verdict</h2>{body}</section>',
+                name)
+    return "", None
+
+
+def _without_verdict(text: str) -> str:
+    """``text`` (Markdown) without its ``## Verdict`` section, which the page shows at
+    the top: a reader meets the verdict once."""
+    lines = text.splitlines()
+    if "## Verdict" not in lines:
+        return text
+    i = lines.index("## Verdict")
+    j = next((k for k in range(i + 1, len(lines)) if lines[k].startswith("## ")), len(lines))
+    note = ["## Verdict", "", "Shown at the top of this page.", ""]
+    return "\n".join(lines[:i] + note + lines[j:])
+
+
+def _scroll_tables(html: str) -> str:
+    """Every table in a box that scrolls sideways by itself, so that a wide table never
+    makes the page scroll at a laptop's or a phone's width."""
+    return html.replace("<table", '<div class="wide"><table').replace(
+        "</table>", "</table></div>")
 
 
 def _anchor(rel: Path) -> str:
@@ -350,7 +374,7 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
     for rel in files:
         by_dir.setdefault(rel.parent, []).append(rel)
     shown: set = set()
-    lead = _verdict(root, shown)
+    lead, verdict_from = _verdict(root, shown)
     inputs: dict = {}
     sections = []
     toc = []
@@ -390,6 +414,8 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         mds.sort(key=lambda r: (r.name != "README.md", r.name))
         for k, r in enumerate(mds):
             text = (root / r).read_text("utf-8", errors="replace")
+            if verdict_from is not None and r == Path(verdict_from):
+                text = _without_verdict(text)
             opened = " open" if d == Path(".") and k == 0 else ""
             body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
                            f"{_e(r.as_posix())}</a></summary>"
@@ -434,7 +460,7 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         f"report was written.</p><table>{versions}</table>"
         "</body></html>\n")
     path = root / REPORT_NAME
-    atomic_write_text(path, page)
+    atomic_write_text(path, _scroll_tables(page))
     return path
 
 

@@ -7,7 +7,13 @@ What is verified and why:
 * ``import arfem`` loads no heavy module (numpy, scipy, matplotlib, the FEM): the import
   stays fast because of laziness, checked structurally rather than by a timed test;
 * results convert to pandas and JSON, and a DataFrame with a bad column gets one clear
-  error naming ``<DataFrame>`` rather than a temporary file.
+  error naming ``<DataFrame>`` rather than a temporary file;
+* ``read_record`` maps the shipped record's foreign column names onto the contract's and
+  keeps its ``initial``; ``diagnose`` gives the engine the record's ``initial`` whatever
+  the input (TOML, Record, DataFrame), refuses a contradicting one and warns when it
+  assumed one; samples are validated in memory by the file reader's checks (no temporary
+  file), with the same arrays as the file path (issue 30 item 5, issue 31 item 6);
+* ``dir(arfem)`` and ``help(arfem)`` are written for users (issue 30 item 9).
 """
 import inspect
 import json
@@ -80,3 +86,125 @@ def test_dataframe_error_names_the_dataframe_not_a_temp_file():
 def test_check_limits_are_validated():
     with pytest.raises(arfem.InputError, match="max_abs_pct"):
         arfem.check("paper_fig2", max_abs_pct=-1.0)
+
+
+# -- read_record and diagnose's inputs (issue 30 item 5, issue 31 item 6) -------------------
+
+REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
+CH2 = REPO / "scenarios" / "fl_thermal" / "fl_thermal_ch2.toml"
+
+
+def test_read_record_gives_the_contract_names_and_the_tomls_metadata():
+    """The shipped record's CSV has foreign names (``ch2(um)``); read_record maps them
+    onto the contract's and carries initial = "unknown" from the TOML."""
+    from arfem.scenarios.dataset import load_dataset
+    rec = arfem.read_record(CH2)
+    ds = load_dataset(CH2)
+    assert rec.initial == "unknown" and rec.name == "fl_thermal_ch2"
+    assert list(rec.data.columns[:3]) == ["time_s", "growth_um", "speed_rpm"]
+    assert {f"T_t{i}_C" for i in range(1, 17)} <= set(rec.data.columns)
+    assert rec.columns["growth_um"] == "ch2(um)" and rec.units["growth_um"] == "µm"
+    assert rec.units["T_t3_C"] == "°C" and rec.units["speed_rpm"] == "1/min"
+    np.testing.assert_array_equal(rec.data["growth_um"].to_numpy(), ds.growth_um)
+    assert rec.csv_path.name == "fl_thermal_whole.csv" and rec.notes == tuple(ds.notes)
+
+
+@pytest.fixture
+def captured(monkeypatch):
+    """The engine replaced by a recorder of the Dataset it is given: what diagnose
+    hands the engine is the property tested, not the diagnosis (tested elsewhere)."""
+    from arfem.models.diagnosis import engine
+    seen = []
+
+    class _Diag:
+        summary = {"cause": "none", "warnings": []}
+        series = {"time_s": [0.0]}
+
+    def fake(ds, *args, **kwargs):
+        seen.append(ds)
+        return _Diag()
+    monkeypatch.setattr(engine, "diagnose", fake)
+    return seen
+
+
+def test_diagnose_honours_the_records_initial_whatever_the_input(captured):
+    rec = arfem.read_record(CH2)
+    arfem.diagnose(CH2)
+    arfem.diagnose(rec)
+    arfem.diagnose(rec.data, initial=rec.initial)
+    assert [ds.initial_known for ds in captured] == [False, False, False]
+    with pytest.raises(arfem.InputError, match="contradicts the record's initial"):
+        arfem.diagnose(CH2, initial="equilibrium")
+    with pytest.raises(arfem.InputError, match="contradicts"):
+        arfem.diagnose(rec, initial="equilibrium")
+
+
+def test_diagnose_of_samples_says_when_it_assumed_equilibrium(captured):
+    df = {"time_s": [0.0, 60.0, 120.0], "growth_um": [0.0, 0.1, 0.2],
+          "q_W_m2": [0.0, 1000.0, 1000.0]}
+    said = arfem.diagnose(df).summary["warnings"]
+    assert captured[-1].initial_known and any("assumed" in w for w in said)
+    assert arfem.diagnose(df, initial="unknown").summary["warnings"] == []
+    assert not captured[-1].initial_known
+
+
+def test_diagnose_of_a_dataframe_writes_and_reads_no_file(captured, monkeypatch):
+    """Samples are validated in memory: any temporary folder or CSV reading fails."""
+    import tempfile
+
+    from arfem.scenarios import dataset
+
+    def refuse(*a, **k):
+        raise AssertionError("a file was touched")
+    for name in ("mkdtemp", "mkstemp", "TemporaryDirectory", "NamedTemporaryFile"):
+        monkeypatch.setattr(tempfile, name, refuse)
+    monkeypatch.setattr(dataset, "read_text_utf8", refuse)
+    import pandas as pd
+    df = pd.DataFrame({"time_s": [0.0, 60.0, 120.0], "growth_um": [0.0, 0.1, 0.2],
+                       "speed_rpm": [0.0, 3000.0, 3000.0], "note": ["a", "b", "c"]})
+    arfem.diagnose(df, initial="equilibrium")
+    ds = captured[-1]
+    assert str(ds.source) == "<DataFrame>" and ds.input_kind == "speed_rpm"
+    assert list(ds.extra_columns) == ["note"]
+
+
+def test_in_memory_samples_get_the_file_readers_checks_row_by_row():
+    import pandas as pd
+    from arfem.scenarios.dataset import dataset_from_columns
+    bad = pd.DataFrame({"time_s": [0.0, 60.0, 30.0], "growth_um": [0.0, 0.1, 0.2],
+                        "q_W_m2": [0.0, 1.0, 1.0]})
+    with pytest.raises(arfem.InputError, match=r"<DataFrame>: row 2, column 'time_s'"):
+        arfem.diagnose(bad)
+    text = bad.assign(time_s=[0.0, 60.0, 90.0], growth_um=[0.0, "x", 0.2])
+    with pytest.raises(arfem.InputError, match=r"<DataFrame>: row 1, column 'growth_um'"):
+        dataset_from_columns(text)
+    neg = bad.assign(time_s=[0.0, 60.0, 90.0], q_W_m2=[0.0, -5.0, 1.0])
+    with pytest.raises(arfem.InputError, match="negative"):
+        dataset_from_columns(neg)
+
+
+def test_samples_in_memory_and_the_same_record_from_its_files_agree():
+    """One validation: the shipped record through read_record's DataFrame gives the
+    engine the same arrays, outlier flags and gaps as the file reader."""
+    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    rec = arfem.read_record(CH2)
+    mem = dataset_from_columns(rec.data, initial=rec.initial)
+    ds = load_dataset(CH2)
+    for key in ("time_s", "growth_um", "speed_rpm"):
+        np.testing.assert_array_equal(getattr(mem, key), getattr(ds, key))
+    np.testing.assert_array_equal(mem.outliers, ds.outliers)
+    assert mem.gaps == ds.gaps and set(mem.temperatures) == set(ds.temperatures)
+    assert mem.growth_resolution_um == ds.growth_resolution_um
+
+
+def test_dir_arfem_shows_the_api_and_no_internals():
+    names = dir(arfem)
+    assert "read_record" in names and "Record" in names
+    assert not [n for n in names if n in ("PackageNotFoundError", "annotations", "api")
+                or (n.startswith("_") and n != "__version__")]
+
+
+def test_help_arfem_opens_with_what_it_is():
+    first = arfem.__doc__.strip().splitlines()[0]
+    assert "spindle" in arfem.__doc__.split("\n\n")[1] and "layer" not in first.lower()
+    assert "read_record" in arfem.__doc__ and "tests/test_layering" not in arfem.__doc__

@@ -230,3 +230,57 @@ def test_report_in_headless_chromium(run_dir, tmp_path):
     img = mpimg.imread(shot)
     assert img.shape[0] >= 1000 and img[..., :3].std() > 0.05   # not a blank page
     os.environ.get("ARFEM_KEEP_SHOT") and shutil.copy(shot, os.environ["ARFEM_KEEP_SHOT"])
+
+
+def _wide_folder(root: Path) -> Path:
+    """A diagnose-like folder: report.md with a verdict, a 16-column table and a long
+    unbroken name; a JSON with a wide list of records."""
+    root.mkdir()
+    cols = [f"T_thermometer_{i}_C" for i in range(16)]
+    table = ["| " + " | ".join(cols) + " |", "|" + "---|" * 16,
+             "| " + " | ".join("0.123456" for _ in cols) + " |"]
+    (root / "report.md").write_text(
+        "# Diagnosis\n\n## Verdict\n\nThe one verdict sentence XYZZY.\n\n## Details\n\n"
+        + "\n".join(table) + "\n\n`" + "a_very_long_unbroken_name_" * 8 + "`\n",
+        encoding="utf-8")
+    (root / "diagnosis.json").write_text(json.dumps(
+        {"causes": [{c: 1.0 for c in cols}, {c: 2.0 for c in cols}]}), encoding="utf-8")
+    write_html_report(root)
+    return root / "report.html"
+
+
+def test_verdict_is_shown_once_and_tables_scroll_in_their_own_box(tmp_path):
+    """Issue 30 item 8: the verdict came twice (the box, then report.md rendered), and
+    wide tables made the whole page scroll sideways. Every table now sits in a box that
+    scrolls by itself, and report.md is rendered without its verdict section."""
+    text = _wide_folder(tmp_path / "d").read_text("utf-8")
+    assert text.count("XYZZY") == 1 and "Shown at the top of this page" in text
+    assert text.count("<table") == text.count('<div class="wide"><table') >= 3
+    assert ".wide{max-width:100%;overflow-x:auto}" in text and "img{max-width:100%" in text
+
+
+@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (CI has none)")
+@pytest.mark.parametrize("width", [1280, 390])
+def test_report_does_not_scroll_sideways_in_chromium(tmp_path, width):
+    """At a laptop's (1280 px) and a phone's (390 px) width the page is no wider than
+    the window: Chromium's own layout, read back from the DOM. The page is laid out in
+    an iframe of that width (headless Chromium's window is at least 500 px wide)."""
+    report = _wide_folder(tmp_path / "d")
+    probe = report.with_name("probe.html")
+    probe.write_text(
+        f'<html><body style="margin:0"><iframe id="f" src="{report.name}" '
+        f'style="width:{width}px;height:900px;border:0"></iframe><script>'
+        "document.getElementById('f').addEventListener('load',()=>{"
+        "const w=document.getElementById('f').contentWindow;"
+        "const p=document.createElement('pre');p.id='w';"
+        "p.textContent=w.document.documentElement.scrollWidth+' '+w.innerWidth;"
+        "document.body.appendChild(p)})</script></body></html>", encoding="utf-8")
+    with tempfile.TemporaryDirectory() as prof:
+        res = subprocess.run(_chromium_args(prof) + [
+            "--allow-file-access-from-files", "--window-size=1400,1000",
+            "--virtual-time-budget=5000", "--dump-dom", probe.as_uri()],
+            capture_output=True, text=True, timeout=120)
+    dom = res.stdout
+    start = dom.index('<pre id="w">') + len('<pre id="w">')
+    scroll, inner = map(int, dom[start:dom.index("</pre>", start)].split())
+    assert inner == width and scroll <= inner, (scroll, inner)

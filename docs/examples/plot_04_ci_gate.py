@@ -31,7 +31,10 @@ dtau_s = 30.0
 """)
     results[h] = arfem.check(path)
     for c in results[h].criteria:
-        print(f"h = {h:g}: {'PASS' if c['passed'] else 'FAIL'}  {c['message']}")
+        verdict = "PASS" if c["passed"] else "FAIL"      # short lines: none is cut
+        unit = "" if c["unit"] == "-" else f" {c['unit']}"
+        print(f"h = {h:g}: {verdict}  {c['name']} = {c['value']:.4g}{unit}, "
+              f"limit {c['limit']:.4g}")
 
 fig, ax = plt.subplots(figsize=(6, 3), layout="constrained")
 vals = [results[h].criteria[0]["value"] for h in results]

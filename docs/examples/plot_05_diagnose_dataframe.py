@@ -19,9 +19,12 @@ noise = np.random.default_rng(1).normal(0.0, 0.02, truth.times_s.size)
 df = pd.DataFrame({"time_s": truth.times_s,
                    "q_W_m2": np.r_[0.0, cycle.subdivided(300.0).q_W_m2],
                    "growth_um": truth.growth_um + noise})
-result = arfem.diagnose(df)
+result = arfem.diagnose(df, initial="equilibrium")   # the rod starts at the ambient
 cause = result.summary["causes"][0]
-print("named cause:", result.cause, cause["parameters"], "95 %:", cause["ci95"])
+print("named cause:", result.cause)
+for key, value in cause["parameters"].items():        # one line each, so none is cut
+    low, high = cause["ci95"].get(key, (float("nan"), float("nan")))
+    print(f"  {key} = {value:.4g}, 95 % interval [{low:.4g}, {high:.4g}]")
 
 s = result.to_dataframe()
 fig, ax = plt.subplots(figsize=(7, 4), layout="constrained")
@@ -30,4 +33,4 @@ ax.plot(s.time_s / 3600, s.baseline_um, "--", label="simulation as assumed (h = 
 ax.plot(s.time_s / 3600, s.extended_um, "-", label=f"extended: {result.cause}")
 ax.set_xlabel("time [h]")
 ax.set_ylabel("axial growth [µm]")
-_ = ax.legend()
+_ = fig.legend(loc="outside lower center", ncol=3, fontsize=8, frameon=False)  # off the traces
