@@ -64,11 +64,9 @@ def _figure(res: Replay, path) -> None:
                         gridspec_kw={"height_ratios": [2.2] + [1.4] * len(panels)})[:, 0]
     ax = axes[0]
     ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
-            label="without compensation
-(measured growth)")
+            label="without compensation\n(measured growth)")
     ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
-            label="with compensation
-(measured + offset)")
+            label="with compensation\n(measured + offset)")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
                  f"{m.rms_after_um:.3g} µm")
