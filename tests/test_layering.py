@@ -196,7 +196,6 @@ KNOWN_COMMAND_IMPORTS = {
     ("tests/test_staging_cleanup.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep_resume_validation.py", "arfem.scenarios.sweep"): _SWEEP,
     ("arfem/api.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("arfem/api.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/compensate.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/diagnose.py", "arfem.scenarios.html_report"): _REPORT,
