@@ -41,6 +41,7 @@ def _fault_machine():
     path = Path(__file__).resolve().parent.parent / "tests" / "live_fault_machine.py"
     spec = importlib.util.spec_from_file_location("live_fault_machine", path)
     mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod            # (its dataclasses look their module up)
     spec.loader.exec_module(mod)
     return mod
 

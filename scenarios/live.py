@@ -491,6 +491,7 @@ class _JsonRun:
         t = None
         if bad is not None:                  # not a reading: hold, do not advance
             cyc = self.comp.step(values, [bad], advance=False)
+            cyc = replace(cyc, alarms=(bad,))  # (not also missing:NAME for each input)
         else:
             alarms = []
             t = doc.get("time_s")
