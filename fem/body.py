@@ -294,17 +294,85 @@ class ThermalBody:
 
     def probe(self, points_m: np.ndarray, names) -> sp.csr_matrix:
         """Interpolation rows (npoints, ndofs) at ``points_m`` (3, npoints) [m], each in
-        the element that holds it; a point outside the mesh is refused by name."""
+        the element that holds it (:func:`locate`); a point outside the mesh is refused
+        by name."""
         rows = []
         for j, name in enumerate(names):
-            try:
-                rows.append(self.basis.probes(points_m[:, j:j + 1]))
-            except ValueError:
-                p = points_m[:, j]
-                raise InputError(f"point ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g}) m is outside "
-                                 f"the mesh ({self.gmesh.source})",
-                                 f"sensor {name!r}.point") from None
+            cell, vals = locate(self.basis, points_m[:, j], f"sensor {name!r}.point",
+                                self.gmesh.source)
+            dofs = self.basis.element_dofs[:, cell]
+            rows.append(sp.csr_matrix((vals, (np.zeros(dofs.size, int), dofs)),
+                                      shape=(1, self.basis.N)))
         return sp.vstack(rows).tocsr()
+
+
+def _inverse_map(mapping, x: np.ndarray, e: int, tet: bool):
+    """Reference coordinates (3, 1) of ``x`` in element ``e`` by Newton's method on the
+    element's own map (skfem's ``invF`` raises as soon as it meets a point just outside a
+    curved element); None if it does not converge."""
+    X = np.full((3, 1), 0.25 if tet else 0.5)
+    tind = np.array([e])
+    for _ in range(30):
+        F = mapping.F(X, tind=tind)[:, 0, :]            # (3, 1)
+        J = mapping.DF(X, tind=tind)[:, :, 0, 0]        # (3, 3)
+        try:
+            dX = np.linalg.solve(J, x - F[:, 0])
+        except np.linalg.LinAlgError:
+            return None
+        X = X + dX[:, None]
+        if np.max(np.abs(dX)) < 1e-12:
+            return X
+        if np.max(np.abs(X)) > 10.0:
+            return None
+    return None
+
+
+def locate(basis: Basis, point_m, where: str, source: str = "the mesh"):
+    """The element holding ``point_m`` (3,) [m] and the element's basis values there.
+
+    Candidates are the elements whose node bounding box holds the point; the reference
+    coordinates are found by the element's own (isoparametric) inverse map, so a point
+    near a curved boundary lands in the curved element. skfem's ``probes`` tries Newton
+    on its nearest candidates and stops at the first that does not converge; this tries
+    each candidate in turn.
+
+    Returns
+    -------
+    cell : int
+    values : ndarray, shape (n_local_dofs,)
+        Basis function values at the point (sum to 1 for Lagrange elements).
+    """
+    mesh = basis.mesh
+    x = np.asarray(point_m, float).reshape(3)
+    loc = mesh.doflocs[:, mesh.t] if mesh.doflocs.shape[1] == mesh.p.shape[1] else None
+    if not hasattr(basis, "_arfem_boxes"):
+        nodes = mesh.doflocs[:, basis.mesh.dofs.element_dofs] if loc is None else loc
+        object.__setattr__(basis, "_arfem_boxes", (nodes.min(axis=1), nodes.max(axis=1)))
+    lo, hi = basis._arfem_boxes
+    tol = 1e-3 * np.max(hi - lo, axis=0)          # 0.1 % of each element's size
+    cand = np.flatnonzero(np.all((lo - tol <= x[:, None]) & (x[:, None] <= hi + tol), axis=0))
+    tet = mesh.t.shape[0] == 4
+    best = None
+    for e in cand:
+        X = _inverse_map(basis.mapping, x, int(e), tet)
+        if X is None:
+            continue
+        Xr = X[:, 0]
+        out = (max(-Xr.min(), Xr.sum() - 1.0) if tet
+               else max(-Xr.min(), (Xr - 1.0).max()))
+        if best is None or out < best[0]:
+            best = (out, e, X)
+        if out <= 1e-9:
+            break
+    # a point on a curved face may lie a hair (O(h³)) outside the quadratic surface:
+    # accepted within 0.1 % of the element (reference coordinates), i.e. on the surface
+    if best is None or best[0] > 1e-3:
+        raise InputError(f"point ({x[0]:.6g}, {x[1]:.6g}, {x[2]:.6g}) m is outside the mesh "
+                         f"({source})", where)
+    _, e, X = best
+    el = basis.elem
+    vals = np.array([float(np.ravel(el.lbasis(X, i)[0])[0]) for i in range(el.doflocs.shape[0])])
+    return int(e), vals
 
 
 def _nearest_vertex(mesh, point, where: str) -> int:
@@ -424,10 +492,9 @@ class ElasticBody:
             def area(w_):
                 return 1.0 + 0.0 * w_.x[0]
             return along.assemble(fb) / float(area.assemble(fb))
-        p = np.asarray(sensor.point, float).reshape(3, 1)
-        try:
-            P = self.basis.probes(p).toarray()        # (3, N): u_x, u_y, u_z
-        except ValueError:
-            raise InputError(f"point ({p[0, 0]:.6g}, {p[1, 0]:.6g}, {p[2, 0]:.6g}) m is "
-                             f"outside the mesh ({gm.source})", f"{where}.point") from None
-        return d @ P
+        cell, vals = locate(self.thermal.basis, sensor.point, f"{where}.point", gm.source)
+        sdofs = self.thermal.basis.element_dofs[:, cell]
+        w = np.zeros(self.ndofs)
+        for c in range(3):           # ElementVector numbers component c of node s as 3s + c
+            w[3 * sdofs + c] += d[c] * vals
+        return w
