@@ -651,14 +651,23 @@ def write_fields_xdmf(run: GeometryRun, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     res = run.result
     U = (m.elastic.displacement(res.fields) if m.elastic is not None else None)
-    with meshio.xdmf.TimeSeriesWriter(str(path)) as w:
-        w.write_points_cells(mesh.p[:, :nv].T, [(ctype, t.T)])
-        for k, tk in enumerate(res.field_times_s):
-            data = {"temperature_C": _vertex_values(m, res.fields[k]) + m.scenario.reference_C}
-            if U is not None:
-                nd = m.elastic.basis.nodal_dofs[:, :nv]
-                data["displacement_m"] = U[k][nd].T
-            w.write_data(float(tk), point_data=data)
+    # meshio's TimeSeriesWriter puts the .h5 in the working directory (meshio 5.3), so
+    # write from inside the target directory
+    import os
+    here = os.getcwd()
+    os.chdir(path.parent)
+    try:
+        with meshio.xdmf.TimeSeriesWriter(path.name) as w:
+            w.write_points_cells(mesh.p[:, :nv].T, [(ctype, t.T)])
+            for k, tk in enumerate(res.field_times_s):
+                data = {"temperature_C": _vertex_values(m, res.fields[k])
+                        + m.scenario.reference_C}
+                if U is not None:
+                    nd = m.elastic.basis.nodal_dofs[:, :nv]
+                    data["displacement_m"] = U[k][nd].T
+                w.write_data(float(tk), point_data=data)
+    finally:
+        os.chdir(here)
 
 
 def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "") -> None:
