@@ -620,7 +620,8 @@ def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
     progress("transient heat")
     theta = _SOLVERS[sc.solver]
     if theta is None:
-        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f)
+        kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds)
     else:
         full = solve_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
         pick = np.clip(np.searchsorted(full.times_s, t_out - 1e-6), 0, full.times_s.size - 1)

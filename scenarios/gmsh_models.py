@@ -73,3 +73,138 @@ def rod_mesh(path, radius_m: float = 0.1, length_m: float = 0.8, size_m: float =
     finally:
         gmsh.finalize()
     return Path(path)
+
+
+from dataclasses import dataclass  # noqa: E402
+
+
+@dataclass(frozen=True)
+class SpindleUnit:
+    """Dimensions [mm] of the parametric spindle unit (see ``docs/geometry.md`` for the
+    sources). The spindle axis is z; the nose (tool side) points to −z; the column
+    stub is behind the housing (+y), cut at its back face ``column_foot``."""
+
+    shaft_radius: float = 35.0            # Ø70 shaft at the front bearings (7014 bore)
+    shaft_bottom: float = -80.0           # nose face, 80 mm out of the housing
+    shaft_top: float = 430.0
+    bearing_outer_radius: float = 55.0    # 7014: D = 110 mm
+    front_bearing_z: tuple = (20.0, 60.0)    # a pair of 7014, B = 20 mm each
+    rear_bearing_z: tuple = (330.0, 360.0)
+    housing_radius: float = 100.0         # Ø200 housing
+    housing_z: tuple = (0.0, 400.0)
+    stator_outer_radius: float = 75.0     # built-in motor stator, 120 mm long
+    stator_z: tuple = (140.0, 260.0)
+    column_x: tuple = (-130.0, 130.0)
+    column_y: tuple = (60.0, 300.0)
+    size: float = 24.0                    # target element size [mm]
+    size_min: float = 8.0
+
+
+def spindle_unit_mesh(path, dims: SpindleUnit = SpindleUnit()) -> Path:
+    """Write the spindle unit as a binary Gmsh 4.1 mesh of 4-node tetrahedra in mm.
+
+    Volume groups ``shaft``, ``front_bearing``, ``rear_bearing``, ``stator``,
+    ``housing``, ``column``; surface groups ``front_bearing_contact`` and
+    ``rear_bearing_contact`` (shaft-ring interfaces, where the bearings' friction heat
+    is put), ``motor_airgap`` (the stator's bore), ``spindle_bore`` (the other faces of
+    the air space between shaft and housing), ``shaft_exposed`` (the shaft out of the
+    housing), ``housing_outer``, ``column_faces`` and ``column_foot`` (clamped).
+    Straight-sided (order 1) to keep the file a few MB; arfem uses P2 elements on it.
+    """
+    gmsh = _gmsh()
+    d = dims
+    gmsh.initialize(["-nt", "1"])
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("spindle_unit")
+        occ = gmsh.model.occ
+        z0, z1 = d.housing_z
+        shaft = occ.addCylinder(0, 0, d.shaft_bottom, 0, 0, d.shaft_top - d.shaft_bottom,
+                                d.shaft_radius)
+
+        def ring(za, zb, r_in, r_out):
+            a = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_out)
+            b = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_in)
+            out, _ = occ.cut([(3, a)], [(3, b)])
+            return out[0][1]
+        front = ring(*d.front_bearing_z, d.shaft_radius, d.bearing_outer_radius)
+        rear = ring(*d.rear_bearing_z, d.shaft_radius, d.bearing_outer_radius)
+        stator = ring(*d.stator_z, d.bearing_outer_radius, d.stator_outer_radius)
+        housing = ring(z0, z1, d.bearing_outer_radius, d.housing_radius)
+        box = occ.addBox(d.column_x[0], d.column_y[0], z0, d.column_x[1] - d.column_x[0],
+                         d.column_y[1] - d.column_y[0], z1 - z0)
+        cyl = occ.addCylinder(0, 0, z0, 0, 0, z1 - z0, d.housing_radius)
+        column = occ.cut([(3, box)], [(3, cyl)])[0][0][1]
+        tools = [(3, t) for t in (front, rear, stator, housing, column)]
+        out, _ = occ.fragment([(3, shaft)], tools)
+        occ.synchronize()
+        vols = {}
+        for dim, tag in gmsh.model.getEntities(3):
+            x, y, z = occ.getCenterOfMass(dim, tag)
+            xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(dim, tag)
+            rmax = max(abs(xmin), abs(xmax))
+            if ymax > d.housing_radius + 1:
+                name = "column"
+            elif rmax <= d.shaft_radius + 1e-6 * d.housing_radius:
+                name = "shaft"
+            elif rmax <= d.bearing_outer_radius + 1:
+                name = "front_bearing" if z < d.stator_z[0] else "rear_bearing"
+            elif rmax <= d.stator_outer_radius + 1:
+                name = "stator"
+            else:
+                name = "housing"
+            vols.setdefault(name, []).append(tag)
+        surf = {}
+        tol = 1e-3
+        for dim, tag in gmsh.model.getEntities(2):
+            up, _ = gmsh.model.getAdjacencies(2, tag)
+            owners = {n for n, tags in vols.items() for t in up if t in tags}
+            xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(2, tag)
+            cx, cy, cz = occ.getCenterOfMass(2, tag)
+            if len(up) == 2:
+                if owners == {"shaft", "front_bearing"}:
+                    name = "front_bearing_contact"
+                elif owners == {"shaft", "rear_bearing"}:
+                    name = "rear_bearing_contact"
+                else:
+                    continue                      # other interfaces: no group needed
+            else:
+                (own,) = owners
+                r_c = (xmax - xmin) / 2
+                if own == "column":
+                    name = "column_foot" if abs(ymin - d.column_y[1]) < tol and \
+                        abs(ymax - d.column_y[1]) < tol else "column_faces"
+                elif own == "shaft":
+                    name = ("shaft_exposed" if (zmax <= z0 + tol or zmin >= z1 - tol)
+                            else "spindle_bore")
+                elif own == "stator" and abs(r_c - d.bearing_outer_radius) < 1:
+                    name = "motor_airgap"
+                elif own == "housing" and abs(r_c - d.housing_radius) < 1:
+                    name = "housing_outer"
+                elif own == "housing" and (abs(cz - z0) < tol or abs(cz - z1) < tol):
+                    # annular end faces: outer part of the housing, in the air
+                    name = ("housing_outer" if xmax - xmin > 2 * d.bearing_outer_radius + 1
+                            else "spindle_bore")
+                else:
+                    name = "spindle_bore"
+            surf.setdefault(name, []).append(tag)
+        for name, tags in vols.items():
+            gmsh.model.addPhysicalGroup(3, tags, name=name)
+        for name, tags in surf.items():
+            gmsh.model.addPhysicalGroup(2, tags, name=name)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", d.size)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", d.size_min)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 12)
+        gmsh.model.mesh.generate(3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 1)
+        gmsh.write(str(path))
+        return Path(path)
+    finally:
+        gmsh.finalize()
+
+
+if __name__ == "__main__":          # python -m arfem.scenarios.gmsh_models
+    here = Path(__file__).resolve().parent
+    spindle_unit_mesh(here / "spindle_unit.msh")
+    print("wrote", here / "spindle_unit.msh")
