@@ -333,11 +333,9 @@ def _check_orientation(p: np.ndarray, t: np.ndarray, ctype: str, where: str) -> 
         nb = [(0, 1, 3, 4), (1, 2, 0, 5), (2, 3, 1, 6), (3, 0, 2, 7),
               (4, 7, 5, 0), (5, 4, 6, 1), (6, 5, 7, 2), (7, 6, 4, 3)]
         vols = np.stack([_triple(p, t[c], t[a], t[b], t[d]) for c, a, b, d in nb])
-        vol = vols.min(axis=0) * np.sign(np.median(vols))
-        size = np.abs(vols).mean(axis=0)
+        vol = (vols * np.sign(np.median(vols))).min(axis=0)    # worst corner
     else:
         vol = _triple(p, t[0], t[1], t[2], t[3])
-        size = np.abs(vol)
     ref = float(np.median(np.abs(vol))) if vol.size else 0.0
     sgn = np.sign(np.median(vol))
     zero = np.abs(vol) <= 1e-10 * max(ref, 1e-300)
@@ -350,7 +348,6 @@ def _check_orientation(p: np.ndarray, t: np.ndarray, ctype: str, where: str) -> 
         k = int(np.flatnonzero(zero)[0])
         raise InputError(f"{int(zero.sum())} elements with zero volume (e.g. element {k}); "
                          "re-mesh", where)
-    del size
 
 
 def _triple(p, c, a, b, d):
@@ -361,10 +358,15 @@ def _triple(p, c, a, b, d):
 
 # -- memory ---------------------------------------------------------------------------------
 
-#: nnz(L + U) ≈ FILL_COEFF · n^{4/3} for METIS-ordered 3D factors (n the order); fitted
-#: on arfem's matrices by ``benchmarks/bench_geometry.py`` (scalar heat and vector
-#: elasticity, P2 tetrahedra and 20-node bricks, 1e4 to 3e5 unknowns).
-FILL_COEFF = 40.0
+#: nnz(L + U) ≈ FILL_COEFF · n^{4/3} for METIS-ordered 3D factors (n the order). Measured
+#: 23 on the rod's 20-node-brick heat matrix (9948 unknowns, 4.89 M entries,
+#: fem/linsolve.py) and 23.4 on the spindle unit's P2-tetrahedron elastic stiffness
+#: (75 255 unknowns, 74.6 M entries); 30 leaves a margin.
+FILL_COEFF = 30.0
+#: Bytes per factor entry at the peak: value and index (12) doubled for SuperLU's
+#: working copies; the shipped spindle unit's run peaked at 2.4 GB with its elastic
+#: factor of 74.6 M entries.
+BYTES_PER_ENTRY = 24.0
 
 
 def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> int:
@@ -372,7 +374,7 @@ def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> i
 
     The run holds the heat matrices (M, K and one per convection group) and one
     factor of the conductance, then the elastic stiffness (3n unknowns, 9× the
-    entries per row... for the 3 components) and its factor. The factors dominate:
+    entries per row) and its factor. The factors dominate:
     nnz(L+U) ≈ :data:`FILL_COEFF` · n^{4/3} for a METIS-ordered 3D mesh, 12 bytes each
     (value and index).
 
@@ -395,9 +397,9 @@ def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> i
     """
     n = float(n_heat_dofs)
     heat_mats = 4 * n * nnz_per_row_heat * 12
-    heat_factor = FILL_COEFF * n ** (4 / 3) * 12
+    heat_factor = FILL_COEFF * n ** (4 / 3) * BYTES_PER_ENTRY
     elastic_mat = 3 * n * 3 * nnz_per_row_heat * 12
-    elastic_factor = FILL_COEFF * (3 * n) ** (4 / 3) * 12 * 1.0
+    elastic_factor = FILL_COEFF * (3 * n) ** (4 / 3) * BYTES_PER_ENTRY
     return int(heat_mats + heat_factor + elastic_mat + elastic_factor + 200e6)
 
 

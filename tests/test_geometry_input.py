@@ -117,3 +117,40 @@ def test_cli_exit_2_one_line_nothing_written(tmp_path):
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "nope" in r.stderr
     assert not out.exists()
+
+
+def test_hexahedral_mesh_is_read_with_its_volume_and_groups(tmp_path):
+    """An 8-node hexahedron mesh (VTK/Gmsh node order) becomes skfem's MeshHex1 with
+    positive element volumes summing to the box's, and its faces are found as facets;
+    one hex with two corner layers swapped is refused as inverted."""
+    import meshio
+    from skfem import Basis, ElementHex1, MeshHex1
+
+    from arfem.fem.gmsh_io import _VTK_TO_SKFEM_HEX, read_grouped_mesh
+    m = MeshHex1.init_tensor(np.linspace(0, 0.3, 4), np.linspace(0, 0.2, 3),
+                             np.linspace(0, 0.1, 2))
+    t_vtk = m.t[np.argsort(_VTK_TO_SKFEM_HEX)].T.copy()
+    left = m.facets[:, m.boundary_facets()[np.isclose(
+        m.p[0, m.facets[:, m.boundary_facets()]].mean(axis=0), 0.0)]]
+    quads = []
+    for f in left.T:                   # skfem facet nodes -> a quad in cyclic order
+        P = m.p[1:, f]
+        c = P.mean(axis=1)
+        quads.append(f[np.argsort(np.arctan2(P[1] - c[1], P[0] - c[0]))])
+    mm = meshio.Mesh(m.p.T, [("hexahedron", t_vtk), ("quad", np.array(quads))],
+                     cell_data={"gmsh:physical": [np.full(len(t_vtk), 1),
+                                                  np.full(len(quads), 2)],
+                                "gmsh:geometrical": [np.full(len(t_vtk), 1),
+                                                     np.full(len(quads), 2)]},
+                     field_data={"body": np.array([1, 3]), "left": np.array([2, 2])})
+    write_msh(mm, tmp_path / "hex.msh")
+    gm = read_grouped_mesh(tmp_path / "hex.msh", "m")
+    assert gm.cell_type == "hexahedron" and gm.surfaces["left"].size == 2
+    vol = Basis(gm.mesh, ElementHex1()).dx.sum()
+    assert vol == pytest.approx(0.3 * 0.2 * 0.1, rel=1e-12)
+    bad = t_vtk.copy()
+    bad[0] = bad[0][[4, 5, 6, 7, 0, 1, 2, 3]]
+    mm.cells[0] = meshio.CellBlock("hexahedron", bad)
+    write_msh(mm, tmp_path / "bad.msh")
+    with pytest.raises(InputError, match="inverted"):
+        read_grouped_mesh(tmp_path / "bad.msh", "m")
