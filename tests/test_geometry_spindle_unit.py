@@ -57,8 +57,8 @@ def test_history_puts_each_source_on_its_own_schedule(unit):
         return int(np.searchsorted(h.edges_s, hours * 3600, side="right") - 1)
     motor = h.u[:, names.index("motor")]
     front = h.u[:, names.index("front_bearing")]
-    assert motor[at(8.0)] == 250.0 and front[at(8.0)] == 180.0
-    assert motor[at(5.0)] == 250.0 and front[at(5.0)] == 120.0
+    assert motor[at(8.0)] == 50.0 and front[at(8.0)] == 36.0
+    assert motor[at(5.0)] == 50.0 and front[at(5.0)] == 24.0
     k_bore = [c.spec.group for c in sc.convections].index("spindle_bore")
     hb = h.h_W_m2K[:, k_bore]
     assert hb[at(8.0)] == pytest.approx(5.0 + 0.08 * 12000 ** 0.6)
