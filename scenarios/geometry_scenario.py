@@ -706,11 +706,16 @@ def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "") -
                                   center=s.point), color="black")
             pl.add_point_labels(np.array([s.point]), [s.name], font_size=14,
                                 point_size=1, shape_opacity=0.6)
-    pl.add_legend(bcolor="white", size=(0.22, 0.04 * (len(gm.surfaces) + 1)), face="rectangle")
+    pl.add_legend(bcolor="white", size=(0.22, 0.04 * (len(gm.surfaces) + 1)), face="rectangle",
+                  loc="upper left")
     pl.add_axes()
     if title:
         pl.add_title(title, font_size=11)
-    pl.camera_position = "iso"
+    # from the front (−y), to the side (+x) and a little from below: a spindle unit's
+    # nose and the TCP face the viewer, the column stub (+y) stays behind
+    c = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    r = float(np.linalg.norm(np.ptp(P, axis=0)))
+    pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
     pl.screenshot(str(path))
     pl.close()
 

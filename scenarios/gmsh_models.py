@@ -119,8 +119,11 @@ def spindle_unit_mesh(path, dims: SpindleUnit = SpindleUnit()) -> Path:
         gmsh.model.add("spindle_unit")
         occ = gmsh.model.occ
         z0, z1 = d.housing_z
-        shaft = occ.addCylinder(0, 0, d.shaft_bottom, 0, 0, d.shaft_top - d.shaft_bottom,
-                                d.shaft_radius)
+        # the shaft in two pieces, split where it leaves the housing, so that the nose's
+        # surface (forced convection in the open) is a face of its own
+        nose = occ.addCylinder(0, 0, d.shaft_bottom, 0, 0, z0 - d.shaft_bottom,
+                               d.shaft_radius)
+        shaft = occ.addCylinder(0, 0, z0, 0, 0, d.shaft_top - z0, d.shaft_radius)
 
         def ring(za, zb, r_in, r_out):
             a = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_out)
@@ -135,7 +138,7 @@ def spindle_unit_mesh(path, dims: SpindleUnit = SpindleUnit()) -> Path:
                          d.column_y[1] - d.column_y[0], z1 - z0)
         cyl = occ.addCylinder(0, 0, z0, 0, 0, z1 - z0, d.housing_radius)
         column = occ.cut([(3, box)], [(3, cyl)])[0][0][1]
-        tools = [(3, t) for t in (front, rear, stator, housing, column)]
+        tools = [(3, t) for t in (nose, front, rear, stator, housing, column)]
         out, _ = occ.fragment([(3, shaft)], tools)
         occ.synchronize()
         vols = {}
