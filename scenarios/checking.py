@@ -47,7 +47,9 @@ DEFAULT_MAX_C1_DIFF = C1_TOL                         # [-]
 _OTHER_KINDS = (("sweep", "a sweep file (run it with arfem sweep)"),
                 ("dataset", "a measured-data case (run it with arfem diagnose)"),
                 ("units", "a precision-allocation file (run it with arfem allocate)"),
-                ("optimizer", "a precision-allocation file (run it with arfem allocate)"))
+                ("optimizer", "a precision-allocation file (run it with arfem allocate)"),
+                ("geometry", "a scenario on a mesh (run it with arfem run; arfem check "
+                             "does not gate mesh scenarios yet, issue 32 item 4)"))
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,9 @@ def _print_summary(ev: Evaluation, out) -> None:
 
 
 def _main_run(args) -> int:
+    from arfem.scenarios import geometry_scenario as geo     # a [geometry] scenario (issue 32)
+    if geo.is_geometry_scenario(args.scenario):
+        return geo.main_run_geometry(args)
     from arfem.scenarios.progress import Progress
     with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
         ev = run_scenario(args.scenario, args.out, args.force, progress=progress,

@@ -1,0 +1,65 @@
+"""Benchmark of the geometry path (issue 32): the shipped spindle unit from its .msh.
+
+Prints, per stage, wall and CPU time: mesh read, heat assembly, elastic assembly and
+factorisation, the sensors' adjoint solves, and the 24 h reduced solve of all sensors
+(sampled every minute); then peak memory (ru_maxrss), the Krylov size, and the reduced
+solve against Crank–Nicolson at Δt = 60 s on the same model (max difference per sensor).
+
+    python benchmarks/bench_geometry.py [--scenario scenarios/spindle_unit.toml] [--no-cn]
+
+Targets (issue 32): ≤ 20 s and ≤ 4 GB for read + assembly + 24 h reduced solve on a
+2-core machine. Quote the load (uptime) with the figures.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1]
+                                              / "scenarios" / "spindle_unit.toml"))
+    ap.add_argument("--no-cn", action="store_true", help="skip the Crank–Nicolson comparison")
+    args = ap.parse_args()
+    from arfem.fem.thermal3d import solve_theta
+    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+                                                   load_geometry_scenario, solve_geometry)
+    print("load:", os.getloadavg())
+    c0, w0 = time.process_time(), time.perf_counter()
+    sc = load_geometry_scenario(args.scenario)
+    sc = type(sc)(**{**sc.__dict__, "fields": False})
+    model = build_geometry_model(sc)
+    run = solve_geometry(model)
+    cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+    t = run.timings_s
+    print(f"mesh: {model.gmesh.mesh.nelements} {model.gmesh.cell_type} cells, "
+          f"{model.thermal.ndofs} temperature and {model.elastic.ndofs} displacement unknowns"
+          f", elastic factor nnz {model.elastic.nnz_factor}")
+    for k, v in t.items():
+        print(f"  {k:<18} {v:8.2f} s wall")
+    print(f"total: {wall:.2f} s wall, {cpu:.2f} s CPU (this process, all threads); "
+          f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6:.2f} GB; "
+          f"memory estimate {model.memory_estimate_bytes / 1e9:.2f} GB")
+    print(f"reduced: {run.result.n_modes} modes; sensors at peak:")
+    for k, v in run.sensor_series().items():
+        print(f"  {k:<20} peak {v[np.argmax(np.abs(v - (20.0 if k.startswith('T_') else 0)))]:10.4f}")
+    if not args.no_cn:
+        c1 = time.process_time()
+        cn = solve_theta(model.thermal, model.history, model.G, 60.0)
+        pick = np.searchsorted(cn.times_s, run.result.times_s - 1e-6)
+        diff = np.max(np.abs(cn.outputs[pick] - run.result.outputs), axis=0)
+        rng = np.max(np.abs(run.result.outputs), axis=0)
+        print(f"Crank–Nicolson dt = 60 s ({time.process_time() - c1:.1f} s CPU): "
+              "max |reduced − CN| per sensor, relative to the sensor's max:")
+        for s, d, r in zip(sc.sensors, diff, rng):
+            print(f"  {s.name:<20} {d / r if r else 0.0:.2e}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,560 @@
+"""A multi-material body on a user's mesh: heat and thermo-elastic operators.
+
+The problem on a :class:`arfem.fem.gmsh_io.GroupedMesh` (θ = T − T_ref, T_ref the
+uniform start and stress-free temperature):
+
+    ρc ∂θ/∂t − ∇·(λ∇θ) = 0                          in each volume group (own ρ, c, λ)
+    λ ∂θ/∂n = q_s(t)                                 on each heat-source group s
+    λ ∂θ/∂n = −h_g(t) (θ − θ_amb,g(t))               on each convection group g
+    ∂θ/∂n = 0                                        elsewhere
+
+semi-discretised as M θ' + (K + Σ_g h_g B_g) θ = F u(t) with the input vector
+u = (q_1 … q_S, h_1θ_amb,1 … h_Gθ_amb,G): a source given as a total power P [W] has
+the column ∫v dS / A_s, so that its input is P itself.
+
+Quasi-static thermo-elasticity (small strain, isotropic per group):
+
+    ∇·σ = 0,  σ = C(E, ν) : (ε(u) − αθ I),   held by a clamped face group or by a
+    statically determinate 3-2-1 support (six point constraints; free expansion).
+
+A displacement sensor s(u) = wᵀu is a linear functional of θ through the factored
+stiffness: s = wᵀK⁻¹Tθ = (TᵀK⁻¹w)ᵀθ, one solve per sensor (adjoint, as in
+:mod:`arfem.fem.elastic`). Every sensor, temperature or displacement, is therefore a
+row gᵀ over the temperature unknowns, and the transient solves of
+:mod:`arfem.fem.thermal3d` need only G = [g_1 … g_r].
+
+The weak forms are the small decorated functions below; material data enter as
+element-wise constants.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import (Basis, BilinearForm, ElementHex1, ElementHexS2, ElementTetP1,
+                   ElementTetP2, ElementVector, FacetBasis, Functional, LinearForm)
+from skfem.helpers import dot, grad
+
+from arfem.fem.gmsh_io import GroupedMesh
+from arfem.fem.linsolve import factorize_spd
+from arfem.params import InputError
+
+__all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
+           "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
+           "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling"]
+
+
+# -- weak forms -------------------------------------------------------------------------------
+
+@BilinearForm
+def conduction(u, v, w):
+    """∫ λ ∇u·∇v dV [W/K]; ``w.k`` is λ [W/(m·K)] per element."""
+    return w.k * dot(grad(u), grad(v))
+
+
+@BilinearForm
+def capacity(u, v, w):
+    """∫ ρc u v dV [J/K]; ``w.rhoc`` is ρc [J/(m³·K)] per element."""
+    return w.rhoc * u * v
+
+
+@BilinearForm
+def surface_mass(u, v, w):
+    """∫ u v dS [m²] on a facet group (times h: convective conductance)."""
+    return u * v
+
+
+@LinearForm
+def unit_load(v, w):
+    """∫ v dS or ∫ v dV [m² or m³]."""
+    return v
+
+
+@BilinearForm
+def elastic_stiffness(u, v, w):
+    """∫ σ(u):ε(v) dV [N/m], σ = λ_L tr ε I + 2μ ε; ``w.lam``, ``w.mu`` [Pa] per element."""
+    gu, gv = u.grad, v.grad
+    tu = gu[0][0] + gu[1][1] + gu[2][2]
+    tv = gv[0][0] + gv[1][1] + gv[2][2]
+    normal = gu[0][0] * gv[0][0] + gu[1][1] * gv[1][1] + gu[2][2] * gv[2][2]
+    shear = ((gu[0][1] + gu[1][0]) * (gv[0][1] + gv[1][0])
+             + (gu[0][2] + gu[2][0]) * (gv[0][2] + gv[2][0])
+             + (gu[1][2] + gu[2][1]) * (gv[1][2] + gv[2][1]))
+    # 2μ ε(u):ε(v) = 2μ Σ ε_ii ε_ii + μ Σ_{i<j} γ_ij γ_ij, γ = 2ε (components, not
+    # skfem.helpers.sym_grad, which is 10x slower here)
+    return w.lam * tu * tv + w.mu * (2.0 * normal + shear)
+
+
+@BilinearForm
+def thermal_coupling(theta, v, w):
+    """∫ (3λ_L + 2μ) α θ tr ε(v) dV [N/K]; ``w.beta`` = (3λ_L + 2μ)α [Pa/K] per element."""
+    g = v.grad
+    return w.beta * theta * (g[0][0] + g[1][1] + g[2][2])
+
+
+# -- specifications -----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Material:
+    """An isotropic material on one volume group (all SI)."""
+
+    group: str
+    conductivity_W_mK: float
+    density_kg_m3: float
+    specific_heat_J_kgK: float
+    expansion_1_K: float
+    youngs_modulus_Pa: float
+    poisson_ratio: float
+
+    @property
+    def lame(self) -> tuple[float, float]:
+        """(λ_L, μ) [Pa]."""
+        E, nu = self.youngs_modulus_Pa, self.poisson_ratio
+        return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+@dataclass(frozen=True)
+class SourceSpec:
+    """A heat source on a surface group: its input is a flux [W/m²] or a power [W]."""
+
+    name: str
+    group: str
+    kind: str = "power"          # "power" (input in W) or "flux" (input in W/m²)
+
+
+@dataclass(frozen=True)
+class ConvectionSpec:
+    """Convection on a surface group (its h and ambient come with the schedule)."""
+
+    name: str
+    group: str
+
+
+@dataclass(frozen=True)
+class Support:
+    """How the body is held: ``kind="clamped"`` on ``group``, or ``kind="3-2-1"`` on
+    three points (coordinates [m]): ``points[0]`` fixed in x, y, z; ``points[1]`` in the
+    two directions across the line 0→1; ``points[2]`` normal to the plane 0-1-2."""
+
+    kind: str
+    group: str | None = None
+    points: tuple = ()
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """A named sensor: a temperature at a point, or a displacement along ``direction``
+    (a unit vector) at a point or averaged over a surface group."""
+
+    name: str
+    quantity: str                # "temperature" | "displacement"
+    point: tuple | None = None   # [m]
+    group: str | None = None     # displacement averaged over this surface group
+    direction: tuple = (0.0, 0.0, 1.0)
+
+
+def element_for(gmesh: GroupedMesh, order: int):
+    """The scalar element of ``order`` (1 or 2) on ``gmesh``'s cells."""
+    if order not in (1, 2):
+        raise InputError(f"must be 1 or 2, got {order!r}", "geometry.order")
+    if gmesh.cell_type == "hexahedron":
+        return ElementHex1() if order == 1 else ElementHexS2()
+    return ElementTetP1() if order == 1 else ElementTetP2()
+
+
+def _per_element(basis: Basis, values_el: np.ndarray) -> np.ndarray:
+    """An element-wise constant as skfem expects it: shape (nelems, nqp)."""
+    return np.repeat(np.asarray(values_el, float)[:, None], basis.X.shape[1], axis=1)
+
+
+def _material_arrays(gmesh: GroupedMesh, materials: dict) -> dict:
+    """Per-element property arrays from {group: Material}; every element needs one."""
+    ne = gmesh.mesh.nelements
+    which = -np.ones(ne, int)
+    mats = list(materials.values())
+    for i, mat in enumerate(mats):
+        el = gmesh.volume_group(mat.group, f"material[{i}].group")
+        which[el] = i
+    missing = [g for g in gmesh.volumes if g not in materials]
+    if missing:
+        raise InputError(f"volume group {missing[0]!r} of the mesh has no [[material]] "
+                         f"(groups without one: {', '.join(sorted(missing))})", "material")
+    if np.any(which < 0):
+        raise InputError(f"{int(np.sum(which < 0))} elements belong to no volume group with "
+                         "a material", "material")
+
+    def arr(f):
+        return np.array([f(m) for m in mats])[which]
+    lam = arr(lambda m: m.lame[0])
+    mu = arr(lambda m: m.lame[1])
+    return {"k": arr(lambda m: m.conductivity_W_mK),
+            "rhoc": arr(lambda m: m.density_kg_m3 * m.specific_heat_J_kgK),
+            "alpha": arr(lambda m: m.expansion_1_K), "lam": lam, "mu": mu,
+            "beta": (3 * lam + 2 * mu) * arr(lambda m: m.expansion_1_K),
+            "which": which}
+
+
+@dataclass(frozen=True)
+class ThermalBody:
+    """Assembled heat operators of a multi-material body (no inputs, no state).
+
+    Attributes
+    ----------
+    gmesh : GroupedMesh
+    basis : skfem.Basis
+        Scalar basis (temperature).
+    M : sparse, capacity ∫ρc u v dV [J/K]
+    K : sparse, conductance ∫λ∇u·∇v dV [W/K]
+    B : tuple of sparse
+        Per convection group, ∫u v dS [m²] (times h [W/(m²K)] gives W/K).
+    F : ndarray, shape (ndofs, S + G)
+        Input matrix: M θ' + A θ = F u with u = (source inputs [W or W/m²],
+        h θ_amb per convection group [W/m²]).
+    sources, convections : tuple of SourceSpec / ConvectionSpec
+    areas_m2 : dict
+        Discrete area [m²] of every surface group used.
+    volume : ndarray, ∫v dV [m³]
+    props : dict
+        Element-wise material arrays (``k``, ``rhoc``, ``alpha``, ``lam``, ``mu``, ``beta``).
+    """
+
+    gmesh: GroupedMesh
+    basis: Basis
+    M: sp.csr_matrix = field(repr=False)
+    K: sp.csr_matrix = field(repr=False)
+    B: tuple = field(repr=False)
+    F: np.ndarray = field(repr=False)
+    sources: tuple
+    convections: tuple
+    areas_m2: dict
+    volume: np.ndarray = field(repr=False)
+    props: dict = field(repr=False)
+    order: int = 2
+
+    @property
+    def ndofs(self) -> int:
+        return int(self.basis.N)
+
+    @property
+    def n_inputs(self) -> int:
+        return int(self.F.shape[1])
+
+    def operator(self, h_W_m2K) -> sp.csr_matrix:
+        """K + Σ_g h_g B_g [W/K] for the convection coefficients ``h_W_m2K`` (one per group)."""
+        A = self.K.copy()
+        for h, B in zip(np.atleast_1d(h_W_m2K), self.B):
+            A = A + float(h) * B
+        return A.tocsr()
+
+    @classmethod
+    def build(cls, gmesh: GroupedMesh, materials: dict, sources=(), convections=(),
+              order: int = 2, intorder: int | None = None) -> "ThermalBody":
+        """Assemble M, K, the convection matrices and the input matrix on ``gmesh``.
+
+        Parameters
+        ----------
+        gmesh : GroupedMesh
+        materials : dict
+            {volume group: Material}; every volume group needs one.
+        sources : sequence of SourceSpec
+        convections : sequence of ConvectionSpec
+        order : {1, 2}
+            Element order (P1/P2 tetrahedra, 8/20-node bricks).
+        intorder : int, optional
+            Quadrature order (default: 2·order, exact for the mass on straight cells).
+        """
+        mesh = gmesh.mesh
+        elem = element_for(gmesh, order)
+        io = intorder if intorder is not None else 2 * order + (1 if mesh.__class__.__name__
+                                                                 .endswith("2") else 0)
+        basis = Basis(mesh, elem, intorder=io)
+        props = _material_arrays(gmesh, materials)
+        M = capacity.assemble(basis, rhoc=_per_element(basis, props["rhoc"])).tocsr()
+        K = conduction.assemble(basis, k=_per_element(basis, props["k"])).tocsr()
+        volume = unit_load.assemble(basis)
+        areas, cols, Bs = {}, [], []
+        for i, s in enumerate(sources):
+            fac = gmesh.surface_group(s.group, f"heat_source[{i}].group")
+            fb = FacetBasis(mesh, elem, facets=fac, intorder=io)
+            f = unit_load.assemble(fb)
+            areas[s.group] = float(f.sum())
+            cols.append(f / areas[s.group] if s.kind == "power" else f)
+        for i, c in enumerate(convections):
+            fac = gmesh.surface_group(c.group, f"convection[{i}].group")
+            fb = FacetBasis(mesh, elem, facets=fac, intorder=io)
+            f = unit_load.assemble(fb)
+            areas[c.group] = float(f.sum())
+            cols.append(f)
+            Bs.append(surface_mass.assemble(fb).tocsr())
+        F = np.column_stack(cols) if cols else np.zeros((basis.N, 0))
+        return cls(gmesh=gmesh, basis=basis, M=M, K=K, B=tuple(Bs), F=F,
+                   sources=tuple(sources), convections=tuple(convections), areas_m2=areas,
+                   volume=volume, props=props, order=order)
+
+    def probe(self, points_m: np.ndarray, names) -> sp.csr_matrix:
+        """Interpolation rows (npoints, ndofs) at ``points_m`` (3, npoints) [m], each in
+        the element that holds it (:func:`locate`); a point outside the mesh is refused
+        by name."""
+        rows = []
+        for j, name in enumerate(names):
+            cell, vals = locate(self.basis, points_m[:, j], f"sensor {name!r}.point",
+                                self.gmesh.source)
+            dofs = self.basis.element_dofs[:, cell]
+            rows.append(sp.csr_matrix((vals, (np.zeros(dofs.size, int), dofs)),
+                                      shape=(1, self.basis.N)))
+        return sp.vstack(rows).tocsr()
+
+
+def _inverse_map(mapping, x: np.ndarray, e: int, tet: bool):
+    """Reference coordinates (3, 1) of ``x`` in element ``e`` by Newton's method on the
+    element's own map (skfem's ``invF`` raises as soon as it meets a point just outside a
+    curved element); None if it does not converge."""
+    X = np.full((3, 1), 0.25 if tet else 0.5)
+    tind = np.array([e])
+    for _ in range(30):
+        F = mapping.F(X, tind=tind)[:, 0, :]            # (3, 1)
+        J = mapping.DF(X, tind=tind)[:, :, 0, 0]        # (3, 3)
+        try:
+            dX = np.linalg.solve(J, x - F[:, 0])
+        except np.linalg.LinAlgError:
+            return None
+        X = X + dX[:, None]
+        if np.max(np.abs(dX)) < 1e-12:
+            return X
+        if np.max(np.abs(X)) > 10.0:
+            return None
+    return None
+
+
+def locate(basis: Basis, point_m, where: str, source: str = "the mesh"):
+    """The element holding ``point_m`` (3,) [m] and the element's basis values there.
+
+    Candidates are the elements whose node bounding box holds the point; the reference
+    coordinates are found by the element's own (isoparametric) inverse map, so a point
+    near a curved boundary lands in the curved element. skfem's ``probes`` tries Newton
+    on its nearest candidates and stops at the first that does not converge; this tries
+    each candidate in turn.
+
+    Returns
+    -------
+    cell : int
+    values : ndarray, shape (n_local_dofs,)
+        Basis function values at the point (sum to 1 for Lagrange elements).
+    """
+    mesh = basis.mesh
+    x = np.asarray(point_m, float).reshape(3)
+    loc = mesh.doflocs[:, mesh.t] if mesh.doflocs.shape[1] == mesh.p.shape[1] else None
+    if not hasattr(basis, "_arfem_boxes"):
+        nodes = mesh.doflocs[:, basis.mesh.dofs.element_dofs] if loc is None else loc
+        object.__setattr__(basis, "_arfem_boxes", (nodes.min(axis=1), nodes.max(axis=1)))
+    lo, hi = basis._arfem_boxes
+    tol = 1e-3 * np.max(hi - lo, axis=0)          # 0.1 % of each element's size
+    cand = np.flatnonzero(np.all((lo - tol <= x[:, None]) & (x[:, None] <= hi + tol), axis=0))
+    tet = mesh.t.shape[0] == 4
+    best = None
+    for e in cand:
+        X = _inverse_map(basis.mapping, x, int(e), tet)
+        if X is None:
+            continue
+        Xr = X[:, 0]
+        out = (max(-Xr.min(), Xr.sum() - 1.0) if tet
+               else max(-Xr.min(), (Xr - 1.0).max()))
+        if best is None or out < best[0]:
+            best = (out, e, X)
+        if out <= 1e-9:
+            break
+    # a point on a curved face may lie a hair (O(h³)) outside the quadratic surface:
+    # accepted within 0.1 % of the element (reference coordinates), i.e. on the surface
+    if best is None or best[0] > 1e-3:
+        raise InputError(f"point ({x[0]:.6g}, {x[1]:.6g}, {x[2]:.6g}) m is outside the mesh "
+                         f"({source})", where)
+    _, e, X = best
+    el = basis.elem
+    vals = np.array([float(np.ravel(el.lbasis(X, i)[0])[0]) for i in range(el.doflocs.shape[0])])
+    return int(e), vals
+
+
+def _nearest_vertex(mesh, point, where: str) -> int:
+    nv = int(mesh.t.max()) + 1
+    d = np.linalg.norm(mesh.p[:, :nv] - np.asarray(point, float)[:, None], axis=0)
+    k = int(np.argmin(d))
+    size = float(np.linalg.norm(mesh.p[:, :nv].max(axis=1) - mesh.p[:, :nv].min(axis=1)))
+    if d[k] > 0.05 * size:
+        p = np.asarray(point, float)
+        raise InputError(f"point ({p[0]:.6g}, {p[1]:.6g}, {p[2]:.6g}) m is {d[k] * 1e3:.3g} mm "
+                         "from the nearest mesh vertex; a 3-2-1 support point must lie on the "
+                         "mesh (it is held at the nearest vertex)", where)
+    return k
+
+
+#: Above this many free displacement unknowns the elastic solves use conjugate gradients
+#: preconditioned by smoothed-aggregation AMG (pyamg) instead of a sparse factorisation:
+#: the factor of P2-tetrahedron elasticity fills in badly (nnz(L+U) = 74.6 M for 75 k
+#: unknowns, 71 s and 2.4 GB at load 17; at 290 k unknowns it would exceed 8 GB), while
+#: the geometry path needs only a handful of solves (one per displacement sensor, one
+#: per field snapshot).
+DIRECT_MAX_DOFS = 150_000
+
+#: Relative residual at which the AMG-preconditioned CG stops.
+CG_RTOL = 1e-10
+
+
+class _AMGSolver:
+    """CG with a smoothed-aggregation AMG preconditioner built on the rigid-body modes
+    (pyamg), exposing ``solve(b)`` like :class:`arfem.fem.linsolve.SPDFactor`."""
+
+    def __init__(self, K, coords: np.ndarray, comp: np.ndarray):
+        import pyamg
+        n = K.shape[0]
+        x, y, z = coords
+        B = np.zeros((n, 6))
+        for c in range(3):
+            B[comp == c, c] = 1.0
+        # rotations: (−y, x, 0), (0, −z, y), (z, 0, −x)
+        B[comp == 0, 3], B[comp == 1, 3] = -y[comp == 0], x[comp == 1]
+        B[comp == 1, 4], B[comp == 2, 4] = -z[comp == 1], y[comp == 2]
+        B[comp == 2, 5], B[comp == 0, 5] = -x[comp == 2], z[comp == 0]
+        self.K = K
+        self.ml = pyamg.smoothed_aggregation_solver(K, B=B, max_coarse=500)
+        self.M = self.ml.aspreconditioner(cycle="V")
+        self.nnz = 0
+        self.iterations: list = []
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        from scipy.sparse.linalg import cg
+        b = np.asarray(b, float)
+        cols = b.reshape(b.shape[0], -1)
+        out = np.zeros_like(cols)
+        for j in range(cols.shape[1]):
+            nb = np.linalg.norm(cols[:, j])
+            if nb == 0.0:
+                continue
+            it = [0]
+
+            def count(_):
+                it[0] += 1
+            xj, info = cg(self.K, cols[:, j], rtol=CG_RTOL, maxiter=2000, M=self.M,
+                          callback=count)
+            if info != 0:
+                raise RuntimeError(f"CG did not converge ({info})")
+            self.iterations.append(it[0])
+            out[:, j] = xj
+        return out.reshape(b.shape)
+
+
+@dataclass(frozen=True)
+class ElasticBody:
+    """Factored thermo-elastic operator of a :class:`ThermalBody` and its support.
+
+    Attributes
+    ----------
+    thermal : ThermalBody
+    basis : skfem.Basis
+        Vector basis (displacement, interleaved components).
+    T : sparse, thermal load [N] = ``T @ θ`` (θ [K]).
+    free : ndarray, unconstrained displacement dofs.
+    """
+
+    thermal: ThermalBody
+    basis: Basis
+    T: sp.csr_matrix = field(repr=False)
+    free: np.ndarray = field(repr=False)
+    factor: object = field(repr=False)
+    nnz_factor: int = 0
+
+    @classmethod
+    def build(cls, thermal: ThermalBody, support: Support,
+              factor_method: str | None = None) -> "ElasticBody":
+        """Assemble and factor the stiffness with ``support``'s constraints."""
+        gm = thermal.gmesh
+        mesh = gm.mesh
+        sb = thermal.basis
+        vb = sb.with_element(ElementVector(sb.elem))
+        pr = thermal.props
+        K = elastic_stiffness.assemble(vb, lam=_per_element(vb, pr["lam"]),
+                                       mu=_per_element(vb, pr["mu"])).tocsr()
+        T = thermal_coupling.assemble(sb, vb, beta=_per_element(sb, pr["beta"])).tocsr()
+        if support.kind == "clamped":
+            fac = gm.surface_group(support.group, "support.group")
+            D = vb.get_dofs(facets=fac).flatten()
+        elif support.kind == "3-2-1":
+            if len(support.points) != 3:
+                raise InputError("a 3-2-1 support needs three points", "support.points")
+            P = [np.asarray(p, float) for p in support.points]
+            v = [_nearest_vertex(mesh, p, f"support.points[{i}]") for i, p in enumerate(P)]
+            if len(set(v)) < 3:
+                raise InputError("the three points fall on fewer than three mesh vertices",
+                                 "support.points")
+            ab = P[1] - P[0]
+            nrm = np.cross(ab, P[2] - P[0])
+            if np.linalg.norm(nrm) < 1e-9 * np.linalg.norm(ab) ** 2:
+                raise InputError("the three points are on one line; a 3-2-1 support needs "
+                                 "a triangle", "support.points")
+            along = int(np.argmax(np.abs(ab)))
+            normal = int(np.argmax(np.abs(nrm)))
+            nd = vb.nodal_dofs
+            D = np.concatenate([nd[:, v[0]], nd[[c for c in range(3) if c != along], v[1]],
+                                nd[[normal], v[2]]])
+        else:
+            raise InputError(f"must be 'clamped' or '3-2-1', got {support.kind!r}",
+                             "support.type")
+        free = np.setdiff1d(np.arange(vb.N), D)
+        Kf = K[free][:, free].tocsr()
+        if factor_method is None and free.size > DIRECT_MAX_DOFS:
+            pv = vb.doflocs[:, free]
+            lu = _AMGSolver(Kf, pv, free % 3)
+        else:
+            try:
+                lu = factorize_spd(Kf, factor_method)
+            except RuntimeError as exc:
+                raise InputError(f"the support does not hold the body ({exc})",
+                                 "support") from None
+        return cls(thermal=thermal, basis=vb, T=T, free=free, factor=lu,
+                   nnz_factor=int(getattr(lu, "nnz", 0)))
+
+    @property
+    def ndofs(self) -> int:
+        return int(self.basis.N)
+
+    def displacement(self, theta: np.ndarray) -> np.ndarray:
+        """Displacement dofs [m] for θ of shape (ndofs_heat,) or (n, ndofs_heat) [K]."""
+        th = np.atleast_2d(np.asarray(theta, float))
+        F = np.asarray(self.T @ th.T)
+        U = np.zeros((self.ndofs, th.shape[0]))
+        U[self.free] = self.factor.solve(np.ascontiguousarray(F[self.free]))
+        return U[:, 0] if np.ndim(theta) == 1 else U.T
+
+    def functional(self, w: np.ndarray) -> np.ndarray:
+        """The row g over θ with wᵀu(θ) = gᵀθ: g = TᵀK⁻¹w (one solve per column of w)."""
+        W = np.atleast_2d(np.asarray(w, float).T).T if np.ndim(w) == 1 else np.asarray(w)
+        W = W.reshape(self.ndofs, -1)
+        Y = np.zeros_like(W)
+        Y[self.free] = self.factor.solve(np.ascontiguousarray(W[self.free]))
+        G = np.asarray(self.T.T @ Y)
+        return G[:, 0] if np.ndim(w) == 1 else G
+
+    def sensor_weight(self, sensor: SensorSpec, where: str) -> np.ndarray:
+        """w with wᵀu = the sensor's displacement [m] (point value or group average)."""
+        d = np.asarray(sensor.direction, float)
+        d = d / np.linalg.norm(d)
+        gm = self.thermal.gmesh
+        if sensor.group is not None:
+            fac = gm.surface_group(sensor.group, f"{where}.group")
+            fb = FacetBasis(gm.mesh, self.basis.elem, facets=fac,
+                            intorder=self.thermal.basis.quadrature[0].shape[0] + 2)
+
+            @LinearForm
+            def along(v, w_):
+                return d[0] * v.value[0] + d[1] * v.value[1] + d[2] * v.value[2]
+
+            @Functional
+            def area(w_):
+                return 1.0 + 0.0 * w_.x[0]
+            return along.assemble(fb) / float(area.assemble(fb))
+        cell, vals = locate(self.thermal.basis, sensor.point, f"{where}.point", gm.source)
+        sdofs = self.thermal.basis.element_dofs[:, cell]
+        w = np.zeros(self.ndofs)
+        for c in range(3):           # ElementVector numbers component c of node s as 3s + c
+            w[3 * sdofs + c] += d[c] * vals
+        return w

@@ -1,0 +1,847 @@
+"""Scenarios on a user's own mesh: ``[geometry]`` instead of ``[rod]`` (issue 32).
+
+A geometry scenario ties the named physical groups of a Gmsh mesh to materials, heat
+sources, convection, a support and sensors, and ``arfem run`` solves it (heat, then
+thermo-elasticity) and writes each sensor's history. The format (every key carries its
+unit; lengths in the file are in the mesh's ``unit``)::
+
+    [scenario]
+    name = "spindle_unit"
+
+    [geometry]
+    mesh = "spindle_unit.msh"     # relative to this file; Gmsh 4.1 or any meshio volume
+    unit = "mm"                   # "m" | "mm": the unit of the mesh's coordinates
+    order = 2                     # 1 | 2 (P1/P2 tetrahedra; 8/20-node bricks)
+    reference_C = 20.0            # start and stress-free temperature [°C]
+
+    [[material]]                  # one per volume group
+    group = "shaft"
+    conductivity_W_mK = 45.0
+    density_kg_m3 = 7850.0
+    specific_heat_J_kgK = 460.0
+    expansion_1_K = 11.5e-6
+    youngs_modulus_Pa = 210e9
+    poisson_ratio = 0.3
+
+    [cycle]                       # the common time base: spindle speed and ambient
+    phases = [ { duration_h = 2.0, speed_rpm = 8000.0, ambient_C = 20.0 }, ... ]
+    # or: csv = "duty.csv"  (columns time_s = start of each interval, speed_rpm,
+    #      ambient_C, any source columns) and total_h = 24.0
+
+    [[heat_source]]               # one per heated surface group
+    name = "front_bearing"
+    group = "front_bearing_seat"
+    power_W = 150.0               # a constant, or a list (one value per cycle phase),
+                                  # or a CSV column name: power_W = "P_front_W";
+                                  # flux_W_m2 instead of power_W for a flux
+    # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
+
+    [[convection]]                # one per cooled surface group
+    group = "housing_outer"
+    h_W_m2K = 8.0                 # or { a = 10.0, b = 0.01, m = 0.8 }: h = a + b·n^m
+                                  # with n the cycle's speed_rpm
+    ambient_C = 20.0              # optional: default the cycle's ambient
+
+    [support]
+    type = "clamped"              # clamped face group, or "3-2-1" on three points
+    group = "column_foot"         # points = ["A", "B", "C"] (point groups) or [[x,y,z], …]
+
+    [[sensor]]
+    name = "tcp_z"
+    point = [0.0, 0.0, -250.0]    # mesh unit
+    direction = "z"               # "x" | "y" | "z" | [a, b, c]; or quantity = "temperature"
+    # group = "far"               # a displacement averaged over a surface group instead
+
+    [fem]
+    solver = "reduced"            # "reduced" (exact in time) | "crank-nicolson" | "backward-euler"
+    dt_s = 60.0                   # θ-method step
+    output_interval_s = 60.0      # sensor sampling
+
+    [outputs]
+    fields = true                 # XDMF 3 time series of θ and u for ParaView
+    picture = true                # geometry.png: the mesh and its groups
+    field_interval_s = 3600.0
+
+Every refusal is one line naming the file and the key (exit 2).
+"""
+from __future__ import annotations
+
+import csv
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from arfem.fem.body import (ConvectionSpec, ElasticBody, Material, SensorSpec, SourceSpec,
+                            Support, ThermalBody)
+from arfem.fem.gmsh_io import GroupedMesh, UNITS, check_memory, read_grouped_mesh
+from arfem.fem.thermal3d import BodyResult, InputHistory, solve_reduced, solve_theta
+from arfem.io import atomic_write_text, read_text_utf8, read_toml, write_csv, write_json
+from arfem.params import InputError
+from arfem.strict import boolean as _bool
+from arfem.strict import check_keys as _unknown
+from arfem.strict import number as _number
+from arfem.strict import string as _string
+from arfem.strict import table as _table
+
+__all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
+           "geometry_scenario_from_dict", "GeometryModel", "build_geometry_model",
+           "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES"]
+
+_TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
+        "sensor", "fem", "outputs"}
+_GEOM = {"mesh", "unit", "order", "reference_C"}
+_MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "expansion_1_K",
+        "youngs_modulus_Pa", "poisson_ratio"}
+_CYCLE = {"phases", "csv", "total_h", "total_s"}
+_PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
+_SRC = {"name", "group", "power_W", "flux_W_m2", "phases"}
+_CONV = {"name", "group", "h_W_m2K", "ambient_C"}
+_SUP = {"type", "group", "points"}
+_SENS = {"name", "point", "direction", "quantity", "group"}
+_FEM = {"solver", "dt_s", "output_interval_s"}
+_OUT = {"fields", "picture", "field_interval_s"}
+_SOLVERS = {"reduced": None, "crank-nicolson": 0.5, "backward-euler": 1.0}
+_DIRS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+#: Files ``arfem run`` writes for a geometry scenario.
+WRITES = ("sensors.csv", "sensors.json", "summary.json", "summary.md", "geometry.png",
+          "sensors.png", "scenario.toml", "report.html", "fields/fields.xdmf3",
+          "fields/fields.h5")
+
+
+@dataclass(frozen=True)
+class Schedule3D:
+    """The cycle on its own phases: edges [s], speed [rpm] and ambient [°C] per phase."""
+
+    edges_s: np.ndarray
+    speed_rpm: np.ndarray
+    ambient_C: np.ndarray
+    columns: dict = field(default_factory=dict)     # CSV columns per phase
+
+
+@dataclass(frozen=True)
+class SourceSetting:
+    spec: SourceSpec
+    edges_s: np.ndarray          # own schedule's edges (or the cycle's)
+    values: np.ndarray           # power [W] or flux [W/m²] per segment of edges_s
+
+
+@dataclass(frozen=True)
+class ConvectionSetting:
+    spec: ConvectionSpec
+    h: tuple                     # (a, b, m): h = a + b·n^m [W/(m²K)], n in rpm
+    ambient_C: float | None
+
+
+@dataclass(frozen=True)
+class GeometryScenario:
+    """A validated geometry scenario (module docstring)."""
+
+    name: str
+    description: str
+    source: str
+    mesh_path: Path
+    unit: str
+    order: int
+    reference_C: float
+    materials: dict
+    cycle: Schedule3D
+    sources: tuple
+    convections: tuple
+    support: Support
+    support_names: tuple
+    sensors: tuple
+    solver: str
+    dt_s: float
+    output_interval_s: float
+    fields: bool
+    picture: bool
+    field_interval_s: float
+
+    @property
+    def total_s(self) -> float:
+        return float(self.cycle.edges_s[-1])
+
+
+def is_geometry_scenario(path) -> bool:
+    """True when ``path`` is a TOML file with a ``[geometry]`` table (cheap text test)."""
+    p = Path(path)
+    if p.suffix != ".toml" or not p.is_file():
+        return False
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return any(line.strip().startswith("[geometry]") for line in text.splitlines())
+
+
+def load_geometry_scenario(path) -> GeometryScenario:
+    """Read and validate a geometry scenario file; refusals name the file and key."""
+    p = Path(path)
+    data = read_toml(p)
+    try:
+        return geometry_scenario_from_dict(data, str(p), p.parent)
+    except InputError as exc:
+        if exc.where and exc.where.startswith(str(p)):
+            raise
+        raise exc.at(str(p)) from None
+
+
+def _durations(ph: dict, where: str) -> float:
+    given = [k for k in ("duration_s", "duration_min", "duration_h") if k in ph]
+    if len(given) != 1:
+        raise InputError("needs exactly one of duration_s, duration_min, duration_h", where)
+    k = given[0]
+    return _number(ph[k], f"{where}.{k}", positive=True) * {
+        "duration_s": 1.0, "duration_min": 60.0, "duration_h": 3600.0}[k]
+
+
+def _read_cycle_csv(path: Path, where: str, total_s: float) -> tuple:
+    text = read_text_utf8(path)
+    rows = list(csv.reader(line for line in text.splitlines() if line.strip()))
+    if len(rows) < 2:
+        raise InputError("needs a header and at least one row", where)
+    head = [h.strip() for h in rows[0]]
+    if "time_s" not in head:
+        raise InputError(f"has no time_s column (columns: {', '.join(head)})", where)
+    vals = {}
+    for j, h in enumerate(head):
+        col = []
+        for i, r in enumerate(rows[1:], start=2):
+            try:
+                v = float(r[j])
+            except (ValueError, IndexError):
+                raise InputError(f"row {i}, column {h!r}: not a number", where) from None
+            if not np.isfinite(v):
+                raise InputError(f"row {i}, column {h!r}: not finite", where)
+            col.append(v)
+        vals[h] = np.asarray(col)
+    t = vals.pop("time_s")
+    if t[0] != 0.0 or np.any(np.diff(t) <= 0) or t[-1] >= total_s:
+        raise InputError(f"time_s must start at 0, increase and end before total "
+                         f"{total_s:g} s", where)
+    return np.append(t, total_s), vals
+
+
+def _cycle(data: dict, reference_C: float, base: Path) -> Schedule3D:
+    cyc = _table(data, "cycle", "")
+    _unknown(cyc, _CYCLE, "cycle")
+    total = None
+    for key, unit in (("total_h", 3600.0), ("total_s", 1.0)):
+        if key in cyc:
+            total = _number(cyc[key], f"cycle.{key}", positive=True) * unit
+    if "csv" in cyc:
+        if total is None:
+            raise InputError("a CSV cycle needs total_h (the end of its last row)", "cycle")
+        f = base / _string(cyc["csv"], "cycle.csv")
+        edges, cols = _read_cycle_csv(f, f"cycle.csv ({f})", total)
+        n = edges.size - 1
+        speed = cols.pop("speed_rpm", np.zeros(n))
+        amb = cols.pop("ambient_C", np.full(n, reference_C))
+        return Schedule3D(edges, speed, amb, cols)
+    phases = cyc.get("phases")
+    if not isinstance(phases, list) or not phases:
+        raise InputError("must be a non-empty list of phases ({ duration_h = 2.0, "
+                         "speed_rpm = 8000.0 }, ...) or give csv = \"file.csv\"",
+                         "cycle.phases")
+    d, n_, a = [], [], []
+    for i, ph in enumerate(phases):
+        w = f"cycle.phases[{i}]"
+        if not isinstance(ph, dict):
+            raise InputError("must be a table", w)
+        _unknown(ph, _PHASE, w)
+        d.append(_durations(ph, w))
+        n_.append(_number(ph.get("speed_rpm", 0.0), f"{w}.speed_rpm", positive=True,
+                          allow_zero=True))
+        a.append(_number(ph.get("ambient_C", reference_C), f"{w}.ambient_C"))
+    edges = np.concatenate([[0.0], np.cumsum(d)])
+    if total is not None and abs(edges[-1] - total) > 1e-9 * total:
+        raise InputError(f"the phases add up to {edges[-1] / 3600:g} h, not {total / 3600:g} h",
+                         "cycle")
+    return Schedule3D(edges, np.asarray(n_), np.asarray(a))
+
+
+def _point(v, scale: float, where: str) -> tuple:
+    if (not isinstance(v, list) or len(v) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+        raise InputError(f"must be [x, y, z] in the mesh unit, got {v!r}", where)
+    return tuple(float(x) * scale for x in v)
+
+
+def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
+                                base: Path | None = None) -> GeometryScenario:
+    """Validate a geometry scenario given as a dict (as read from TOML)."""
+    base = Path(".") if base is None else base
+    _unknown(data, _TOP, "")
+    sc = _table(data, "scenario", "")
+    _unknown(sc, {"name", "description"}, "scenario")
+    g = _table(data, "geometry", "")
+    _unknown(g, _GEOM, "geometry")
+    if "mesh" not in g:
+        raise InputError("missing mesh (the .msh file)", "geometry")
+    if "unit" not in g:
+        raise InputError("missing unit: declare the mesh's unit, \"m\" or \"mm\"", "geometry")
+    unit = _string(g["unit"], "geometry.unit", choices=tuple(UNITS))
+    scale = UNITS[unit]
+    order = int(_number(g.get("order", 2), "geometry.order", integer=True))
+    if order not in (1, 2):
+        raise InputError(f"must be 1 or 2, got {order}", "geometry.order")
+    ref = _number(g.get("reference_C", 20.0), "geometry.reference_C")
+    mats = data.get("material", [])
+    if not isinstance(mats, list) or not mats:
+        raise InputError("needs one [[material]] per volume group of the mesh", "material")
+    materials = {}
+    for i, m in enumerate(mats):
+        w = f"material[{i}]"
+        if not isinstance(m, dict):
+            raise InputError("must be a table", w)
+        _unknown(m, _MAT, w)
+        missing = sorted(_MAT - set(m))
+        if missing:
+            raise InputError(f"missing {', '.join(missing)}", w)
+        kw = {k: _number(m[k], f"{w}.{k}", positive=k != "poisson_ratio")
+              for k in _MAT - {"group"}}
+        if not 0.0 <= kw["poisson_ratio"] < 0.5:
+            raise InputError(f"must lie in [0, 0.5), got {kw['poisson_ratio']}",
+                             f"{w}.poisson_ratio")
+        if kw["expansion_1_K"] > 1e-3:
+            raise InputError(f"{kw['expansion_1_K']:g} 1/K is not a solid's expansion "
+                             "(µm/(m·K) given as 1/K? 12 µm/(m·K) = 12e-6)",
+                             f"{w}.expansion_1_K")
+        grp = _string(m["group"], f"{w}.group")
+        if grp in materials:
+            raise InputError(f"group {grp!r} has two materials", f"{w}.group")
+        materials[grp] = Material(group=grp, **kw)
+    cycle = _cycle(data, ref, base)
+    nph = cycle.edges_s.size - 1
+    sources = []
+    src_list = data.get("heat_source", [])
+    if not isinstance(src_list, list):
+        raise InputError("must be an array of tables [[heat_source]]", "heat_source")
+    for i, s in enumerate(src_list):
+        w = f"heat_source[{i}]"
+        if not isinstance(s, dict):
+            raise InputError("must be a table", w)
+        _unknown(s, _SRC, w)
+        grp = _string(s.get("group"), f"{w}.group")
+        name = _string(s.get("name", grp), f"{w}.name")
+        kinds = [k for k in ("power_W", "flux_W_m2") if k in s]
+        if "phases" in s:
+            ph = s["phases"]
+            if not isinstance(ph, list) or not ph:
+                raise InputError("must be a non-empty list of phases", f"{w}.phases")
+            d, v, kind = [], [], None
+            for j, p in enumerate(ph):
+                wj = f"{w}.phases[{j}]"
+                if not isinstance(p, dict):
+                    raise InputError("must be a table", wj)
+                _unknown(p, {"duration_s", "duration_min", "duration_h", "power_W",
+                             "flux_W_m2", "label"}, wj)
+                d.append(_durations(p, wj))
+                k = [x for x in ("power_W", "flux_W_m2") if x in p]
+                if len(k) != 1:
+                    raise InputError("needs power_W or flux_W_m2", wj)
+                if kind is not None and k[0] != kind:
+                    raise InputError("mixes power_W and flux_W_m2", wj)
+                kind = k[0]
+                v.append(_number(p[kind], f"{wj}.{kind}", positive=True, allow_zero=True))
+            edges = np.concatenate([[0.0], np.cumsum(d)])
+            if abs(edges[-1] - cycle.edges_s[-1]) > 1e-9 * cycle.edges_s[-1]:
+                raise InputError(f"its phases add up to {edges[-1] / 3600:g} h, the cycle "
+                                 f"to {cycle.edges_s[-1] / 3600:g} h", f"{w}.phases")
+            values = np.asarray(v)
+        else:
+            if len(kinds) != 1:
+                raise InputError("needs power_W [W] or flux_W_m2 [W/m²] (or phases)", w)
+            kind = kinds[0]
+            val = s[kind]
+            edges = cycle.edges_s
+            if isinstance(val, str):
+                if val not in cycle.columns:
+                    raise InputError(f"no column {val!r} in the cycle's CSV (columns: "
+                                     f"{', '.join(sorted(cycle.columns)) or 'none'})",
+                                     f"{w}.{kind}")
+                values = cycle.columns[val]
+            elif isinstance(val, list):
+                if len(val) != nph:
+                    raise InputError(f"has {len(val)} values for {nph} cycle phases",
+                                     f"{w}.{kind}")
+                values = np.asarray([_number(x, f"{w}.{kind}", positive=True, allow_zero=True)
+                                     for x in val])
+            else:
+                values = np.full(nph, _number(val, f"{w}.{kind}", positive=True,
+                                              allow_zero=True))
+            if np.any(values < 0):
+                raise InputError("must be >= 0", f"{w}.{kind}")
+        spec = SourceSpec(name=name, group=grp, kind="power" if kind == "power_W" else "flux")
+        sources.append(SourceSetting(spec, edges, values))
+    convs = []
+    for i, c in enumerate(data.get("convection", []) or []):
+        w = f"convection[{i}]"
+        if not isinstance(c, dict):
+            raise InputError("must be a table", w)
+        _unknown(c, _CONV, w)
+        grp = _string(c.get("group"), f"{w}.group")
+        h = c.get("h_W_m2K")
+        if isinstance(h, dict):
+            _unknown(h, {"a", "b", "m"}, f"{w}.h_W_m2K")
+            abm = (_number(h.get("a", 0.0), f"{w}.h_W_m2K.a", positive=True, allow_zero=True),
+                   _number(h.get("b", 0.0), f"{w}.h_W_m2K.b", positive=True, allow_zero=True),
+                   _number(h.get("m", 1.0), f"{w}.h_W_m2K.m", positive=True))
+        else:
+            abm = (_number(h, f"{w}.h_W_m2K", positive=True), 0.0, 1.0)
+        if abm[0] > 1e4:
+            raise InputError(f"{abm[0]:g} W/(m²K) is beyond forced air or oil cooling",
+                             f"{w}.h_W_m2K")
+        amb = _number(c["ambient_C"], f"{w}.ambient_C") if "ambient_C" in c else None
+        convs.append(ConvectionSetting(ConvectionSpec(_string(c.get("name", grp), f"{w}.name"),
+                                                      grp), abm, amb))
+    sup = data.get("support")
+    if not isinstance(sup, dict) or not sup:
+        raise InputError("the body has no support: add [support] type = \"clamped\" with "
+                         "a face group, or type = \"3-2-1\" with three points (without it "
+                         "displacements are not defined)", "support")
+    _unknown(sup, _SUP, "support")
+    kind = _string(sup.get("type"), "support.type", choices=("clamped", "3-2-1"))
+    names: tuple = ()
+    if kind == "clamped":
+        support = Support("clamped", group=_string(sup.get("group"), "support.group"))
+    else:
+        pts = sup.get("points")
+        if not isinstance(pts, list) or len(pts) != 3:
+            raise InputError("needs three points (point group names or [x, y, z])",
+                             "support.points")
+        names = tuple(p if isinstance(p, str) else None for p in pts)
+        coords = tuple(None if isinstance(p, str) else _point(p, scale, f"support.points[{j}]")
+                       for j, p in enumerate(pts))
+        support = Support("3-2-1", points=coords)
+    sensors, seen = [], set()
+    for i, s in enumerate(data.get("sensor", []) or []):
+        w = f"sensor[{i}]"
+        if not isinstance(s, dict):
+            raise InputError("must be a table", w)
+        _unknown(s, _SENS, w)
+        name = _string(s.get("name"), f"{w}.name")
+        if name in seen or not name.replace("_", "").isalnum():
+            raise InputError(f"sensor names must be unique letters, digits and _, got "
+                             f"{name!r}", f"{w}.name")
+        seen.add(name)
+        q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
+                    choices=("displacement", "temperature"))
+        point = _point(s["point"], scale, f"{w}.point") if "point" in s else None
+        grp = _string(s["group"], f"{w}.group") if "group" in s else None
+        if (point is None) == (grp is None) or (q == "temperature" and point is None):
+            raise InputError("needs a point (or, for a displacement, a surface group)", w)
+        d = s.get("direction", "z")
+        if isinstance(d, str):
+            d = _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
+        else:
+            d = _point(d, 1.0, f"{w}.direction")
+            if np.linalg.norm(d) == 0:
+                raise InputError("must not be zero", f"{w}.direction")
+            d = tuple(np.asarray(d) / np.linalg.norm(d))
+        sensors.append(SensorSpec(name, q, point, grp, tuple(d)))
+    if not sensors:
+        raise InputError("needs at least one [[sensor]] (e.g. name = \"tcp_z\", point = "
+                         "[x, y, z], direction = \"z\")", "sensor")
+    fem = _table(data, "fem", "")
+    _unknown(fem, _FEM, "fem")
+    solver = _string(fem.get("solver", "reduced"), "fem.solver", choices=tuple(_SOLVERS))
+    dt = _number(fem.get("dt_s", 60.0), "fem.dt_s", positive=True)
+    oi = _number(fem.get("output_interval_s", 60.0), "fem.output_interval_s", positive=True)
+    out = _table(data, "outputs", "")
+    _unknown(out, _OUT, "outputs")
+    total = float(cycle.edges_s[-1])
+    if total / oi > 200_000:
+        raise InputError(f"{total / oi:.0f} samples; at most 200000", "fem.output_interval_s")
+    fi = _number(out.get("field_interval_s", 3600.0), "outputs.field_interval_s", positive=True)
+    if total / fi > 2000:
+        raise InputError(f"{total / fi:.0f} field snapshots; at most 2000",
+                         "outputs.field_interval_s")
+    return GeometryScenario(
+        name=_string(sc.get("name", Path(source).stem), "scenario.name"),
+        description=_string(sc.get("description", ""), "scenario.description"),
+        source=source, mesh_path=base / _string(g["mesh"], "geometry.mesh"), unit=unit,
+        order=order, reference_C=ref, materials=materials, cycle=cycle,
+        sources=tuple(sources), convections=tuple(convs), support=support,
+        support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
+        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
+        picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
+
+
+# -- the model ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class GeometryModel:
+    """Everything assembled for one geometry scenario.
+
+    ``G`` holds one column per sensor (θ-functionals: temperature rows of the
+    interpolation, displacement rows TᵀK⁻¹w); ``history`` the inputs on the union of
+    every schedule's breakpoints.
+    """
+
+    scenario: GeometryScenario
+    gmesh: GroupedMesh
+    thermal: ThermalBody
+    elastic: ElasticBody | None
+    G: np.ndarray
+    history: InputHistory
+    timings_s: dict
+    memory_estimate_bytes: int
+
+
+def _history(sc: GeometryScenario) -> InputHistory:
+    edges = sc.cycle.edges_s
+    for s in sc.sources:
+        edges = np.union1d(edges, s.edges_s)
+    edges = edges[np.concatenate([[True], np.diff(edges) > 1e-9 * edges[-1]])]
+    mid = 0.5 * (edges[1:] + edges[:-1])
+
+    def on(e, v):
+        return np.asarray(v, float)[np.clip(np.searchsorted(e, mid) - 1, 0, len(v) - 1)]
+    speed = on(sc.cycle.edges_s, sc.cycle.speed_rpm)
+    amb = on(sc.cycle.edges_s, sc.cycle.ambient_C)
+    cols = [on(s.edges_s, s.values) for s in sc.sources]
+    hs = []
+    for c in sc.convections:
+        a, b, m = c.h
+        h = a + b * np.power(np.maximum(speed, 0.0), m)
+        hs.append(h)
+        th_amb = (np.full_like(amb, c.ambient_C) if c.ambient_C is not None else amb) \
+            - sc.reference_C
+        cols.append(h * th_amb)
+    u = np.column_stack(cols) if cols else np.zeros((mid.size, 0))
+    H = np.column_stack(hs) if hs else np.zeros((mid.size, 0))
+    return InputHistory(edges, u, H)
+
+
+def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
+    """Read the mesh, check memory, assemble heat and elasticity, form the sensors' rows."""
+    progress = progress or (lambda s: None)
+    tm = {}
+    t0 = time.perf_counter()
+    progress("reading the mesh")
+    gm = read_grouped_mesh(sc.mesh_path, sc.unit, where=f"{sc.source}: geometry.mesh "
+                                                       f"({sc.mesh_path})")
+    tm["read_s"] = time.perf_counter() - t0
+    mesh = gm.mesh
+    nv = int(mesh.t.max()) + 1
+    n_heat = nv + (mesh.edges.shape[1] if sc.order == 2 else 0)
+    if gm.cell_type == "hexahedron" and sc.order == 2:
+        n_heat = nv + mesh.edges.shape[1]
+    need = check_memory(n_heat, f"{sc.source}: geometry.mesh",
+                        nnz_per_row_heat=30.0 if sc.order == 2 else 14.0)
+    for grp in sc.materials:
+        gm.volume_group(grp, f"{sc.source}: material.group")
+    support = sc.support
+    if sc.support.kind == "3-2-1" and any(sc.support_names):
+        pts = []
+        for j, (nm, c) in enumerate(zip(sc.support_names, sc.support.points)):
+            if nm is None:
+                pts.append(c)
+            elif nm in gm.points:
+                pts.append(tuple(gm.points[nm]))
+            else:
+                raise InputError(f"the mesh has no point group {nm!r} (it has "
+                                 f"{gm.describe_groups()})", f"{sc.source}: support.points[{j}]")
+        support = Support("3-2-1", points=tuple(pts))
+    t0 = time.perf_counter()
+    progress("assembling heat")
+    try:
+        th = ThermalBody.build(gm, sc.materials, [s.spec for s in sc.sources],
+                               [c.spec for c in sc.convections], order=sc.order)
+        tm["assemble_heat_s"] = time.perf_counter() - t0
+        cols = []
+        temp = [s for s in sc.sensors if s.quantity == "temperature"]
+        if temp:
+            P = th.probe(np.array([s.point for s in temp]).T, [s.name for s in temp])
+        t0 = time.perf_counter()
+        disp = [s for s in sc.sensors if s.quantity == "displacement"]
+        el = None
+        if disp or sc.fields:
+            progress("assembling and factoring elasticity")
+            el = ElasticBody.build(th, support)
+        tm["elastic_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        W = []
+        for i, s in enumerate(sc.sensors):
+            if s.quantity == "displacement":
+                W.append(el.sensor_weight(s, f"sensor {s.name!r}"))
+        Gd = el.functional(np.column_stack(W)) if W else None
+        k_t = k_d = 0
+        for s in sc.sensors:
+            if s.quantity == "temperature":
+                cols.append(np.asarray(P[k_t].toarray()).ravel())
+                k_t += 1
+            else:
+                cols.append(Gd[:, k_d])
+                k_d += 1
+        tm["sensors_s"] = time.perf_counter() - t0
+    except InputError as exc:
+        if exc.where and exc.where.startswith(sc.source):
+            raise
+        raise exc.at(sc.source) from None
+    return GeometryModel(sc, gm, th, el, np.column_stack(cols), _history(sc), tm, need)
+
+
+@dataclass(frozen=True)
+class GeometryRun:
+    """A solved geometry scenario: sensor histories (temperatures in °C, displacements
+    in µm) and, where asked, fields."""
+
+    model: GeometryModel
+    result: BodyResult
+    timings_s: dict
+
+    def sensor_series(self) -> dict:
+        """{column name: values}: ``T_<name>_C`` [°C] and ``d_<name>_um`` [µm]."""
+        out = {}
+        sc = self.model.scenario
+        for j, s in enumerate(sc.sensors):
+            y = self.result.outputs[:, j]
+            if s.quantity == "temperature":
+                out[f"T_{s.name}_C"] = y + sc.reference_C
+            else:
+                out[f"d_{s.name}_um"] = y * 1e6
+        return out
+
+
+def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
+    """The scenario's transient: sensors every ``output_interval_s`` and fields every
+    ``field_interval_s``, by the reduced-modal solve or the θ-method."""
+    progress = progress or (lambda s: None)
+    sc = model.scenario
+    total = sc.total_s
+    t_out = np.union1d(np.arange(0.0, total, sc.output_interval_s), [total])
+    t_f = (np.union1d(np.arange(0.0, total, sc.field_interval_s), [total])
+           if sc.fields else None)
+    t0 = time.perf_counter()
+    progress("transient heat")
+    theta = _SOLVERS[sc.solver]
+    if theta is None:
+        kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds)
+    else:
+        full = solve_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
+        pick = np.clip(np.searchsorted(full.times_s, t_out - 1e-6), 0, full.times_s.size - 1)
+        res = BodyResult(full.times_s[pick], full.outputs[pick], full.field_times_s,
+                         full.fields)
+    return GeometryRun(model, res, {**model.timings_s, "solve_s": time.perf_counter() - t0})
+
+
+# -- outputs ---------------------------------------------------------------------------------
+
+def _vertex_values(model: GeometryModel, theta: np.ndarray) -> np.ndarray:
+    nv = int(model.gmesh.mesh.t.max()) + 1
+    return theta[..., model.thermal.basis.nodal_dofs[0, :nv]]
+
+
+def write_fields_xdmf(run: GeometryRun, path: Path) -> None:
+    """θ [K above reference] and u [m] at the mesh vertices, an XDMF 3 time series."""
+    import meshio
+    m = run.model
+    mesh = m.gmesh.mesh
+    nv = int(mesh.t.max()) + 1
+    ctype = "hexahedron" if m.gmesh.cell_type == "hexahedron" else "tetra"
+    t = mesh.t
+    if ctype == "hexahedron":
+        from arfem.fem.gmsh_io import _VTK_TO_SKFEM_HEX
+        inv = np.argsort(_VTK_TO_SKFEM_HEX)
+        t = t[inv]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    res = run.result
+    U = (m.elastic.displacement(res.fields) if m.elastic is not None else None)
+    # meshio's TimeSeriesWriter puts the .h5 in the working directory (meshio 5.3), so
+    # write from inside the target directory
+    import os
+    here = os.getcwd()
+    os.chdir(path.parent)
+    try:
+        with meshio.xdmf.TimeSeriesWriter(path.name) as w:
+            w.write_points_cells(mesh.p[:, :nv].T, [(ctype, t.T)])
+            for k, tk in enumerate(res.field_times_s):
+                data = {"temperature_C": _vertex_values(m, res.fields[k])
+                        + m.scenario.reference_C}
+                if U is not None:
+                    nd = m.elastic.basis.nodal_dofs[:, :nv]
+                    data["displacement_m"] = U[k][nd].T
+                w.write_data(float(tk), point_data=data)
+    finally:
+        os.chdir(here)
+
+
+def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "") -> None:
+    """Off-screen PNG of the mesh's surface groups (one colour each) and the sensors."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)     # no X-server chatter
+    mesh = gm.mesh
+    nv = int(mesh.t.max()) + 1
+    P = mesh.p[:, :nv].T
+    pl = pv.Plotter(off_screen=True, window_size=(1200, 900))
+    import matplotlib
+    cmap = matplotlib.colormaps["tab20"]
+    bnd = set(mesh.boundary_facets().tolist())
+    for i, (name, fac) in enumerate(sorted(gm.surfaces.items())):
+        fac = np.asarray([f for f in fac if f in bnd])
+        if fac.size == 0:
+            continue
+        f = mesh.facets[:, fac].T
+        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
+        surf = pv.PolyData(P, faces)
+        pl.add_mesh(surf, color=cmap(i % 20)[:3], label=name, show_edges=False)
+    # faces in no group, grey and translucent
+    grouped = set(np.concatenate([np.asarray(v) for v in gm.surfaces.values()]).tolist()) \
+        if gm.surfaces else set()
+    rest = np.asarray(sorted(bnd - grouped))
+    if rest.size:
+        f = mesh.facets[:, rest].T
+        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
+        pl.add_mesh(pv.PolyData(P, faces), color="lightgrey", opacity=0.35,
+                    label="(no group)")
+    for s in sensors:
+        if s.point is not None:
+            pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()),
+                                  center=s.point), color="black")
+            pl.add_point_labels(np.array([s.point]), [s.name], font_size=14,
+                                point_size=1, shape_opacity=0.6)
+    pl.add_legend(bcolor="white", size=(0.22, 0.04 * (len(gm.surfaces) + 1)), face="rectangle",
+                  loc="upper left")
+    pl.add_axes()
+    if title:
+        pl.add_title(title, font_size=11)
+    # from the front (−y), to the side (+x) and a little from below: a spindle unit's
+    # nose and the TCP face the viewer, the column stub (+y) stays behind
+    c = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    r = float(np.linalg.norm(np.ptp(P, axis=0)))
+    pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
+    pl.screenshot(str(path))
+    pl.close()
+
+
+def _sensor_figure(run: GeometryRun, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    ser = run.sensor_series()
+    t_h = run.result.times_s / 3600.0
+    d = {k: v for k, v in ser.items() if k.startswith("d_")}
+    T = {k: v for k, v in ser.items() if k.startswith("T_")}
+    n = int(bool(d)) + int(bool(T))
+    fig, axes = plt.subplots(n, 1, figsize=(9, 3.2 * n), sharex=True, squeeze=False)
+    i = 0
+    for group, unit in ((d, "displacement [µm]"), (T, "temperature [°C]")):
+        if not group:
+            continue
+        ax = axes[i, 0]
+        for k, v in group.items():
+            ax.plot(t_h, v, label=k)
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, ncol=3)
+        i += 1
+    axes[-1, 0].set_xlabel("time [h]")
+    axes[0, 0].set_title(f"{run.model.scenario.name}: sensors")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def summary(run: GeometryRun) -> dict:
+    """Summary figures: mesh size, per-sensor peak and final values, timings."""
+    m = run.model
+    ser = run.sensor_series()
+    per = {}
+    for k, v in ser.items():
+        j = int(np.argmax(np.abs(v - (m.scenario.reference_C if k.startswith("T_") else 0))))
+        per[k] = {"peak": float(v[j]), "peak_time_h": float(run.result.times_s[j] / 3600),
+                  "final": float(v[-1])}
+    return {"scenario": m.scenario.name, "mesh": str(m.scenario.mesh_path.name),
+            "cell_type": m.gmesh.cell_type, "order": m.scenario.order,
+            "n_elements": int(m.gmesh.mesh.nelements), "heat_dofs": m.thermal.ndofs,
+            "elastic_dofs": m.elastic.ndofs if m.elastic is not None else 0,
+            "memory_estimate_GB": m.memory_estimate_bytes / 1e9,
+            "solver": m.scenario.solver, "n_modes": run.result.n_modes,
+            "reduced_step_change_per_unit_input": (
+                None if run.result.step_change is None else
+                {s.name: float(c) for s, c in zip(m.scenario.sensors,
+                                                  run.result.step_change)}),
+            "groups": {"volumes": sorted(m.gmesh.volumes), "surfaces": sorted(m.gmesh.surfaces),
+                       "points": sorted(m.gmesh.points)},
+            "areas_m2": m.thermal.areas_m2, "sensors": per}
+
+
+def _summary_md(s: dict, run: GeometryRun) -> str:
+    lines = [f"# {s['scenario']}: spindle unit from a mesh", "",
+             f"Mesh `{s['mesh']}`: {s['n_elements']} {s['cell_type']} cells, order "
+             f"{s['order']}, {s['heat_dofs']} temperature and {s['elastic_dofs']} "
+             f"displacement unknowns; solver {s['solver']}"
+             + (f" ({s['n_modes']} modes)" if s['n_modes'] else "") + ".", "",
+             "| sensor | peak | at [h] | final |", "|---|---|---|---|"]
+    for k, v in s["sensors"].items():
+        lines.append(f"| {k} | {v['peak']:.4f} | {v['peak_time_h']:.2f} | {v['final']:.4f} |")
+    lines += ["", "![geometry](geometry.png)", "", "![sensors](sensors.png)", ""]
+    return "\n".join(lines)
+
+
+def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> None:
+    """sensors.csv, sensors.json, summary.json/.md, geometry.png, sensors.png, fields."""
+    progress = progress or (lambda s: None)
+    sc = run.model.scenario
+    ser = run.sensor_series()
+    t = run.result.times_s
+    write_csv(out_dir / "sensors.csv", {"time_s": t, "time_h": t / 3600.0, **ser})
+    write_json(out_dir / "sensors.json", {
+        "scenario": sc.name, "time_s": t.tolist(),
+        "sensors": [{"name": s.name, "quantity": s.quantity,
+                     "column": (f"T_{s.name}_C" if s.quantity == "temperature"
+                                else f"d_{s.name}_um"),
+                     "unit": "°C" if s.quantity == "temperature" else "µm",
+                     "point_m": s.point, "group": s.group,
+                     "direction": s.direction if s.quantity == "displacement" else None,
+                     "values": ser[f"T_{s.name}_C" if s.quantity == "temperature"
+                                   else f"d_{s.name}_um"].tolist()}
+                    for s in sc.sensors]})
+    s = summary(run)
+    write_json(out_dir / "summary.json", s)
+    atomic_write_text(out_dir / "summary.md", _summary_md(s, run))
+    _sensor_figure(run, out_dir / "sensors.png")
+    if sc.picture:
+        progress("geometry picture")
+        geometry_picture(run.model.gmesh, out_dir / "geometry.png", sc.sensors,
+                         title=f"{sc.name}: physical groups and sensors")
+    if sc.fields and run.result.fields is not None:
+        progress("fields.xdmf3")
+        write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")
+    src = Path(sc.source)
+    if src.is_file():
+        atomic_write_text(out_dir / "scenario.toml", read_text_utf8(src))
+
+
+def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
+    """Load, solve and write one geometry scenario into ``out`` (atomically)."""
+    from arfem.scenarios.html_report import write_html_report
+    from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+    progress = progress or (lambda s: None)
+    sc = load_geometry_scenario(path)
+    prepare_out_dir(out, force, writes=WRITES)
+    model = build_geometry_model(sc, progress)
+    run = solve_geometry(model, progress)
+    with staged_out_dir(out, force) as stage:
+        write_geometry_outputs(run, stage, progress)
+        progress("report.html")
+        write_html_report(stage)
+    return run
+
+
+def main_run_geometry(args) -> int:
+    """``arfem run`` on a scenario with ``[geometry]``."""
+    t0 = time.perf_counter()
+    run = run_geometry(args.scenario, args.out, args.force)
+    s = summary(run)
+    parts = [f"{k} peak {v['peak']:.3f}" for k, v in s["sensors"].items()]
+    print(f"{s['scenario']}: {s['n_elements']} {s['cell_type']} cells, {s['heat_dofs']} "
+          f"temperature unknowns; " + ", ".join(parts)
+          + f" -> {args.out} ({time.perf_counter() - t0:.1f} s)")
+    return 0
