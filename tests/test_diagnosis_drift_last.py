@@ -55,7 +55,7 @@ def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
     def fake(ds, hs, search, progress, drift_last=False):
         seen.append((search, drift_last))
         raise Stop
-    monkeypatch.setattr(d, "load_dataset", lambda path: None)
+    monkeypatch.setattr(d, "load_dataset", lambda path, limits=None: None)
     monkeypatch.setattr(d, "diagnose", fake)
     (tmp_path / "x.toml").write_text("")
     for extra, want in (([], ("narrow", False)),
