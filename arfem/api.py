@@ -463,7 +463,7 @@ def _write_contract(df, folder: Path, rod: Rod | None, name: str, initial: str) 
 
 def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = None,
              initial: str = "equilibrium", name: str = "dataframe",
-             frame_search: str = "narrow") -> DiagnosisResult:
+             frame_search: str = "narrow", progress=False) -> DiagnosisResult:
     """What does the simulation get wrong on a measured record, and why?
 
     Parameters
@@ -482,6 +482,9 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
         The record's name in the result.
     frame_search : {"narrow", "wide", "average"}
         Speed-only records: frame structures compared (see ``arfem diagnose --help``).
+    progress : bool or callable
+        True: show the step under way and the elapsed time on stderr (a real record
+        takes seconds to a minute); a callable is called with each step's name instead.
 
     Returns
     -------
@@ -507,10 +510,16 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
     ('convection_mismatch', 80)
     """
     from arfem.scenarios.diagnose import diagnose_file
+    if not callable(progress):
+        from arfem.scenarios.progress import Progress
+        # asked for: shown even where stderr is no terminal (a notebook's)
+        with Progress(12, "arfem.diagnose", enabled=bool(progress), tty=True) as bar:
+            return diagnose(data, rod=rod, holdout_start_s=holdout_start_s, initial=initial,
+                            name=name, frame_search=frame_search, progress=bar)
     if isinstance(data, (str, Path)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
-        d = diagnose_file(data, holdout_start_s, frame_search)
+        d = diagnose_file(data, holdout_start_s, frame_search, progress)
         return DiagnosisResult(str(d.summary.get("cause", "")), d.summary, d.series)
     if isinstance(data, dict):
         data = _frame(data)
@@ -519,7 +528,7 @@ def diagnose(data, *, rod: Rod | None = None, holdout_start_s: float | None = No
     with tempfile.TemporaryDirectory(prefix="arfem-df-") as tmp:
         toml = _write_contract(data, Path(tmp), rod, name, initial)
         try:
-            d = diagnose_file(toml, holdout_start_s, frame_search)
+            d = diagnose_file(toml, holdout_start_s, frame_search, progress)
         except InputError as exc:
             msg = str(exc).replace(str(Path(tmp) / "data.csv"), "<DataFrame>")
             raise InputError(msg.replace(str(toml), "<DataFrame>")) from None

@@ -62,3 +62,20 @@ def test_one_blas_thread_limits_and_restores():
     inside = one_blas_thread(blas_threads)()
     assert all(n == 1 for n in inside)
     assert blas_threads() == before
+
+
+def test_api_diagnose_reports_progress_to_a_callable():
+    """arfem.diagnose(..., progress=callable) hears each slow step as it starts, in order
+    (issue 30: a real record's diagnosis ran for minutes with nothing shown)."""
+    import pandas as pd
+    import arfem
+    from arfem.models.diagnosis.synth import generate
+    case = generate("sensor_drift", 11)
+    df = pd.DataFrame({"time_s": case.time_s, "q_W_m2": case.q_W_m2,
+                       "growth_um": case.growth_um})
+    steps = []
+    arfem.diagnose(df, progress=steps.append)
+    assert steps[0] == "reading the dataset"
+    assert any(s.startswith("FEM fit:") for s in steps)
+    assert steps.index("residuals and hold-out") > max(
+        i for i, s in enumerate(steps) if s.startswith("FEM fit:"))
