@@ -23,7 +23,7 @@ Quick start (the FEM and the paper's AR(1) on your own rod in a few lines):
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -580,7 +580,8 @@ def _initial_of(given: str | None, recorded: str, where: str) -> str:
 def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLike], *,
              rod: Rod | None = None, holdout_start_s: float | None = None,
              initial: str | None = None, name: str = "dataframe",
-             frame_search: str = "narrow") -> DiagnosisResult:
+             frame_search: str = "narrow",
+             progress: bool | Callable[[str], None] = False) -> DiagnosisResult:
     """What does the simulation get wrong on a measured record, and why?
 
     Parameters
@@ -605,6 +606,9 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
         The record's name in the result (samples only).
     frame_search : {"narrow", "wide", "average"}
         Speed-only records: frame structures compared (see ``arfem diagnose --help``).
+    progress : bool or callable
+        True: show the step under way and the elapsed time on stderr (a real record
+        takes seconds to a minute); a callable is called with each step's name instead.
 
     Returns
     -------
@@ -631,6 +635,12 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     """
     from arfem.models.diagnosis.engine import diagnose as _diagnose
     from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    if not callable(progress):
+        from arfem.scenarios.progress import Progress
+        # asked for: shown even where stderr is no terminal (a notebook's)
+        with Progress(12, "arfem.diagnose", enabled=bool(progress), tty=True) as bar:
+            return diagnose(data, rod=rod, holdout_start_s=holdout_start_s, initial=initial,
+                            name=name, frame_search=frame_search, progress=bar)
     assumed = []
     if isinstance(data, (str, Path, Record)):
         if rod is not None:
@@ -645,7 +655,7 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
                            'equilibrium with the ambient); pass initial="unknown" if it '
                            'did not')
         ds = dataset_from_columns(data, name=name, rod=rod, initial=initial)
-    d = _diagnose(ds, holdout_start_s, frame_search)
+    d = _diagnose(ds, holdout_start_s, frame_search, progress)
     summary = d.summary
     if assumed:
         summary = {**summary, "warnings": [*summary.get("warnings", []), *assumed]}

@@ -82,6 +82,7 @@ from arfem.models.diagnosis.speed_frame import fit_frame_thermometers
 from arfem.models.diagnosis.speed_select import cv_rmse, forward_folds, select_frame_structure
 from arfem.params import InputError
 from arfem.io import json_text
+from arfem.models.diagnosis.blas import one_blas_thread
 
 __all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
            "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
@@ -690,6 +691,7 @@ def _summary(ds, v2, bres, eres, holdout):
     return summary
 
 
+@one_blas_thread
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
              progress=None, intervals: bool = True, drift_last: bool = False,
              on_fit=None) -> Diagnosis:

@@ -35,7 +35,8 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from arfem.models.diagnosis.candidates import CandidateFit, project
-from arfem.models.diagnosis.forward import ar_first_order, first_order_lag, intervals
+from arfem.models.diagnosis.forward import (ar_columns_rates, ar_first_order, first_order_lag,
+                                            intervals)
 
 __all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
 
@@ -246,10 +247,15 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
     running = speed > 0
     tag = "ar" if cause == "none" else f"ar+{cause}"
 
+    d = intervals(t)
+
     def columns(b):
         b_arr = np.broadcast_to(b, t.shape)
-        cols = [ar_first_order(t, u / b_arr, b_arr, 1.0) for u in units.values()]
-        cols.append(np.exp(-np.cumsum(b_arr * intervals(t))))   # unknown initial state
+        # one pass for every level (they share the rate): the same numbers as one
+        # ar_first_order(t, u / b, b, 1.0) per level
+        U = np.column_stack([u / b_arr for u in units.values()])
+        cols = list(ar_columns_rates(t, U, b_arr).T)
+        cols.append(np.exp(-np.cumsum(b_arr * d)))   # unknown initial state
         return cols
 
     def solve(cols):
