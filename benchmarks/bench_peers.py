@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import collections
 import os
-import sys
 import tempfile
 import time
 import warnings
@@ -42,7 +41,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numpy as np  # noqa: E402
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 MODELS = ("uncompensated", "ar1", "mlr", "extended", "tf", "arx")
 
