@@ -400,7 +400,7 @@ def _markdown(entries, rows, story) -> str:
                 continue
             b = best[(c, o)]["best"]
             end = e["block_end_s"]
-            L.append(f"| {_h(o)} | {'end' if end is None else _h(end)} | {e['cause']} | "
+            L.append(f"| {_h(o)} | {'end' if end is None or not math.isfinite(end) else _h(end)} | {e['cause']} | "
                      + " | ".join(_cell(e["scores"], k, b) for k in keys) + " |")
         rs = [best[(c, o)] for o in origins if (c, o) in best]
         L += ["", "Best: " + ", ".join(f"{LABEL[k]} {count(rs, k)}" for k in keys
