@@ -91,7 +91,7 @@ def peers_for(ds, hs):
 def score_record(ds):
     """RMS after compensation [µm] of every model on the hold-out of ``ds``."""
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.diagnose import compensator_models
     from arfem.params import InputError
     d = diagnose(ds, None, intervals=False)
@@ -108,7 +108,7 @@ def score_record(ds):
         if m is None:
             continue
         try:
-            r = replay(m, ds, score_from_s=hs)["series"]["residual_um"]
+            r = replay(m, ds, score_from_s=hs).series.residual_um
         except InputError as exc:
             why[k] = str(exc)
             continue

@@ -89,7 +89,7 @@ def peer_models(ds_o, n_train):
 
 
 def _score(res, t, g, start, end):
-    r = res["series"]["residual_um"]
+    r = res.series.residual_um
     ok = np.isfinite(g) & (t >= start) & (t < end)
     x = r[ok]
     return {"rms_um": float(np.sqrt(np.mean(x ** 2))), "pp_um": float(np.ptp(x)),
@@ -102,7 +102,7 @@ def one_split(job):
     from regenerate import origin_dataset
 
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.compensate import replay
+    from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
     from arfem.scenarios.diagnose import compensator_models
     ds = load_dataset(DATA / f"fl_thermal_ch{ch}.toml")
@@ -128,7 +128,7 @@ def one_split(job):
             "rms_um": float(np.sqrt(np.mean(g[(t >= split) & (t < end)] ** 2))),
             "pp_um": float(np.ptp(g[(t >= split) & (t < end)])),
             "n": int(((t >= split) & (t < end)).sum())}
-        series[key] = res["series"]["residual_um"]
+        series[key] = res.series.residual_um
         if split == SPLIT_28H_S and key in ("ar1", "extended", "arx"):
             for every, lab in PROBES:
                 pr = replay(m, ds, score_from_s=split, probe_every_s=every)
