@@ -685,6 +685,14 @@ def _summary(ds, v2, bres, eres, holdout):
     return summary
 
 
+def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None) -> None:
+    """The verdict (:mod:`arfem.models.diagnosis.verdict`) written into ``summary``:
+    ``verdict``, ``verdict_detail`` and, for a cause that is not established,
+    ``best_candidate`` in place of ``cause``/``causes``/``parameters``."""
+    from arfem.models.diagnosis import verdict as vd
+    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K))
+
+
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
              progress=None, intervals: bool = True, drift_last: bool = False) -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
@@ -757,6 +765,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})
     _add_mlr(summary, series, y, temps, rows, hold)
+    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
     models = {"extended": ext, "causes": tuple(v2["causes"]),
               "physics": v2.get("physics"), "speed": v2.get("speed_export")}
     return Diagnosis(summary, series, text, models)
