@@ -51,6 +51,13 @@ Selection rule (documented in every report; each rule has its one home in
     The second cause of a pair is held to the same rule with its own increment over
     the first (post hoc: added after the fresh batch 9000 was scored).
 
+11. the verdict (:mod:`arfem.models.diagnosis.verdict`, :func:`add_verdict`): the cause
+    named by rules 1-10 is *established* only if its 95 % intervals exclude no effect
+    and stay inside the fit's range and the hold-out confirms it; otherwise it moves to
+    ``best_candidate`` and the verdict is *unconfirmed* -- or *explained* where the
+    baseline's residual is within the noise, *not_explained* where nothing was named
+    and it is not.
+
 Every N_eff (rules 2, 3, 6, 7 and the intervals) is the smaller of the lag-1 form and
 the batch-means form, which sees slow sensor wander
 (:func:`arfem.models.diagnosis.stats.noise_n_eff`).

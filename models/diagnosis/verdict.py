@@ -321,8 +321,8 @@ def _what_is_left(summary) -> str:
     wn = summary["verdict_detail"]["residual_within_noise"]
     h, b = summary["holdout"], summary["baseline"]
     parts = [f"the simulation as configured leaves {_f(h['baseline_rmse_um'])} µm RMSE on "
-             f"the hold-out ({_f(b['rmse_um'])} µm on every row, largest "
-             f"{_f(b.get('max_abs_um'))} µm)"]
+             f"the hold-out (RMSE {_f(b['rmse_um'])} µm over the whole record, largest "
+             f"error {_f(b.get('max_abs_um'))} µm)"]
     why = []
     if not wn["white"]:
         why.append(f"its residual is not white (Ljung-Box on N_eff = {wn['n_eff']:.0f}: "
