@@ -181,11 +181,29 @@ def test_hidden_cause_is_established_with_advice(tmp_path):
     assert lo <= case.parameters["scale"] <= hi
 
 
+def test_cause_whose_interval_holds_zero_is_unconfirmed(tmp_path):
+    """A weak frame (gain 0.1, seed 16) under a 0.3 µm sensor wander: the selection rules
+    name frame_expansion, but the wander widens its frame_gain interval across 0 -- so
+    it is unconfirmed: ``best_candidate``, not ``cause``; the failed check named; no
+    advice. (The record was picked from four weak-cause probes as one whose interval
+    holds 0; the verdict rules were fixed before.)"""
+    case = generate("frame_expansion", 16, duration_h=24.0, frame_gain=0.1,
+                    noise_walk_um=0.3)
+    s, md = _run(case, tmp_path)
+    assert s["verdict"] == "unconfirmed", s["verdict_detail"]
+    assert s["cause"] == "none" and s["causes"] == [] and s["parameters"] == {}
+    bc = s["best_candidate"]
+    assert bc["cause"] == "frame_expansion"
+    lo, hi = bc["parameters_ci95"]["frame_gain"]
+    assert lo <= 0.0 <= hi
+    assert any("frame_gain" in w and "holds 0" in w for w in bc["not_established_because"])
+    assert "What to do" not in md and "**Verdict: unconfirmed.**" in md
+
+
 def test_unmodelled_effect_is_not_explained(tmp_path):
-    """A 5 h, 3 µm oscillation no cause of the vocabulary can make, on a clean record:
-    the verdict says the record is not explained (or, if a cause is fitted to it, that
-    the cause is unconfirmed) -- never explained or established -- and gives no advice
-    and no ``cause``."""
+    """A 5 h, 3 µm oscillation no cause of the vocabulary can make, on a clean record
+    (seed 21): nothing is named and the residual is not within the noise -> not
+    explained, with the vocabulary caveat; no advice, no ``cause``."""
     c = generate("none", 21, duration_h=24.0)
     c = dataclasses.replace(c, growth_um=c.growth_um
                             + 3.0 * np.sin(2 * np.pi * c.time_s / (5 * 3600.0)))

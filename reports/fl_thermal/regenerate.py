@@ -24,13 +24,16 @@ t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole re
     python reports/fl_thermal/regenerate.py --rolling-only average+drift-last
     python reports/fl_thermal/regenerate.py --posthoc-split
     python reports/fl_thermal/regenerate.py --readme
+    python reports/fl_thermal/regenerate.py --published-only [--stability N]
 
 the rolling-origin evaluation of the published procedure and of the post hoc ones
 (``--frame-search average``; the same with ``--drift-last``, README.posthoc.md 1.3.1) on
 the whole record (rolling.json/md/png; ~35 min, ~4 min and ~9 min on the shared 2-core
 machine), the post hoc procedure on the
-pre-registered split (posthoc_split.json, never into preregistered.json), and README.md
-rebuilt from the stored results.
+pre-registered split (posthoc_split.json, never into preregistered.json), README.md
+rebuilt from the stored results, and only the five published folders ch1-ch5 rerun (the
+experiments kept from experiments.json; ``--stability N`` adds the verdict's stability at
+up to N rolling origins, each costing one more diagnosis).
 """
 from __future__ import annotations
 
@@ -474,9 +477,10 @@ def main(argv=None) -> int:
     ap.add_argument("--every", type=int, default=1, metavar="K",
                     help="rolling: evaluate only every K-th origin (same blocks), to save time")
     ap.add_argument("--published-only", action="store_true",
-                    help="rerun only the published channel folders ch1-ch5 (t >= 20 h, with "
-                         "the verdict's stability) and rebuild README.md from them and the "
-                         "stored experiments.json (about a third of the full run)")
+                    help="rerun only the published channel folders ch1-ch5 (t >= 20 h; with "
+                         "--stability N also the verdict's stability) and rebuild README.md "
+                         "from them and the stored experiments.json (about a quarter of the "
+                         "full run)")
     ap.add_argument("--stability", type=int, default=STABILITY_ORIGINS, metavar="N",
                     help="published folders: the verdict's stability at up to N rolling "
                          "origins (arfem diagnose --stability; each origin costs one "
