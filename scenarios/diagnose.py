@@ -69,21 +69,22 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
         from arfem.models.diagnosis import stats as st
         from arfem.models.diagnosis.export import fem_state_space, speed_state_space
         causes = " + ".join(diag.models["causes"])
-        if diag.summary.get("verdict", "established") != "established":
-            causes += f" (best candidate, {diag.summary['verdict']}: not established)"
+        verdict = diag.summary.get("verdict", "established")
+        label = ("" if verdict == "established" else
+                 f"; the best candidate, {verdict}: not established")
         kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
               "arfem_version": __version__}
         try:
             if diag.models.get("physics") is not None:
                 out["model_extended.json"] = fem_state_space(
                     diag.models["extended"], diag.models["physics"], dt,
-                    description=f"FEM rod with {causes} (the diagnosis's extended model), "
-                                f"{span}", **kw)
+                    description=f"FEM rod with {causes} (the diagnosis's extended "
+                                f"model{label}), {span}", **kw)
             elif diag.models.get("speed") is not None:
                 out["model_extended.json"] = speed_state_space(
                     diag.models["extended"], diag.models["speed"], dt,
                     description=f"AR(1) of the speed + frame from thermometers (the "
-                                f"diagnosis's extended model), {span}", **kw)
+                                f"diagnosis's extended model{label}), {span}", **kw)
             else:
                 why.append(f"model_extended.json: the extended model of this speed-only "
                            f"record ({causes}) is not exported yet")
@@ -209,10 +210,11 @@ def terminal_line(s: dict) -> str:
     hold-out scores.
 
     >>> terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
-    ...                "best_candidate": {"cause": "frame_expansion"},
+    ...                "best_candidate": {"cause": "frame_expansion",
+    ...                                   "causes": [{"cause": "frame_expansion"}]},
     ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,
     ...                            "gain_pct": -33.3}})
-    'd: verdict = unconfirmed; cause = none (best candidate frame_expansion, not established); hold-out RMSE 3 -> 4 µm (best candidate\'s extended model, gain -33.3 %)'
+    "d: verdict = unconfirmed; cause = none (best candidate frame_expansion, not established); hold-out RMSE 3 -> 4 µm (best candidate's extended model, gain -33.3 %)"
     """
     h = s["holdout"]
     named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
@@ -233,7 +235,8 @@ def main(args) -> int:
         s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
                           args.frame_search, progress, args.drift_last, args.stability)
     print(terminal_line(s) + f"; wrote {args.out}")
-    print(f"verdict: {s['verdict_detail']['text']}")
+    if s.get("verdict_detail"):
+        print(f"verdict ({s['verdict']}): {s['verdict_detail']['text']}")
     h = s["holdout"]
     print(f"hold-out: from {h['start_s']:g} s; {h['how_chosen']}")
     for w in s.get("warnings", []):

@@ -23,8 +23,8 @@ from arfem.scenarios.synth_files import write_case
 RNG = np.random.default_rng(30)
 #: a white residual: passes Ljung-Box on N_eff (p >= 0.05) for this seed
 WHITE = RNG.normal(0.0, 0.1, 3000)
-#: a residual with a slow misfit far above the noise: fails it
-MISFIT = WHITE + 3.0 * np.sin(np.arange(3000) / 150.0)
+#: a residual with a periodic misfit above the noise (N_eff ~ 300, so testable): fails it
+MISFIT = WHITE + 0.3 * np.sin(np.arange(3000) / 5.0)
 
 
 def _summary(cause="frame_expansion", ci=(0.2, 0.6), gain=30.0, mlr=5.0, base=6.0,
@@ -223,3 +223,13 @@ def test_stability_flag_on_a_generated_record(tmp_path):
     assert all(o >= 0.4 * case.time_s[-1] for o in org)
     assert f"of {st['n_origins']} rolling origins" in s["verdict_detail"]["text"]
     assert s["verdict_detail"]["text"] in md
+
+
+def test_a_residual_too_slow_to_test_is_not_called_white():
+    """Fewer than 10 independent samples (a slow wander, N_eff ~ 8): Ljung-Box cannot be
+    run, and "within the noise" is then not claimed -- the text says it cannot be
+    tested."""
+    slow = WHITE + 3.0 * np.sin(np.arange(3000) / 150.0)
+    s = _verdict(_summary(cause="none", mlr=6.1), slow)
+    assert s["verdict"] == "not_explained"
+    assert "cannot be tested" in s["verdict_detail"]["text"]

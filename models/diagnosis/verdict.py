@@ -324,7 +324,10 @@ def _what_is_left(summary) -> str:
              f"the hold-out (RMSE {_f(b['rmse_um'])} µm over the whole record, largest "
              f"error {_f(b.get('max_abs_um'))} µm)"]
     why = []
-    if not wn["white"]:
+    if not wn["white"] and not np.isfinite(wn["ljung_box_p_neff"]):
+        why.append(f"its whiteness cannot be tested (N_eff = {wn['n_eff']:.0f}: fewer than "
+                   "10 independent samples), so it is not shown to be within the noise")
+    elif not wn["white"]:
         why.append(f"its residual is not white (Ljung-Box on N_eff = {wn['n_eff']:.0f}: "
                    f"p = {_f(wn['ljung_box_p_neff'])})")
     if wn["thermometers_beyond_bound"]:
@@ -350,8 +353,9 @@ def _params(c: dict) -> str:
 
 
 def text(summary) -> str:
-    """The verdict in words (the same sentence opens report.md and follows the terminal
-    line); advice only for an established cause."""
+    """The verdict in words, without its label (report.md opens with "**Verdict: <verdict>.**"
+    and this text, the terminal prints "verdict (<verdict>): " and this text); advice only
+    for an established cause."""
     d = summary["verdict_detail"]
     v, h = d["verdict"], summary["holdout"]
     mlr = (summary.get("mlr") or {}).get("holdout_rmse_um")
@@ -359,7 +363,7 @@ def text(summary) -> str:
     if v == "established":
         causes = summary.get("causes") or []
         acts = "; ".join(ACTIONS[c["cause"]] for c in causes if c["cause"] in ACTIONS)
-        return (f"Established: the simulation misses "
+        return (f"The simulation misses "
                 + " and ".join(f"`{c['cause']}` ({_params(c)})" for c in causes)
                 + f", with 95 % intervals in brackets; adding it cuts the hold-out error from "
                 f"{_f(h['baseline_rmse_um'])} to {_f(h['extended_rmse_um'])} µm RMSE "
@@ -369,7 +373,7 @@ def text(summary) -> str:
     bc = summary.get("best_candidate")
     if v == "explained":
         wn = d["residual_within_noise"]
-        s = (f"Explained: the simulation as configured explains this record to within the "
+        s = (f"The simulation as configured explains this record to within the "
              f"noise: its residual is white by Ljung-Box on N_eff = {wn['n_eff']:.0f} "
              f"(p = {_f(wn['ljung_box_p_neff'])}), no thermometer correlates with it beyond "
              f"its bound, and no baseline model does better on the hold-out "
@@ -382,11 +386,11 @@ def text(summary) -> str:
     if v == "unconfirmed":
         c = {"parameters": bc.get("parameters", {}),
              "ci95": bc.get("parameters_ci95", {})} if bc else {}
-        return (f"Unconfirmed: `{d['subject']}` is the best candidate"
+        return (f"`{d['subject']}` is the best candidate"
                 + (f" ({_params(c)})" if c.get("parameters") else "")
                 + f" but is not established: {'; '.join(d['failed_checks'])}. No cause is "
                 f"named. Not explained either: {_what_is_left(summary)}." + stab)
-    s = f"Not explained, no cause established: {_what_is_left(summary)}."
+    s = f"No cause is established, and {_what_is_left(summary)}."
     if bc:
         s += (f" The best candidate, `{bc['cause']}`, was not accepted: "
               f"{'; '.join(bc['not_established_because'])}.")
