@@ -15,7 +15,8 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios.progress import Progress, add_progress_flag
 
-__all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file"]
+__all__ = ["add_parser", "main", "run_diagnosis", "diagnose_file", "add_stability",
+           "terminal_line"]
 
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
@@ -62,23 +63,28 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
                 description=f"paper AR(1) calibrated by eq. 17, {span}")
         except InputError as exc:          # e.g. C1 >= 1: no compensator to export
             why.append(f"model.json: {exc}")
-    if diag is not None and diag.summary.get("cause", "none") != "none":
+    # the extended model of the cause the selection rules named, established or not
+    # (an unconfirmed one is ``best_candidate`` in diagnosis.json; its file says so)
+    if diag is not None and diag.models.get("causes"):
         from arfem.models.diagnosis import stats as st
         from arfem.models.diagnosis.export import fem_state_space, speed_state_space
         causes = " + ".join(diag.models["causes"])
+        verdict = diag.summary.get("verdict", "established")
+        label = ("" if verdict == "established" else
+                 f"; the best candidate, {verdict}: not established")
         kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
               "arfem_version": __version__}
         try:
             if diag.models.get("physics") is not None:
                 out["model_extended.json"] = fem_state_space(
                     diag.models["extended"], diag.models["physics"], dt,
-                    description=f"FEM rod with {causes} (the diagnosis's extended model), "
-                                f"{span}", **kw)
+                    description=f"FEM rod with {causes} (the diagnosis's extended "
+                                f"model{label}), {span}", **kw)
             elif diag.models.get("speed") is not None:
                 out["model_extended.json"] = speed_state_space(
                     diag.models["extended"], diag.models["speed"], dt,
                     description=f"AR(1) of the speed + frame from thermometers (the "
-                                f"diagnosis's extended model), {span}", **kw)
+                                f"diagnosis's extended model{label}), {span}", **kw)
             else:
                 why.append(f"model_extended.json: the extended model of this speed-only "
                            f"record ({causes}) is not exported yet")
@@ -99,14 +105,48 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
 
 
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
-                  progress=None, drift_last: bool = False, limits=None) -> Diagnosis:
+                  progress=None, drift_last: bool = False, limits=None,
+                  stability: int = 0) -> Diagnosis:
     """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` and
     ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`, ``limits``
-    (:class:`arfem.limits.Limits`) as :func:`arfem.scenarios.dataset.load_dataset`."""
+    (:class:`arfem.limits.Limits`) as :func:`arfem.scenarios.dataset.load_dataset`,
+    ``stability`` as in :func:`add_stability`."""
     if progress is not None:
         progress("reading the dataset")
-    return diagnose(load_dataset(toml_path, limits), holdout_start_s, frame_search, progress,
-                    drift_last=drift_last)
+    ds = load_dataset(toml_path, limits)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    add_stability(diag, ds, stability, frame_search, drift_last, progress)
+    return diag
+
+
+def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narrow",
+                  drift_last: bool = False, progress=None, mapper=map) -> None:
+    """The verdict's stability across hold-out splits, written into ``diag.summary``
+    (``verdict_detail.stability`` and the verdict's text): the diagnosis rerun with its
+    hold-out from each of up to ``n_origins`` rolling origins
+    (:func:`arfem.models.diagnosis.rolling.stability_origins`), without intervals
+    (:func:`arfem.models.diagnosis.rolling.verdict_stability`). ``n_origins`` 0: nothing.
+    Each rerun costs about one diagnosis without intervals."""
+    if not n_origins:
+        return
+    from arfem.models.diagnosis import verdict as vd
+    from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
+    u = ds.q_W_m2 if ds.input_kind == "q_W_m2" else ds.speed_rpm
+    origins = stability_origins(ds.time_s, u, n_origins)
+    s = diag.summary
+
+    def at(origin_s):
+        if progress is not None:
+            progress(f"stability: hold-out from {origin_s / 3600:.2f} h")
+        return diagnose(ds, origin_s, frame_search, None, intervals=False,
+                        drift_last=drift_last).summary
+
+    subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
+    if s["verdict"] == "explained" and not s.get("causes"):
+        subject = None
+    st = verdict_stability(at, origins, subject, mapper)
+    s["verdict_detail"]["stability"] = st
+    s["verdict_detail"]["text"] = vd.text(s)
 
 
 def add_parser(subparsers):
@@ -129,6 +169,12 @@ def add_parser(subparsers):
                         "(a linear drift in time) only if no cause driven by the recorded "
                         "inputs passes the naming test (its rolling-origin evaluation on the "
                         "real record: reports/fl_thermal/README.md)")
+    p.add_argument("--stability", type=int, nargs="?", const=10, default=0, metavar="N",
+                   help="also say how stable the verdict is across hold-out splits: rerun "
+                        "the diagnosis (without intervals) with its hold-out from each of up "
+                        "to N rolling origins (input changes in the last 60 %% of the "
+                        "record; N = 10 if not given); off by default, as it costs about N "
+                        "diagnoses")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     add_progress_flag(p)
     p.set_defaults(func=main)
@@ -136,7 +182,7 @@ def add_parser(subparsers):
 
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
-                  progress=None, drift_last=False, limits=None):
+                  progress=None, drift_last=False, limits=None, stability=0):
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
@@ -146,6 +192,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
         progress("reading the dataset")
     ds = load_dataset(case, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    add_stability(diag, ds, stability, frame_search, drift_last, progress)
     if progress is not None:
         progress("writing outputs")
     models = compensator_models(ds, diag.summary["holdout"]["start_s"], diag)
@@ -159,14 +206,41 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     return diag.summary
 
 
-def main(args) -> int:
-    with Progress(12, "arfem diagnose", enabled=not args.no_progress) as progress:
-        s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
-                          args.frame_search, progress, args.drift_last, args.limits)
+def terminal_line(s: dict) -> str:
+    """The command's first line, from diagnosis.json's content: the verdict, the cause
+    only where it is established (else the best candidate, marked as such), and the
+    hold-out scores.
+
+    >>> terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
+    ...                "best_candidate": {"cause": "frame_expansion",
+    ...                                   "causes": [{"cause": "frame_expansion"}]},
+    ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,
+    ...                            "gain_pct": -33.3}})
+    "d: verdict = unconfirmed; cause = none (best candidate frame_expansion, not established); hold-out RMSE 3 -> 4 µm (best candidate's extended model, gain -33.3 %)"
+    """
     h = s["holdout"]
     named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
-    print(f"{s['dataset']}: cause = {named}; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
-          f"{h['extended_rmse_um']:.3g} µm (gain {h['gain_pct']:.1f} %); wrote {args.out}")
+    bc = s.get("best_candidate")
+    est = s.get("verdict", "established") == "established"
+    line = f"{s['dataset']}: verdict = {s.get('verdict', '?')}; cause = {named}"
+    if bc and not est:
+        line += f" (best candidate {bc['cause']}, not established)"
+    ext = ("extended model" if est else "best candidate's extended model"
+           if bc and bc.get("causes") else "no extended model: the baseline")
+    return (line + f"; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
+            f"{h['extended_rmse_um']:.3g} µm ({ext}, gain {h['gain_pct']:.1f} %)")
+
+
+def main(args) -> int:
+    with Progress(12 + max(args.stability, 0), "arfem diagnose",
+                  enabled=not args.no_progress) as progress:
+        s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
+                          args.frame_search, progress, args.drift_last, args.limits,
+                          args.stability)
+    print(terminal_line(s) + f"; wrote {args.out}")
+    if s.get("verdict_detail"):
+        print(f"verdict ({s['verdict']}): {s['verdict_detail']['text']}")
+    h = s["holdout"]
     print(f"hold-out: from {h['start_s']:g} s; {h['how_chosen']}")
     for w in s.get("warnings", []):
         print(f"warning: {w}")

@@ -51,7 +51,9 @@ def _figures(diag, out: Path):
     ax[0].set_ylabel("growth [µm]")
     ax[0].legend(fontsize=8)
     named = " + ".join(c["cause"] for c in j.get("causes", [])) or j["cause"]
-    ax[0].set_title(_plain(f"{j['dataset']}: cause = {named}"))
+    bc = (j.get("best_candidate") or {}).get("cause")
+    ax[0].set_title(_plain(f"{j['dataset']}: verdict {j.get('verdict', '?')}, cause = {named}"
+                           + (f" (best candidate {bc}, not established)" if bc else "")))
     ax[1].plot(th[good], (s["growth_um"] - s["baseline_um"])[good], lw=0.7, label="residual, baseline")
     ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7, label="residual, extended")
     ax[1].axvline(hs, color="k", ls="--", lw=0.8)
@@ -181,76 +183,29 @@ def _unbounded(name, ci) -> str:
             if at_search_edge(name, ci[0]) or at_search_edge(name, ci[1]) else "")
 
 
-#: what an engineer can do about each named cause (the verdict's last sentence)
-_ACTIONS = {
-    "ambient_drift": "give the model the ambient air temperature as an input (a recorded "
-                     "`ambient_C`); the seed paper names a varying ambient as its AR(1)'s "
-                     "open limit",
-    "convection_mismatch": "set the simulation's lateral h to the fitted value",
-    "speed_dependent_convection": "use one h while the spindle runs and another while it "
-                                  "stands",
-    "heat_input_scale": "rescale the heat input (the speed-to-heat map of eqs. 20-21)",
-    "frame_expansion": "add the machine frame's slow expansion (a first-order term driven "
-                       "by the same input) to the compensation model",
-    "sensor_drift": "check the displacement sensor's zero before changing the thermal model",
-    "nonlinear_convection": "use a natural-convection h(ΔT) instead of a constant h",
-}
-
-
 def verdict(j: dict) -> list[str]:
-    """The report's opening: what is wrong, how sure, what to do, in one or two sentences,
+    """The report's opening: the verdict (``explained``, ``established``, ``unconfirmed``
+    or ``not_explained``, chosen by the rules of :mod:`arfem.models.diagnosis.verdict`)
+    in the same words diagnosis.json's ``verdict_detail.text`` and the terminal carry,
     then the key figure and the hold-out table (everything else follows as evidence)."""
     b, e, h = j["baseline"], j["extended"], j["holdout"]
-    cause, causes = j["cause"], j.get("causes") or []
     base, ext = h["baseline_rmse_um"], h["extended_rmse_um"]
     mlr = (j.get("mlr") or {}).get("holdout_rmse_um")
-    warns = j.get("warnings", [])
-    if cause == "none":
-        text = (f"The simulation as configured explains this record: no cause is named "
-                f"(hold-out RMSE {_fmt(base)} µm"
-                + (f", the MLR of eq. 18 {_fmt(mlr)} µm" if mlr is not None else "")
-                + "). Nothing in arfem's vocabulary of causes improves on it.")
-        u = j.get("unconfirmed")
-        if u:
-            text = (f"No cause is named (hold-out RMSE {_fmt(base)} µm). A `{u['cause']}` "
-                    "fits the data before the hold-out but is unconfirmed: "
-                    + ("its effect is within the slow part of the record's noise "
-                       f"({_fmt(u['effect_rms_um'])} against {_fmt(u['slow_noise_um'])} µm), "
-                       "which looks like sensor wander, not a cause."
-                       if "effect_rms_um" in u else
-                       f"the hold-out contradicts it (gain {_fmt(u['holdout_gain_pct'])} %)."))
-    elif h["gain_pct"] < 0:
-        text = (f"A `{cause}` fits the data before the hold-out, but it makes the hold-out "
-                f"worse ({_fmt(base)} → {_fmt(ext)} µm RMSE): treat it as unconfirmed. What "
-                "this record's simulation gets wrong is not established by arfem's causes; "
-                "see the warnings and the residual analysis below.")
-    else:
-        parts = []
-        for c in causes or [{"cause": cause, "parameters": j["parameters"], "ci95": {}}]:
-            ci = c.get("ci95", {})
-            parts.append(f"`{c['cause']}` (" + ", ".join(
-                f"{k} = {_fmt(v, 4)}" + (f" [{_fmt(ci[k][0], 3)}, {_fmt(ci[k][1], 3)}]"
-                                         if k in ci else "")
-                for k, v in c["parameters"].items()) + ")")
-        unsure = any("holds 0" in w or "does not carry" in w or "noise σ" in w for w in warns) \
-            or any(_unbounded(k, v) for c in causes for k, v in c.get("ci95", {}).items())
-        sure = ("but its size is not pinned down by the data (see the warnings)" if unsure
-                else "with 95 % intervals in brackets")
-        acts = "; ".join(_ACTIONS[c] for c in dict.fromkeys(
-            x for c in (causes or [{"cause": cause}]) for x in c["cause"].split("+"))
-            if c in _ACTIONS)
-        text = (f"The simulation misses " + " and ".join(parts) + f", {sure}. Adding it cuts "
-                f"the hold-out error from {_fmt(base)} to {_fmt(ext)} µm RMSE "
-                f"({h['gain_pct']:.0f} %)"
-                + (f"; the MLR of eq. 18 scores {_fmt(mlr)} µm" if mlr is not None else "")
-                + (f". What to do: {acts}." if acts else "."))
+    d = j.get("verdict_detail")
+    if d is None:                 # a diagnosis.json written before verdicts (issue 30)
+        d = {"verdict": "not given", "text": "this diagnosis.json predates verdicts; see "
+                                             "the warnings and the residual analysis"}
+    text = f"**Verdict: {d['verdict']}.** {d['text']}"
+    ext_label = ("extended" if j.get("verdict") == "established" else
+                 "best candidate, not established" if (j.get("best_candidate") or {}).get("causes")
+                 else "extended")
     L = ["## Verdict", "", text, "",
          "![the record, the simulation as assumed and the extended model, with their "
          "residuals](growth_residual.png)", "",
          f"| model (fitted before t = {h['start_s'] / 3600:.2f} h) | hold-out RMSE [µm] |",
          "|---|---|",
          f"| simulation as assumed ({b['model']}) | {_fmt(base)} |",
-         f"| extended ({e['model']}) | {_fmt(ext)} |"]
+         f"| {ext_label} ({e['model']}) | {_fmt(ext)} |"]
     if mlr is not None:
         L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | {_fmt(mlr)} |")
     return L + ["", "## Warnings and the named cause in full", ""]
@@ -278,6 +233,16 @@ def _markdown(diag) -> str:
     else:
         L += [f"**Cause: `{j['cause']}`**" + (" — parameters: " + ", ".join(
             f"`{k}` = {_fmt(v, 4)}" for k, v in j["parameters"].items()) if j["parameters"] else ""), ""]
+    bc = j.get("best_candidate")
+    if bc:
+        ci = bc.get("parameters_ci95") or {}
+        L += [f"**Best candidate, not established: `{bc['cause']}`**" + (" — " + ", ".join(
+            f"`{k}` = {_fmt(v, 4)}" + (f" (95 % interval {_fmt(ci[k][0], 4)} to "
+                                       f"{_fmt(ci[k][1], 4)}{_unbounded(k, ci[k])})"
+                                       if k in ci else "")
+            for k, v in bc.get("parameters", {}).items()) if bc.get("parameters") else "")
+            + ". Not established because: " + "; ".join(bc["not_established_because"]) + ".",
+            ""]
     eq = j.get("equivalent_alternative")
     if eq:
         L += [f"Equivalent alternative: `{eq['cause']}` (" + ", ".join(

@@ -148,7 +148,10 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
     root = Path(__file__).parents[1]
     ds = load_dataset(root / "scenarios" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
     d = diagnose(ds, 100800.0, intervals=False)
-    assert d.summary["cause"] == "frame_expansion"
+    # named by the selection rules, but without intervals not established (issue 30):
+    # the extended model is still exported, as the best candidate's
+    from arfem.models.diagnosis.verdict import named_cause
+    assert named_cause(d.summary) == "frame_expansion" and d.summary["cause"] == "none"
     models = compensator_models(ds, 100800.0, d)
     m = models["model_extended.json"]
     assert (m.n_states > 1) == (ch == 5)

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import pytest
 
+from arfem.models.diagnosis.verdict import named_cause
 from arfem.scenarios.diagnose import diagnose_file
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,7 +44,7 @@ def test_committed_table_matches_fresh_run_ch2(first28h):
     gives now; tolerance 0.01 µm = the table's rounding."""
     cells = _table_row(2)
     s = diagnose_file(first28h / "fl_thermal_ch2.toml", 72000.0).summary
-    assert cells[1] == s["cause"]
+    assert cells[1] == named_cause(s)
     assert abs(float(cells[2]) - s["holdout"]["baseline_rmse_um"]) <= 0.01
     assert abs(float(cells[3]) - s["mlr"]["holdout_rmse_um"]) <= 0.01
     assert abs(float(cells[5]) - s["holdout"]["extended_rmse_um"]) <= 0.01
@@ -64,7 +65,7 @@ def test_preregistered_runner_is_the_published_procedure(first28h):
                                         holdout_s=72000.0, channels=[1])
     ar, ml, ext, s = scores[1]
     cells = _table_row(1)
-    assert cells[1] == s["cause"]
+    assert cells[1] == named_cause(s)
     assert [abs(float(cells[i]) - v) <= 0.01 for i, v in ((2, ar), (3, ml), (5, ext))] \
         == [True] * 3
 
@@ -81,7 +82,7 @@ def test_preregistered_result_matches_fresh_run_ch2():
     pub = json.loads((REPO / "reports/fl_thermal/preregistered.json").read_text())["ch2"]
     ar, ml, ext, s = regen.preregistered_scores(DATA / regen.WHOLE_CSV, DATA,
                                                 channels=[2])[2]
-    assert s["cause"] == pub["cause"]
+    assert named_cause(s) == pub["cause"]
     assert s["selection"]["frame_structure"]["label"] == pub["frame_structure"]
     for key, v in (("paper_ar_rmse_um", ar), ("mlr_rmse_um", ml), ("extended_rmse_um", ext)):
         assert abs(pub[key] - v) <= 0.01, key

@@ -110,8 +110,15 @@ def test_diagnose_names_frame_and_gains_on_unseen_speed(tmp_path):
               "--holdout-start", str(HOLDOUT_S), "--frame-search", "wide"])
     assert rc == 0
     s = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
-    assert s["cause"] == "frame_expansion"
-    assert s["parameters"]["frame_time_constant_h"] >= 2.0
+    # named by the selection rules; whether it is *established* (issue 30) turns on its
+    # intervals, which for the thermometer frame summarise the fit poorly (see above),
+    # so the parameters are read from wherever the verdict put them
+    from arfem.models.diagnosis.verdict import named_cause
+    assert named_cause(s) == "frame_expansion"
+    par = s["parameters"] if s["verdict"] == "established" else s["best_candidate"]["parameters"]
+    assert s["verdict"] in ("established", "unconfirmed")
+    assert not any("hold-out" in f for f in s["verdict_detail"]["failed_checks"])
+    assert par["frame_time_constant_h"] >= 2.0
     assert s["holdout"]["gain_pct"] > 50
 
 
@@ -159,10 +166,11 @@ def test_average_search_end_to_end_uses_the_median_block_ratio_rule(tmp_path):
     for c in tests:
         assert c["significant"] == (c["median_block_ratio"] <= 1 - MIN_GAIN)
     sig = [c for c in tests if c["significant"]]
+    from arfem.models.diagnosis.verdict import named_cause     # established or not
     if sig:
-        assert s["cause"] == min(sig, key=lambda c: c["median_block_ratio"])["cause"]
+        assert named_cause(s) == min(sig, key=lambda c: c["median_block_ratio"])["cause"]
     else:
-        assert s["cause"] == "none"
+        assert named_cause(s) == "none"
 
 
 def test_on_fit_reports_every_candidate_without_changing_the_diagnosis(tmp_path):

@@ -51,6 +51,13 @@ Selection rule (documented in every report; each rule has its one home in
     The second cause of a pair is held to the same rule with its own increment over
     the first (post hoc: added after the fresh batch 9000 was scored).
 
+11. the verdict (:mod:`arfem.models.diagnosis.verdict`, :func:`add_verdict`): the cause
+    named by rules 1-10 is *established* only if its 95 % intervals exclude no effect
+    and stay inside the fit's range and the hold-out confirms it; otherwise it moves to
+    ``best_candidate`` and the verdict is *unconfirmed* -- or *explained* where the
+    baseline's residual is within the noise, *not_explained* where nothing was named
+    and it is not.
+
 Every N_eff (rules 2, 3, 6, 7 and the intervals) is the smaller of the lag-1 form and
 the batch-means form, which sees slow sensor wander
 (:func:`arfem.models.diagnosis.stats.noise_n_eff`).
@@ -691,6 +698,14 @@ def _summary(ds, v2, bres, eres, holdout):
     return summary
 
 
+def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None) -> None:
+    """The verdict (:mod:`arfem.models.diagnosis.verdict`) written into ``summary``:
+    ``verdict``, ``verdict_detail`` and, for a cause that is not established,
+    ``best_candidate`` in place of ``cause``/``causes``/``parameters``."""
+    from arfem.models.diagnosis import verdict as vd
+    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K))
+
+
 @one_blas_thread
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
              progress=None, intervals: bool = True, drift_last: bool = False,
@@ -770,6 +785,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in signals.items() if k not in series})
     _add_mlr(summary, series, y, temps, rows, hold)
+    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
     models = {"extended": ext, "causes": tuple(v2["causes"]),
               "physics": v2.get("physics"), "speed": v2.get("speed_export")}
     return Diagnosis(summary, series, text, models)

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["speed_step_origins", "blocks", "rolling_origin", "summarize", "OriginScore"]
+__all__ = ["speed_step_origins", "blocks", "rolling_origin", "summarize", "OriginScore",
+           "stability_origins", "verdict_stability", "STABILITY_ORIGINS"]
 
 
 def speed_step_origins(t, speed, start_s: float = 0.0, min_block_s: float = 0.0):
@@ -219,3 +220,118 @@ def summarize(scores, candidate: str, others):
     out["beats_all"] = int(sum(all(a < s.rmse_um[o] for o in others)
                                for a, s in zip(c, scores)))
     return out
+
+
+#: verdict stability: at most this many rolling origins by default
+STABILITY_ORIGINS = 10
+
+
+def stability_origins(t, u, n_max: int = STABILITY_ORIGINS):
+    """Rolling origins for the verdict's stability: every change of the input ``u`` that
+    leaves at least 40 % of the record to fit and at least max(1 h, 5 % of the record) to
+    score (the default hold-out's own conditions), thinned evenly to at most ``n_max``.
+
+    Parameters
+    ----------
+    t : array_like
+        Sample times [s], increasing.
+    u : array_like
+        The input on each row (heat flux [W/m²] or speed [1/min]).
+    n_max : int
+        Most origins returned.
+
+    Returns
+    -------
+    list of float
+        Origins [s].
+
+    Examples
+    --------
+    >>> t = np.arange(0, 100.0) * 3600
+    >>> u = (np.arange(100) // 10) % 2
+    >>> [o / 3600 for o in stability_origins(t, u)]
+    [40.0, 50.0, 60.0, 70.0, 80.0, 90.0]
+    >>> [o / 3600 for o in stability_origins(t, u, 3)]
+    [40.0, 60.0, 90.0]
+    """
+    t = np.asarray(t, float)
+    span = float(t[-1] - t[0])
+    org = speed_step_origins(t, u, t[0] + 0.4 * span)
+    org = [o for o in org if t[-1] - o >= max(3600.0, 0.05 * span)]
+    if len(org) > n_max >= 1:
+        idx = np.unique(np.round(np.linspace(0, len(org) - 1, n_max)).astype(int))
+        org = [org[i] for i in idx]
+    return org
+
+
+def verdict_stability(diagnose_at, origins, subject: str | None, mapper=map) -> dict:
+    """How stable a verdict is across hold-out splits: the diagnosis rerun with its
+    hold-out starting at each origin (cheap refits: ``diagnose_at`` should skip the
+    intervals), counting where the selection rules name ``subject`` and where its
+    extended model also beats the baseline on that hold-out.
+
+    Parameters
+    ----------
+    diagnose_at : callable
+        ``origin_s -> summary`` (the diagnosis.json dict of a diagnosis whose hold-out
+        starts at ``origin_s``; nothing at or after it is fitted).
+    origins : sequence of float
+        Hold-out starts [s] (e.g. :func:`stability_origins`).
+    subject : str or None
+        The cause (or best candidate, "a+b" for a pair) the full diagnosis is about;
+        None: count where no cause is named.
+    mapper : callable
+        ``map``-like, e.g. an executor's.
+
+    Returns
+    -------
+    dict
+        ``n_origins``, ``origins_s``, ``per_origin`` (``origin_s``, ``named`` -- what the
+        selection rules named there, "none" if nothing --, ``verdict``,
+        ``holdout_gain_pct``), ``named`` (origins naming ``subject``), ``confirmed`` (of
+        those, the hold-out gain > 0), ``verdicts`` (count per verdict), ``text``.
+
+    Examples
+    --------
+    >>> fake = lambda o: {"cause": "x" if o > 1 else "none", "causes": [{"cause": "x"}] if o > 1 else [],
+    ...                   "verdict": "established" if o > 1 else "explained",
+    ...                   "holdout": {"gain_pct": 5.0 if o > 2 else -1.0}}
+    >>> s = verdict_stability(fake, [1.0, 2.0, 3.0], "x")
+    >>> s["named"], s["confirmed"], s["text"].split(" (")[0]
+    (2, 1, 'x named by the selection rules at 2 of 3 rolling origins')
+    """
+    origins = [float(o) for o in origins]
+    per = []
+    for o, s in zip(origins, mapper(diagnose_at, origins)):
+        named_list = s.get("causes") or (s.get("best_candidate") or {}).get("causes") or []
+        if not named_list and (s.get("best_candidate") or {}).get("named_by_selection_rules") \
+                and not (s.get("unconfirmed")):
+            named_list = [{"cause": s["best_candidate"]["cause"]}]
+        named = "+".join(c["cause"] for c in named_list) or "none"
+        per.append({"origin_s": o, "named": named, "verdict": s.get("verdict"),
+                    "holdout_gain_pct": float(s["holdout"]["gain_pct"])})
+    n = len(per)
+    verdicts = {}
+    for p in per:
+        verdicts[p["verdict"]] = verdicts.get(p["verdict"], 0) + 1
+    span = (f"{origins[0] / 3600:.1f}-{origins[-1] / 3600:.1f} h" if n else "none")
+    vtxt = ", ".join(f"{k} {v}" for k, v in sorted(verdicts.items(), key=lambda kv: -kv[1]))
+    if subject and subject != "none":
+        k = sum(p["named"] == subject for p in per)
+        m = sum(p["named"] == subject and p["holdout_gain_pct"] > 0 for p in per)
+        txt = (f"{subject} named by the selection rules at {k} of {n} rolling origins "
+               f"({span}) and better than the baseline on the hold-out from {m} of them; "
+               f"verdicts there (refits without intervals): {vtxt}.")
+    else:
+        others = {}
+        for p in per:
+            if p["named"] != "none":
+                others[p["named"]] = others.get(p["named"], 0) + 1
+        k = sum(p["named"] == "none" for p in per)
+        m = k
+        txt = (f"no cause named at {k} of {n} rolling origins ({span})"
+               + ("; named elsewhere: " + ", ".join(f"{c} at {v}" for c, v in others.items())
+                  if others else "") + f"; verdicts there (refits without intervals): {vtxt}.")
+    return {"n_origins": n, "origins_s": origins, "per_origin": per, "subject": subject,
+            "named": k, "confirmed": m, "verdicts": verdicts, "text": txt if n else
+            "no rolling origin: the record has no change of the input in its last 60 %."}

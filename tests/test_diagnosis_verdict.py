@@ -1,0 +1,235 @@
+"""Issue 30: verdicts that never claim more than the data show.
+
+Four verdicts (``explained``, ``established``, ``unconfirmed``, ``not_explained``) chosen
+by the rules of :mod:`arfem.models.diagnosis.verdict`; ``cause`` only for an established
+cause; advice only for it; ``diagnosis.json``, the terminal line and ``report.md`` the
+same. First the rules on hand-made summaries (each check isolated, so a wrong rule
+fails here and not only on a generated record), then generated records through the
+whole diagnosis, then the stability across rolling origins."""
+import copy
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from arfem.models.diagnosis import verdict as vd
+from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
+from arfem.models.diagnosis.synth import generate
+from arfem.scenarios.diagnose import add_stability, run_diagnosis, terminal_line
+from arfem.scenarios.diagnosis_report import verdict as report_verdict
+from arfem.scenarios.synth_files import write_case
+
+RNG = np.random.default_rng(30)
+#: a white residual: passes Ljung-Box on N_eff (p >= 0.05) for this seed
+WHITE = RNG.normal(0.0, 0.1, 3000)
+#: a residual with a periodic misfit above the noise (N_eff ~ 300, so testable): fails it
+MISFIT = WHITE + 0.3 * np.sin(np.arange(3000) / 5.0)
+
+
+def _summary(cause="frame_expansion", ci=(0.2, 0.6), gain=30.0, mlr=5.0, base=6.0,
+             tau_ci=(2.0, 8.0)):
+    """A diagnosis.json as the engine builds it before the verdict: one named cause."""
+    causes = [] if cause == "none" else [{
+        "cause": cause, "parameters": {"frame_time_constant_h": 4.0, "frame_gain": 0.4},
+        "ci95": {"frame_time_constant_h": list(tau_ci), "frame_gain": list(ci)}}]
+    return {
+        "dataset": "d", "cause": cause, "causes": causes,
+        "parameters": causes[0]["parameters"] if causes else {},
+        "parameters_ci95": causes[0]["ci95"] if causes else {}, "parameters_detail": {},
+        "baseline": {"model": "ar", "rmse_um": base, "max_abs_um": 3 * base,
+                     "cross_correlation": {"T_a_C": 0.1, "speed_rpm": 0.9},
+                     "cross_correlation_bound_neff": 0.2},
+        "extended": {"model": "ar+frame_expansion"},
+        "holdout": {"baseline_rmse_um": base, "extended_rmse_um": base * (1 - gain / 100),
+                    "gain_pct": gain, "start_s": 3600.0},
+        "mlr": {"holdout_rmse_um": mlr, "sensors": ["T_a_C"]},
+        "ar_form": {}, "runner_up": {"cause": "sensor_drift", "parameters": {"drift_um_per_h": 0.1},
+                                     "why_lost": "validation RMSE 3 vs 2 µm"}}
+
+
+def _verdict(s, r):
+    s = copy.deepcopy(s)
+    vd.apply(s, vd.decide(s, r))
+    return s
+
+
+def test_established_needs_all_three_checks_and_keeps_cause_and_advice():
+    """Interval off zero, inside the fit's range, hold-out gain > 0: established, the
+    cause stays in ``cause``/``causes`` and the text gives advice."""
+    s = _verdict(_summary(), MISFIT)
+    assert s["verdict"] == "established" and s["cause"] == "frame_expansion"
+    assert "best_candidate" not in s and "What to do" in s["verdict_detail"]["text"]
+
+
+@pytest.mark.parametrize("change, failed", [
+    (dict(ci=(-0.1, 0.6)), "holds 0"),                           # interval holds no effect
+    (dict(tau_ci=(0.1, 200.0)), "end of the range"),             # pinned at the search edge
+    (dict(gain=-5.0), "hold-out does not confirm"),              # hold-out contradicts it
+])
+def test_one_failed_check_makes_it_unconfirmed_without_cause_or_advice(change, failed):
+    """Each check alone demotes the named cause to ``best_candidate``: ``cause`` reads
+    none, ``causes`` is empty, the failed check is named, and there is no advice -- the
+    overclaims of issue 30 items 1-2."""
+    s = _verdict(_summary(**change), MISFIT)
+    assert s["verdict"] == "unconfirmed"
+    assert s["cause"] == "none" and s["causes"] == [] and s["parameters"] == {}
+    bc = s["best_candidate"]
+    assert bc["cause"] == "frame_expansion" and bc["causes"][0]["cause"] == "frame_expansion"
+    assert any(failed in f for f in bc["not_established_because"])
+    assert "What to do" not in s["verdict_detail"]["text"]
+    assert failed in s["verdict_detail"]["text"]
+    assert vd.named_cause(s) == "frame_expansion"
+
+
+def test_no_cause_and_residual_within_noise_is_explained():
+    """White residual, no thermometer beyond its bound (the speed correlates, but it is
+    not a thermometer), the MLR not better: explained."""
+    s = _verdict(_summary(cause="none", mlr=6.1), WHITE)
+    assert s["verdict"] == "explained", s["verdict_detail"]
+    assert s["verdict_detail"]["residual_within_noise"]["holds"]
+
+
+@pytest.mark.parametrize("change, residual, word", [
+    (dict(cause="none", mlr=6.1), MISFIT, "not white"),          # Ljung-Box on N_eff
+    (dict(cause="none", mlr=3.16, base=5.36), WHITE, "MLR"),     # a baseline model better
+])
+def test_no_cause_and_residual_not_within_noise_is_not_explained(change, residual, word):
+    """Issue 30 item 1: no cause named, but the residual is not within the noise (not
+    white, or the MLR better on the hold-out: 3.16 against 5.36 µm) -- not "the
+    simulation explains this record" but not_explained, with what is left, the best
+    candidate and why it was not accepted, and the vocabulary caveat."""
+    s = _verdict(_summary(**change), residual)
+    assert s["verdict"] == "not_explained"
+    t = s["verdict_detail"]["text"]
+    assert word in t and "sensor_drift" in t and "vocabulary" in t
+    assert "explains this record" not in t and "What to do" not in t
+    assert s["best_candidate"]["named_by_selection_rules"] is False
+
+
+def test_a_thermometer_beyond_its_bound_is_not_within_noise():
+    s = _summary(cause="none", mlr=6.1)
+    s["baseline"]["cross_correlation"]["T_a_C"] = 0.5
+    out = _verdict(s, WHITE)
+    assert out["verdict"] == "not_explained"
+    assert out["verdict_detail"]["residual_within_noise"]["thermometers_beyond_bound"] == ["T_a_C"]
+
+
+def test_terminal_line_and_report_carry_the_json_verdict():
+    """The three outputs agree: the terminal line names the verdict and reads
+    ``cause = none`` for an unconfirmed cause (the best candidate marked as such), and
+    report.md opens with diagnosis.json's own verdict text."""
+    s = _verdict(_summary(ci=(-0.1, 0.6)), MISFIT)
+    line = terminal_line(s)
+    assert "verdict = unconfirmed" in line and "cause = none" in line
+    assert "best candidate frame_expansion, not established" in line
+    head = "\n".join(report_verdict(s))
+    assert "**Verdict: unconfirmed.**" in head and s["verdict_detail"]["text"] in head
+
+
+def test_speed_dependent_convection_needs_disjoint_h_intervals():
+    e = [{"cause": "speed_dependent_convection",
+          "parameters": {"h_running_W_m2K": 90.0, "h_stopped_W_m2K": 55.0},
+          "ci95": {"h_running_W_m2K": [80.0, 100.0], "h_stopped_W_m2K": [50.0, 60.0]}}]
+    assert vd.establishment_failures(e, 10.0) == []
+    e[0]["ci95"]["h_stopped_W_m2K"] = [50.0, 85.0]
+    assert "overlap" in vd.establishment_failures(e, 10.0)[0]
+
+
+def test_stability_counts_named_and_confirmed_origins():
+    """verdict_stability counts, per rolling origin, whether the subject is named and
+    whether its hold-out gain is positive; an unconfirmed cause at an origin counts as
+    named (through best_candidate)."""
+    def at(o):
+        s = _summary(gain=10.0 if o < 3 else -4.0, ci=(0.2, 0.6) if o != 2 else (-1, 1))
+        if o == 4:
+            s = _summary(cause="none")
+        return _verdict(s, MISFIT)
+    st = verdict_stability(at, [1.0, 2.0, 3.0, 4.0], "frame_expansion")
+    assert (st["n_origins"], st["named"], st["confirmed"]) == (4, 3, 2)
+    assert st["verdicts"] == {"established": 1, "unconfirmed": 2, "not_explained": 1}
+    assert "3 of 4 rolling origins" in st["text"]
+
+
+# --- generated records through the whole diagnosis ---------------------------------
+
+def _run(case, tmp_path, **kw):
+    out = tmp_path / "out"
+    run_diagnosis(write_case(case, tmp_path / "data"), out, **kw)
+    s = json.loads((out / "diagnosis.json").read_text(encoding="utf-8"))
+    md = (out / "report.md").read_text(encoding="utf-8")
+    return s, md
+
+
+def test_clean_record_is_explained(tmp_path):
+    """A clean generated record (seed 11, the hidden-cause suite's clean case): no cause,
+    the residual within the noise -> explained, no advice."""
+    s, md = _run(generate("none", 11, duration_h=24.0), tmp_path)
+    assert s["verdict"] == "explained", s["verdict_detail"]
+    assert s["cause"] == "none" and "What to do" not in md
+    assert s["verdict_detail"]["text"] in md
+
+
+def test_hidden_cause_is_established_with_advice(tmp_path):
+    """A heat-input scale of the generator's range (seed 15): named, interval off 1,
+    hold-out confirming -> established, ``cause`` set, advice given."""
+    case = generate("heat_input_scale", 15, duration_h=24.0)
+    s, md = _run(case, tmp_path)
+    assert s["verdict"] == "established", s["verdict_detail"]
+    assert s["cause"] == "heat_input_scale" and "What to do" in md
+    lo, hi = s["parameters_ci95"]["scale"]
+    assert lo <= case.parameters["scale"] <= hi
+
+
+def test_cause_whose_interval_holds_zero_is_unconfirmed(tmp_path):
+    """A weak frame (gain 0.1, seed 16) under a 0.3 µm sensor wander: the selection rules
+    name frame_expansion, but the wander widens its frame_gain interval across 0 -- so
+    it is unconfirmed: ``best_candidate``, not ``cause``; the failed check named; no
+    advice. (The record was picked from four weak-cause probes as one whose interval
+    holds 0; the verdict rules were fixed before.)"""
+    case = generate("frame_expansion", 16, duration_h=24.0, frame_gain=0.1,
+                    noise_walk_um=0.3)
+    s, md = _run(case, tmp_path)
+    assert s["verdict"] == "unconfirmed", s["verdict_detail"]
+    assert s["cause"] == "none" and s["causes"] == [] and s["parameters"] == {}
+    bc = s["best_candidate"]
+    assert bc["cause"] == "frame_expansion"
+    lo, hi = bc["parameters_ci95"]["frame_gain"]
+    assert lo <= 0.0 <= hi
+    assert any("frame_gain" in w and "holds 0" in w for w in bc["not_established_because"])
+    assert "What to do" not in md and "**Verdict: unconfirmed.**" in md
+
+
+def test_unmodelled_effect_is_not_explained(tmp_path):
+    """A 5 h, 3 µm oscillation no cause of the vocabulary can make, on a clean record
+    (seed 21): nothing is named and the residual is not within the noise -> not
+    explained, with the vocabulary caveat; no advice, no ``cause``."""
+    c = generate("none", 21, duration_h=24.0)
+    c = dataclasses.replace(c, growth_um=c.growth_um
+                            + 3.0 * np.sin(2 * np.pi * c.time_s / (5 * 3600.0)))
+    s, md = _run(c, tmp_path)
+    assert s["verdict"] == "not_explained", s["verdict_detail"]
+    assert s["cause"] == "none" and "What to do" not in md and "vocabulary" in md
+
+
+def test_stability_flag_on_a_generated_record(tmp_path):
+    """``--stability`` reruns the diagnosis at the rolling origins and the verdict text
+    (json and report) states the count; origins are input changes in the last 60 %."""
+    case = generate("heat_input_scale", 15, duration_h=24.0)
+    s, md = _run(case, tmp_path, stability=3)
+    st = s["verdict_detail"]["stability"]
+    org = stability_origins(case.time_s, case.q_W_m2, 3)
+    assert st["origins_s"] == org and 1 <= st["n_origins"] <= 3
+    assert all(o >= 0.4 * case.time_s[-1] for o in org)
+    assert f"of {st['n_origins']} rolling origins" in s["verdict_detail"]["text"]
+    assert s["verdict_detail"]["text"] in md
+
+
+def test_a_residual_too_slow_to_test_is_not_called_white():
+    """Fewer than 10 independent samples (a slow wander, N_eff ~ 8): Ljung-Box cannot be
+    run, and "within the noise" is then not claimed -- the text says it cannot be
+    tested."""
+    slow = WHITE + 3.0 * np.sin(np.arange(3000) / 150.0)
+    s = _verdict(_summary(cause="none", mlr=6.1), slow)
+    assert s["verdict"] == "not_explained"
+    assert "cannot be tested" in s["verdict_detail"]["text"]
