@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.models.diagnosis.synth import CAUSES, generate
+from arfem.models.diagnosis.verdict import selected_causes
 from arfem.params import InputError, Rod
 from arfem.scenarios.diagnose import diagnose_file
 from arfem.scenarios.synth_files import write_case
@@ -121,7 +122,7 @@ def _one(job):
 
 def judge(kind, case, s):
     """(fully right, named causes)."""
-    named = sorted(c["cause"] for c in s.get("causes", []))
+    named = sorted(c["cause"] for c in selected_causes(s))
     if kind == "wrong units":
         return (not named and bool(s.get("warnings"))), named
     return named == sorted(case.causes), named
@@ -151,8 +152,10 @@ def main(argv=None):
     cover, cover_n = collections.Counter(), collections.Counter()
     rel_half = collections.defaultdict(list)      # (group, parameter) -> half-width / |value|
     misses, walls, clean_named = [], [], 0
+    verdicts = collections.Counter()              # (injected: clean or a cause, verdict)
     for (kind, cause, seed, ov, _), (case, s, wall) in zip(jobs, results):
         walls.append(wall)
+        verdicts[("clean" if case.cause == "none" else "a cause", s.get("verdict", "-"))] += 1
         ok, named = judge(kind, case, s)
         key = kind if kind != "single" else f"single: {case.cause}"
         total[key] += 1
@@ -162,8 +165,8 @@ def main(argv=None):
         if not ok:
             misses.append((seed, kind, case.cause, named, s.get("warnings", [])[:1]))
         if ok and named:
-            ci = {k: v for c in s["causes"] for k, v in c["ci95"].items()}
-            est = {k: v for c in s["causes"] for k, v in c["parameters"].items()}
+            ci = {k: v for c in selected_causes(s) for k, v in c["ci95"].items()}
+            est = {k: v for c in selected_causes(s) for k, v in c["parameters"].items()}
             group = case.cause if "+" not in case.cause else "pair"
             for k, v in case.parameters.items():
                 if k in ci:
@@ -188,6 +191,8 @@ def main(argv=None):
         print(f"  {k:40s} {right[k]}/{total[k]}")
     n_clean = sum(v for k, v in total.items() if k == "single: none" or k.startswith("clean"))
     print(f"causes named on clean records: {clean_named} over {n_clean} records (target 0)")
+    print("verdicts (issue 30): " + "; ".join(f"{k[0]} -> {k[1]}: {v}"
+                                               for k, v in sorted(verdicts.items())))
     cn, cc = sum(cover_n.values()), sum(cover.values())
     print(f"95 % interval coverage: {cc}/{cn} = {100 * cc / max(cn, 1):.1f} % (target 90-98 %)"
           f"; seeds {a.seed_start}-{a.seed_start + n - 1}")

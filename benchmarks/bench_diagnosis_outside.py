@@ -51,6 +51,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from arfem.models.diagnosis.verdict import selected_causes
 from arfem.params import InputError, Rod, Schedule
 
 KINDS = ("none", "convection_mismatch", "speed_dependent_convection", "heat_input_scale",
@@ -193,8 +194,10 @@ def main(argv=None) -> int:
     clean_named = clean_n = 0
     cover = collections.defaultdict(lambda: [0, 0])
     misses = []
+    verdicts = collections.Counter()
     for (kind, noise, seed, _), (case, s, wall) in zip(jobs, results):
-        named = sorted(c["cause"] for c in s.get("causes", []))
+        verdicts[("a cause" if case.causes else "clean", s.get("verdict", "-"))] += 1
+        named = sorted(c["cause"] for c in selected_causes(s))
         ok = named == sorted(case.causes)
         total[kind] += 1
         right[kind] += ok
@@ -206,7 +209,7 @@ def main(argv=None) -> int:
         if not ok:
             misses.append((seed, kind, noise, named))
             continue
-        for c in s.get("causes", []):
+        for c in selected_causes(s):
             for k, (lo, hi) in c.get("ci95", {}).items():
                 if k not in case.parameters:
                     continue
@@ -223,6 +226,8 @@ def main(argv=None) -> int:
     for k in KINDS:
         print(f"  {k:<36} {right[k]}/{total[k]}")
     print(f"causes named on records with no cause: {clean_named} of {clean_n}")
+    print("verdicts (issue 30): " + "; ".join(f"{k[0]} -> {k[1]}: {v}"
+                                               for k, v in sorted(verdicts.items())))
     hit = sum(v[0] for v in cover.values())
     cnt = sum(v[1] for v in cover.values())
     print(f"95 % interval coverage: {hit}/{cnt} = {100 * hit / max(cnt, 1):.1f} % "
