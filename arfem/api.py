@@ -634,32 +634,40 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     ('convection_mismatch', 80)
     """
     from arfem.models.diagnosis.engine import diagnose as _diagnose
-    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
     if not callable(progress):
         from arfem.scenarios.progress import Progress
         # asked for: shown even where stderr is no terminal (a notebook's)
         with Progress(12, "arfem.diagnose", enabled=bool(progress), tty=True) as bar:
             return diagnose(data, rod=rod, holdout_start_s=holdout_start_s, initial=initial,
                             name=name, frame_search=frame_search, progress=bar)
-    assumed = []
+    progress("reading the dataset")
+    ds, assumed = _dataset_of(data, rod, initial, name)
+    d = _diagnose(ds, holdout_start_s, frame_search, progress)
+    summary = d.summary
+    if assumed:
+        summary = {**summary, "warnings": [*summary.get("warnings", []), *assumed]}
+    return DiagnosisResult(str(summary.get("cause", "")), summary, d.series)
+
+
+def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
+    """The loaded dataset of :func:`diagnose`'s ``data`` and the warnings of what was
+    assumed: a :class:`Record` or TOML path keeps its own ``initial`` (a contradicting
+    ``initial`` is refused); samples are read in memory, ``"equilibrium"`` assumed and
+    said where ``initial`` is not given."""
+    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
     if isinstance(data, (str, Path, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
         ds = data._dataset if isinstance(data, Record) else load_dataset(data)
         recorded = "equilibrium" if ds.initial_known else "unknown"
         _initial_of(initial, recorded, str(ds.source))
-    else:
-        if initial is None:
-            initial = "equilibrium"
-            assumed.append('initial = "equilibrium" was assumed (the record starts at '
-                           'equilibrium with the ambient); pass initial="unknown" if it '
-                           'did not')
-        ds = dataset_from_columns(data, name=name, rod=rod, initial=initial)
-    d = _diagnose(ds, holdout_start_s, frame_search, progress)
-    summary = d.summary
-    if assumed:
-        summary = {**summary, "warnings": [*summary.get("warnings", []), *assumed]}
-    return DiagnosisResult(str(summary.get("cause", "")), summary, d.series)
+        return ds, []
+    assumed = []
+    if initial is None:
+        initial = "equilibrium"
+        assumed.append('initial = "equilibrium" was assumed (the record starts at '
+                       'equilibrium with the ambient); pass initial="unknown" if it did not')
+    return dataset_from_columns(data, name=name, rod=rod, initial=initial), assumed
 
 
 def read_model(path: str | Path) -> StateSpaceModel:

@@ -44,12 +44,13 @@ def valid_metrics(h: float, peak_um: float = 10.0) -> dict:
             "corrected_rmse_um": 0.01, "fem_dofs": 100, "n_samples": 50}
 
 
-def fake_point(data, source):
-    """Stand-in for ``evaluate_point``: valid metrics, h as the marker (picklable)."""
+def fake_point(data, source, limits=None):
+    """Stand-in for ``evaluate_point`` (same signature, ``limits`` the sweep's
+    :class:`arfem.limits.Limits`): valid metrics, h as the marker (picklable)."""
     return {"metrics": valid_metrics(data["rod"]["convection_W_m2K"]), "run_time_s": 0.0}
 
 
-def flaky_point(data, source):
+def flaky_point(data, source, limits=None):
     """As :func:`fake_point`, but h = 55 fails."""
     if data["rod"]["convection_W_m2K"] == 55:
         raise RuntimeError("solver blew up")

@@ -217,6 +217,7 @@ KNOWN_COMMAND_IMPORTS = {
     ("tests/test_diagnosis_hidden.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_real.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_diagnosis_record_mistakes.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_verdict.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_fuzz.py", "arfem.scenarios.sweep"): _SWEEP,
     ("tests/test_html_report.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
