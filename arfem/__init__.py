@@ -25,6 +25,16 @@ import arfem is fast: the FEM, the diagnosis engine and matplotlib load when a f
 first needs them.
 """
 from importlib import metadata as _metadata
+from pathlib import Path as _Path
+
+# In a source checkout, python started from the repository's root finds this folder
+# (arfem/) before the installed package, and the subpackages arfem.fem, arfem.models and
+# arfem.scenarios sit beside it (fem/, models/, scenarios/; pyproject's package-dir), not
+# inside it: so that the README's example runs from the root after `pip install .` too,
+# the root joins the package's path there, and only there.
+if (_Path(__file__).resolve().parent.parent / "models" / "compensator.py").is_file():
+    __path__.append(str(_Path(__file__).resolve().parent.parent))  # noqa: F821
+del _Path
 
 try:
     __version__ = _metadata.version("arfem")

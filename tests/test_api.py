@@ -208,3 +208,20 @@ def test_help_arfem_opens_with_what_it_is():
     first = arfem.__doc__.strip().splitlines()[0]
     assert "spindle" in arfem.__doc__.split("\n\n")[1] and "layer" not in first.lower()
     assert "read_record" in arfem.__doc__ and "tests/test_layering" not in arfem.__doc__
+
+
+def test_a_source_checkout_finds_its_subpackages_without_an_editable_install():
+    """After ``pip install .`` (not editable), python started from the repository's root
+    imports the source folder arfem/ first (the README's example runs from there); its
+    subpackages live beside it (pyproject's package-dir), so the package's path must
+    reach them. Run with -S (no site-packages, so no editable-install finder) to see the
+    source tree alone: arfem.models must resolve to the checkout's models/."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    code = ("import importlib.util, sys; sys.path.insert(0, sys.argv[1]); "
+            "print(importlib.util.find_spec('arfem.models').origin)")
+    out = subprocess.run([sys.executable, "-I", "-S", "-c", code, str(root)],
+                         capture_output=True, text=True, check=True).stdout.strip()
+    assert Path(out) == root / "models" / "__init__.py"
