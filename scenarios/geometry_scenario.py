@@ -429,6 +429,10 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         seen.add(name)
         q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
                     choices=("displacement", "temperature"))
+        if q == "temperature" and name.startswith("T_"):
+            raise InputError(f"a thermometer's column is T_<name>_C (the measured-data "
+                             f"contract); name it without \"T_\" ({name[2:]!r}), or its "
+                             f"column reads T_{name}_C", f"{w}.name")
         point = _point(s["point"], scale, f"{w}.point") if "point" in s else None
         grp = _string(s["group"], f"{w}.group") if "group" in s else None
         if (point is None) == (grp is None) or (q == "temperature" and point is None):

@@ -75,7 +75,7 @@ name = "tip_x"
 point = [0.3, 0.1, 0.1]
 direction = "x"
 [[sensor]]
-name = "T_mid"
+name = "mid"
 point = [0.15, 0.1, 0.1]
 quantity = "temperature"
 [fem]

@@ -40,7 +40,7 @@ def test_good_box_runs_and_sensors_are_physical(tmp_path):
     run = solve_geometry(build_geometry_model(load_geometry_scenario(_case(tmp_path))))
     s = run.sensor_series()
     assert s["d_tip_x_um"].max() > 1.0
-    T = s["T_T_mid_C"]
+    T = s["T_mid_C"]
     k = int(np.argmax(T))
     assert T[0] == pytest.approx(20.0) and T[k] > 21.0 and T[-1] < T[k]
 
@@ -154,3 +154,11 @@ def test_hexahedral_mesh_is_read_with_its_volume_and_groups(tmp_path):
     write_msh(mm, tmp_path / "bad.msh")
     with pytest.raises(InputError, match="inverted"):
         read_grouped_mesh(tmp_path / "bad.msh", "m")
+
+
+def test_a_thermometer_named_like_its_column_is_refused(tmp_path):
+    """A temperature sensor's output column is T_<name>_C (the measured-data contract),
+    so a sensor named "T_mid" would become the column T_T_mid_C (a new user's spindle
+    scenario shipped so); the name is refused with the column it would give."""
+    msg = _refusal(tmp_path, BOX_TOML.replace('name = "mid"', 'name = "T_mid"'))
+    assert "sensor[1].name" in msg and "T_<name>_C" in msg and "'mid'" in msg
