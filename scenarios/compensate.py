@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import re
+import textwrap
 
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.params import InputError
@@ -69,7 +70,12 @@ def _figure(res: Replay, path) -> None:
             label="with compensation\n(measured + offset)")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
-                 f"{m.rms_after_um:.3g} µm")
+                 f"{m.rms_after_um:.3g} µm\n" + textwrap.fill(m.score_window_text(), 95),
+                 fontsize=10)
+    if m.score_from_s > float(s.time_s[0]):
+        for a in axes:                     # where scoring starts (the fit window's end)
+            a.axvline(m.score_from_s / 3600.0, color="k", ls="--", lw=0.8)
+        ax.plot([], [], color="k", ls="--", lw=0.8, label="scored from here")
     ax.set_ylabel("thermal error [µm]")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     for bx, names in zip(axes[1:], panels):

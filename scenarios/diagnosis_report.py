@@ -44,7 +44,12 @@ def _figures(diag, out: Path):
     fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     ax[0].plot(th[good], s["growth_um"][good], ".", ms=2, color="0.5", label="measured")
     ax[0].plot(th, s["baseline_um"], label=f"baseline ({j['baseline']['model']})")
-    ax[0].plot(th, s["extended_um"], label=f"extended ({j['extended']['model']})")
+    est = j.get("verdict", "established") == "established"
+    ext = "extended" if est else "best candidate, not established"
+    # no candidate changed the model: the "extended" series is the baseline, not drawn
+    same = bool(np.allclose(s["extended_um"], s["baseline_um"], equal_nan=True))
+    if not same:
+        ax[0].plot(th, s["extended_um"], label=f"{ext} ({j['extended']['model']})")
     if "mlr_um" in s:
         ax[0].plot(th, s["mlr_um"], lw=0.8, label="MLR on temperatures (eq. 18)")
     ax[0].axvline(hs, color="k", ls="--", lw=0.8, label="hold-out start")
@@ -55,7 +60,9 @@ def _figures(diag, out: Path):
     ax[0].set_title(_plain(f"{j['dataset']}: verdict {j.get('verdict', '?')}, cause = {named}"
                            + (f" (best candidate {bc}, not established)" if bc else "")))
     ax[1].plot(th[good], (s["growth_um"] - s["baseline_um"])[good], lw=0.7, label="residual, baseline")
-    ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7, label="residual, extended")
+    if not same:
+        ax[1].plot(th[good], (s["growth_um"] - s["extended_um"])[good], lw=0.7,
+                   label=f"residual, {ext}")
     ax[1].axvline(hs, color="k", ls="--", lw=0.8)
     ax[1].set_xlabel("time [h]")
     ax[1].set_ylabel("residual = measured − model [µm]")
@@ -343,11 +350,16 @@ def _markdown(diag) -> str:
           f"Hold-out from t = {h['start_s']:g} s ({h['start_s'] / 3600:.2f} h); {h['how_chosen']}. "
           f"All fits use only the data before it.", "",
           "| model | hold-out RMSE [µm] |", "|---|---|",
-          f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |",
-          f"| extended ({e['model']}) | {_fmt(h['extended_rmse_um'])} |"]
+          f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |"]
+    ext = ("extended" if j.get("verdict", "established") == "established"
+           else "best candidate, not established")
+    if (e["model"], h["extended_rmse_um"]) != (b["model"], h["baseline_rmse_um"]):
+        L.append(f"| {ext} ({e['model']}) | {_fmt(h['extended_rmse_um'])} |")
     for key, a in j.get("ar_form", {}).items():
-        L.append(f"| {key}: {a['baseline_model']} | {_fmt(a['baseline_holdout_rmse_um'])} |")
-        L.append(f"| {key}: {a['extended_model']} | {_fmt(a['extended_holdout_rmse_um'])} |")
+        L.append(f"| {key}, baseline ({a['baseline_model']}) | "
+                 f"{_fmt(a['baseline_holdout_rmse_um'])} |")
+        L.append(f"| {key}, {ext} ({a['extended_model']}) | "
+                 f"{_fmt(a['extended_holdout_rmse_um'])} |")
     if "mlr" in j:
         L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | "
                  f"{_fmt(j['mlr']['holdout_rmse_um'])} |")
