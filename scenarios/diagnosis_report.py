@@ -346,26 +346,7 @@ def _markdown(diag) -> str:
     if j.get("runner_up"):
         r = j["runner_up"]
         L += ["", f"Runner-up: `{r['cause']}` — lost because {r['why_lost']}."]
-    L += ["", "## Extended model on the hold-out", "",
-          f"Hold-out from t = {h['start_s']:g} s ({h['start_s'] / 3600:.2f} h); {h['how_chosen']}. "
-          f"All fits use only the data before it.", "",
-          "| model | hold-out RMSE [µm] |", "|---|---|",
-          f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |"]
-    ext = ("extended" if j.get("verdict", "established") == "established"
-           else "best candidate, not established")
-    if (e["model"], h["extended_rmse_um"]) != (b["model"], h["baseline_rmse_um"]):
-        L.append(f"| {ext} ({e['model']}) | {_fmt(h['extended_rmse_um'])} |")
-    for key, a in j.get("ar_form", {}).items():
-        L.append(f"| {key}, baseline ({a['baseline_model']}) | "
-                 f"{_fmt(a['baseline_holdout_rmse_um'])} |")
-        L.append(f"| {key}, {ext} ({a['extended_model']}) | "
-                 f"{_fmt(a['extended_holdout_rmse_um'])} |")
-    if "mlr" in j:
-        L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | "
-                 f"{_fmt(j['mlr']['holdout_rmse_um'])} |")
-    L += ["", f"**gain_pct = {h['gain_pct']:.1f} %** (100·(1 − extended/baseline) on the hold-out)."]
-    for key, a in j.get("ar_form", {}).items():
-        L.append(f"AR form ({key}): gain {a['gain_pct']:.1f} %.")
+    L += _holdout_section(j)
     L += ["", "## Data notes", ""] + [f"- {x}" for n in j["data_notes"] for x in _sentences(n)] + \
          [f"- {x}" for t in diag.text for x in _sentences(t)] + \
          ["", "Figures: `growth_residual.png` (the record, both models, and their residuals), "
@@ -382,3 +363,31 @@ def write_all(diag, out) -> None:
     write_csv(out / "series.csv", cols)
     atomic_write_text(out / "report.md", _markdown(diag))
     _figures(diag, out)
+
+
+def _holdout_section(j: dict) -> list[str]:
+    """The "Extended model on the hold-out" section: every model's hold-out RMSE, an
+    unestablished candidate called so, and no "extended" row where the extended model
+    is the baseline itself."""
+    b, e, h = j["baseline"], j["extended"], j["holdout"]
+    L = ["", "## Extended model on the hold-out", "",
+         f"Hold-out from t = {h['start_s']:g} s ({h['start_s'] / 3600:.2f} h); {h['how_chosen']}. "
+         f"All fits use only the data before it.", "",
+         "| model | hold-out RMSE [µm] |", "|---|---|",
+         f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |"]
+    ext = ("extended" if j.get("verdict", "established") == "established"
+           else "best candidate, not established")
+    if (e["model"], h["extended_rmse_um"]) != (b["model"], h["baseline_rmse_um"]):
+        L.append(f"| {ext} ({e['model']}) | {_fmt(h['extended_rmse_um'])} |")
+    for key, a in j.get("ar_form", {}).items():
+        L.append(f"| {key}, baseline ({a['baseline_model']}) | "
+                 f"{_fmt(a['baseline_holdout_rmse_um'])} |")
+        L.append(f"| {key}, {ext} ({a['extended_model']}) | "
+                 f"{_fmt(a['extended_holdout_rmse_um'])} |")
+    if "mlr" in j:
+        L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | "
+                 f"{_fmt(j['mlr']['holdout_rmse_um'])} |")
+    L += ["", f"**gain_pct = {h['gain_pct']:.1f} %** (100·(1 − extended/baseline) on the hold-out)."]
+    for key, a in j.get("ar_form", {}).items():
+        L.append(f"AR form ({key}): gain {a['gain_pct']:.1f} %.")
+    return L

@@ -220,8 +220,8 @@ def test_a_source_checkout_finds_its_subpackages_without_an_editable_install():
     import sys
     from pathlib import Path
     root = Path(__file__).resolve().parents[1]
-    code = ("import importlib.util, sys; sys.path.insert(0, sys.argv[1]); "
-            "print(importlib.util.find_spec('arfem.models').origin)")
-    out = subprocess.run([sys.executable, "-I", "-S", "-c", code, str(root)],
+    code = "import importlib.util; print(importlib.util.find_spec('arfem.models').origin)"
+    env = {"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-S", "-c", code], cwd=root.parent, env=env,
                          capture_output=True, text=True, check=True).stdout.strip()
     assert Path(out) == root / "models" / "__init__.py"
