@@ -222,7 +222,19 @@ def test_stability_flag_on_a_generated_record(tmp_path):
     assert st["origins_s"] == org and 1 <= st["n_origins"] <= 3
     assert all(o >= 0.4 * case.time_s[-1] for o in org)
     assert f"of {st['n_origins']} rolling origins" in s["verdict_detail"]["text"]
+    assert "rests on one hold-out split" not in s["verdict_detail"]["text"]
     assert s["verdict_detail"]["text"] in md
+
+
+def test_a_verdict_without_stability_says_it_rests_on_one_split(tmp_path):
+    """Without ``--stability`` the verdict is one split's; its text (json and report)
+    says so and how to learn more, so that one split's luck does not pass for the
+    answer (issue 30)."""
+    case = generate("heat_input_scale", 15, duration_h=24.0)
+    s, md = _run(case, tmp_path)
+    assert s["verdict_detail"].get("stability") is None
+    assert "rests on one hold-out split" in s["verdict_detail"]["text"]
+    assert "--stability N" in md
 
 
 def test_a_residual_too_slow_to_test_is_not_called_white():

@@ -341,9 +341,17 @@ def _what_is_left(summary) -> str:
     return parts[0] + (": " + "; ".join(why) if why else "")
 
 
+#: said where the stability across hold-out splits was not computed (issue 30: one
+#: split's luck must not pass for the answer)
+ONE_SPLIT = (" This verdict rests on one hold-out split; `arfem diagnose --stability N` "
+             "says how often it holds at N rolling origins.")
+
+
 def _stability_sentence(summary) -> str:
     s = (summary.get("verdict_detail") or {}).get("stability")
-    return f" Stability: {s['text']}" if s and s.get("text") else ""
+    if not s:
+        return ONE_SPLIT
+    return f" Stability: {s['text']}" if s.get("text") else ""
 
 
 def _params(c: dict) -> str:
