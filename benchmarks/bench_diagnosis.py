@@ -42,7 +42,7 @@ import numpy as np
 from arfem.models.diagnosis.synth import CAUSES, generate
 from arfem.models.diagnosis.verdict import selected_causes
 from arfem.params import InputError, Rod
-from arfem.scenarios.diagnose import diagnose_file
+from arfem.scenarios.diagnosis_run import diagnose_file
 from arfem.scenarios.synth_files import write_case
 
 PAIRS = ("ambient_drift+sensor_drift", "heat_input_scale+sensor_drift",

@@ -158,7 +158,7 @@ _MODEL = None
 def _one(job):
     global _MODEL
     from arfem.fem.heat import build_3d
-    from arfem.scenarios.diagnose import diagnose_file
+    from arfem.scenarios.diagnosis_run import diagnose_file
     from arfem.scenarios.synth_files import write_case
     kind, noise, seed, tmp = job
     if _MODEL is None:

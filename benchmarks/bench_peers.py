@@ -92,7 +92,7 @@ def score_record(ds):
     """RMS after compensation [µm] of every model on the hold-out of ``ds``."""
     from arfem.models.diagnosis.engine import diagnose
     from arfem.scenarios.replay import replay
-    from arfem.scenarios.diagnose import compensator_models
+    from arfem.scenarios.diagnosis_run import compensator_models
     from arfem.params import InputError
     d = diagnose(ds, None, intervals=False)
     hs = float(d.summary["holdout"]["start_s"])

@@ -144,7 +144,7 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
 
     from arfem.models.diagnosis.engine import diagnose
     from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.diagnose import compensator_models
+    from arfem.scenarios.diagnosis_run import compensator_models
     root = Path(__file__).parents[1]
     ds = load_dataset(root / "scenarios" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
     d = diagnose(ds, 100800.0, intervals=False)

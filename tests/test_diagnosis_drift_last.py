@@ -46,7 +46,7 @@ def test_drift_is_named_only_if_no_input_driven_cause_passes(robust):
 def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
     """``arfem diagnose --drift-last`` passes drift_last=True to the engine (and the
     default passes False): the engine is replaced by a recorder that stops the run."""
-    import arfem.scenarios.diagnose as d
+    import arfem.scenarios.diagnosis_run as d
     seen = []
 
     class Stop(Exception):

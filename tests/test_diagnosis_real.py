@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from arfem.models.diagnosis.verdict import named_cause
-from arfem.scenarios.diagnose import diagnose_file
+from arfem.scenarios.diagnosis_run import diagnose_file
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "scenarios" / "fl_thermal"

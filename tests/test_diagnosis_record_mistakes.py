@@ -12,7 +12,7 @@ from arfem.models.diagnosis.engine import PARSIMONY_P, _default_holdout, _parsim
 from arfem.models.diagnosis.synth import generate
 from arfem.scenarios.cli import main as cli
 from arfem.scenarios.dataset import load_dataset
-from arfem.scenarios.diagnose import run_diagnosis
+from arfem.scenarios.diagnosis_run import run_diagnosis
 from arfem.scenarios.synth_files import write_case
 
 

@@ -16,7 +16,7 @@ import pytest
 from arfem.models.diagnosis import verdict as vd
 from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.diagnose import add_stability, run_diagnosis, terminal_line
+from arfem.scenarios.diagnosis_run import add_stability, run_diagnosis, terminal_line
 from arfem.scenarios.diagnosis_report import verdict as report_verdict
 from arfem.scenarios.synth_files import write_case
 

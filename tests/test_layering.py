@@ -181,9 +181,6 @@ def test_only_arfem_is_installed():
 CLI = "arfem.scenarios.cli"
 _REPORT = ("the report's ownership is reworked in parallel (issue 30); write_html_report "
            "moves out of the `report` command after that merges")
-_DIAGNOSE = ("scenarios/diagnose.py is reworked in parallel (issue 30: verdict, speed); "
-             "diagnose_file, run_diagnosis and compensator_models move to a library module "
-             "after that merges")
 _SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
           "reworked in parallel; its CLI moves to sweep/command.py after that merges")
 _PARALLEL = ("written for issue 29 in parallel with this rule; the command's flag checks "
@@ -198,26 +195,15 @@ KNOWN_COMMAND_IMPORTS = {
     ("arfem/api.py", "arfem.scenarios.sweep"): _SWEEP,
     ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/compensate.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/diagnose.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/diagnosis_run.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
-    ("benchmarks/bench_diagnosis.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("benchmarks/bench_diagnosis_outside.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("reports/fl_thermal/compensation.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("reports/fl_thermal/regenerate.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("reports/fl_thermal/peers.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("scenarios/geometry_scenario.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep_default_path.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("benchmarks/bench_peers.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
     ("tests/test_allocation_paper.py", "arfem.scenarios.allocate"): "tests the command's converged-run setting (CONVERGED, patched smaller)",
-    ("tests/test_compensate_diagnosed_model.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_coverage.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_hidden.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_real.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_record_mistakes.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
-    ("tests/test_diagnosis_verdict.py", "arfem.scenarios.diagnose"): _DIAGNOSE,
+    ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"):
+        "tests the command's own flags and printed notes by patching what it calls",
     ("tests/test_fuzz.py", "arfem.scenarios.sweep"): _SWEEP,
     ("tests/test_html_report.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep.py", "arfem.scenarios.sweep"): _SWEEP,

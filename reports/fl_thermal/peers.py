@@ -104,7 +104,7 @@ def one_split(job):
     from arfem.models.diagnosis.engine import diagnose
     from arfem.scenarios.replay import replay
     from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.diagnose import compensator_models
+    from arfem.scenarios.diagnosis_run import compensator_models
     ds = load_dataset(DATA / f"fl_thermal_ch{ch}.toml")
     t = np.asarray(ds.time_s, float)
     g = np.asarray(ds.growth_um, float)

@@ -58,8 +58,8 @@ WHOLE_CSV = "fl_thermal_whole.csv"
 #: rows of the first 28 h (t <= 100 800 s), on which the published table was made
 FIRST_28H_ROWS = 6721
 
-from arfem.scenarios.diagnose import diagnose_file
-from arfem.scenarios.diagnose import run_diagnosis
+from arfem.scenarios.diagnosis_run import diagnose_file
+from arfem.scenarios.diagnosis_run import run_diagnosis
 from arfem.io import atomic_write_text
 from arfem.models.diagnosis.verdict import named_cause
 
