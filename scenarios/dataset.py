@@ -475,31 +475,40 @@ def load_dataset(toml_path, limits: Limits | None = None) -> Dataset:
     echo = _inside(csv_path, toml_path.parent)
     values = {key: _parse_column(csv_path, rows, lines, j, label(key), echo)
               for key, j in col.items()}
-    values, lines, keep, unobserved = _drop_missing_rows(values, lines, csv_path, notes)
+    extra_raw = {h: np.array([row[header.index(h)] for row in rows], dtype=object)
+                 for h in extra}
+    return _checked_dataset(values, lines, extra_raw, sensors, col, label, notes,
+                            name=name, source=toml_path, csv_path=csv_path, rod=rod,
+                            initial_unknown=initial_unknown, where=csv_path)
+
+
+def _checked_dataset(values, lines, extra_raw, sensors, col, label, notes, *, name, source,
+                     csv_path, rod, initial_unknown, where) -> Dataset:
+    """The contract's checks and notes on parsed columns, and the frozen
+    :class:`~arfem.models.diagnosis.dataset.Dataset`: one pass shared by the CSV reader
+    (:func:`load_dataset`) and the in-memory one (:func:`dataset_from_columns`), so that
+    both refuse and note the same things. ``where`` names the data in messages;
+    ``extra_raw`` holds the carried (non-contract) columns, one cell per row of
+    ``lines``."""
+    values, lines, keep, unobserved = _drop_missing_rows(values, lines, where, notes)
     t = values["time_s"]
-    dt = _check_time(t, lines, csv_path, label)
-    _check_input(values, lines, csv_path, label, notes)
-    amb = _ambient(values, t, lines, csv_path, label, notes)
-    _check_temperature_cells(values, lines, csv_path, label)
+    dt = _check_time(t, lines, where, label)
+    _check_input(values, lines, where, label, notes)
+    amb = _ambient(values, t, lines, where, label, notes)
+    _check_temperature_cells(values, lines, where, label)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
     g = values["growth_um"]
-    outliers, res = _growth_outliers(g, lines, csv_path, label, notes)
+    outliers, res = _growth_outliers(g, lines, where, label, notes)
     gaps = sampling_gaps(t)
-    _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes)
-
-    extra_cols = {}
-    for h in extra:
-        j = header.index(h)
-        a = np.array([row[j] for row in rows], dtype=object)[keep]
+    _record_notes(t, dt, gaps, list(extra_raw), sensors, col, initial_unknown, notes)
+    extra_cols = {h: a[keep] for h, a in extra_raw.items()}
+    for a in (outliers, lines, *extra_cols.values()):
         a.setflags(write=False)
-        extra_cols[h] = a
-    outliers.setflags(write=False)
-    lines.setflags(write=False)
     return Dataset(
-        name=name, source=toml_path, time_s=_frozen(t), growth_um=_frozen(g),
+        name=name, source=source, time_s=_frozen(t), growth_um=_frozen(g),
         q_W_m2=_frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
         speed_rpm=_frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
         ambient_C=_frozen(amb) if amb is not None else None,
@@ -628,43 +637,13 @@ def dataset_from_columns(columns, *, name: str = "dataframe", rod: Rod | None = 
 
 def _dataset_from_values(values, lines, extra, extra_raw, *, name, rod, initial_unknown,
                          where) -> Dataset:
-    """The contract's processing of parsed columns (as :func:`load_dataset` does after
-    reading the CSV), for a record held in memory."""
-    source = Path(where)
-
-    def label(key):
-        return f"{key!r}"
-
+    """The contract's processing of parsed columns (:func:`_checked_dataset`, as
+    :func:`load_dataset` does after reading the CSV), for a record held in memory: its
+    notes count rows, not CSV lines."""
     notes: list[str] = []
-    values, lines, keep, unobserved = _drop_missing_rows(values, lines, source, notes)
-    notes = [s.replace("CSV lines", "rows") for s in notes]
-    t = values["time_s"]
-    dt = _check_time(t, lines, source, label)
-    _check_input(values, lines, source, label, notes)
-    amb = _ambient(values, t, lines, source, label, notes)
-    temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
-    for k, v in temps.items():
-        if np.isnan(v).any():
-            notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
-    g = values["growth_um"]
-    out_notes: list[str] = []
-    outliers, res = _growth_outliers(g, lines, source, label, out_notes)
-    notes += [s.replace("CSV lines", "rows") for s in out_notes]
-    gaps = sampling_gaps(t)
-    _record_notes(t, dt, gaps, extra, {}, values, initial_unknown, notes)
-    extra_cols = {}
-    for h in extra:
-        a = extra_raw[h][keep]
-        a.setflags(write=False)
-        extra_cols[h] = a
-    outliers.setflags(write=False)
-    lines.setflags(write=False)
-    return Dataset(
-        name=name, source=source, time_s=_frozen(t), growth_um=_frozen(g),
-        q_W_m2=_frozen(values["q_W_m2"]) if "q_W_m2" in values else None,
-        speed_rpm=_frozen(values["speed_rpm"]) if "speed_rpm" in values else None,
-        ambient_C=_frozen(amb) if amb is not None else None,
-        temperatures={k: _frozen(v) for k, v in temps.items()}, rod=rod,
-        initial_known=not initial_unknown, outliers=outliers, gaps=gaps, notes=notes,
-        sensors={}, csv_path=None, line_numbers=lines, extra_columns=extra_cols,
-        unobserved=unobserved, growth_resolution_um=res)
+    ds = _checked_dataset(values, lines, {h: extra_raw[h] for h in extra}, {}, values,
+                          lambda key: f"{key!r}", notes, name=name, source=Path(where),
+                          csv_path=None, rod=rod, initial_unknown=initial_unknown,
+                          where=Path(where))
+    notes[:] = [n.replace("CSV lines", "rows") for n in notes]
+    return ds

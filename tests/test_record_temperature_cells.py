@@ -54,3 +54,23 @@ def test_an_impossible_temperature_cell_is_one_line_naming_it(record, col, value
         load_dataset(toml)
     msg = str(e.value)
     assert "line 10" in msg and col in msg and "\n" not in msg, msg
+
+
+@pytest.mark.parametrize("value", [-1e308, 1500.0, float("inf")])
+def test_a_record_held_in_memory_is_checked_as_the_file_is(record, value):
+    """The same record as a dict of columns (arfem.diagnose(DataFrame)'s path) is refused
+    on the same cell: the in-memory reader once repeated the file reader's checks and
+    lacked this one (a -1e308 °C cell loaded from a DataFrame, not from the CSV)."""
+    import csv as csv_module
+
+    from arfem.scenarios.dataset import dataset_from_columns
+    _, csv = record
+    with open(csv, newline="", encoding="utf-8") as fh:
+        rows = list(csv_module.DictReader(fh))
+    cols = {k: [float(r[k]) if r[k] else float("nan") for r in rows]
+            for k in ("time_s", "growth_um", "q_W_m2", "T_part_C")}
+    assert dataset_from_columns(cols, initial="equilibrium").temperatures["T_part_C"].size
+    cols["T_part_C"][4] = value
+    with pytest.raises(InputError) as e:
+        dataset_from_columns(cols, initial="equilibrium")
+    assert "T_part_C" in str(e.value) and "\n" not in str(e.value)
