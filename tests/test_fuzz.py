@@ -32,6 +32,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings, strategies as st
 
 from arfem.params import InputError
+from sweep_fakes import BASE       # the coarse base scenario of the sweep tests
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -227,24 +228,6 @@ def test_fuzz_scenario_file(tmp_path, seed, data):
 
 # -- sweep files ---------------------------------------------------------------------------
 
-BASE = """[scenario]
-name = "coarse"
-[cycle]
-phases = [
-  { duration_h = 4.0,  q_W_m2 = 2000.0 },
-  { duration_h = 1.5,  q_W_m2 = 0.0 },
-  { duration_h = 4.0,  q_W_m2 = 2000.0 },
-  { duration_h = 14.5, q_W_m2 = 0.0 },
-]
-[ar]
-dtau_s = 600.0
-[fem]
-model = "axisymmetric"
-order = 1
-[fem.mesh]
-nr = 2
-nz = 6
-"""
 SWEEP = {"sweep": {"name": "fz", "base": "base.toml", "description": "fuzz",
                    "grid": {"dtau_s": [300, 600], "h_W_m2K": [20, 55],
                             "q_W_m2": [2000, 3000], "fem": {"mesh": {"nz": [4, 6]}}}}}
