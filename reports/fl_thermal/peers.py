@@ -484,6 +484,16 @@ def write_outputs(entries, rows, here: Path) -> None:
     _figure_rolling(entries, here / "peers_rolling.png")
 
 
+def _one_legend(fig, axes) -> None:
+    """One legend below all panels, each model once (the panels share their models)."""
+    handles = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(handles.values(), handles.keys(), loc="outside lower center", ncol=6,
+               fontsize=8)
+
+
 def _figure_28h(entries, path):
     from matplotlib.figure import Figure
     es = [e for e in entries if e["split_s"] == SPLIT_28H_S and "series" in e]
@@ -505,12 +515,7 @@ def _figure_28h(entries, path):
                         if k != "uncompensated")
         ax.set_title(f"{e['channel']}: RMS [µm] {txt}", fontsize=8, loc="left")
         ax.set_ylabel(f"{e['channel']} [µm]")
-    handles = {}
-    for ax in axes:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            handles.setdefault(lab, h)
-    fig.legend(handles.values(), handles.keys(), loc="outside lower center", ncol=6,
-               fontsize=8)
+    _one_legend(fig, axes)
     axes[-1].set_xlabel("time [h] (after the 28 h fit window)")
     fig.suptitle("FL_THERMAL: error left after compensation, fit before 28 h")
     fig.savefig(path)
@@ -534,12 +539,7 @@ def _figure_rolling(entries, path):
         ax.set_yscale("log")
         ax.set_ylabel(f"{c}: RMS [µm]")
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    handles = {}
-    for ax in axes:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
-            handles.setdefault(lab, h)
-    fig.legend(handles.values(), handles.keys(), loc="outside lower center", ncol=6,
-               fontsize=8)
+    _one_legend(fig, axes)
     axes[-1].set_xlabel("origin [h] (each scored up to the next origin)")
     fig.suptitle("FL_THERMAL: RMS after compensation at every rolling origin (log scale)")
     fig.savefig(path)
