@@ -42,7 +42,8 @@ from arfem.params import InputError
 
 __all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
-           "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling"]
+           "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
+           "LumpedGeometry", "group_volumes_m3", "lumped_geometry"]
 
 
 # -- weak forms -------------------------------------------------------------------------------
@@ -558,3 +559,70 @@ class ElasticBody:
         for c in range(3):           # ElementVector numbers component c of node s as 3s + c
             w[3 * sdofs + c] += d[c] * vals
         return w
+
+
+# -- lumped quantities (issue 32 item 4: the paper's AR(1) generalised to any geometry) ----------
+
+@Functional
+def _one(w):
+    """∫ 1 dV per element [m³]."""
+    return 1.0 + 0.0 * w.x[0]
+
+
+@dataclass(frozen=True)
+class LumpedGeometry:
+    """What the lumped (one-temperature) model of a body needs from its mesh.
+
+    Attributes
+    ----------
+    volumes_m3 : dict
+        Volume [m³] of each volume group (element quadrature, exact on straight cells).
+    heat_capacity_J_K : dict
+        ρcV [J/K] of each volume group (its material's ρ·c times its volume).
+    areas_m2 : dict
+        Area [m²] of each heat-source and convection group (:attr:`ThermalBody.areas_m2`).
+    input_power_W : ndarray, shape (S + G,)
+        Heat into the body per unit of each input [W per input unit]: 1 for a source
+        given as a power, its area for a flux [W/m²], the group's area for a convection
+        group's h·θ_amb [W/m²]. It is 1ᵀF, the column sums of the input matrix.
+    uniform_gain : ndarray, shape (r,)
+        Each sensor's output for a uniform temperature rise of 1 K [m/K or K/K]: gᵀ1,
+        the free (or restrained, as supported) thermal expansion at a displacement
+        sensor; 1 at a thermometer.
+    """
+
+    volumes_m3: dict
+    heat_capacity_J_K: dict
+    areas_m2: dict
+    input_power_W: np.ndarray
+    uniform_gain: np.ndarray
+
+    @property
+    def total_heat_capacity_J_K(self) -> float:
+        """Σ ρ_i c_i V_i over the volume groups [J/K]."""
+        return float(sum(self.heat_capacity_J_K.values()))
+
+
+def group_volumes_m3(thermal: "ThermalBody") -> dict:
+    """Volume [m³] of each volume group of ``thermal``'s mesh."""
+    vol_el = _one.elemental(thermal.basis)
+    return {g: float(vol_el[el].sum()) for g, el in thermal.gmesh.volumes.items()}
+
+
+def lumped_geometry(thermal: "ThermalBody", G: np.ndarray) -> LumpedGeometry:
+    """Volumes, heat capacities, areas, input powers and uniform-rise gains of a body.
+
+    Parameters
+    ----------
+    thermal : ThermalBody
+    G : ndarray, shape (ndofs, r)
+        Sensor functionals over the temperature unknowns (y = Gᵀθ).
+    """
+    vol_el = _one.elemental(thermal.basis)
+    rhoc = np.asarray(thermal.props["rhoc"])
+    vols = {g: float(vol_el[el].sum()) for g, el in thermal.gmesh.volumes.items()}
+    caps = {g: float((rhoc[el] * vol_el[el]).sum()) for g, el in thermal.gmesh.volumes.items()}
+    ones = np.ones(thermal.ndofs)
+    return LumpedGeometry(vols, caps, dict(thermal.areas_m2),
+                          np.asarray(thermal.F.sum(axis=0), float).ravel(),
+                          np.asarray(G.T @ ones, float).ravel())
