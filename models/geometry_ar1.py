@@ -75,10 +75,10 @@ def lumped_rate_1_s(heat_capacity_J_K: float, areas_m2, h_W_m2K) -> np.ndarray:
 
     Examples
     --------
-    The paper's rod (R = 0.02 m, L = 0.8 m, ρc = 7850·460, h = 55 on the lateral
+    The paper's rod (R = 0.1 m, L = 0.8 m, ρc = 7850·460, h = 55 on the lateral
     surface): β = 2h/(ρcR), C1 = e^{−βΔτ} at Δτ = 30 s (paper eq. 13):
 
-    >>> R, L = 0.02, 0.8
+    >>> R, L = 0.1, 0.8
     >>> b = lumped_rate_1_s(7850 * 460 * math.pi * R**2 * L, [2 * math.pi * R * L], [55.0])
     >>> round(float(b) * 7850 * 460 * R / (2 * 55.0), 12), round(math.exp(-float(b) * 30), 4)
     (1.0, 0.9909)
@@ -115,7 +115,7 @@ def lumped_gain(heat_capacity_J_K: float, areas_m2, h_W_m2K, input_power_W,
     The paper's rod read at its far end (g_unif = αL): K·q = qαR/(2h), the steady
     growth of paper eqs. 12-14 (21.818 µm at q = 2000 W/m²):
 
-    >>> R, L, a = 0.02, 0.8, 12e-6
+    >>> R, L, a = 0.1, 0.8, 12e-6
     >>> K = lumped_gain(1.0, [2 * math.pi * R * L], [55.0], [math.pi * R**2], [a * L])
     >>> round(float(K[0, 0]) * 2000 * 1e6, 3)
     21.818
