@@ -363,7 +363,10 @@ def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, 
         Limit on the absolute difference of C1 fitted to the FEM and the AR's C1 [-];
         default 5e-4.
     model : {"paper", "corrected"}, optional
-        Which AR(1) is held to the limits; default the paper's.
+        Which AR(1) is held to the limits; default the paper's. On a mesh scenario
+        (a file with ``[geometry]``): "corrected" (default) is the slowest-mode AR(1),
+        "paper" the lumped one, held per displacement sensor
+        (:mod:`arfem.scenarios.geometry_check`; the C1 limit does not apply).
 
     Returns
     -------
@@ -381,7 +384,13 @@ def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, 
         max_abs_pct = check_limit("max_abs_diff_pct_of_peak", max_abs_pct, "max_abs_pct")
     if max_c1_diff is not None:
         max_c1_diff = check_limit("max_C1_abs_diff", max_c1_diff, "max_c1_diff")
-    r = check_scenario(_scenario(scenario), max_abs_pct, max_c1_diff, model)
+    from arfem.scenarios.geometry_scenario import is_geometry_scenario
+    if isinstance(scenario, (str, Path)) and is_geometry_scenario(scenario):
+        # a mesh scenario (issue 32 item 4): the AR(1)s of any geometry, per sensor
+        from arfem.scenarios.geometry_check import check_geometry_case, load_geometry_case
+        r = check_geometry_case(load_geometry_case(scenario), max_abs_pct, model)
+    else:
+        r = check_scenario(_scenario(scenario), max_abs_pct, max_c1_diff, model)
     return CheckResult(r.scenario, r.passed, [dict(c.__dict__) for c in r.criteria])
 
 

@@ -14,6 +14,12 @@ held to two criteria, the ones of :func:`arfem.models.checks.check_ar_tracks_fem
 Limits come from the command line, else from the scenario's ``[check]`` table, else the
 defaults (:data:`arfem.models.checks.MAX_DEV_OF_PEAK`, :data:`~arfem.models.checks.C1_TOL`).
 
+A scenario on a mesh (``[geometry]``, issue 32 item 4) is checked by
+:mod:`arfem.scenarios.geometry_check`: the slowest-mode (``--model corrected``, its
+default) or the lumped (``--model paper``) AR(1) of the geometry, superposed over the
+sources, per displacement sensor, max|AR − FEM| in % of the largest FEM drift (default
+limit 15 %); the other AR's error is reported in ``notes``.
+
 Exit status: 0 every criterion of every scenario holds, 1 at least one fails, 2 bad input
 (nothing run). A directory argument checks the run scenarios directly in it; sweep,
 allocation and measured-data TOML files and subdirectories are listed as skipped, with why.

@@ -38,7 +38,7 @@ from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
 from arfem.strict import string as _string
 
-__all__ = ["GeometryCheckCase", "geometry_case_from_dict", "GeometryARComparison",
+__all__ = ["GeometryCheckCase", "geometry_case_from_dict", "load_geometry_case", "GeometryARComparison",
            "compare_geometry_ar1", "check_geometry_case", "DEFAULT_MAX_ABS_PCT_GEOMETRY",
            "GEOMETRY_MODELS"]
 
@@ -103,6 +103,13 @@ def geometry_case_from_dict(data: dict, source: str, base: Path) -> GeometryChec
         raise InputError(f"must be at most half the cycle ({sc.total_s / 2:g} s), got "
                          f"{kw['dtau_s']:g}", f"{source}: check.dtau_s")
     return GeometryCheckCase(sc, **kw)
+
+
+def load_geometry_case(path) -> GeometryCheckCase:
+    """Read a mesh scenario file with its ``[check]`` table (:func:`geometry_case_from_dict`)."""
+    from arfem.io import read_toml
+    p = Path(path)
+    return geometry_case_from_dict(read_toml(p), str(p), p.parent)
 
 
 @dataclass(frozen=True)

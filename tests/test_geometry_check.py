@@ -208,3 +208,14 @@ def test_a_mesh_scenario_without_displacement_sensor_is_refused(tmp_path, capsys
     assert main(["check", str(sc)]) == 2
     err = capsys.readouterr().err
     assert "has no displacement sensor" in err and str(sc) in err
+
+
+def test_api_check_takes_a_mesh_scenario():
+    """arfem.check(path) on a mesh scenario gates it as the command does: one criterion
+    per displacement sensor, each within its limit on the rod mesh."""
+    import arfem
+    r = arfem.check(ROD)
+    assert r.passed
+    assert [c["name"] for c in r.criteria] == [
+        f"max_abs_diff_pct_of_peak[{s}]" for s in ("far_face", "heated_face", "far_axis")]
+    assert all(c["value"] < c["limit"] == 15.0 for c in r.criteria)
