@@ -52,8 +52,8 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     ----------
     fit : CandidateFit
         A fit of :func:`arfem.models.diagnosis.candidates.fit_causes` on
-        :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``extra`` holds the
-        causes, θ and the linear coefficients).
+        :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``causes`` and
+        ``joint``: θ and the linear coefficients).
     phys : FemPhysics
         The physics the fit ran on.
     dtau_s : float
@@ -90,13 +90,13 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     >>> bool(np.max(np.abs(np.array(pred) - y)) < 1e-9 * np.max(y))
     True
     """
-    causes = tuple(fit.extra.get("causes", ()))
+    causes = tuple(fit.causes)
     bad = [c for c in causes if c in NOT_LTI]
     if bad:
         raise InputError(f"{bad[0]} changes the rod's modes with the input or the state: "
                          "not a linear time-invariant model, so it is not exported",
                          "model_extended.json")
-    theta, lin = fit.extra.get("theta", {}), fit.extra.get("linear", {})
+    theta, lin = fit.theta, (fit.joint.linear if fit.joint is not None else {})
     rod, m = phys.rod, phys.m
     h = float(np.exp(theta["log_h"])) if "convection_mismatch" in causes \
         else rod.convection_W_m2K
@@ -137,7 +137,7 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
         description=desc, arfem_version=arfem_version, input_offsets=offsets)
 
 
-def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
+def speed_state_space(fit, info, dtau_s: float, *, R_um2: float = 0.0,
                       description: str = "", arfem_version: str = "") -> StateSpaceModel:
     """The thermometer frame model of a speed record as a model at interval Δτ.
 
@@ -157,10 +157,9 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
     Parameters
     ----------
     fit : CandidateFit
-        The ``frame_expansion`` fit (its ``extra["coefficients"]``).
-    info : dict
-        ``t``, ``speed``, ``rows``, ``seen``, ``W``, ``temps``, ``structure`` of the fit
-        (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
+        The ``frame_expansion`` fit (its ``frame.coefficients`` and ``time_constant_h``).
+    info : SpeedFrameInputs
+        What the fit ran on (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
         ``Diagnosis.models["speed"]``).
     dtau_s : float
         Interval Δτ [s] (the record's).
@@ -174,19 +173,19 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
         structures (not exported).
     """
     from arfem.models.diagnosis.speed_frame import FrameEnsemble
-    st = info["structure"]
+    st = info.structure
     where = "model_extended.json"
     if isinstance(st, FrameEnsemble) or st.slow_lag or st.heat_exponent is not None:
         raise InputError(f"the frame structure {getattr(st, 'label', st)} (a heat law, a "
                          "slow response or an average of structures) is not exported yet",
                          where)
-    coef = np.asarray(fit.extra["coefficients"], float)
-    seen = [float(v) for v in info["seen"]]
+    coef = np.asarray(fit.frame.coefficients, float)
+    seen = [float(v) for v in info.seen]
     nl = len(seen)
     gains, decay, c, gamma = coef[:nl], coef[nl], coef[nl + 1], coef[nl + 2:]
-    b = 1.0 / (fit.extra["time_constant_h"] * 3600.0)
+    b = 1.0 / (fit.time_constant_h * 3600.0)
     level_gain = {sv: g for sv, g in zip(seen, gains)}
-    for lv, w in info["W"].items():
+    for lv, w in info.W.items():
         level_gain[float(lv)] = float(sum(wt * level_gain[float(sv)] for sv, wt in w.items()))
     xs = np.array(sorted(level_gain))
     maps = {"speed_rpm": (xs, np.array([level_gain[v] for v in xs]))}
@@ -197,9 +196,9 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
     offsets = {}
     k = int(gamma.size)
     if k:
-        rows = np.asarray(info["rows"], bool)
-        names = [nm for nm, v in info["temps"].items() if np.all(np.isfinite(np.asarray(v, float)))]
-        T = np.column_stack([np.asarray(info["temps"][nm], float) for nm in names])
+        rows = np.asarray(info.rows, bool)
+        names = [nm for nm, v in info.temps.items() if np.all(np.isfinite(np.asarray(v, float)))]
+        T = np.column_stack([np.asarray(info.temps[nm], float) for nm in names])
         mu, sd = T[rows].mean(0), T[rows].std(0)
         sd[sd == 0] = 1.0
         Z = (T - mu) / sd

@@ -239,7 +239,7 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         Prediction [µm] over the record; parameters in the units their names carry
         (``drift_um_per_h`` [µm/h], ``ambient_gain_um_per_K`` [µm/K], ``b_*_1_s``
         [1/s], ``h_*_W_m2K`` [W/(m²·K)], ``frame_time_constant_h`` [h],
-        ``frame_gain`` [-]); ``extra["time_constant_h"]`` = 1/b [h]. None if the
+        ``frame_gain`` [-]); ``time_constant_h`` = 1/b [h]. None if the
         cause does not apply to this record.
     """
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
@@ -283,14 +283,16 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         rss, coef, pred = solve(columns(np.exp(xb)) + extra_cols)
         params = {} if cause == "none" else {"drift_um_per_h": float(coef[-1])}
         return CandidateFit(cause, tag, params, pred, len(extra_cols), rss, int(rows.sum()),
-                            {"time_constant_h": float(np.exp(-xb) / 3600)})
+                            time_constant_h=float(np.exp(-xb) / 3600),
+                            residual_um=(y - pred)[rows], fit_rows=rows)
     if cause == "ambient_drift":
         def cols_amb(b):
             return columns(b) + [ar_first_order(t, ambient_K, b, 1.0)]
         xb = search1(lambda x: solve(cols_amb(np.exp(x)))[0], *lb)
         rss, coef, pred = solve(cols_amb(np.exp(xb)))
         return CandidateFit(cause, tag, {"ambient_gain_um_per_K": float(coef[-1])}, pred, 1,
-                            rss, int(rows.sum()), {"time_constant_h": float(np.exp(-xb) / 3600)})
+                            rss, int(rows.sum()), time_constant_h=float(np.exp(-xb) / 3600),
+                            residual_um=(y - pred)[rows], fit_rows=rows)
     if cause == "speed_dependent_convection":
         if running.all() or not running.any():
             return None
@@ -308,7 +310,8 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
             params = {"h_running_W_m2K": float(np.exp(x[0]) * rho_c_R / 2),
                       "h_stopped_W_m2K": float(np.exp(x[1]) * rho_c_R / 2), **params}
         return CandidateFit(cause, tag, params, pred, 1, rss, int(rows.sum()),
-                            {"note": "h from b = 2h/(ρcR) with the [rod] values"})
+                            residual_um=(y - pred)[rows], fit_rows=rows,
+                            note="h from b = 2h/(ρcR) with the [rod] values")
     if cause == "frame_expansion":
         x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
 
@@ -336,7 +339,8 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         rss, coef, pred = solve(build(x))
         return CandidateFit(cause, tag, {"frame_time_constant_h": float(np.exp(x[1])),
                                          "frame_gain": float(x[2])}, pred, 2, rss,
-                            int(rows.sum()), {"time_constant_h": float(np.exp(-x[0]) / 3600)})
+                            int(rows.sum()), time_constant_h=float(np.exp(-x[0]) / 3600),
+                            residual_um=(y - pred)[rows], fit_rows=rows)
     return None
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from arfem.models.diagnosis.candidates import CandidateFit, project
+from arfem.models.diagnosis.candidates import CandidateFit, FrameFit, project
 from arfem.models.diagnosis.forward import ar_columns, first_order_lag
 from arfem.models.diagnosis.speed import _level_inputs
 
@@ -113,6 +113,39 @@ class FrameEnsemble:
     def label(self) -> str:
         return (f"average of {len(self.members)}: k in {{{','.join(map(str, self.components))}}}"
                 f" x lag in {{{','.join(f'{v:g}' for v in self.sensor_lag_h)}}}h")
+
+
+@dataclass(frozen=True)
+class SpeedFrameInputs:
+    """What a speed record's thermometer ``frame_expansion`` fit ran on, for its export
+    as a compensator (:func:`arfem.models.diagnosis.export.speed_state_space`).
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Sample times [s].
+    speed : ndarray, shape (N,)
+        Spindle speed [1/min].
+    rows : ndarray of bool, shape (N,)
+        The fit rows.
+    seen : ndarray
+        The speeds seen on the fit rows [1/min] (one steady gain each).
+    W : dict
+        Unseen speed [1/min] -> {seen speed: weight [-]} (eqs. 20-21 mapping of
+        :func:`arfem.models.diagnosis.speed.speed_to_heat_map`).
+    temps : dict of str to ndarray
+        The temperatures by column [°C], shape (N,) each.
+    structure : FrameStructure or FrameEnsemble
+        The frame structure fitted.
+    """
+
+    t: np.ndarray
+    speed: np.ndarray
+    rows: np.ndarray
+    seen: np.ndarray
+    W: dict
+    temps: dict
+    structure: FrameStructure | FrameEnsemble
 
 
 def frame_structures(n_sensors: int, search: str = "narrow") -> list[FrameStructure]:
@@ -295,7 +328,7 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     CandidateFit or None
         ``frame_expansion`` fit: prediction [µm] over the record; parameters
         ``frame_time_constant_h`` [h], ``frame_gain`` [-], ``frame_sensor_lag_h`` [h],
-        ``rod_time_constant_h`` [h], ``heat_exponent`` [-], ...; ``extra["frame_um"]``
+        ``rod_time_constant_h`` [h], ``heat_exponent`` [-], ...; ``frame.frame_um``
         the frame part [µm]. None if the structure needs thermometers and there is no
         complete one, or the heat law has no running speed in ``rows``.
     """
@@ -405,10 +438,10 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
                    "rod_time_constant_h": float(1 / b / 3600.0)})
     return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers)", params, pred,
                         len(pcs) + (nl + 2 if bf is not None else 0), float(r @ r),
-                        int(rows.sum()),
-                        {"time_constant_h": float(1 / b / 3600.0), "sensors": names,
-                         "frame_um": frame, "coefficients": coef.tolist(),
-                         "structure": structure.label})
+                        int(rows.sum()), time_constant_h=float(1 / b / 3600.0),
+                        residual_um=r, fit_rows=rows,
+                        frame=FrameFit(tuple(names), frame, tuple(coef.tolist()),
+                                       structure.label))
 
 
 def _fit_frame_ensemble(t, y, speed, rows, seen, W, temperatures, ens: FrameEnsemble):
@@ -432,9 +465,8 @@ def _fit_frame_ensemble(t, y, speed, rows, seen, W, temperatures, ens: FrameEnse
               "frame_members": len(fits), "frame_structure": ens.label}
     return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers, averaged)", params,
                         pred, int(round(np.mean([f.k for f in fits]))), float(r @ r),
-                        int(rows.sum()),
-                        {"time_constant_h": params["rod_time_constant_h"],
-                         "sensors": fits[0].extra["sensors"],
-                         "frame_um": np.mean([f.extra["frame_um"] for f in fits], axis=0),
-                         "structure": ens.label,
-                         "members": [f.extra["structure"] for f in fits]})
+                        int(rows.sum()), time_constant_h=params["rod_time_constant_h"],
+                        residual_um=r, fit_rows=rows,
+                        frame=FrameFit(fits[0].frame.sensors,
+                                       np.mean([f.frame.frame_um for f in fits], axis=0), (),
+                                       ens.label, tuple(f.frame.structure for f in fits)))
