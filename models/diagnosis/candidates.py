@@ -20,7 +20,7 @@ Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property, partial
 
 import numpy as np
@@ -179,6 +179,11 @@ class CandidateFit:
     def theta(self) -> dict:
         """The searched coordinates of a :func:`fit_causes` fit (else empty)."""
         return self.joint.theta if self.joint is not None else {}
+
+    def copy_with(self, **changes) -> CandidateFit:
+        """A copy with the fields ``changes`` changed (the fit itself is frozen)."""
+        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
+                             **changes})
 
 
 def project(columns: list[np.ndarray], target: np.ndarray, rows: np.ndarray):

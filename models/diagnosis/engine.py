@@ -69,7 +69,7 @@ warning.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -357,6 +357,11 @@ class BranchResult:
     unconfirmed: dict | None = None
     physics: FemPhysics | None = None
     speed_inputs: SpeedFrameInputs | None = None
+
+    def copy_with(self, **changes) -> BranchResult:
+        """A copy with the fields ``changes`` changed (the result itself is frozen)."""
+        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
+                             **changes})
 
 
 def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress) -> BranchResult:
@@ -962,8 +967,8 @@ def _score_holdout(v2: BranchResult, r: _Record, warnings) -> tuple[BranchResult
         ar_forms = dict(v2.ar_forms)
         if "ar" in ar_forms:
             ar_forms["ar"] = ArForm(ar_forms["ar"].baseline, ar_forms["ar"].baseline)
-        v2 = replace(v2, cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
-                     ar_forms=ar_forms)
+        v2 = v2.copy_with(cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
+                          ar_forms=ar_forms)
         warnings.append(unconfirmed["why"])
         e_hold, gain = b_hold, 0.0
     return v2, {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,

@@ -13,8 +13,6 @@ Every N_eff here is :func:`arfem.models.diagnosis.stats.noise_n_eff`.
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
@@ -321,7 +319,7 @@ def _second_cause(cause, fits, phys, args, refused):
             if p < PARSIMONY_P and gain >= MIN_GAIN and rec["significant"]:
                 ups.append(g)
             elif best is const and const.equivalent is None:
-                const = best = replace(const, equivalent=_equivalent(
+                const = best = const.copy_with(equivalent=_equivalent(
                     g, p, _fewer_parameters_why(m, cause, gain, p)))
     if ups:
         ups.sort(key=lambda g: g.rss)
@@ -332,7 +330,7 @@ def _second_cause(cause, fits, phys, args, refused):
                 p = st.f_test_p(ups[1].rss, g.rss, 1, st.noise_n_eff(r))
                 if p >= PARSIMONY_P:
                     other = "+".join(ups[1].causes)
-                    g = replace(g, equivalent=_equivalent(ups[1], p, (
+                    g = g.copy_with(equivalent=_equivalent(ups[1], p, (
                         f"{other} fits as well (RMSE {np.sqrt(ups[1].rss / ups[1].n):.3g} "
                         f"against {np.sqrt(g.rss / g.n):.3g} µm, F test p = {p:.3g}): two "
                         "explanations fit alike; the data do not tell them apart")))
@@ -340,7 +338,7 @@ def _second_cause(cause, fits, phys, args, refused):
     if best is not None:
         best = _h_swap(best, fits, y, rows, fit_pair, tried, lead, len(pairs))
         best = _pair_parsimony(best, fits, phys, args)
-        best = replace(best, causes=tuple(sorted(best.causes, key=lambda c: fits[c].rss)))
+        best = best.copy_with(causes=tuple(sorted(best.causes, key=lambda c: fits[c].rss)))
     return best, tried
 
 
@@ -382,7 +380,7 @@ def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
             best = lo
         elif best.equivalent is None:
             alt = g if lo is best else best
-            best = replace(lo, equivalent=_equivalent(alt, p, (
+            best = lo.copy_with(equivalent=_equivalent(alt, p, (
                 f"{'+'.join(alt.causes)} fits as well (RMSE "
                 f"{np.sqrt(alt.rss / alt.n):.3g} against {np.sqrt(best.rss / best.n):.3g} "
                 f"µm, nested F test p = {p:.3g}): two explanations fit alike; the data "
@@ -412,7 +410,7 @@ def _pair_parsimony(pair, fits, phys, args):
         p = st.f_test_p(g.rss, pair.rss, max(pair.k - g.k, 1), st.noise_n_eff(r))
         gain = 1.0 - np.sqrt(pair.rss / g.rss) if g.rss > 0 else 0.0
         if p >= PARSIMONY_P or gain < MIN_GAIN:
-            g = replace(g, equivalent=_equivalent(pair, p,
+            g = g.copy_with(equivalent=_equivalent(pair, p,
                                                   _fewer_parameters_why(m, other, gain, p)))
             if "convection_mismatch" not in fits or fits["convection_mismatch"] is None:
                 return pair

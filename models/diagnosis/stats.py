@@ -510,32 +510,33 @@ def slow_noise_sandwich(J, r, long_lag: int = 240) -> SlowNoiseCovariances | Non
     >>> bool(abs(out.ar1_rho - 0.99) < 0.007), bool(abs(out.ar1_white_var / 0.01 - 1) < 0.1)
     (True, True)
     """
-    J = np.asarray(J, float)
-    r = np.asarray(r, float)
+    J, r = np.asarray(J, float), np.asarray(r, float)
     n, p = J.shape
     A = np.linalg.pinv(J.T @ J)
-    L = int(min(long_lag, n // 8))
-    if float(r @ r) <= 0 or L < 8:
+    lags, obs = _observed_lag_sums(r, long_lag)
+    if obs is None:
         return None
-    lags = (0, 1, L // 4, L)
-    obs = np.array([float(r[k:] @ r[:n - k]) for k in lags])
     sums = _LagSums(J, A, lags)
     m_white, MI = sums.expected(J, [n if k == 0 else 0.0 for k in lags])
-    # Under white noise a lag-k sum scatters by about σ²√(N − k): a slow part is fitted
-    # only where the long-lag sums stand above that by SLOW_NOISE_Z, since a spurious
-    # slow part of a few % of the variance, near ρ = 1, would multiply the interval.
-    s2 = obs[0] / max(n - p, 1)
-    z = max(obs[i] / (s2 * np.sqrt(n - k)) for i, k in enumerate(lags) if k >= 1)
-    if z < SLOW_NOISE_Z:
-        cov = s2 * A
-        return SlowNoiseCovariances(cov, 0.0, 0.0, float(s2), cov, 0.0, float(s2))
-    WJ = np.cumsum(np.cumsum(J[::-1], axis=0)[::-1], axis=0)    # W_ij = min(i, j) + 1
-    m_walk, MW = sums.expected(WJ, [(n - k) * (n - k + 1) / 2.0 for k in lags])
-    sw, _ = _fit_noise_variances(m_walk, m_white, obs)
+    s2, z = _white_noise_z(obs, lags, n, p)
+    if z < SLOW_NOISE_Z:       # white: both covariances are s² A
+        return SlowNoiseCovariances(s2 * A, 0.0, 0.0, float(s2), s2 * A, 0.0, float(s2))
+    sw, MW = _fit_walk_noise(sums, J, n, lags, m_white, obs)
     rho, sa, MR = _fit_ar1_noise(sums, J, n, lags, m_white, obs)
     return SlowNoiseCovariances(A @ (sa[0] * MR + sa[1] * MI) @ A, rho, float(sa[0]),
                                 float(sa[1]), A @ (sw[0] * MW + sw[1] * MI) @ A,
                                 float(sw[0]), float(sw[1]))
+
+
+def _observed_lag_sums(r, long_lag):
+    """The lags 0, 1, L/4 and L (L = ``long_lag``, at most N/8) and the residual's sums
+    rᵀD_k r at them [unit²]; (None, None) where L < 8 or the residual is zero."""
+    n = r.size
+    L = int(min(long_lag, n // 8))
+    if float(r @ r) <= 0 or L < 8:
+        return None, None
+    lags = (0, 1, L // 4, L)
+    return lags, np.array([float(r[k:] @ r[:n - k]) for k in lags])
 
 
 class _LagSums:
@@ -575,6 +576,25 @@ def _fit_noise_variances(m_slow, m_white, obs):
     variances [unit²] and the residual norm."""
     from scipy.optimize import nnls
     return nnls(np.column_stack([m_slow, m_white]) / obs[0], obs / obs[0])
+
+
+def _white_noise_z(obs, lags, n, p):
+    """The white variance s² = RSS/(N − p) [unit²] and how many of white noise's own
+    scatter the largest lag-k sum (k >= 1) stands above zero [-]. Under white noise a
+    lag-k sum scatters by about σ²√(N − k): a slow part is fitted only where the long-lag
+    sums stand above that by SLOW_NOISE_Z, since a spurious slow part of a few % of the
+    variance, near ρ = 1, would multiply the interval."""
+    s2 = obs[0] / max(n - p, 1)
+    return s2, max(obs[i] / (s2 * np.sqrt(n - k)) for i, k in enumerate(lags) if k >= 1)
+
+
+def _fit_walk_noise(sums, J, n, lags, m_white, obs):
+    """The random walk + white noise that best fits the lag sums: ((σrw², σw²) [unit²],
+    JᵀWJ) with W_ij = min(i, j) + 1."""
+    WJ = np.cumsum(np.cumsum(J[::-1], axis=0)[::-1], axis=0)    # W_ij = min(i, j) + 1
+    m_walk, MW = sums.expected(WJ, [(n - k) * (n - k + 1) / 2.0 for k in lags])
+    sw, _ = _fit_noise_variances(m_walk, m_white, obs)
+    return sw, MW
 
 
 def _fit_ar1_noise(sums, J, n, lags, m_white, obs):
