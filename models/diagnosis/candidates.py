@@ -29,7 +29,8 @@ from scipy.optimize import least_squares, minimize_scalar
 from arfem.models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
 from arfem.params import Rod
 
-__all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "JointFit", "FrameFit", "FemPhysics", "ArPhysics", "fit_candidate",
+__all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "JointFit", "FrameFit", "FemPhysics",
+           "ArPhysics", "fit_candidate",
            "fit_causes", "compatible", "parameter_ci95", "project"]
 
 #: the contract's vocabulary, in the order candidates are tried

@@ -121,8 +121,8 @@ class Diagnosis:
     text: list = field(default_factory=list)
     #: the fitted extended model and what it ran on, for export as a compensator
     #: (:mod:`arfem.models.diagnosis.export`): ``extended`` (CandidateFit), ``causes``,
-    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (the inputs of a speed
-    #: record's thermometer frame fit), None where not applicable
+    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (SpeedFrameInputs: what a
+    #: speed record's thermometer frame fit ran on), None where not applicable
     models: dict = field(default_factory=dict)
 
 
@@ -691,10 +691,10 @@ def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
             "parameters": fits[runner].parameters, "why_lost": why}
 
 
-def _ar_form(extra_models, y, hold):
+def _ar_form(ar_forms, y, hold):
     """Hold-out scores of the AR-form realisations of the baseline and extended model."""
     ar_out = {}
-    for key, d in extra_models.items():
+    for key, d in ar_forms.items():
         bb, ee = d.baseline, d.extended
         if bb is None or ee is None:
             continue
@@ -719,22 +719,23 @@ def _add_mlr(summary, series, y, temps, rows, hold):
         series["mlr_um"] = pm
 
 
-def _add_version2(summary, v2, y, rows, hold, good, warnings, noise_floor_um=0.0):
+def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
+                  noise_floor_um=0.0):
     """The contract's version-2 fields: ``causes`` (with 95 % intervals),
     ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
-    ext = v2.extended
+    ext = branch.extended
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
-    entries = _cause_entries(ext, v2.causes, y, rows, v2.ci95)
-    if v2.ci95 is None:
-        eq = ext.equivalent if len(entries) > 1 else v2.equivalent
+    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
+    if branch.ci95 is None:
+        eq = ext.equivalent if len(entries) > 1 else branch.equivalent
         if eq is not None:
             summary["equivalent_alternative"] = eq
             _widen_for_model_choice(entries, eq)
-        summary["second_cause_tests"] = list(v2.pairs_tried)
+        summary["second_cause_tests"] = list(branch.pairs_tried)
         summary["refused_candidates"] = [{"cause": c, "refused": why,
-                                          "parameters": v2.fits[c].parameters}
-                                         for c, why in v2.refused.items()]
+                                          "parameters": branch.fits[c].parameters}
+                                         for c, why in branch.refused.items()]
     summary["contract_version"] = 2
     summary["causes"] = entries
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
@@ -799,11 +800,11 @@ def _named_cause_warnings(summary, entries, noise_um) -> list[str]:
     return out
 
 
-def _summary(ds, v2, bres, eres, holdout):
-    """diagnosis.json's main fields from the branch's result ``v2`` (:func:`_diagnose_fem`
-    or :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
-    fits, cause, scores, tests = v2.fits, v2.cause, v2.scores, v2.tests
-    ext, base_model, score_kind = v2.extended, v2.baseline_model, v2.score_kind
+def _summary(ds, branch: BranchResult, bres, eres, holdout):
+    """diagnosis.json's main fields from the branch's result (:func:`_diagnose_fem` or
+    :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
+    fits, cause, scores, tests = branch.fits, branch.cause, branch.scores, branch.tests
+    ext, base_model, score_kind = branch.extended, branch.baseline_model, branch.score_kind
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -831,13 +832,13 @@ def _summary(ds, v2, bres, eres, holdout):
                         "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                        for c in sorted(scores, key=scores.get)],
         "runner_up": None,
-        "selection": {"rule": v2.rule, **v2.selection},
+        "selection": {"rule": branch.rule, **branch.selection},
         "not_applicable": [c for c in CAUSES if fits.get(c) is None],
-        "refused": dict(v2.refused),
+        "refused": dict(branch.refused),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
-    summary["runner_up"] = _runner_up(ds.input_kind, cause, v2.runner, fits, scores,
+    summary["runner_up"] = _runner_up(ds.input_kind, cause, branch.runner, fits, scores,
                                       tests, score_kind)
     return summary
 
@@ -886,31 +887,31 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     r = _prepare_record(ds, holdout_start_s)
     text, warnings = [], []
     if ds.input_kind == "q_W_m2":
-        v2 = _diagnose_fem(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, warnings, step)
+        branch = _diagnose_fem(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, warnings, step)
     else:
-        v2 = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
+        branch = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
                              warnings, step, intervals, drift_last, on_fit)
     step("residuals and hold-out")
-    v2, holdout = _score_holdout(v2, r, warnings)
-    t, y, good, base, ext = r.t, r.y, r.good, v2.baseline, v2.extended
+    branch, holdout = _score_holdout(branch, r, warnings)
+    t, y, good, base, ext = r.t, r.y, r.good, branch.baseline, branch.extended
     running = r.u > 0
     bres = _residual_analysis(t, y, base.prediction, good, r.signals, running,
-                              v2.time_constant_s)
+                              branch.time_constant_s)
     eres = _residual_analysis(t, y, ext.prediction, good, r.signals, running,
-                              v2.time_constant_s)
-    summary = _summary(ds, v2, bres, eres, holdout)
-    if v2.unconfirmed is not None:
-        summary["unconfirmed"] = v2.unconfirmed
-    summary["ar_form"] = _ar_form(v2.ar_forms, y, r.hold)
-    summary["ar_form_description"] = v2.ar_label
-    _add_version2(summary, v2, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)
+                              branch.time_constant_s)
+    summary = _summary(ds, branch, bres, eres, holdout)
+    if branch.unconfirmed is not None:
+        summary["unconfirmed"] = branch.unconfirmed
+    summary["ar_form"] = _ar_form(branch.ar_forms, y, r.hold)
+    summary["ar_form_description"] = branch.ar_label
+    _add_version2(summary, branch, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in r.signals.items() if k not in series})
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
     add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
-    models = {"extended": ext, "causes": tuple(v2.causes),
-              "physics": v2.physics, "speed": v2.speed_inputs}
+    models = {"extended": ext, "causes": tuple(branch.causes),
+              "physics": branch.physics, "speed": branch.speed_inputs}
     return Diagnosis(summary, series, text, models)
 
 
@@ -952,24 +953,25 @@ def _prepare_record(ds, holdout_start_s) -> _Record:
                    _signals(ds.input_kind, cols, temps))
 
 
-def _score_holdout(v2: BranchResult, r: _Record, warnings) -> tuple[BranchResult, dict]:
+def _score_holdout(branch: BranchResult, r: _Record,
+                   warnings) -> tuple[BranchResult, dict]:
     """The hold-out scores of the branch's baseline and extended model, and rule 9: a
     cause named by the misfit rule that makes the hold-out worse is not named (the
     branch result is returned without it). Returns (branch result, diagnosis.json's
     ``holdout``)."""
-    base = v2.baseline
-    b_hold, e_hold, gain = _holdout_scores(r.y, base.prediction, v2.extended.prediction,
+    base = branch.baseline
+    b_hold, e_hold, gain = _holdout_scores(r.y, base.prediction, branch.extended.prediction,
                                            r.hold)
-    if v2.unconfirmed is not None:        # rule 10 (in the branch)
-        warnings.append(v2.unconfirmed["why"])
-    elif (unconfirmed := _unconfirmed(v2.cause, v2.causes, v2.tests,
-                                      v2.extended.parameters, gain)) is not None:   # rule 9
-        ar_forms = dict(v2.ar_forms)
+    if branch.unconfirmed is not None:        # rule 10 (in the branch)
+        warnings.append(branch.unconfirmed["why"])
+    elif (unconfirmed := _unconfirmed(branch.cause, branch.causes, branch.tests,
+                                      branch.extended.parameters, gain)) is not None:   # rule 9
+        ar_forms = dict(branch.ar_forms)
         if "ar" in ar_forms:
             ar_forms["ar"] = ArForm(ar_forms["ar"].baseline, ar_forms["ar"].baseline)
-        v2 = v2.copy_with(cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
+        branch = branch.copy_with(cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
                           ar_forms=ar_forms)
         warnings.append(unconfirmed["why"])
         e_hold, gain = b_hold, 0.0
-    return v2, {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,
+    return branch, {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,
                 "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(r.hold.sum())}
