@@ -27,7 +27,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -435,9 +435,79 @@ def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None
 
 # -- diagnosis of measured data ---------------------------------------------------------------
 
+class NamedCause(NamedTuple):
+    """One cause a diagnosis names (an entry of diagnosis.json's ``causes``).
+
+    Attributes
+    ----------
+    cause : str
+        The cause, one of the contract's vocabulary (``"convection_mismatch"``, ...).
+    parameters : dict of str to float
+        Its contract parameters, each named with its unit (``h_W_m2K`` [W/(m²·K)], ...).
+    ci95 : dict of str to tuple of float
+        Their 95 % intervals (low, high) [the parameter's unit].
+    """
+
+    cause: str
+    parameters: dict
+    ci95: dict
+
+
+class HoldoutScore(NamedTuple):
+    """How the baseline and the extended model score on the hold-out (diagnosis.json's
+    ``holdout``).
+
+    Attributes
+    ----------
+    start_s : float
+        Start of the hold-out [s].
+    baseline_rmse_um, extended_rmse_um : float
+        RMSE of each on the hold-out [µm].
+    gain_pct : float
+        1 − extended/baseline RMSE [%].
+    n_samples : int
+        Hold-out samples scored.
+    """
+
+    start_s: float
+    baseline_rmse_um: float
+    extended_rmse_um: float
+    gain_pct: float
+    n_samples: int
+
+
+class DiagnosisSeries(NamedTuple):
+    """The arrays behind a diagnosis's figures, each of shape (N,).
+
+    Attributes
+    ----------
+    time_s : ndarray
+        Sample times [s].
+    growth_um : ndarray
+        Measured growth [µm] (NaN where not observed).
+    baseline_um, extended_um : ndarray
+        The baseline's and the extended model's growth [µm].
+    outlier : ndarray
+        1.0 on rows left out of the fit and the scores (outliers, unobserved), else 0.0.
+    mlr_um : ndarray or None
+        Paper eq. 18 on the recorded temperatures [µm] (None without thermometers).
+    """
+
+    time_s: np.ndarray
+    growth_um: np.ndarray
+    baseline_um: np.ndarray
+    extended_um: np.ndarray
+    outlier: np.ndarray
+    mlr_um: np.ndarray | None
+
+
 @dataclass(frozen=True)
 class DiagnosisResult:
     """What ``arfem diagnose`` finds in a record.
+
+    ``summary`` and ``series`` are the documents the command writes (diagnosis.json,
+    series.csv); ``verdict``, ``causes``, ``holdout``, ``warnings`` and ``arrays`` read
+    the same values typed.
 
     Attributes
     ----------
@@ -448,12 +518,46 @@ class DiagnosisResult:
         parameters with 95 % intervals, hold-out RMSEs of the baseline, the extended
         model and the MLR, warnings).
     series : dict
-        Arrays behind the figures: time, measured and predicted growths [µm].
+        Arrays behind the figures: time, measured and predicted growths [µm], and the
+        recorded signals by column.
     """
 
     cause: str
     summary: dict = field(repr=False)
     series: dict = field(repr=False)
+
+    @property
+    def verdict(self) -> str:
+        """``established``, ``unconfirmed``, ``explained`` or ``not_explained``."""
+        return str(self.summary.get("verdict", ""))
+
+    @property
+    def causes(self) -> tuple[NamedCause, ...]:
+        """The causes named, with their parameters and 95 % intervals (empty if none)."""
+        return tuple(NamedCause(c["cause"], dict(c["parameters"]),
+                                {k: tuple(v) for k, v in c["ci95"].items()})
+                     for c in self.summary.get("causes", ()))
+
+    @property
+    def holdout(self) -> HoldoutScore:
+        """The hold-out scores of the baseline and the extended model."""
+        h = self.summary["holdout"]
+        return HoldoutScore(float(h["start_s"]), float(h["baseline_rmse_um"]),
+                            float(h["extended_rmse_um"]), float(h["gain_pct"]),
+                            int(h["n_samples"]))
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What a reader of the result must not miss."""
+        return tuple(self.summary.get("warnings", ()))
+
+    @property
+    def arrays(self) -> DiagnosisSeries:
+        """The measured and predicted growths of ``series``, typed."""
+        s = self.series
+        return DiagnosisSeries(*(np.asarray(s[k]) for k in (
+            "time_s", "growth_um", "baseline_um", "extended_um", "outlier")),
+            None if s.get("mlr_um") is None else np.asarray(s["mlr_um"]))
 
     def to_dataframe(self):
         """The equal-length arrays of ``series`` as a pandas DataFrame."""

@@ -16,7 +16,7 @@ def _case(frame_blocks):
     on every block (ratio 0.5), the frame by the given per-block errors (baseline 2 µm)."""
     t = np.arange(100) * 60.0
     res = np.random.default_rng(0).normal(0, 1, 60)
-    fits = {c: CandidateFit(c, "ar", {}, np.zeros(t.size), 1, 1.0, 60, {"_res": res})
+    fits = {c: CandidateFit(c, "ar", {}, np.zeros(t.size), 1, 1.0, 60, residual_um=res)
             for c in ("none", "sensor_drift", "frame_expansion")}
     folds = [(t < a, (t >= a) & (t < a + 1200)) for a in (1800.0, 3000.0, 4200.0)]
     per = {"none": [2.0, 2.0, 2.0], "sensor_drift": [1.0, 1.0, 1.0],

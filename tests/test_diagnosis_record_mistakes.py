@@ -93,7 +93,7 @@ def test_standstill_holdout_warns_not_informative(tmp_path):
 
 def _fit(cause, k, rss, n=2000):
     res = np.random.default_rng(0).normal(size=n)   # white residual: N_eff ≈ N
-    return CandidateFit(cause, "fem+" + cause, {}, np.zeros(n), k, rss, n, {"_res": res})
+    return CandidateFit(cause, "fem+" + cause, {}, np.zeros(n), k, rss, n, residual_um=res)
 
 
 def test_parsimony_prefers_fewer_parameters_when_fits_are_equal():
@@ -109,7 +109,7 @@ def test_parsimony_prefers_fewer_parameters_when_fits_are_equal():
     cause, eq = _parsimony("speed_dependent_convection", fits, tests, {"n_eff": 50.0})
     assert cause == "convection_mismatch" and eq["cause"] == "speed_dependent_convection"
     assert eq["p_value"] >= PARSIMONY_P
-    fits["convection_mismatch"].rss = 400.0
+    fits["convection_mismatch"] = _fit("convection_mismatch", 1, 400.0)
     cause, eq = _parsimony("speed_dependent_convection", fits, tests, {"n_eff": 50.0})
     assert cause == "speed_dependent_convection" and eq is None
 

@@ -54,15 +54,13 @@ def test_sensor_wander_names_no_cause(tmp_path):
 
 
 def test_holdout_contradicting_the_misfit_rule_unconfirms():
-    class Fit:
-        parameters = {"drift_um_per_h": 0.01}
-    v2 = {"cause": "sensor_drift", "causes": ["sensor_drift"], "ext": Fit(),
-          "tests": {"sensor_drift": {"named_by": "misfit"}}}
-    u = _unconfirmed(v2, -7.0)
+    tests = {"sensor_drift": {"named_by": "misfit"}}
+    named = ("sensor_drift", ["sensor_drift"], tests, {"drift_um_per_h": 0.01})
+    u = _unconfirmed(*named, -7.0)
     assert u["cause"] == "sensor_drift" and u["holdout_gain_pct"] == -7.0
-    assert _unconfirmed(v2, 3.0) is None
-    v2["tests"]["sensor_drift"]["named_by"] = "f_test"
-    assert _unconfirmed(v2, -7.0) is None
+    assert _unconfirmed(*named, 3.0) is None
+    tests["sensor_drift"]["named_by"] = "f_test"
+    assert _unconfirmed(*named, -7.0) is None
 
 
 @pytest.mark.parametrize("cause, seed", [
@@ -127,7 +125,7 @@ def test_noise_model_sandwich_covers_under_slow_noise():
         b, *_ = np.linalg.lstsq(J, y, rcond=None)
         r = y - J @ b
         slow = st.slow_noise_sandwich(J, r)
-        var = max(slow["ar1"][0][1, 1], slow["walk"][0][1, 1])     # as parameter_ci95
+        var = max(slow.ar1_cov[1, 1], slow.walk_cov[1, 1])     # as parameter_ci95
         half = sst.t.ppf(0.975, max(st.noise_n_eff(r) - 2, 1)) * np.sqrt(var)
         hit_s += abs(b[1] - beta[1]) <= half
         s2 = float(r @ r) / (n - 2)
@@ -150,7 +148,7 @@ def test_noise_model_sandwich_is_ols_under_white_noise():
         b, *_ = np.linalg.lstsq(J, y, rcond=None)
         r = y - J @ b
         slow = st.slow_noise_sandwich(J, r)
-        var = max(slow["ar1"][0][1, 1], slow["walk"][0][1, 1])
+        var = max(slow.ar1_cov[1, 1], slow.walk_cov[1, 1])
         ols = float(r @ r) / (n - 2) * np.linalg.inv(J.T @ J)[1, 1]
         ratios.append(var / ols)
     assert 0.75 <= np.median(ratios) <= 1.25, ratios

@@ -19,8 +19,9 @@ Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from functools import cached_property, partial
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
@@ -28,7 +29,8 @@ from scipy.optimize import least_squares, minimize_scalar
 from arfem.models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
 from arfem.params import Rod
 
-__all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "FemPhysics", "ArPhysics", "fit_candidate",
+__all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "JointFit", "FrameFit", "FemPhysics",
+           "ArPhysics", "fit_candidate",
            "fit_causes", "compatible", "parameter_ci95", "project"]
 
 #: the contract's vocabulary, in the order candidates are tried
@@ -39,12 +41,122 @@ CAUSES = ("none", "ambient_drift", "convection_mismatch", "speed_dependent_conve
 DT_REF_K = 10.0
 
 
-@dataclass
-class CandidateFit:
-    """One cause fitted on the rows before the hold-out.
+@dataclass(frozen=True)
+class JointFit:
+    """What a fit of :func:`fit_causes` keeps beside its prediction, for its intervals
+    (:func:`parameter_ci95`), the pair searches that start from it and the export as a
+    compensator (:func:`arfem.models.diagnosis.export.fem_state_space`).
 
-    ``prediction`` covers the whole record; ``k`` counts the cause's own parameters
-    (nuisance terms shared with the baseline are not counted).
+    Attributes
+    ----------
+    theta : dict of str to float
+        The searched nonlinear coordinates at the optimum (``log_h`` = ln h with h in
+        [W/(m²·K)], ``log_tau_h`` = ln τ with τ in [h], ``exponent`` [-], ...).
+    linear : dict of str to float
+        The linear coefficients at that θ, named by their unit
+        (``ambient_gain_um_per_K`` [µm/K], ``drift_um_per_h`` [µm/h], ``scale`` [-],
+        ``frame_gain`` [-]; ``_initial_offset_um``, ``_initial_decay_um`` [µm] for an
+        unknown initial state, not counted as the cause's parameters).
+    coordinates : tuple of str
+        The names of θ then of the linear coefficients: the columns of ``jacobian``.
+    jacobian : ndarray, shape (n, p)
+        ∂prediction/∂(θ, linear) on the n fit rows [µm per coordinate unit]; (n, 0)
+        for the baseline.
+    ambient_K : ndarray, shape (N,), optional
+        The recorded ambient minus the nominal ambient the fit ran on [K]
+        (``ambient_drift`` only, else None).
+    refit_with_ambient : callable, optional
+        ``refit_with_ambient(ambient_K) -> dict`` of the linear coefficients at the same θ
+        with another recorded ambient (``ambient_drift`` only, else None): the draws of
+        the ambient's own noise in :func:`parameter_ci95`.
+    physical_ambient_gain_um_per_K : float, optional
+        αL·1e6 of the physics [µm/K], beside a fitted ``ambient_drift`` (else None).
+    frame_sensor_note : str, optional
+        Why a recorded ``T_frame_C`` is not an input of ``frame_expansion`` (where
+        recorded, else None).
+    """
+
+    theta: dict
+    linear: dict
+    coordinates: tuple = ()
+    jacobian: np.ndarray | None = None
+    ambient_K: np.ndarray | None = None
+    refit_with_ambient: Callable | None = None
+    physical_ambient_gain_um_per_K: float | None = None
+    frame_sensor_note: str | None = None
+
+
+@dataclass(frozen=True)
+class FrameFit:
+    """The thermometer frame part of a speed record's ``frame_expansion`` fit
+    (:func:`arfem.models.diagnosis.speed_frame.fit_frame_thermometers`).
+
+    Attributes
+    ----------
+    sensors : tuple of str
+        The complete temperature columns used [their names, °C series].
+    frame_um : ndarray, shape (N,)
+        The frame part of the prediction over the record [µm].
+    coefficients : tuple of float
+        The linear coefficients in column order: a steady gain per seen speed [µm],
+        the initial-state decay [µm], the offset [µm], then (slow response) the slow
+        gains and decay, then one per temperature component [µm per unit component].
+        Empty for an average of structures.
+    structure : str
+        Label of the frame structure (:class:`~arfem.models.diagnosis.speed_frame.FrameStructure`).
+    members : tuple of str
+        An average of structures: the labels of its members (else empty).
+    """
+
+    sensors: tuple
+    frame_um: np.ndarray
+    coefficients: tuple
+    structure: str
+    members: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class CandidateFit:
+    """One cause (or set of causes) fitted on the rows before the hold-out.
+
+    Compared by identity (``eq=False``): the rules ask whether two names hold the same fit.
+
+    Attributes
+    ----------
+    cause : str
+        The cause(s), joined by ``+`` (``none`` for the baseline).
+    model : str
+        The physics and causes, e.g. ``"fem+heat_input_scale"`` or ``"ar+sensor_drift"``.
+    parameters : dict of str to float
+        Physical parameters, named with their unit (``h_W_m2K`` [W/(m²·K)], ...).
+    prediction : ndarray, shape (N,)
+        Growth over the whole record [µm].
+    k : int
+        The cause's own parameters (nuisance terms shared with the baseline not counted).
+    rss : float
+        Residual sum of squares on the fit rows [µm²].
+    n : int
+        Number of fit rows.
+    causes : tuple of str
+        The causes in the order the pair search ranks them (empty for the baseline and
+        for the speed-record candidates).
+    at_bound : tuple of str
+        Searched coordinates that ran to the edge of their search range.
+    residual_um : ndarray, shape (n,), optional
+        Measured minus predicted growth on the fit rows [µm].
+    fit_rows : ndarray of bool, shape (N,), optional
+        The fit rows.
+    time_constant_h : float, optional
+        Speed records: the AR(1) rod's time constant 1/b [h].
+    joint : JointFit, optional
+        :func:`fit_causes` fits: the coordinates, Jacobian and refits.
+    frame : FrameFit, optional
+        Speed records' thermometer ``frame_expansion``: its frame part.
+    equivalent : dict, optional
+        An alternative that fits as well (``equivalent_alternative`` of diagnosis.json),
+        set by the pair rules (:mod:`arfem.models.diagnosis.rules`).
+    note : str, optional
+        What a reader of the parameters must know (e.g. how h was derived).
     """
 
     cause: str
@@ -54,7 +166,25 @@ class CandidateFit:
     k: int
     rss: float = float("nan")
     n: int = 0
-    extra: dict = field(default_factory=dict)
+    causes: tuple = ()
+    at_bound: tuple = ()
+    residual_um: np.ndarray | None = None
+    fit_rows: np.ndarray | None = None
+    time_constant_h: float | None = None
+    joint: JointFit | None = None
+    frame: FrameFit | None = None
+    equivalent: dict | None = None
+    note: str | None = None
+
+    @property
+    def theta(self) -> dict:
+        """The searched coordinates of a :func:`fit_causes` fit (else empty)."""
+        return self.joint.theta if self.joint is not None else {}
+
+    def copy_with(self, **changes) -> CandidateFit:
+        """A copy with the fields ``changes`` changed (the fit itself is frozen)."""
+        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
+                             **changes})
 
 
 def project(columns: list[np.ndarray], target: np.ndarray, rows: np.ndarray):
@@ -424,10 +554,9 @@ def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_
 
     Returns None if a cause does not apply to the record (``ambient_drift`` without
     ``ambient_C``; ``speed_dependent_convection`` when the input never or always runs)
-    or the causes cannot act together (:func:`compatible`). The fit carries the
-    covariance of all its parameters (θ and the linear coefficients) in
-    ``extra["cov"]`` -- the nonlinear-least-squares covariance s²(JᵀJ)⁻¹ on the fit rows,
-    inflated by N/N_eff for the residual's autocorrelation (:func:`parameter_ci95`).
+    or the causes cannot act together (:func:`compatible`). The fit carries what its
+    intervals need (:class:`JointFit`: θ, the linear coefficients and the Jacobian in
+    all of them, for :func:`parameter_ci95`).
 
     Parameters
     ----------
@@ -448,18 +577,11 @@ def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_
         Starting θ values (e.g. the single-cause optima for a pair).
     """
     causes = tuple(c for c in causes if c != "none")
-    if causes and not compatible(causes):
-        return None
     t = np.asarray(t, float)
     q = np.asarray(q, float)
-    if "ambient_drift" in causes and ambient_K is None:
+    if not _applies(causes, q, ambient_K):
         return None
-    if "speed_dependent_convection" in causes:
-        running = q > 0
-        if running.all() or not running.any():
-            return None
-    rod = phys.rod
-    h0 = rod.convection_W_m2K
+    h0 = phys.rod.convection_W_m2K
     names, build = _design(causes, phys, t, q, initial_known, ambient_K)
     yr = np.where(rows, y, 0.0)
 
@@ -472,72 +594,98 @@ def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_
 
     lo = np.array([_bounds(n, h0)[0] for n in names])
     hi = np.array([_bounds(n, h0)[1] for n in names])
-    if not names:
-        x = np.zeros(0)
-    elif len(names) == 1:
-        res = minimize_scalar(lambda v: solve([v])[0], bounds=(lo[0], hi[0]),
-                              method="bounded", options={"xatol": 1e-4})
-        x = np.array([res.x])
-    else:
-        # Gauss-Newton (trust-region reflective) on the projected residual, a forward-
-        # difference Jacobian with the steps of _FD_STEP
-        steps = np.array([_FD_STEP[n] for n in names])
-
-        last = {}
-
-        def resid(v):
-            r = (y - solve(v)[2])[rows]
-            last["x"], last["r"] = np.array(v, float), r
-            return r
-
-        def jac(v):
-            r0 = last["r"] if "x" in last and np.array_equal(last["x"], v) else resid(v)
-            v = np.array(v, float)
-            J = np.empty((r0.size, v.size))
-            for i in range(v.size):
-                vi = v.copy()
-                vi[i] += steps[i] if vi[i] + steps[i] <= hi[i] else -steps[i]
-                J[:, i] = (resid(vi) - r0) / (vi[i] - v[i])
-            return J
-
-        best = None
-        for x0 in _starts(causes, names, h0, start):
-            x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-            r = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf",
-                              x_scale=steps * 100, max_nfev=25 * len(names))
-            if best is None or r.cost < best.cost:
-                best = r
-        x = np.clip(best.x, lo, hi)
+    x = _search_theta(solve, names, lo, hi, y, rows, _starts(causes, names, h0, start))
     rss, coef, pred, cols, cn = solve(x)
     theta = dict(zip(names, x.tolist()))
     lin = dict(zip(cn, coef.tolist()))
-    at_bound = [n for n, v, a, b in zip(names, x, lo, hi)
-                if min(v - a, b - v) < 1e-3 * (b - a)]
-    params = _physical(causes, theta, lin)
+    at_bound = tuple(n for n, v, a, b in zip(names, x, lo, hi)
+                     if min(v - a, b - v) < 1e-3 * (b - a))
+    ambient = "ambient_drift" in causes
+    joint = JointFit(
+        theta, lin, tuple(names + cn) if causes else (),
+        _jacobian(build, x, names, coef, pred, cols, rows) if causes else None,
+        ambient_K if ambient else None,
+        partial(_refit_linear, causes, phys, t, q, initial_known, yr, rows, x)
+        if ambient else None,
+        phys.ambient_gain_um_per_K() if ambient else None,
+        _frame_sensor_note(causes, frame_C))
     tag = f"{phys.label}+" + "+".join(causes) if causes else phys.label
     k = len(names) + sum(not n.startswith("_") for n in cn)
-    extra = {"theta": theta, "linear": lin, "at_bound": at_bound, "causes": causes}
-    if "ambient_drift" in causes:
-        extra["physical_gain_um_per_K"] = phys.ambient_gain_um_per_K()
+    return CandidateFit("+".join(causes) or "none", tag, _physical(causes, theta, lin), pred,
+                        k, rss, int(rows.sum()), causes=causes, at_bound=at_bound,
+                        residual_um=(y - pred)[rows], fit_rows=rows, joint=joint)
+
+
+def _applies(causes, q, ambient_K) -> bool:
+    """Whether a set of causes can be fitted to the record: they can act together
+    (:func:`compatible`), ``ambient_drift`` has a recorded ambient, and
+    ``speed_dependent_convection`` an input that both runs and stops."""
+    if causes and not compatible(causes):
+        return False
+    if "ambient_drift" in causes and ambient_K is None:
+        return False
+    if "speed_dependent_convection" in causes:
+        running = q > 0
+        if running.all() or not running.any():
+            return False
+    return True
+
+
+def _search_theta(solve, names, lo, hi, y, rows, starts) -> np.ndarray:
+    """The optimum of the nonlinear coordinates θ (variable projection: ``solve(θ)``
+    gives the RSS with the linear coefficients solved): none to search, one by a
+    bounded scalar search, more by Gauss-Newton (trust-region reflective) on the
+    projected residual from each of ``starts``, with a forward-difference Jacobian of
+    the steps of ``_FD_STEP``."""
+    if not names:
+        return np.zeros(0)
+    if len(names) == 1:
+        res = minimize_scalar(lambda v: solve([v])[0], bounds=(lo[0], hi[0]),
+                              method="bounded", options={"xatol": 1e-4})
+        return np.array([res.x])
+    steps = np.array([_FD_STEP[n] for n in names])
+    last = {}
+
+    def resid(v):
+        r = (y - solve(v)[2])[rows]
+        last["x"], last["r"] = np.array(v, float), r
+        return r
+
+    def jac(v):
+        r0 = last["r"] if "x" in last and np.array_equal(last["x"], v) else resid(v)
+        v = np.array(v, float)
+        J = np.empty((r0.size, v.size))
+        for i in range(v.size):
+            vi = v.copy()
+            vi[i] += steps[i] if vi[i] + steps[i] <= hi[i] else -steps[i]
+            J[:, i] = (resid(vi) - r0) / (vi[i] - v[i])
+        return J
+
+    best = None
+    for x0 in starts:
+        x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+        r = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf",
+                          x_scale=steps * 100, max_nfev=25 * len(names))
+        if best is None or r.cost < best.cost:
+            best = r
+    return np.clip(best.x, lo, hi)
+
+
+def _refit_linear(causes, phys, t, q, initial_known, yr, rows, x, ambient_K) -> dict:
+    """The linear coefficients of a fit at the same θ ``x`` with another recorded
+    ambient ``ambient_K`` [K] (``yr``: the growth on the fit rows, 0 elsewhere)."""
+    _, build = _design(causes, phys, t, q, initial_known, ambient_K)
+    base, cols, cn = build(x)
+    coef, _ = project(cols, yr - base, rows)
+    return dict(zip(cn, coef.tolist()))
+
+
+def _frame_sensor_note(causes, frame_C) -> str | None:
+    """Why a recorded frame temperature is not an input of ``frame_expansion``."""
     if "frame_expansion" in causes and frame_C is not None and np.all(np.isfinite(frame_C)):
-        extra["frame_sensor"] = ("T_frame_C recorded; the frame state is the lag of the "
-                                 "rod's own growth, T_frame_C is reported in the "
-                                 "cross-correlations")
-    fit = CandidateFit("+".join(causes) or "none", tag, params, pred, k, rss,
-                       int(rows.sum()), extra)
-    if causes:
-        fit.extra["jac"] = _jacobian(build, x, names, coef, pred, cols, rows)
-        fit.extra["names"] = names + cn
-    if "ambient_drift" in causes:
-        def refit_with_ambient(amb, x=x):
-            """The linear coefficients at the same θ with another recorded ambient."""
-            _, b2 = _design(causes, phys, t, q, initial_known, amb)
-            base, cols2, cn2 = b2(x)
-            c2, _ = project(cols2, yr - base, rows)
-            return dict(zip(cn2, c2.tolist()))
-        fit.extra["_refit_with_ambient"] = refit_with_ambient
-        fit.extra["_ambient_K"] = ambient_K
-    return fit
+        return ("T_frame_C recorded; the frame state is the lag of the rod's own growth, "
+                "T_frame_C is reported in the cross-correlations")
+    return None
 
 
 def _jacobian(build, x, names, coef, pred, cols, rows):
@@ -610,10 +758,10 @@ def _ambient_noise_var(fit) -> dict:
     estimated from its second differences, the ambient is perturbed by that much again
     ``CI_AMBIENT_DRAWS`` times, and the coefficients refitted at the same θ."""
     from arfem.models.diagnosis import stats as st
-    refit = fit.extra.get("_refit_with_ambient")
-    amb = fit.extra.get("_ambient_K")
-    if refit is None or amb is None:
+    joint = fit.joint
+    if joint is None or joint.refit_with_ambient is None or joint.ambient_K is None:
         return {}
+    refit, amb = joint.refit_with_ambient, joint.ambient_K
     sig = st.noise_sigma(amb)
     if not np.isfinite(sig) or sig <= 0:
         return {}
@@ -663,13 +811,42 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     Parameters searched as ln(value) (h, τ) get the interval of the logarithm,
     exponentiated (positive, asymmetric).
     """
-    from arfem.models.diagnosis import stats as st
-    from scipy import stats as _sst
-    J = fit.extra.get("jac")
+    J = fit.joint.jacobian if fit.joint is not None else None
     if J is None or J.shape[1] == 0:
         return {}
-    n, p = J.shape
     r = (np.asarray(y, float) - fit.prediction)[rows]
+    cov = _covariances(J, r)
+    idx = {nm: i for i, nm in enumerate(fit.joint.coordinates)}
+    vals = {**fit.joint.theta, **fit.joint.linear}
+    eiv = _ambient_noise_var(fit)
+    out = {}
+    for k in fit.parameters:
+        coord, log = _COORD[k]
+        lo, hi = _interval(cov, idx, vals, eiv, k, coord)
+        out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
+    return out
+
+
+@dataclass(frozen=True)
+class _Covariances:
+    """The three covariances of :func:`parameter_ci95`, each (p, p) in the fit's
+    coordinates [coordinate unit²], with their Student-t quantiles [-]."""
+
+    ess: np.ndarray
+    block: np.ndarray
+    slow_ar1: np.ndarray
+    slow_walk: np.ndarray
+    t_ess: float
+    t_block: float
+
+
+def _covariances(J, r) -> _Covariances:
+    """Effective-sample-size, block-sandwich and fitted-noise-model covariances of the
+    estimate with Jacobian ``J`` (n, p) and residual ``r`` (n,) on the fit rows (see
+    :func:`parameter_ci95`)."""
+    from arfem.models.diagnosis import stats as st
+    from scipy import stats as _sst
+    n, p = J.shape
     n_eff = st.noise_n_eff(r)
     s2 = float(r @ r) / max(n - p, 1)
     scale = np.linalg.norm(J, axis=0)
@@ -684,41 +861,38 @@ def parameter_ci95(fit: CandidateFit, y, rows) -> dict:
     # walk: each parameter gets the wider of the two (stats.slow_noise_sandwich)
     slow = st.slow_noise_sandwich(Js, r)
     zero = np.zeros((p, p))
-    cov_ar = (slow["ar1"][0] if slow else zero) / np.outer(scale, scale)
-    cov_walk = (slow["walk"][0] if slow else zero) / np.outer(scale, scale)
-    t_ess = float(_sst.t.ppf(0.975, max(n_eff - p, 1.0)))
-    t_blk = float(_sst.t.ppf(0.975, B - 1))
-    idx = {nm: i for i, nm in enumerate(fit.extra["names"])}
-    vals = {**fit.extra["theta"], **fit.extra["linear"]}
-    eiv = _ambient_noise_var(fit)
-    out, kinds = {}, {}
-    for k in fit.parameters:
-        coord, log = _COORD[k]
-        i = idx[coord]
-        add = eiv.get(coord, 0.0)
-        v = vals[coord]
-        if k == "frame_gain" and "scale" in idx:
-            # frame_gain = c_frame / scale (see _physical): delta method on the pair
-            w = np.zeros(p)
-            s_ = vals["scale"]
-            w[i], w[idx["scale"]] = 1.0 / s_, -v / s_ ** 2
-            var_e, var_b = float(w @ cov_ess @ w), float(w @ cov_blk @ w)
-            var_a = max(float(w @ cov_ar @ w), float(w @ cov_walk @ w))
-            add = add / s_ ** 2 + eiv.get("scale", 0.0) * v ** 2 / s_ ** 4
-            v = v / s_
-        else:
-            var_e, var_b = cov_ess[i, i], cov_blk[i, i]
-            var_a = max(cov_ar[i, i], cov_walk[i, i])
-        h_e = t_ess * np.sqrt(max(var_e, 0.0) + add)
-        h_b = t_blk * np.sqrt(max(var_b, 0.0) + add)
-        h_a = t_ess * np.sqrt(max(var_a, 0.0) + add)
-        kinds[k] = {"ess": h_e, "block": h_b, "slow_noise": h_a, "value": v, "log": log}
-        half = max(h_e, h_b, h_a)
-        lo, hi = v - half, v + half
-        out[k] = [float(np.exp(lo)), float(np.exp(hi))] if log else [float(lo), float(hi)]
-    fit.extra["n_eff_ci"] = n_eff
-    fit.extra["ci95_half_widths"] = kinds      # of each kind, in the searched coordinate
-    return out
+    cov_ar = (slow.ar1_cov if slow else zero) / np.outer(scale, scale)
+    cov_walk = (slow.walk_cov if slow else zero) / np.outer(scale, scale)
+    return _Covariances(cov_ess, cov_blk, cov_ar, cov_walk,
+                        float(_sst.t.ppf(0.975, max(n_eff - p, 1.0))),
+                        float(_sst.t.ppf(0.975, B - 1)))
+
+
+def _interval(cov: _Covariances, idx, vals, eiv, k, coord) -> tuple[float, float]:
+    """The 95 % interval of parameter ``k`` in its searched coordinate ``coord`` (ln of
+    the value where it is searched so): the estimate ± the widest half-width of the
+    three covariances, each with the ambient's noise variance ``eiv`` added; a
+    ``frame_gain`` beside a heat scale by the delta method on the ratio."""
+    i = idx[coord]
+    add = eiv.get(coord, 0.0)
+    v = vals[coord]
+    if k == "frame_gain" and "scale" in idx:
+        # frame_gain = c_frame / scale (see _physical): delta method on the pair
+        w = np.zeros(cov.ess.shape[0])
+        s_ = vals["scale"]
+        w[i], w[idx["scale"]] = 1.0 / s_, -v / s_ ** 2
+        var_e, var_b = float(w @ cov.ess @ w), float(w @ cov.block @ w)
+        var_a = max(float(w @ cov.slow_ar1 @ w), float(w @ cov.slow_walk @ w))
+        add = add / s_ ** 2 + eiv.get("scale", 0.0) * v ** 2 / s_ ** 4
+        v = v / s_
+    else:
+        var_e, var_b = cov.ess[i, i], cov.block[i, i]
+        var_a = max(cov.slow_ar1[i, i], cov.slow_walk[i, i])
+    h_e = cov.t_ess * np.sqrt(max(var_e, 0.0) + add)
+    h_b = cov.t_block * np.sqrt(max(var_b, 0.0) + add)
+    h_a = cov.t_ess * np.sqrt(max(var_a, 0.0) + add)
+    half = max(h_e, h_b, h_a)
+    return v - half, v + half
 
 
 def fit_candidate(cause: str, phys, t, q, y, rows, initial_known: bool = True,
@@ -726,8 +900,5 @@ def fit_candidate(cause: str, phys, t, q, y, rows, initial_known: bool = True,
     """Fit one cause (``none`` = the baseline) -- :func:`fit_causes` of one cause."""
     if cause not in CAUSES:
         raise ValueError(f"unknown cause {cause!r}")
-    f = fit_causes(() if cause == "none" else (cause,), phys, t, q, y, rows, initial_known,
-                   ambient_K, frame_C)
-    if f is not None:
-        f.cause = cause
-    return f
+    return fit_causes(() if cause == "none" else (cause,), phys, t, q, y, rows, initial_known,
+                      ambient_K, frame_C)

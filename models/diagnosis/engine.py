@@ -69,7 +69,8 @@ warning.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -85,7 +86,7 @@ from arfem.models.diagnosis.rules import (
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
                                           speed_to_heat_map)
-from arfem.models.diagnosis.speed_frame import fit_frame_thermometers
+from arfem.models.diagnosis.speed_frame import SpeedFrameInputs, fit_frame_thermometers
 from arfem.models.diagnosis.speed_select import cv_rmse, forward_folds, select_frame_structure
 from arfem.params import InputError
 from arfem.io import json_text
@@ -120,8 +121,8 @@ class Diagnosis:
     text: list = field(default_factory=list)
     #: the fitted extended model and what it ran on, for export as a compensator
     #: (:mod:`arfem.models.diagnosis.export`): ``extended`` (CandidateFit), ``causes``,
-    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (the inputs of a speed
-    #: record's thermometer frame fit), None where not applicable
+    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (SpeedFrameInputs: what a
+    #: speed record's thermometer frame fit ran on), None where not applicable
     models: dict = field(default_factory=dict)
 
 
@@ -274,29 +275,149 @@ def _cause_entries(fit, causes, y, rows, ci=None):
     return out
 
 
-def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
+class ArForm(NamedTuple):
+    """An AR-form realisation of the baseline and of the extended model, each scored on
+    the hold-out beside the branch's own (``ar_form`` of diagnosis.json)."""
+
+    baseline: CandidateFit | None
+    extended: CandidateFit | None
+
+
+@dataclass(frozen=True)
+class BranchResult:
+    """What a branch of the diagnosis (:func:`_diagnose_fem` for ``q_W_m2`` records,
+    :func:`_diagnose_speed` for speed-only ones) found: the fits, the cause named and
+    how, for :func:`diagnose` to score on the hold-out and write.
+
+    Attributes
+    ----------
+    fits : dict of str to CandidateFit or None
+        Every cause of :data:`CAUSES` fitted alone (None where it does not apply).
+    cause : str
+        The cause named (``none`` if none is).
+    causes : tuple of str
+        The causes named, the first one first (empty, one, or a pair).
+    runner : str or None
+        The best cause not named.
+    scores : dict of str to float
+        Each candidate's score, lower is better (``score_kind``).
+    tests : dict of str to dict
+        Each candidate's naming test (p-value, RMSE cut [%], ...), as diagnosis.json
+        lists them.
+    selection : dict
+        What the selection rested on (N, ρ1, N_eff, noise σ [µm], ...), as diagnosis.json
+        writes it under ``selection``.
+    extended : CandidateFit
+        The extended model: the named cause's (or pair's) fit, the baseline if none.
+    baseline : CandidateFit
+        The baseline (the nominal FEM, or the paper AR(1) calibrated by eq. 17).
+    time_constant_s : float
+        The baseline's slowest time constant [s] (the phases' cooling window).
+    ar_forms : dict of str to ArForm
+        The AR-form realisations, by the key diagnosis.json's ``ar_form`` gives them.
+    baseline_model, score_kind, rule, ar_label : str
+        Labels diagnosis.json writes: the baseline's model, what ``score`` is, the
+        selection rule, how the AR form was made.
+    refused : dict of str to str
+        Causes refused as implausible and why (``q_W_m2`` records).
+    equivalent : dict or None
+        An alternative with fewer parameters that fits as well (rule 6).
+    pairs_tried : tuple of dict
+        The second-cause tests (rule 7).
+    ci95 : dict or None
+        Speed-only records: the named cause's 95 % intervals by the grouped jackknife
+        [parameter units]; None where they come from the joint fit (``q_W_m2``).
+    unconfirmed : dict or None
+        Rule 10: the cause not named because its effect is within the slow noise.
+    physics : FemPhysics or None
+        The FEM rod the fits ran on (``q_W_m2`` records), for export.
+    speed_inputs : SpeedFrameInputs or None
+        The inputs of a named thermometer frame fit (speed records), for export.
+    """
+
+    fits: dict
+    cause: str
+    causes: tuple
+    runner: str | None
+    scores: dict
+    tests: dict
+    selection: dict
+    extended: CandidateFit
+    baseline: CandidateFit
+    time_constant_s: float
+    ar_forms: dict
+    baseline_model: str
+    score_kind: str
+    rule: str
+    ar_label: str
+    refused: dict = field(default_factory=dict)
+    equivalent: dict | None = None
+    pairs_tried: tuple = ()
+    ci95: dict | None = None
+    unconfirmed: dict | None = None
+    physics: FemPhysics | None = None
+    speed_inputs: SpeedFrameInputs | None = None
+
+    def copy_with(self, **changes) -> BranchResult:
+        """A copy with the fields ``changes`` changed (the result itself is frozen)."""
+        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
+                             **changes})
+
+
+def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress) -> BranchResult:
     """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
     (selection rules, parsimony, a second cause) and the AR(1) realisation."""
     rod = ds.rod
     fem = FemPhysics(rod)
-    frame = temps.get("T_frame_C")
-    args = (t, q, y, rows, ds.initial_known, amb_K, frame)
+    args = (t, q, y, rows, ds.initial_known, amb_K, temps.get("T_frame_C"))
+    fits = _fit_single_causes(fem, args, progress)
+    # the noise scale of every rule: second differences, floored at the quantisation
+    # noise of a quantised growth sensor (resolution/√12), which they under-read
+    noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
+    refused = _refusals(fits, rod, noise, warnings)
+    valid = {c: (None if c in refused else f) for c, f in fits.items()}
+    cause, runner, scores, tests, neff = _select(
+        valid, fits["none"], sum(f is not None for f in valid.values()) - 1, noise)
+    cause, equivalent = _parsimony(cause, valid, tests, neff)
+    if equivalent is not None:
+        runner = equivalent["cause"]
+    cause, pair, pairs_tried = _pair_search(cause, fits, fem, args, refused, scores, tests,
+                                            neff, noise)
+    cause, causes, pair = _second_cause_effect(cause, pair, fits, t, y, rows, warnings)
+    ext = fits[cause] if pair is None else pair
+    cause, causes, ext, unconfirmed = _effect_rule(cause, causes, ext, fits["none"], tests,
+                                                   t, y, rows)
+    ar = ArPhysics(rod)
+    ar_base = fit_candidate("none", ar, *args)
+    ar_ext = ar_base if cause == "none" else fit_causes(tuple(causes), ar, *args)
+    return BranchResult(
+        fits=fits, cause=cause, causes=tuple(causes), runner=runner, scores=scores,
+        tests=tests, selection=neff, extended=ext, baseline=fits["none"],
+        time_constant_s=1.0 / fem.slowest_rate(), ar_forms={"ar": ArForm(ar_base, ar_ext)},
+        baseline_model="fem", score_kind="bic_on_n_eff", rule=_FEM_RULE,
+        ar_label="paper AR(1), coefficients from the [rod] values (eqs. 13-14)",
+        refused=refused, equivalent=equivalent, pairs_tried=tuple(pairs_tried),
+        unconfirmed=unconfirmed, physics=fem)
+
+
+def _fit_single_causes(fem, args, progress) -> dict:
+    """Every cause of :data:`CAUSES` fitted alone in the FEM (rule 1); the h models nest
+    ``convection_mismatch`` and start from its optimum."""
     fits = {}
     for c in CAUSES:
         progress(f"FEM fit: {c}")
-        # the h models nest convection_mismatch: they start from its optimum
         h = fits.get("convection_mismatch")
         start = None if h is None or c not in ("speed_dependent_convection",
                                                 "nonlinear_convection") else {
-            "log_h_running": h.extra["theta"]["log_h"], "log_h_stopped": h.extra["theta"]["log_h"],
-            "log_h_ref": h.extra["theta"]["log_h"], "exponent": 0.0}
-        f = fit_causes(() if c == "none" else (c,), fem, *args, start=start)
-        if f is not None:
-            f.cause = c
-            if c == "none":
-                f.extra["_nominal"] = f.prediction[rows]
-            f.extra["_res"] = (y - f.prediction)[rows]
-        fits[c] = f
+            "log_h_running": h.theta["log_h"], "log_h_stopped": h.theta["log_h"],
+            "log_h_ref": h.theta["log_h"], "exponent": 0.0}
+        fits[c] = fit_causes(() if c == "none" else (c,), fem, *args, start=start)
+    return fits
+
+
+def _refusals(fits, rod, noise_um, warnings) -> dict:
+    """Rule 5: the causes refused as implausible (or all of them where the record's
+    magnitude is), and why; a warning where a refused fit would have been named."""
     refused = {c: why for c, f in fits.items()
                if c != "none" and f is not None and (why := _implausible(f))}
     unit_warning = _units_warning(fits, rod)
@@ -304,25 +425,24 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
         warnings.append(unit_warning)
         refused.update({c: "the record's magnitude is implausible (see warnings)"
                         for c, f in fits.items() if c != "none" and f is not None})
-    # the noise scale of every rule: second differences, floored at the quantisation
-    # noise of a quantised growth sensor (resolution/√12), which they under-read
-    noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     n_tests = sum(f is not None for f in fits.values()) - 1
     if refused and not unit_warning:
         # a refusal is worth a warning where the refused fit would have been named
-        would = _select(fits, fits["none"], n_tests, noise)[0]
+        would = _select(fits, fits["none"], n_tests, noise_um)[0]
         if would in refused:
-            bound = fits[would].extra.get("at_bound")
+            bound = fits[would].at_bound
             warnings.append(f"{would} fits best but is refused as a cause: {refused[would]}; "
                             + ("two causes at once, or one outside the vocabulary?" if bound
                                else "check the units of growth_um and the [rod] values"))
-    valid = {c: (None if c in refused else f) for c, f in fits.items()}
-    cause, runner, scores, tests, neff = _select(
-        valid, fits["none"], sum(f is not None for f in valid.values()) - 1, noise)
-    cause, equivalent = _parsimony(cause, valid, tests, neff)
-    if equivalent is not None:
-        runner = equivalent["cause"]
-    pair, pairs_tried = (None, [])
+    return refused
+
+
+def _pair_search(cause, fits, fem, args, refused, scores, tests, neff, noise_um):
+    """Rule 7: a second cause beside the named one -- or, where nothing is named though
+    the baseline is off by many noise σ, beside the best-scoring one (then named only if
+    the pair removes ``MISFIT_CUT`` of the misfit). Returns (cause, the pair's fit or
+    None, the pairs tried); ``tests`` records a cause so named."""
+    pair, pairs_tried = None, []
     # the lead of a pair: the named cause; or, where nothing is named though the baseline
     # is off by many noise σ (rule 4 not met by any single cause), the best-scoring one
     lead = cause
@@ -330,33 +450,39 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
     if cause == "none" and misfit:
         lead = next((c for c in sorted(scores, key=scores.get) if c != "none"), "none")
     single_rmse = np.sqrt(fits[lead].rss / max(fits[lead].n, 1)) if lead != "none" else 0.0
-    if lead != "none" and np.isfinite(noise) and single_rmse > PAIR_MISFIT * noise:
-        # the second-best single cause, and the best that does not change h, lead a
-        # search too: a wrong lead (an h model standing in for a heat scale and a
-        # drift) would hide the true pair
-        ranked = [c for c in sorted(scores, key=scores.get)
-                  if c not in ("none", lead) and c not in refused]
-        leads = [lead] + ranked[:1]
-        leads += [c for c in ranked if c not in H_CAUSES and c not in leads][:1]
-        pair, pairs_tried = None, []
-        for ld in leads:
-            pr, tr = _second_cause(ld, fits, fem, args, refused)
-            pairs_tried += tr
-            if pr is not None and (pair is None or pr.rss < pair.rss):
-                pair, lead = pr, ld
-        base = fits["none"]
-        if cause == "none" and pair is not None:
-            cut = 1.0 - np.sqrt(pair.rss / base.rss) if base.rss > 0 else 0.0
-            if cut < MISFIT_CUT:
-                pair = None
-            else:
-                cause = lead
-                tests.setdefault(lead, {})["named_by"] = "misfit, as one of two causes"
-    causes = [] if cause == "none" else ([cause] if pair is None else list(pair.extra["causes"]))
+    if not (lead != "none" and np.isfinite(noise_um) and single_rmse > PAIR_MISFIT * noise_um):
+        return cause, pair, pairs_tried
+    # the second-best single cause, and the best that does not change h, lead a
+    # search too: a wrong lead (an h model standing in for a heat scale and a
+    # drift) would hide the true pair
+    ranked = [c for c in sorted(scores, key=scores.get)
+              if c not in ("none", lead) and c not in refused]
+    leads = [lead] + ranked[:1]
+    leads += [c for c in ranked if c not in H_CAUSES and c not in leads][:1]
+    for ld in leads:
+        pr, tr = _second_cause(ld, fits, fem, args, refused)
+        pairs_tried += tr
+        if pr is not None and (pair is None or pr.rss < pair.rss):
+            pair, lead = pr, ld
+    base = fits["none"]
+    if cause == "none" and pair is not None:
+        cut = 1.0 - np.sqrt(pair.rss / base.rss) if base.rss > 0 else 0.0
+        if cut < MISFIT_CUT:
+            pair = None
+        else:
+            cause = lead
+            tests.setdefault(lead, {})["named_by"] = "misfit, as one of two causes"
+    return cause, pair, pairs_tried
+
+
+def _second_cause_effect(cause, pair, fits, t, y, rows, warnings):
+    """The causes named, the pair's first one first; rule 10 for the second cause of a
+    pair: its own increment over the first must stand above the slow noise. Returns
+    (cause, causes, pair or None)."""
+    causes = [] if cause == "none" else ([cause] if pair is None else list(pair.causes))
     if pair is not None and causes[0] != cause:
         cause = causes[0]
     if pair is not None and fits.get(causes[0]) is not None:
-        # rule 10 for the second cause of a pair: its own increment over the first
         inc, slow = _effect_and_slow_noise(t, y, rows, pair, fits[causes[0]])
         if inc < EFFECT_FACTOR * slow:
             warnings.append(f"{causes[1]} beside {causes[0]} changes the fit window by "
@@ -364,43 +490,37 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress):
                             f"of the noise ({slow:.3g} µm): unconfirmed as a second cause "
                             "(post hoc rule, after the fresh batch 9000)")
             pair, causes, cause = None, [causes[0]], causes[0]
-    ext = fits[cause] if pair is None else pair
-    unconfirmed = None
-    if cause != "none":
-        effect, slow = _effect_and_slow_noise(t, y, rows, ext, fits["none"])
-        if effect < EFFECT_FACTOR * slow:      # rule 10: within the slow noise
-            named = "+".join(causes)
-            unconfirmed = {"cause": named, "parameters": ext.parameters,
-                           "named_by": tests.get(cause, {}).get("named_by"),
-                           "effect_rms_um": effect, "slow_noise_um": slow,
-                           "why": (f"{named} changes the fit window by {effect:.3g} µm RMS, "
-                                   f"within {EFFECT_FACTOR:g} x the slow part of the noise "
-                                   f"({slow:.3g} µm, the residual's 30-min means): "
-                                   "unconfirmed, so no cause is named")}
-            cause, causes, ext = "none", [], fits["none"]
-    ar = ArPhysics(rod)
-    ar_base = fit_candidate("none", ar, *args)
-    ar_ext = ar_base if cause == "none" else fit_causes(tuple(causes), ar, *args)
-    return {"fits": fits, "cause": cause, "causes": causes, "runner": runner,
-            "scores": scores, "tests": tests, "neff": neff, "ext": ext, "base": fits["none"],
-            "refused": refused, "equivalent": equivalent, "pairs_tried": pairs_tried,
-            "tau_s": 1.0 / fem.slowest_rate(), "physics": fem,
-            "extra_models": {"ar": {"baseline": ar_base, "extended": ar_ext}},
-            **({"unconfirmed": unconfirmed} if unconfirmed else {}),
-            "baseline_model": "fem", "score_kind": "bic_on_n_eff", "rule": _FEM_RULE,
-            "ar_label": "paper AR(1), coefficients from the [rod] values (eqs. 13-14)"}
+    return cause, causes, pair
+
+
+def _effect_rule(cause, causes, ext, base, tests, t, y, rows):
+    """Rule 10: a named cause whose effect on the fit window is within ``EFFECT_FACTOR``
+    times the slow part of the noise is not named. Returns (cause, causes, extended
+    fit, the unconfirmed record or None)."""
+    if cause == "none":
+        return cause, causes, ext, None
+    effect, slow = _effect_and_slow_noise(t, y, rows, ext, base)
+    if effect >= EFFECT_FACTOR * slow:
+        return cause, causes, ext, None
+    named = "+".join(causes)
+    unconfirmed = {"cause": named, "parameters": ext.parameters,
+                   "named_by": tests.get(cause, {}).get("named_by"),
+                   "effect_rms_um": effect, "slow_noise_um": slow,
+                   "why": (f"{named} changes the fit window by {effect:.3g} µm RMS, "
+                           f"within {EFFECT_FACTOR:g} x the slow part of the noise "
+                           f"({slow:.3g} µm, the residual's 30-min means): "
+                           "unconfirmed, so no cause is named")}
+    return "none", [], base, unconfirmed
 
 
 def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnings,
-                    progress, intervals=True, drift_last=False, on_fit=None):
+                    progress, intervals=True, drift_last=False, on_fit=None) -> BranchResult:
     """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
     speed-only cause fitted as an output-error AR(1) (the frame structure chosen by
     forward-chaining validation where there are thermometers), the cause named by
     validation, and its parameters' 95 % intervals by the grouped jackknife
     (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`; not computed, ``{}``,
-    with ``intervals=False``); ``drift_last`` and ``on_fit`` as in :func:`diagnose`.
-    Returns a dict of
-    the kind :func:`_diagnose_fem` returns."""
+    with ``intervals=False``); ``drift_last`` and ``on_fit`` as in :func:`diagnose`."""
     rod = ds.rod
     levels, seen, W, map_info = speed_to_heat_map(t, sp, temps, rows)
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
@@ -423,6 +543,47 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
             on_fit(c, tr, f)
         return f
 
+    fits, cvs = _fit_and_validate(fit_c, rows, seen, W, y, folds, fold_maps, progress)
+    cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
+                                                    robust=frame_search == "average",
+                                                    drift_last=drift_last)
+    if frame_struct is not None:
+        neff["frame_structure"] = _frame_structure_record(frame_struct, frame_search,
+                                                          frame_table)
+    ci = {}
+    if cause != "none" and intervals:
+        progress(f"95 % intervals (block jackknife): {cause}")
+        # each refit maps the speeds its rows do not hold as the procedure maps unseen
+        # speeds (eqs. 20-21), as the validation folds do
+        def refit(tr):
+            return fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3])
+        ci = _jackknife_intervals(refit, fits[cause], cause, y, rows, warnings)
+    text.append(f"speed-to-heat mapping: {json_text(map_info)}")
+    text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
+    ext = fits[cause] if cause != "none" else base_paper
+    speed_inputs = SpeedFrameInputs(t, sp, rows, seen, W, temps, frame_struct) \
+        if cause == "frame_expansion" and frame_struct is not None else None
+    return BranchResult(
+        fits=fits, cause=cause, causes=() if cause == "none" else (cause,), runner=runner,
+        scores=scores, tests=tests, selection=neff, extended=ext, baseline=base_paper,
+        time_constant_s=_time_constant_h(fits["none"]) * 3600.0,
+        # output-error AR: the reference the candidates are tested against
+        ar_forms={"ar_output_error": ArForm(fits["none"], ext)},
+        baseline_model="ar", score_kind="validation_rmse_um", rule=_SPEED_RULE,
+        ar_label="paper AR(1) calibrated by eq. 17 before the hold-out",
+        ci95=ci, speed_inputs=speed_inputs)
+
+
+def _time_constant_h(fit) -> float:
+    """The AR(1) rod's time constant of a speed fit [h] (1 h where it has none)."""
+    return 1.0 if fit.time_constant_h is None else fit.time_constant_h
+
+
+def _fit_and_validate(fit_c, rows, seen, W, y, folds, fold_maps, progress):
+    """Every speed-only cause fitted on the fit rows (``fit_c(cause, rows, seen, W)``)
+    and its forward-chaining validation RMSE [µm] (:func:`cv_rmse`; each fold refitted
+    with its own speed mapping). Returns (fits by cause, None where a cause does not
+    apply; validation by cause)."""
     fits, cvs = {}, {}
     for c in SPEED_CAUSES:
         progress(f"AR fit and validation: {c}")
@@ -430,7 +591,6 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         fits[c] = f
         if f is None:
             continue
-        f.extra["_res"] = (y - f.prediction)[rows]
         it = iter(fold_maps)
 
         def fitter(tr, c=c, it=it):
@@ -439,46 +599,30 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         cvs[c] = cv_rmse(fitter, y, folds)
     for c in CAUSES:
         fits.setdefault(c, None)
-    cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
-                                                    robust=frame_search == "average",
-                                                    drift_last=drift_last)
-    if frame_struct is not None:
-        neff["frame_structure"] = {"components": frame_struct.components,
-                                   "sensor_lag_h": frame_struct.sensor_lag_h,
-                                   "heat_exponent": frame_struct.heat_exponent,
-                                   "slow_response": frame_struct.slow_lag,
-                                   "label": frame_struct.label,
-                                   "search": frame_search,
-                                   "validation_rmse_um": frame_table}
-    ci = {}
-    if cause != "none" and intervals:
-        progress(f"95 % intervals (block jackknife): {cause}")
-        # each refit maps the speeds its rows do not hold as the procedure maps unseen
-        # speeds (eqs. 20-21), as the validation folds do
-        def refit(tr):
-            return fit_c(cause, tr, *speed_to_heat_map(t, sp, temps, tr)[1:3])
-        detail = {}
-        ci = jackknife_ci95(refit, fits[cause], y, rows, CONTRACT_PARAMETERS[cause],
-                            detail=detail)
-        for k, why in detail.get("not_bounded", {}).items():
-            warnings.append(f"{cause}: {k} = {fits[cause].parameters[k]:.4g} is not "
-                            f"determined by the data before the hold-out ({why}); its "
-                            f"95 % interval is the range the fit can return, or none")
-    text.append(f"speed-to-heat mapping: {json_text(map_info)}")
-    text.append(f"paper AR(1) calibration: {json_text(paper_info)}")
-    ext = fits[cause] if cause != "none" else base_paper
-    speed_export = {"t": t, "speed": sp, "rows": rows, "seen": seen, "W": W, "temps": temps,
-                    "structure": frame_struct} \
-        if cause == "frame_expansion" and frame_struct is not None else None
-    return {"fits": fits, "cause": cause, "causes": [] if cause == "none" else [cause],
-            "speed_export": speed_export,
-            "runner": runner, "scores": scores, "tests": tests, "neff": neff, "ext": ext,
-            "base": base_paper, "refused": {}, "ci95": ci,
-            "tau_s": fits["none"].extra.get("time_constant_h", 1.0) * 3600.0,
-            # output-error AR: the reference the candidates are tested against
-            "extra_models": {"ar_output_error": {"baseline": fits["none"], "extended": ext}},
-            "baseline_model": "ar", "score_kind": "validation_rmse_um", "rule": _SPEED_RULE,
-            "ar_label": "paper AR(1) calibrated by eq. 17 before the hold-out"}
+    return fits, cvs
+
+
+def _frame_structure_record(frame_struct, frame_search, frame_table) -> dict:
+    """The chosen thermometer frame structure as diagnosis.json's ``selection`` gives it."""
+    return {"components": frame_struct.components,
+            "sensor_lag_h": frame_struct.sensor_lag_h,
+            "heat_exponent": frame_struct.heat_exponent,
+            "slow_response": frame_struct.slow_lag,
+            "label": frame_struct.label,
+            "search": frame_search,
+            "validation_rmse_um": frame_table}
+
+
+def _jackknife_intervals(refit, fit, cause, y, rows, warnings) -> dict:
+    """The named speed cause's 95 % intervals by the grouped jackknife, with a warning for
+    each parameter the data before the hold-out do not determine."""
+    detail = {}
+    ci = jackknife_ci95(refit, fit, y, rows, CONTRACT_PARAMETERS[cause], detail=detail)
+    for k, why in detail.get("not_bounded", {}).items():
+        warnings.append(f"{cause}: {k} = {fit.parameters[k]:.4g} is not "
+                        f"determined by the data before the hold-out ({why}); its "
+                        f"95 % interval is the range the fit can return, or none")
+    return ci
 
 
 def _residual_analysis(t, y, pred, mask, signals: dict, running, tau_s):
@@ -547,11 +691,11 @@ def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
             "parameters": fits[runner].parameters, "why_lost": why}
 
 
-def _ar_form(extra_models, y, hold):
+def _ar_form(ar_forms, y, hold):
     """Hold-out scores of the AR-form realisations of the baseline and extended model."""
     ar_out = {}
-    for key, d in extra_models.items():
-        bb, ee = d["baseline"], d["extended"]
+    for key, d in ar_forms.items():
+        bb, ee = d.baseline, d.extended
         if bb is None or ee is None:
             continue
         bh = st.rmse((y - bb.prediction)[hold])
@@ -575,22 +719,23 @@ def _add_mlr(summary, series, y, temps, rows, hold):
         series["mlr_um"] = pm
 
 
-def _add_version2(summary, v2, y, rows, hold, good, warnings, noise_floor_um=0.0):
+def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
+                  noise_floor_um=0.0):
     """The contract's version-2 fields: ``causes`` (with 95 % intervals),
     ``parameters_ci95``, ``warnings``; and the parsimony / second-cause records."""
-    ext = v2["ext"]
+    ext = branch.extended
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
-    entries = _cause_entries(ext, v2["causes"], y, rows, v2.get("ci95"))
-    if "ci95" not in v2:
-        eq = ext.extra.get("equivalent") if len(entries) > 1 else v2["equivalent"]
+    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
+    if branch.ci95 is None:
+        eq = ext.equivalent if len(entries) > 1 else branch.equivalent
         if eq is not None:
             summary["equivalent_alternative"] = eq
             _widen_for_model_choice(entries, eq)
-        summary["second_cause_tests"] = v2["pairs_tried"]
+        summary["second_cause_tests"] = list(branch.pairs_tried)
         summary["refused_candidates"] = [{"cause": c, "refused": why,
-                                          "parameters": v2["fits"][c].parameters}
-                                         for c, why in v2["refused"].items()]
+                                          "parameters": branch.fits[c].parameters}
+                                         for c, why in branch.refused.items()]
     summary["contract_version"] = 2
     summary["causes"] = entries
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
@@ -655,11 +800,11 @@ def _named_cause_warnings(summary, entries, noise_um) -> list[str]:
     return out
 
 
-def _summary(ds, v2, bres, eres, holdout):
-    """diagnosis.json's main fields from the branch's result ``v2`` (:func:`_diagnose_fem`
-    or :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
-    fits, cause, scores, tests = v2["fits"], v2["cause"], v2["scores"], v2["tests"]
-    ext, base_model, score_kind = v2["ext"], v2["baseline_model"], v2["score_kind"]
+def _summary(ds, branch: BranchResult, bres, eres, holdout):
+    """diagnosis.json's main fields from the branch's result (:func:`_diagnose_fem` or
+    :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
+    fits, cause, scores, tests = branch.fits, branch.cause, branch.scores, branch.tests
+    ext, base_model, score_kind = branch.extended, branch.baseline_model, branch.score_kind
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -687,13 +832,13 @@ def _summary(ds, v2, bres, eres, holdout):
                         "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                        for c in sorted(scores, key=scores.get)],
         "runner_up": None,
-        "selection": {"rule": v2["rule"], **v2["neff"]},
+        "selection": {"rule": branch.rule, **branch.selection},
         "not_applicable": [c for c in CAUSES if fits.get(c) is None],
-        "refused": dict(v2.get("refused", {})),
+        "refused": dict(branch.refused),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
-    summary["runner_up"] = _runner_up(ds.input_kind, cause, v2["runner"], fits, scores,
+    summary["runner_up"] = _runner_up(ds.input_kind, cause, branch.runner, fits, scores,
                                       tests, score_kind)
     return summary
 
@@ -739,53 +884,94 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     """
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
+    r = _prepare_record(ds, holdout_start_s)
+    text, warnings = [], []
+    if ds.input_kind == "q_W_m2":
+        branch = _diagnose_fem(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, warnings, step)
+    else:
+        branch = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
+                             warnings, step, intervals, drift_last, on_fit)
+    step("residuals and hold-out")
+    branch, holdout = _score_holdout(branch, r, warnings)
+    t, y, good, base, ext = r.t, r.y, r.good, branch.baseline, branch.extended
+    running = r.u > 0
+    bres = _residual_analysis(t, y, base.prediction, good, r.signals, running,
+                              branch.time_constant_s)
+    eres = _residual_analysis(t, y, ext.prediction, good, r.signals, running,
+                              branch.time_constant_s)
+    summary = _summary(ds, branch, bres, eres, holdout)
+    if branch.unconfirmed is not None:
+        summary["unconfirmed"] = branch.unconfirmed
+    summary["ar_form"] = _ar_form(branch.ar_forms, y, r.hold)
+    summary["ar_form_description"] = branch.ar_label
+    _add_version2(summary, branch, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)
+    series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
+              "extended_um": ext.prediction, "outlier": (~good).astype(float)}
+    series.update({k: v for k, v in r.signals.items() if k not in series})
+    _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
+    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
+    models = {"extended": ext, "causes": tuple(branch.causes),
+              "physics": branch.physics, "speed": branch.speed_inputs}
+    return Diagnosis(summary, series, text, models)
+
+
+class _Record(NamedTuple):
+    """The record as the diagnosis reads it: every row with an input (rows without a
+    growth reading keep theirs, see :func:`_observations`) and the hold-out split.
+
+    Attributes: ``t`` sample times [s], ``y`` growth [µm] (NaN where not observed),
+    ``good`` observed and not an outlier, ``u`` the input (``q_W_m2`` [W/m²] or
+    ``speed_rpm`` [1/min]), ``rows`` / ``hold`` the good rows before / from the
+    hold-out start ``start_s`` [s] (``how_chosen`` says how), ``amb_K`` the recorded
+    ambient minus the nominal [K] or None, ``temps`` the temperatures [°C] by column,
+    ``signals`` the recorded signals the residual is correlated with; arrays of
+    shape (N,).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    good: np.ndarray
+    u: np.ndarray
+    rows: np.ndarray
+    hold: np.ndarray
+    start_s: float
+    how_chosen: str
+    amb_K: np.ndarray | None
+    temps: dict
+    signals: dict
+
+
+def _prepare_record(ds, holdout_start_s) -> _Record:
+    """The rows, the input, the hold-out split and the signals of a record."""
     t, y, observed, outl, cols = _observations(ds)
     good = observed & ~outl
     u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
     hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)
-    rows = good & (t < hs)
-    hold = good & (t >= hs)
     amb_K = None if cols["ambient_C"] is None else cols["ambient_C"] - ds.rod.ambient_C
     temps = {k: cols[k] for k in ds.temperatures}
-    signals = _signals(ds.input_kind, cols, temps)
-    text, warnings = [], []
-    if ds.input_kind == "q_W_m2":
-        v2 = _diagnose_fem(ds, t, u, y, rows, amb_K, temps, warnings, step)
-    else:
-        v2 = _diagnose_speed(ds, t, u, y, rows, amb_K, temps, frame_search, text, warnings,
-                             step, intervals, drift_last, on_fit)
-    base, ext = v2["base"], v2["ext"]
+    return _Record(t, y, good, u, good & (t < hs), good & (t >= hs), hs, how, amb_K, temps,
+                   _signals(ds.input_kind, cols, temps))
 
-    step("residuals and hold-out")
-    running = u > 0
-    b_hold, e_hold, gain = _holdout_scores(y, base.prediction, ext.prediction, hold)
-    unconfirmed = v2.get("unconfirmed")     # rule 10 (in the branch)
-    if unconfirmed is not None:
-        warnings.append(unconfirmed["why"])
-    elif (unconfirmed := _unconfirmed(v2, gain)) is not None:   # rule 9
-        v2 = {**v2, "cause": "none", "causes": [], "ext": base, "unconfirmed": unconfirmed}
-        if "extra_models" in v2 and "ar" in v2["extra_models"]:
-            ar = v2["extra_models"]["ar"]
-            v2["extra_models"] = {**v2["extra_models"],
-                                  "ar": {"baseline": ar["baseline"], "extended": ar["baseline"]}}
-        ext = base
+
+def _score_holdout(branch: BranchResult, r: _Record,
+                   warnings) -> tuple[BranchResult, dict]:
+    """The hold-out scores of the branch's baseline and extended model, and rule 9: a
+    cause named by the misfit rule that makes the hold-out worse is not named (the
+    branch result is returned without it). Returns (branch result, diagnosis.json's
+    ``holdout``)."""
+    base = branch.baseline
+    b_hold, e_hold, gain = _holdout_scores(r.y, base.prediction, branch.extended.prediction,
+                                           r.hold)
+    if branch.unconfirmed is not None:        # rule 10 (in the branch)
+        warnings.append(branch.unconfirmed["why"])
+    elif (unconfirmed := _unconfirmed(branch.cause, branch.causes, branch.tests,
+                                      branch.extended.parameters, gain)) is not None:   # rule 9
+        ar_forms = dict(branch.ar_forms)
+        if "ar" in ar_forms:
+            ar_forms["ar"] = ArForm(ar_forms["ar"].baseline, ar_forms["ar"].baseline)
+        branch = branch.copy_with(cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
+                          ar_forms=ar_forms)
         warnings.append(unconfirmed["why"])
         e_hold, gain = b_hold, 0.0
-    bres = _residual_analysis(t, y, base.prediction, good, signals, running, v2["tau_s"])
-    eres = _residual_analysis(t, y, ext.prediction, good, signals, running, v2["tau_s"])
-    summary = _summary(ds, v2, bres, eres, {
-        "start_s": hs, "how_chosen": how, "baseline_rmse_um": b_hold,
-        "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(hold.sum())})
-    if unconfirmed is not None:
-        summary["unconfirmed"] = unconfirmed
-    summary["ar_form"] = _ar_form(v2["extra_models"], y, hold)
-    summary["ar_form_description"] = v2["ar_label"]
-    _add_version2(summary, v2, y, rows, hold, good, warnings, ds.noise_floor_um)
-    series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
-              "extended_um": ext.prediction, "outlier": (~good).astype(float)}
-    series.update({k: v for k, v in signals.items() if k not in series})
-    _add_mlr(summary, series, y, temps, rows, hold)
-    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
-    models = {"extended": ext, "causes": tuple(v2["causes"]),
-              "physics": v2.get("physics"), "speed": v2.get("speed_export")}
-    return Diagnosis(summary, series, text, models)
+    return branch, {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,
+                "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(r.hold.sum())}

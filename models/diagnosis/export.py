@@ -52,8 +52,8 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     ----------
     fit : CandidateFit
         A fit of :func:`arfem.models.diagnosis.candidates.fit_causes` on
-        :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``extra`` holds the
-        causes, θ and the linear coefficients).
+        :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``causes`` and
+        ``joint``: θ and the linear coefficients).
     phys : FemPhysics
         The physics the fit ran on.
     dtau_s : float
@@ -90,13 +90,13 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     >>> bool(np.max(np.abs(np.array(pred) - y)) < 1e-9 * np.max(y))
     True
     """
-    causes = tuple(fit.extra.get("causes", ()))
+    causes = tuple(fit.causes)
     bad = [c for c in causes if c in NOT_LTI]
     if bad:
         raise InputError(f"{bad[0]} changes the rod's modes with the input or the state: "
                          "not a linear time-invariant model, so it is not exported",
                          "model_extended.json")
-    theta, lin = fit.extra.get("theta", {}), fit.extra.get("linear", {})
+    theta, lin = fit.theta, (fit.joint.linear if fit.joint is not None else {})
     rod, m = phys.rod, phys.m
     h = float(np.exp(theta["log_h"])) if "convection_mismatch" in causes \
         else rod.convection_W_m2K
@@ -113,22 +113,10 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
         cols.append(k * w * h * E.fb)
         inputs.append(InputSpec("ambient_C", "°C"))
         offsets["ambient_C"] = float(rod.ambient_C)
-    n = E.lam.size
-    A = np.diag(a)
-    B = np.column_stack(cols)
-    C = np.array(E.g, float)
+    A, B, C = np.diag(a), np.column_stack(cols), np.array(E.g, float)
     if "frame_expansion" in causes:
-        af = float(np.exp(-dtau_s / (np.exp(theta["log_tau_h"]) * 3600.0)))
-        A = np.block([[A, np.zeros((n, 1))], [np.zeros((1, n)), np.array([[af]])]])
-        row = np.zeros((1, B.shape[1]))
-        row[0, 0] = (1.0 - af) * phys.steady_gain_um_per_W_m2()
-        B = np.vstack([B, row])
-        C = np.concatenate([C, [float(lin["frame_gain"])]])
-    if "sensor_drift" in causes:
-        notes.append("sensor_drift left out: a sensor's drift is not growth of the machine")
-    if any(k.startswith("_initial") for k in lin):
-        notes.append("the record's unknown initial state is not carried: the compensator "
-                     "starts at equilibrium")
+        A, B, C = _with_frame_state(A, B, C, theta, lin, phys, dtau_s)
+    notes += _left_out(causes, lin)
     desc = "; ".join([description] + notes) if description or notes else ""
     return StateSpaceModel(
         kind="extended:" + "+".join(causes) if causes else "fem", dtau_s=float(dtau_s),
@@ -137,7 +125,30 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
         description=desc, arfem_version=arfem_version, input_offsets=offsets)
 
 
-def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
+def _with_frame_state(A, B, C, theta, lin, phys, dtau_s):
+    """``frame_expansion`` as one more state: the first-order lag (τ = e^θ [h]) of the
+    rod's steady growth target (the flux [W/m²] times the rod's steady gain), seen
+    through the fitted frame gain [-]."""
+    n = A.shape[0]
+    af = float(np.exp(-dtau_s / (np.exp(theta["log_tau_h"]) * 3600.0)))
+    A = np.block([[A, np.zeros((n, 1))], [np.zeros((1, n)), np.array([[af]])]])
+    row = np.zeros((1, B.shape[1]))
+    row[0, 0] = (1.0 - af) * phys.steady_gain_um_per_W_m2()
+    return A, np.vstack([B, row]), np.concatenate([C, [float(lin["frame_gain"])]])
+
+
+def _left_out(causes, lin) -> list[str]:
+    """What the exported model leaves out of the fit, said in its description."""
+    notes = []
+    if "sensor_drift" in causes:
+        notes.append("sensor_drift left out: a sensor's drift is not growth of the machine")
+    if any(k.startswith("_initial") for k in lin):
+        notes.append("the record's unknown initial state is not carried: the compensator "
+                     "starts at equilibrium")
+    return notes
+
+
+def speed_state_space(fit, info, dtau_s: float, *, R_um2: float = 0.0,
                       description: str = "", arfem_version: str = "") -> StateSpaceModel:
     """The thermometer frame model of a speed record as a model at interval Δτ.
 
@@ -157,10 +168,9 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
     Parameters
     ----------
     fit : CandidateFit
-        The ``frame_expansion`` fit (its ``extra["coefficients"]``).
-    info : dict
-        ``t``, ``speed``, ``rows``, ``seen``, ``W``, ``temps``, ``structure`` of the fit
-        (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
+        The ``frame_expansion`` fit (its ``frame.coefficients`` and ``time_constant_h``).
+    info : SpeedFrameInputs
+        What the fit ran on (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
         ``Diagnosis.models["speed"]``).
     dtau_s : float
         Interval Δτ [s] (the record's).
@@ -174,22 +184,18 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
         structures (not exported).
     """
     from arfem.models.diagnosis.speed_frame import FrameEnsemble
-    st = info["structure"]
+    st = info.structure
     where = "model_extended.json"
     if isinstance(st, FrameEnsemble) or st.slow_lag or st.heat_exponent is not None:
         raise InputError(f"the frame structure {getattr(st, 'label', st)} (a heat law, a "
                          "slow response or an average of structures) is not exported yet",
                          where)
-    coef = np.asarray(fit.extra["coefficients"], float)
-    seen = [float(v) for v in info["seen"]]
+    coef = np.asarray(fit.frame.coefficients, float)
+    seen = [float(v) for v in info.seen]
     nl = len(seen)
     gains, decay, c, gamma = coef[:nl], coef[nl], coef[nl + 1], coef[nl + 2:]
-    b = 1.0 / (fit.extra["time_constant_h"] * 3600.0)
-    level_gain = {sv: g for sv, g in zip(seen, gains)}
-    for lv, w in info["W"].items():
-        level_gain[float(lv)] = float(sum(wt * level_gain[float(sv)] for sv, wt in w.items()))
-    xs = np.array(sorted(level_gain))
-    maps = {"speed_rpm": (xs, np.array([level_gain[v] for v in xs]))}
+    b = 1.0 / (fit.time_constant_h * 3600.0)
+    maps = {"speed_rpm": _speed_gain_table(seen, gains, info.W)}
     a = float(np.exp(-b * dtau_s))
     inputs = [InputSpec("speed_rpm", "1/min")]
     A, B, C, x0 = [[a]], [[1.0 - a]], [1.0], [float(decay)]
@@ -197,16 +203,7 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
     offsets = {}
     k = int(gamma.size)
     if k:
-        rows = np.asarray(info["rows"], bool)
-        names = [nm for nm, v in info["temps"].items() if np.all(np.isfinite(np.asarray(v, float)))]
-        T = np.column_stack([np.asarray(info["temps"][nm], float) for nm in names])
-        mu, sd = T[rows].mean(0), T[rows].std(0)
-        sd[sd == 0] = 1.0
-        Z = (T - mu) / sd
-        lam, V = np.linalg.eigh(Z[rows].T @ Z[rows])
-        lam, V = lam[::-1], V[:, ::-1]
-        scale = np.array([max(np.sqrt(max(lam[j], 0.0) / rows.sum()), 1e-12) for j in range(k)])
-        W = V[:, :k] / sd[:, None] / scale[None, :]      # (m, k): raw_j = Σ_i (T_i − μ_i) W_ij
+        names, T, mu, W = _component_weights(info, k)
         inputs += [InputSpec(nm, "°C") for nm in names]
         offsets = {nm: float(m) for nm, m in zip(names, mu)}
         m = len(names)
@@ -230,3 +227,30 @@ def speed_state_space(fit, info: dict, dtau_s: float, *, R_um2: float = 0.0,
         inputs=tuple(inputs), x0=np.asarray(x0, float), d0_um=float(c),
         Q=float(fit.rss / max(fit.n, 1)), R=float(R_um2), description=description,
         arfem_version=arfem_version, input_maps=maps, input_offsets=offsets)
+
+
+def _speed_gain_table(seen, gains, W):
+    """(speeds [1/min], steady gains [µm]) sorted by speed: the fitted gain of each seen
+    speed and the mapped gain of each unseen one (weights ``W`` of eqs. 20-21)."""
+    level_gain = {sv: g for sv, g in zip(seen, gains)}
+    for lv, w in W.items():
+        level_gain[float(lv)] = float(sum(wt * level_gain[float(sv)] for sv, wt in w.items()))
+    xs = np.array(sorted(level_gain))
+    return xs, np.array([level_gain[v] for v in xs])
+
+
+def _component_weights(info, k):
+    """The leading ``k`` principal components of the standardised temperatures as
+    weights on the raw ones: (names, T (N, m) [°C], fit-window means μ (m,) [°C],
+    W (m, k) [1/°C]) with component_j = Σ_i (T_i − μ_i) W_ij, as
+    :func:`arfem.models.diagnosis.speed_frame.frame_components` makes them."""
+    rows = np.asarray(info.rows, bool)
+    names = [nm for nm, v in info.temps.items() if np.all(np.isfinite(np.asarray(v, float)))]
+    T = np.column_stack([np.asarray(info.temps[nm], float) for nm in names])
+    mu, sd = T[rows].mean(0), T[rows].std(0)
+    sd[sd == 0] = 1.0
+    Z = (T - mu) / sd
+    lam, V = np.linalg.eigh(Z[rows].T @ Z[rows])
+    lam, V = lam[::-1], V[:, ::-1]
+    scale = np.array([max(np.sqrt(max(lam[j], 0.0) / rows.sum()), 1e-12) for j in range(k)])
+    return names, T, mu, V[:, :k] / sd[:, None] / scale[None, :]

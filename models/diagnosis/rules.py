@@ -70,7 +70,7 @@ def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
     """Scores, the named cause and the runner-up (see module docstring)."""
     valid = {c: f for c, f in fits.items() if f is not None}
     best_fit = min(valid.values(), key=lambda f: f.rss)
-    r_best = best_fit.extra.get("_res")
+    r_best = best_fit.residual_um
     n = base.n
     rho = st.lag1(r_best) if r_best is not None else 0.0
     n_eff = st.noise_n_eff(r_best) if r_best is not None else float(n)
@@ -139,9 +139,9 @@ def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False,
     runner = next((c for c in order if c != cause), None)
     blocks = [[float(t[v][0]), float(t[v][-1])] for _, v in folds]
     n = fits["none"].n
-    rho = st.lag1(fits["none"].extra["_res"])
+    rho = st.lag1(fits["none"].residual_um)
     return cause, runner, scores, tests, {
-        "n": n, "rho1": rho, "n_eff": st.noise_n_eff(fits["none"].extra["_res"]),
+        "n": n, "rho1": rho, "n_eff": st.noise_n_eff(fits["none"].residual_um),
         "validation_blocks_s": blocks, "baseline_cv_rmse_um": base_cv,
         "baseline_cv_per_block_um": base_per,
         **({"naming": f"post hoc rule of --frame-search average: the cause with the least "
@@ -173,8 +173,8 @@ def _implausible(fit: CandidateFit):
             ok = lo <= v <= hi
         if not ok:
             return f"{k} = {v:.3g} is outside the plausible range [{lo:g}, {hi:g}] {unit}"
-    if fit.extra.get("at_bound"):
-        names = ", ".join(fit.extra["at_bound"])
+    if fit.at_bound:
+        names = ", ".join(fit.at_bound)
         return f"the fit ran to the edge of its search range ({names}): no physical optimum"
     return None
 
@@ -192,10 +192,11 @@ def _units_warning(fits, rod):
     # simulation's must also be far off (an ambient swing or a drift can make the best
     # heat scale small while the magnitudes agree)
     base = fits["none"]
-    rows = np.isfinite(base.extra["_res"])
-    y_fit = base.extra["_res"][rows]            # measured − nominal, on the fit rows
-    spread = float(np.std(y_fit + base.extra["_nominal"]))
-    nominal = float(np.std(base.extra["_nominal"]))
+    nominal_um = base.prediction[base.fit_rows]  # the nominal simulation on the fit rows
+    rows = np.isfinite(base.residual_um)
+    y_fit = base.residual_um[rows]              # measured − nominal, on the fit rows
+    spread = float(np.std(y_fit + nominal_um))
+    nominal = float(np.std(nominal_um))
     ratio = spread / nominal if nominal > 0 else 1.0
     if lo <= sc <= hi or UNITS_RATIO < ratio < 1.0 / UNITS_RATIO:
         return None
@@ -214,7 +215,7 @@ def _parsimony(cause, fits, tests, neff):
     if cause == "none" or cause not in fits:
         return cause, None
     top = fits[cause]
-    r = top.extra.get("_res")
+    r = top.residual_um
     n_eff = st.noise_n_eff(r) if r is not None else neff["n_eff"]
     best = None
     for c, t in tests.items():
@@ -259,7 +260,7 @@ def _pair_test(f, lead_fit, y, rows, n_pairs):
     cut = 1.0 - np.sqrt(f.rss / lead_fit.rss) if lead_fit.rss > 0 else 0.0
     why_not = _implausible(f)
     sig = bool(p < ALPHA / max(n_pairs, 1) and cut >= PAIR_MIN_GAIN and why_not is None)
-    return {"causes": list(f.extra["causes"]), "p_value": p, "rmse_cut_pct": 100 * cut,
+    return {"causes": list(f.causes), "p_value": p, "rmse_cut_pct": 100 * cut,
             "n_eff": n_eff, "significant": sig, "parameters": f.parameters,
             **({"refused": why_not} if why_not else {})}
 
@@ -279,8 +280,8 @@ def _second_cause(cause, fits, phys, args, refused):
         start = {}
         for c in pair[::-1]:
             f = fits.get(c)
-            if f is not None and not f.extra.get("at_bound"):
-                start.update(f.extra.get("theta", {}))
+            if f is not None and not f.at_bound:
+                start.update(f.theta)
         start.update(extra_start or {})
         return fit_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
 
@@ -302,7 +303,7 @@ def _second_cause(cause, fits, phys, args, refused):
     const = fitted.get("convection_mismatch")
     ups = []
     if const is not None and cause not in H_CAUSES_2:
-        log_h = const.extra["theta"]["log_h"]
+        log_h = const.theta["log_h"]
         for m in H_CAUSES_2:
             if fits.get(m) is None or not compatible((cause, m)):
                 continue
@@ -317,9 +318,9 @@ def _second_cause(cause, fits, phys, args, refused):
             gain = 1.0 - np.sqrt(g.rss / const.rss) if const.rss > 0 else 0.0
             if p < PARSIMONY_P and gain >= MIN_GAIN and rec["significant"]:
                 ups.append(g)
-            elif best is const and "equivalent" not in const.extra:
-                const.extra["equivalent"] = _equivalent(g, p, _fewer_parameters_why(m, cause,
-                                                                                     gain, p))
+            elif best is const and const.equivalent is None:
+                const = best = const.copy_with(equivalent=_equivalent(
+                    g, p, _fewer_parameters_why(m, cause, gain, p)))
     if ups:
         ups.sort(key=lambda g: g.rss)
         g = ups[0]
@@ -328,16 +329,16 @@ def _second_cause(cause, fits, phys, args, refused):
                 r = (y - g.prediction)[rows]
                 p = st.f_test_p(ups[1].rss, g.rss, 1, st.noise_n_eff(r))
                 if p >= PARSIMONY_P:
-                    other = "+".join(ups[1].extra["causes"])
-                    g.extra["equivalent"] = _equivalent(ups[1], p, (
+                    other = "+".join(ups[1].causes)
+                    g = g.copy_with(equivalent=_equivalent(ups[1], p, (
                         f"{other} fits as well (RMSE {np.sqrt(ups[1].rss / ups[1].n):.3g} "
                         f"against {np.sqrt(g.rss / g.n):.3g} µm, F test p = {p:.3g}): two "
-                        "explanations fit alike; the data do not tell them apart"))
+                        "explanations fit alike; the data do not tell them apart")))
             best = g
     if best is not None:
         best = _h_swap(best, fits, y, rows, fit_pair, tried, lead, len(pairs))
         best = _pair_parsimony(best, fits, phys, args)
-        best.extra["causes"] = tuple(sorted(best.extra["causes"], key=lambda c: fits[c].rss))
+        best = best.copy_with(causes=tuple(sorted(best.causes, key=lambda c: fits[c].rss)))
     return best, tried
 
 
@@ -350,7 +351,7 @@ def _fewer_parameters_why(m: str, other: str, gain: float, p: float) -> str:
 
 def _equivalent(alt, p: float, why: str) -> dict:
     """The record of an alternative that fits as well (``equivalent`` in the report)."""
-    return {"cause": "+".join(alt.extra["causes"]), "parameters": alt.parameters,
+    return {"cause": "+".join(alt.causes), "parameters": alt.parameters,
             "p_value": p, "why": why}
 
 
@@ -360,7 +361,7 @@ def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
     saw the partner's effect too. The swap is kept if significantly better (nested F
     test on N_eff, PARSIMONY_P, one degree of freedom); where neither is, the report
     says the two fit alike (``equivalent``)."""
-    causes = best.extra["causes"]
+    causes = best.causes
     h = next((c for c in causes if c in H_CAUSES_2), None)
     if h is None:
         return best
@@ -377,14 +378,13 @@ def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
                       "p_value_against_swapped": p})
         if p < PARSIMONY_P:
             best = lo
-        elif "equivalent" not in best.extra:
+        elif best.equivalent is None:
             alt = g if lo is best else best
-            best = lo
-            best.extra["equivalent"] = _equivalent(alt, p, (
-                f"{'+'.join(alt.extra['causes'])} fits as well (RMSE "
+            best = lo.copy_with(equivalent=_equivalent(alt, p, (
+                f"{'+'.join(alt.causes)} fits as well (RMSE "
                 f"{np.sqrt(alt.rss / alt.n):.3g} against {np.sqrt(best.rss / best.n):.3g} "
                 f"µm, nested F test p = {p:.3g}): two explanations fit alike; the data "
-                "before the hold-out do not tell them apart"))
+                "before the hold-out do not tell them apart")))
     return best
 
 
@@ -393,11 +393,11 @@ def _pair_parsimony(pair, fits, phys, args):
     or h and an exponent) fits no better than one constant h (nested F test on N_eff,
     p >= PARSIMONY_P), the pair with ``convection_mismatch`` in its place is named."""
     t, q, y, rows, initial_known, amb_K, frame = args
-    for m in pair.extra["causes"]:
+    for m in pair.causes:
         if m not in ("speed_dependent_convection", "nonlinear_convection"):
             continue
-        other = next(c for c in pair.extra["causes"] if c != m)
-        th = pair.extra["theta"]
+        other = next(c for c in pair.causes if c != m)
+        th = pair.theta
         log_h = (0.5 * (th["log_h_running"] + th["log_h_stopped"])
                  if m == "speed_dependent_convection" else th["log_h_ref"])
         start = {k: v for k, v in th.items() if not k.startswith("log_h") and k != "exponent"}
@@ -410,7 +410,8 @@ def _pair_parsimony(pair, fits, phys, args):
         p = st.f_test_p(g.rss, pair.rss, max(pair.k - g.k, 1), st.noise_n_eff(r))
         gain = 1.0 - np.sqrt(pair.rss / g.rss) if g.rss > 0 else 0.0
         if p >= PARSIMONY_P or gain < MIN_GAIN:
-            g.extra["equivalent"] = _equivalent(pair, p, _fewer_parameters_why(m, other, gain, p))
+            g = g.copy_with(equivalent=_equivalent(pair, p,
+                                                  _fewer_parameters_why(m, other, gain, p)))
             if "convection_mismatch" not in fits or fits["convection_mismatch"] is None:
                 return pair
             return g
@@ -460,19 +461,20 @@ def _effect_and_slow_noise(t, y, rows, ext, base):
     return effect, float(np.sqrt(np.mean(means * means)))
 
 
-def _unconfirmed(v2, gain_pct):
+def _unconfirmed(cause, causes, tests, parameters, gain_pct):
     """Rule 9: a cause named by the misfit rule (not by the F test) that makes the
     hold-out worse than the baseline is not a finding: the record's misfit may be slow
     sensor noise, which a flexible cause fits inside the window and which does not carry
-    past it. Returns the record of the unconfirmed candidate, or None."""
-    cause = v2["cause"]
+    past it. ``cause``, ``causes``, ``tests`` as the branch named them, ``parameters``
+    the extended model's, ``gain_pct`` the hold-out gain [%]. Returns the record of the
+    unconfirmed candidate, or None."""
     if cause == "none" or not np.isfinite(gain_pct) or gain_pct >= 0:
         return None
-    by = str(v2["tests"].get(cause, {}).get("named_by") or "")
+    by = str(tests.get(cause, {}).get("named_by") or "")
     if not by.startswith("misfit"):
         return None
-    named = "+".join(v2["causes"]) or cause
-    return {"cause": named, "parameters": v2["ext"].parameters, "named_by": by,
+    named = "+".join(causes) or cause
+    return {"cause": named, "parameters": parameters, "named_by": by,
             "holdout_gain_pct": float(gain_pct),
             "why": (f"{named} was named by the misfit rule but makes the hold-out worse "
                     f"(gain {gain_pct:.1f} %): unconfirmed, so no cause is named; the "

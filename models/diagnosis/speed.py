@@ -84,42 +84,8 @@ def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.
     seen = np.unique(speed[rows])
     unseen = [u for u in levels if u not in seen]
     info: dict = {"unseen_rpm": [float(u) for u in unseen]}
-    # the speed-following sensor: eq. 20-21 assume the early rise grows with the heat,
-    # so a sensor is usable only if its early rise is positive and strictly increasing
-    # with speed over the non-zero speeds seen before the hold-out (checked on fit rows)
-    steps = np.flatnonzero(np.diff(speed) != 0) + 1
-
-    def early_rise(T):
-        out = {}
-        for lv in levels:
-            vals = []
-            for i in steps:
-                if speed[i] != lv:
-                    continue
-                j = np.searchsorted(t, t[i - 1] + window_s)
-                if j < t.size and np.all(speed[i:j + 1] == lv):
-                    vals.append(T[j] - T[i - 1])
-            if vals:
-                out[float(lv)] = float(np.mean(vals))
-        return out
-
-    best, best_c, rise = None, 0.0, {}
-    rejected = {}
-    nz_seen = sorted(float(s) for s in seen if s != 0)
-    for name, T in temperatures.items():
-        T = np.asarray(T, float)
-        if not np.all(np.isfinite(T[rows])):
-            continue
-        r = early_rise(T)
-        rs = [r.get(s) for s in nz_seen]
-        if len(nz_seen) < 2 or any(v is None for v in rs):
-            continue
-        if not (rs[0] > 0 and np.all(np.diff(rs) > 0)):
-            rejected[name] = "early rise not positive and increasing with speed"
-            continue
-        c = abs(np.corrcoef(nz_seen, rs)[0, 1]) * min(rs)
-        if np.isfinite(c) and c > best_c:
-            best, best_c, rise = name, float(c), r
+    best, rise, rejected = _speed_following_sensor(t, speed, levels, seen, temperatures,
+                                                   rows, window_s)
     info.update(sensor=best, early_rise_K=rise, sensors_rejected=sorted(rejected))
     W = {}
     for u in unseen:
@@ -140,6 +106,50 @@ def speed_to_heat_map(t, speed, temperatures: dict, rows, window_s: float = 600.
         info.setdefault("mapping", {})[str(float(u))] = {"ref_rpm": float(ref), "ratio": ratio,
                                                           "how": how}
     return levels, seen, W, info
+
+
+def _early_rise(t, speed, levels, T, window_s) -> dict:
+    """Speed [1/min] -> mean rise [K] of ``T`` within ``window_s`` [s] after each step to
+    that speed (steps whose speed holds over the window only)."""
+    steps = np.flatnonzero(np.diff(speed) != 0) + 1
+    out = {}
+    for lv in levels:
+        vals = []
+        for i in steps:
+            if speed[i] != lv:
+                continue
+            j = np.searchsorted(t, t[i - 1] + window_s)
+            if j < t.size and np.all(speed[i:j + 1] == lv):
+                vals.append(T[j] - T[i - 1])
+        if vals:
+            out[float(lv)] = float(np.mean(vals))
+    return out
+
+
+def _speed_following_sensor(t, speed, levels, seen, temperatures, rows, window_s):
+    """The sensor whose early rise follows the speed best: eqs. 20-21 assume the early
+    rise grows with the heat, so a sensor is usable only if its early rise is positive
+    and strictly increasing with speed over the non-zero speeds seen before the hold-out
+    (checked on fit rows); of those, the largest |correlation| x smallest rise. Returns
+    (its name or None, its early rises {speed [1/min]: rise [K]}, {rejected: why})."""
+    best, best_c, rise = None, 0.0, {}
+    rejected = {}
+    nz_seen = sorted(float(s) for s in seen if s != 0)
+    for name, T in temperatures.items():
+        T = np.asarray(T, float)
+        if not np.all(np.isfinite(T[rows])):
+            continue
+        r = _early_rise(t, speed, levels, T, window_s)
+        rs = [r.get(s) for s in nz_seen]
+        if len(nz_seen) < 2 or any(v is None for v in rs):
+            continue
+        if not (rs[0] > 0 and np.all(np.diff(rs) > 0)):
+            rejected[name] = "early rise not positive and increasing with speed"
+            continue
+        c = abs(np.corrcoef(nz_seen, rs)[0, 1]) * min(rs)
+        if np.isfinite(c) and c > best_c:
+            best, best_c, rise = name, float(c), r
+    return best, rise, rejected
 
 
 def _level_inputs(speed, seen, W):
@@ -239,105 +249,154 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         Prediction [µm] over the record; parameters in the units their names carry
         (``drift_um_per_h`` [µm/h], ``ambient_gain_um_per_K`` [µm/K], ``b_*_1_s``
         [1/s], ``h_*_W_m2K`` [W/(m²·K)], ``frame_time_constant_h`` [h],
-        ``frame_gain`` [-]); ``extra["time_constant_h"]`` = 1/b [h]. None if the
+        ``frame_gain`` [-]); ``time_constant_h`` = 1/b [h]. None if the
         cause does not apply to this record.
     """
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
-    units = _level_inputs(speed, seen, W)
-    running = speed > 0
-    tag = "ar" if cause == "none" else f"ar+{cause}"
+    pb = _SpeedProblem(t, y, rows, _level_inputs(speed, seen, W),
+                       "ar" if cause == "none" else f"ar+{cause}")
+    if cause in ("none", "sensor_drift"):
+        return _fit_rate(pb, cause, [t / 3600.0] if cause == "sensor_drift" else [])
+    if cause == "ambient_drift":
+        return None if ambient_K is None else _fit_ambient(pb, ambient_K)
+    if cause == "speed_dependent_convection":
+        running = speed > 0
+        if running.all() or not running.any():
+            return None
+        return _fit_running_stopped(pb, running, rho_c_R)
+    if cause == "frame_expansion":
+        return _fit_frame_lag(pb)
+    return None
 
-    d = intervals(t)
 
-    def columns(b):
+#: search range of ln b [ln(1/s)]: time constants 1 min .. 200 h
+_LOG_RATE_BOUNDS = (np.log(1 / (200 * 3600.0)), np.log(1 / 60.0))
+
+
+def _search1(fun, lo, hi):
+    """The minimum of ``fun`` on [lo, hi]: a 13-point grid, then a bounded search
+    between the best point's neighbours."""
+    grid = np.linspace(lo, hi, 13)
+    vals = [fun(g) for g in grid]
+    i = int(np.argmin(vals))
+    res = minimize_scalar(fun, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
+                          method="bounded", options={"xatol": 1e-4})
+    return res.x
+
+
+class _SpeedProblem:
+    """The output-error AR(1) of a speed record: the columns of a rate b, their least
+    squares on the fit rows, and the fit made of them (:func:`fit_speed_candidate`).
+
+    ``t`` [s], ``y`` [µm] and ``rows`` (bool) of shape (N,); ``units`` the unit input of
+    each speed level (:func:`_level_inputs`); ``tag`` the model's name."""
+
+    def __init__(self, t, y, rows, units: dict, tag: str):
+        self.t, self.y, self.rows, self.units, self.tag = t, y, rows, units, tag
+        self.d = intervals(t)
+
+    def columns(self, b):
+        """One AR(1) column per level at rate(s) b [1/s] and the unknown initial state's
+        decay."""
+        t = self.t
         b_arr = np.broadcast_to(b, t.shape)
         # one pass for every level (they share the rate): the same numbers as one
         # ar_first_order(t, u / b, b, 1.0) per level
-        U = np.column_stack([u / b_arr for u in units.values()])
+        U = np.column_stack([u / b_arr for u in self.units.values()])
         cols = list(ar_columns_rates(t, U, b_arr).T)
-        cols.append(np.exp(-np.cumsum(b_arr * d)))   # unknown initial state
+        cols.append(np.exp(-np.cumsum(b_arr * self.d)))   # unknown initial state
         return cols
 
-    def solve(cols):
-        coef, pred = project(cols, y, rows)
-        r = (y - pred)[rows]
+    def solve(self, cols):
+        """(RSS [µm²], coefficients, prediction [µm]) of the least squares on ``cols``."""
+        coef, pred = project(cols, self.y, self.rows)
+        r = (self.y - pred)[self.rows]
         return float(r @ r), coef, pred
 
-    def search1(fun, lo, hi):
-        grid = np.linspace(lo, hi, 13)
-        vals = [fun(g) for g in grid]
-        i = int(np.argmin(vals))
-        res = minimize_scalar(fun, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
-                              method="bounded", options={"xatol": 1e-4})
-        return res.x
+    def fit(self, cause, params, pred, k, rss, **detail) -> CandidateFit:
+        """The :class:`CandidateFit` of ``cause`` with its residual on the fit rows."""
+        rows = self.rows
+        return CandidateFit(cause, self.tag, params, pred, k, rss, int(rows.sum()),
+                            residual_um=(self.y - pred)[rows], fit_rows=rows, **detail)
 
-    lb = (np.log(1 / (200 * 3600.0)), np.log(1 / 60.0))   # time constants 1 min .. 200 h
-    extra_cols = []
-    if cause == "sensor_drift":
-        extra_cols = [t / 3600.0]
-    elif cause == "ambient_drift":
-        if ambient_K is None:
-            return None
-    if cause in ("none", "sensor_drift"):
-        xb = search1(lambda x: solve(columns(np.exp(x)) + extra_cols)[0], *lb)
-        rss, coef, pred = solve(columns(np.exp(xb)) + extra_cols)
-        params = {} if cause == "none" else {"drift_um_per_h": float(coef[-1])}
-        return CandidateFit(cause, tag, params, pred, len(extra_cols), rss, int(rows.sum()),
-                            {"time_constant_h": float(np.exp(-xb) / 3600)})
-    if cause == "ambient_drift":
-        def cols_amb(b):
-            return columns(b) + [ar_first_order(t, ambient_K, b, 1.0)]
-        xb = search1(lambda x: solve(cols_amb(np.exp(x)))[0], *lb)
-        rss, coef, pred = solve(cols_amb(np.exp(xb)))
-        return CandidateFit(cause, tag, {"ambient_gain_um_per_K": float(coef[-1])}, pred, 1,
-                            rss, int(rows.sum()), {"time_constant_h": float(np.exp(-xb) / 3600)})
-    if cause == "speed_dependent_convection":
-        if running.all() or not running.any():
-            return None
-        x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
 
-        def f(x):
-            x = np.clip(x, *lb)
-            return solve(columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))[0]
-        res = minimize(f, np.array([x0, x0]), method="Nelder-Mead",
-                       options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 300})
-        x = np.clip(res.x, *lb)
-        rss, coef, pred = solve(columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))
-        params = {"b_running_1_s": float(np.exp(x[0])), "b_stopped_1_s": float(np.exp(x[1]))}
-        if rho_c_R:
-            params = {"h_running_W_m2K": float(np.exp(x[0]) * rho_c_R / 2),
-                      "h_stopped_W_m2K": float(np.exp(x[1]) * rho_c_R / 2), **params}
-        return CandidateFit(cause, tag, params, pred, 1, rss, int(rows.sum()),
-                            {"note": "h from b = 2h/(ρcR) with the [rod] values"})
-    if cause == "frame_expansion":
-        x0 = search1(lambda x: solve(columns(np.exp(x)))[0], *lb)
+def _fit_rate(pb: _SpeedProblem, cause, extra_cols) -> CandidateFit:
+    """The AR(1) alone (``none``) or with a drift column in time (``sensor_drift``): b
+    searched, the gains (and the drift [µm/h]) linear."""
+    lb = _LOG_RATE_BOUNDS
+    xb = _search1(lambda x: pb.solve(pb.columns(np.exp(x)) + extra_cols)[0], *lb)
+    rss, coef, pred = pb.solve(pb.columns(np.exp(xb)) + extra_cols)
+    params = {} if cause == "none" else {"drift_um_per_h": float(coef[-1])}
+    return pb.fit(cause, params, pred, len(extra_cols), rss,
+                  time_constant_h=float(np.exp(-xb) / 3600))
 
-        def build(x):
-            # G: the frame's steady growth per unit of the rod's [-] (a level's rod column
-            # settles at u/b, its frame column at G u/b)
-            b, tau_s, G = np.exp(x[0]), np.exp(x[1]) * 3600.0, x[2]
-            base = columns(b)
-            cols = [c + (G / b) * first_order_lag(t, u, tau_s)
-                    for c, u in zip(base[:-1], units.values())]
-            return cols + [base[-1]]
 
-        best = None
-        for tau0 in (3.0, 10.0, 30.0):
-            for G0 in (-1.0, 1.0):
-                def f(x):
-                    x = np.array([np.clip(x[0], *lb), np.clip(x[1], np.log(2), np.log(200)), x[2]])
-                    return solve(build(x))[0]
-                r = minimize(f, np.array([x0, np.log(tau0), G0]), method="Nelder-Mead",
-                             options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 400})
-                if best is None or r.fun < best.fun:
-                    best = r
-        x = np.array([np.clip(best.x[0], *lb), np.clip(best.x[1], np.log(2), np.log(200)),
-                      best.x[2]])
-        rss, coef, pred = solve(build(x))
-        return CandidateFit(cause, tag, {"frame_time_constant_h": float(np.exp(x[1])),
-                                         "frame_gain": float(x[2])}, pred, 2, rss,
-                            int(rows.sum()), {"time_constant_h": float(np.exp(-x[0]) / 3600)})
-    return None
+def _fit_ambient(pb: _SpeedProblem, ambient_K) -> CandidateFit:
+    """``ambient_drift``: the AR(1) plus the recorded ambient [K] through the same AR(1),
+    its gain [µm/K] linear."""
+    def cols_amb(b):
+        return pb.columns(b) + [ar_first_order(pb.t, ambient_K, b, 1.0)]
+    xb = _search1(lambda x: pb.solve(cols_amb(np.exp(x)))[0], *_LOG_RATE_BOUNDS)
+    rss, coef, pred = pb.solve(cols_amb(np.exp(xb)))
+    return pb.fit("ambient_drift", {"ambient_gain_um_per_K": float(coef[-1])}, pred, 1, rss,
+                  time_constant_h=float(np.exp(-xb) / 3600))
+
+
+def _fit_running_stopped(pb: _SpeedProblem, running, rho_c_R) -> CandidateFit:
+    """``speed_dependent_convection``: one rate while the spindle runs and one while it
+    stands (Nelder-Mead from the single rate's optimum); with ``rho_c_R`` [J/(m²K)] also
+    as h = bρcR/2 [W/(m²K)]."""
+    lb = _LOG_RATE_BOUNDS
+    x0 = _search1(lambda x: pb.solve(pb.columns(np.exp(x)))[0], *lb)
+
+    def f(x):
+        x = np.clip(x, *lb)
+        return pb.solve(pb.columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))[0]
+    res = minimize(f, np.array([x0, x0]), method="Nelder-Mead",
+                   options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 300})
+    x = np.clip(res.x, *lb)
+    rss, coef, pred = pb.solve(pb.columns(np.where(running, np.exp(x[0]), np.exp(x[1]))))
+    params = {"b_running_1_s": float(np.exp(x[0])), "b_stopped_1_s": float(np.exp(x[1]))}
+    if rho_c_R:
+        params = {"h_running_W_m2K": float(np.exp(x[0]) * rho_c_R / 2),
+                  "h_stopped_W_m2K": float(np.exp(x[1]) * rho_c_R / 2), **params}
+    return pb.fit("speed_dependent_convection", params, pred, 1, rss,
+                  note="h from b = 2h/(ρcR) with the [rod] values")
+
+
+def _fit_frame_lag(pb: _SpeedProblem) -> CandidateFit:
+    """``frame_expansion`` without thermometers: each level's rod column plus G times its
+    first-order lag at τ in [2, 200] h; b, τ and G searched (Nelder-Mead from six
+    starts), the gains linear."""
+    lb = _LOG_RATE_BOUNDS
+    t = pb.t
+    x0 = _search1(lambda x: pb.solve(pb.columns(np.exp(x)))[0], *lb)
+
+    def build(x):
+        # G: the frame's steady growth per unit of the rod's [-] (a level's rod column
+        # settles at u/b, its frame column at G u/b)
+        b, tau_s, G = np.exp(x[0]), np.exp(x[1]) * 3600.0, x[2]
+        base = pb.columns(b)
+        cols = [c + (G / b) * first_order_lag(t, u, tau_s)
+                for c, u in zip(base[:-1], pb.units.values())]
+        return cols + [base[-1]]
+
+    def clipped(x):
+        return np.array([np.clip(x[0], *lb), np.clip(x[1], np.log(2), np.log(200)), x[2]])
+
+    best = None
+    for tau0 in (3.0, 10.0, 30.0):
+        for G0 in (-1.0, 1.0):
+            r = minimize(lambda x: pb.solve(build(clipped(x)))[0],
+                         np.array([x0, np.log(tau0), G0]), method="Nelder-Mead",
+                         options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 400})
+            if best is None or r.fun < best.fun:
+                best = r
+    x = clipped(best.x)
+    rss, coef, pred = pb.solve(build(x))
+    return pb.fit("frame_expansion", {"frame_time_constant_h": float(np.exp(x[1])),
+                                      "frame_gain": float(x[2])}, pred, 2, rss,
+                  time_constant_h=float(np.exp(-x[0]) / 3600))
 
 
 def mlr(y, temperatures: dict, rows):

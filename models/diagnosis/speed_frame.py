@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from arfem.models.diagnosis.candidates import CandidateFit, project
+from arfem.models.diagnosis.candidates import CandidateFit, FrameFit, project
 from arfem.models.diagnosis.forward import ar_columns, first_order_lag
 from arfem.models.diagnosis.speed import _level_inputs
 
@@ -113,6 +113,39 @@ class FrameEnsemble:
     def label(self) -> str:
         return (f"average of {len(self.members)}: k in {{{','.join(map(str, self.components))}}}"
                 f" x lag in {{{','.join(f'{v:g}' for v in self.sensor_lag_h)}}}h")
+
+
+@dataclass(frozen=True)
+class SpeedFrameInputs:
+    """What a speed record's thermometer ``frame_expansion`` fit ran on, for its export
+    as a compensator (:func:`arfem.models.diagnosis.export.speed_state_space`).
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Sample times [s].
+    speed : ndarray, shape (N,)
+        Spindle speed [1/min].
+    rows : ndarray of bool, shape (N,)
+        The fit rows.
+    seen : ndarray
+        The speeds seen on the fit rows [1/min] (one steady gain each).
+    W : dict
+        Unseen speed [1/min] -> {seen speed: weight [-]} (eqs. 20-21 mapping of
+        :func:`arfem.models.diagnosis.speed.speed_to_heat_map`).
+    temps : dict of str to ndarray
+        The temperatures by column [°C], shape (N,) each.
+    structure : FrameStructure or FrameEnsemble
+        The frame structure fitted.
+    """
+
+    t: np.ndarray
+    speed: np.ndarray
+    rows: np.ndarray
+    seen: np.ndarray
+    W: dict
+    temps: dict
+    structure: FrameStructure | FrameEnsemble
 
 
 def frame_structures(n_sensors: int, search: str = "narrow") -> list[FrameStructure]:
@@ -295,7 +328,7 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     CandidateFit or None
         ``frame_expansion`` fit: prediction [µm] over the record; parameters
         ``frame_time_constant_h`` [h], ``frame_gain`` [-], ``frame_sensor_lag_h`` [h],
-        ``rod_time_constant_h`` [h], ``heat_exponent`` [-], ...; ``extra["frame_um"]``
+        ``rod_time_constant_h`` [h], ``heat_exponent`` [-], ...; ``frame.frame_um``
         the frame part [µm]. None if the structure needs thermometers and there is no
         complete one, or the heat law has no running speed in ``rows``.
     """
@@ -307,108 +340,141 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
         return None
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
     p = structure.heat_exponent
-    if p is None:
-        units = list(_level_inputs(speed, seen, W).values())
-    else:
-        ref = float(np.max(speed[rows], initial=0.0))
-        if ref <= 0:
-            return None
-        units = [heat_law(speed, p, ref)]
+    units = _heat_inputs(speed, seen, W, p, rows)
+    if units is None:
+        return None
     pcs = frame_components(t, T, rows, k, structure.sensor_lag_h) if k else []
-    one = np.ones_like(t)
-    nl = len(units)
-
-    U = np.column_stack(units)
-
-    def varying(b, bf=None):
-        """Columns that depend on the rates: rod responses and initial-state decay, then
-        (slow frame) the same at rate bf."""
-        c = [ar_columns(t, U, b), np.exp(-b * t)[:, None]]
-        if bf is not None:
-            c += [ar_columns(t, U, bf), np.exp(-bf * t)[:, None]]
-        return c
-
-    fixed = [one] + pcs
+    nl, U = len(units), np.column_stack(units)
+    fixed = [np.ones_like(t)] + pcs
     proj = _Projection(fixed, y, rows)
+    b, bf = _search_rates(lambda b, bf=None: proj.rss(_rate_columns(t, U, b, bf)),
+                          structure.slow_lag)
+    V = np.hstack(_rate_columns(t, U, b, bf))
+    coef, pred = project(list(V.T) + fixed, y, rows)
+    r = (y - pred)[rows]
+    gamma = coef[V.shape[1] + 1:]            # thermometer components, after the offset
+    # per-speed gains + offset + initial decays are collinear (Σ_s u_s = 1): the gains
+    # are known relative to the rest level only, so that is what the summaries use
+    rest = next((j for j, sv in enumerate(seen) if sv == 0), None) if p is None else None
+    if bf is not None:
+        params, frame = _slow_frame_summary(coef, V, nl, pcs, gamma, seen, p, rest, bf)
+    else:
+        params, frame = _lagged_frame_summary(t, coef[:nl], units, pcs, gamma, rows, rest)
+    params.update(_structure_parameters(structure, b))
+    return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers)", params, pred,
+                        len(pcs) + (nl + 2 if bf is not None else 0), float(r @ r),
+                        int(rows.sum()), time_constant_h=float(1 / b / 3600.0),
+                        residual_um=r, fit_rows=rows,
+                        frame=FrameFit(tuple(names), frame, tuple(coef.tolist()),
+                                       structure.label))
 
-    def rss(b, bf=None):
-        return proj.rss(varying(b, bf))
 
+def _structure_parameters(structure: FrameStructure, b) -> dict:
+    """The structure's own parameters as the fit reports them, with the rod's time
+    constant 1/b [h] (b [1/s])."""
+    p = structure.heat_exponent
+    return {"frame_components": int(structure.components),
+            "frame_sensor_lag_h": float(structure.sensor_lag_h),
+            "heat_exponent": None if p is None else float(p),
+            "frame_slow_response": bool(structure.slow_lag),
+            "rod_time_constant_h": float(1 / b / 3600.0)}
+
+
+def _heat_inputs(speed, seen, W, p, rows):
+    """The rod's unit heat inputs: one per seen speed level (unseen ones by the mapping
+    ``W``) or, with a heat-law exponent ``p``, the one input (n/n_ref)^p with n_ref the
+    fastest speed on ``rows``; None where ``rows`` hold no running speed."""
+    if p is None:
+        return list(_level_inputs(speed, seen, W).values())
+    ref = float(np.max(speed[rows], initial=0.0))
+    if ref <= 0:
+        return None
+    return [heat_law(speed, p, ref)]
+
+
+def _rate_columns(t, U, b, bf=None):
+    """Columns that depend on the rates: the rod's responses to the inputs ``U`` (N, l)
+    at rate b [1/s] and its initial-state decay, then (slow frame) the same at rate bf."""
+    c = [ar_columns(t, U, b), np.exp(-b * t)[:, None]]
+    if bf is not None:
+        c += [ar_columns(t, U, bf), np.exp(-bf * t)[:, None]]
+    return c
+
+
+def _search_rates(rss, slow_lag: bool):
+    """The rod's rate b [1/s] (τ in [5 min, 50 h]) and, with ``slow_lag``, the slow frame
+    response's bf <= b [1/s] (τ_f in ``SLOW_TAU_H``) minimising ``rss(b, bf)``: a grid,
+    then Nelder-Mead (two rates) or a bounded search (one); bf None without ``slow_lag``."""
     lb = (np.log(1 / (50 * 3600.0)), np.log(1 / 300.0))
     lf = (np.log(1 / (SLOW_TAU_H[1] * 3600.0)), np.log(1 / (SLOW_TAU_H[0] * 3600.0)))
-    if structure.slow_lag:
-        # the frame's response is the slower one (bf <= b): the rod and the frame are both
-        # per-speed first-order responses, so without this order their roles can swap
-        # (a fast "frame" at its 2 h bound beside a slow "rod") and τ_f means nothing
-        gb, gf = np.linspace(*lb, 7), np.linspace(*lf, 5)
-        vals = np.array([[rss(np.exp(a), np.exp(c)) if c <= a else np.inf for c in gf]
-                         for a in gb])
-        i, j = np.unravel_index(int(np.argmin(vals)), vals.shape)
-
-        def clip2(x):
-            xb = float(np.clip(x[0], *lb))
-            return xb, float(np.clip(x[1], lf[0], min(lf[1], xb)))
-
-        def f(x):
-            xb, xf = clip2(x)
-            return rss(np.exp(xb), np.exp(xf))
-        res = minimize(f, np.array([gb[i], gf[j]]), method="Nelder-Mead",
-                       options={"xatol": 1e-3, "fatol": 1e-10, "maxiter": 120,
-                                "initial_simplex": np.array([[gb[i], gf[j]],
-                                                             [gb[i] + 0.3, gf[j]],
-                                                             [gb[i], gf[j] + 0.3]])})
-        b, bf = (float(np.exp(v)) for v in clip2(res.x))
-    else:
+    if not slow_lag:
         grid = np.linspace(*lb, 13)
         vals = [rss(np.exp(g)) for g in grid]
         i = int(np.argmin(vals))
         res = minimize_scalar(lambda x: rss(np.exp(x)),
                               bounds=(grid[max(i - 1, 0)], grid[min(i + 1, 12)]),
                               method="bounded", options={"xatol": 1e-3})
-        b, bf = float(np.exp(res.x)), None
-    V = np.hstack(varying(b, bf))
-    coef, pred = project(list(V.T) + fixed, y, rows)
-    r = (y - pred)[rows]
-    gains = coef[:nl]
-    gamma = coef[V.shape[1] + 1:]            # thermometer components, after the offset
-    params = {}
-    # per-speed gains + offset + initial decays are collinear (Σ_s u_s = 1): the gains
-    # are known relative to the rest level only, so that is what the summaries use
-    rest = next((j for j, sv in enumerate(seen) if sv == 0), None) if p is None else None
-    if bf is not None:
-        slow = coef[nl + 1:2 * nl + 1]
-        nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
-        g1 = np.array([gains[j] for j in nz])
-        g2 = np.array([slow[j] for j in nz])
-        if rest is not None:
-            g1, g2 = g1 - gains[rest], g2 - slow[rest]
-        fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
-        params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
-        frame = V[:, nl + 1:2 * nl + 1] @ slow + (np.column_stack(pcs) @ gamma if pcs else 0.0)
-    else:
-        target = sum(g * u for g, u in zip(gains, units))
-        if rest is not None:
-            target = target - gains[rest] * sum(units)
-        frame = np.column_stack(pcs) @ gamma
+        return float(np.exp(res.x)), None
+    # the frame's response is the slower one (bf <= b): the rod and the frame are both
+    # per-speed first-order responses, so without this order their roles can swap
+    # (a fast "frame" at its 2 h bound beside a slow "rod") and τ_f means nothing
+    gb, gf = np.linspace(*lb, 7), np.linspace(*lf, 5)
+    vals = np.array([[rss(np.exp(a), np.exp(c)) if c <= a else np.inf for c in gf]
+                     for a in gb])
+    i, j = np.unravel_index(int(np.argmin(vals)), vals.shape)
 
-        def summ(x):
-            c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
-            rr = (frame - f)[rows]
-            return float(rr @ rr)
-        rs = minimize_scalar(summ, bounds=(np.log(0.1), np.log(200.0)), method="bounded",
-                             options={"xatol": 1e-3})
-        cg, _ = project([first_order_lag(t, target, np.exp(rs.x) * 3600.0), one], frame, rows)
-        params = {"frame_time_constant_h": float(np.exp(rs.x)), "frame_gain": float(cg[0])}
-    params.update({"frame_components": int(k), "frame_sensor_lag_h": float(structure.sensor_lag_h),
-                   "heat_exponent": None if p is None else float(p),
-                   "frame_slow_response": bool(structure.slow_lag),
-                   "rod_time_constant_h": float(1 / b / 3600.0)})
-    return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers)", params, pred,
-                        len(pcs) + (nl + 2 if bf is not None else 0), float(r @ r),
-                        int(rows.sum()),
-                        {"time_constant_h": float(1 / b / 3600.0), "sensors": names,
-                         "frame_um": frame, "coefficients": coef.tolist(),
-                         "structure": structure.label})
+    def clip2(x):
+        xb = float(np.clip(x[0], *lb))
+        return xb, float(np.clip(x[1], lf[0], min(lf[1], xb)))
+
+    def f(x):
+        xb, xf = clip2(x)
+        return rss(np.exp(xb), np.exp(xf))
+    res = minimize(f, np.array([gb[i], gf[j]]), method="Nelder-Mead",
+                   options={"xatol": 1e-3, "fatol": 1e-10, "maxiter": 120,
+                            "initial_simplex": np.array([[gb[i], gf[j]],
+                                                         [gb[i] + 0.3, gf[j]],
+                                                         [gb[i], gf[j] + 0.3]])})
+    b, bf = (float(np.exp(v)) for v in clip2(res.x))
+    return b, bf
+
+
+def _slow_frame_summary(coef, V, nl, pcs, gamma, seen, p, rest, bf):
+    """With a slow frame response: ``frame_time_constant_h`` = 1/bf [h] and
+    ``frame_gain`` [-] the slow response's steady gains per unit of the rod's (least
+    squares over the running levels, relative to the rest level); and the frame part
+    [µm] over the record."""
+    gains = coef[:nl]
+    slow = coef[nl + 1:2 * nl + 1]
+    nz = [j for j, sv in enumerate(seen) if sv != 0] if p is None else [0]
+    g1 = np.array([gains[j] for j in nz])
+    g2 = np.array([slow[j] for j in nz])
+    if rest is not None:
+        g1, g2 = g1 - gains[rest], g2 - slow[rest]
+    fg = float(g1 @ g2 / (g1 @ g1)) if g1 @ g1 > 0 else float("nan")
+    params = {"frame_time_constant_h": float(1 / bf / 3600.0), "frame_gain": fg}
+    frame = V[:, nl + 1:2 * nl + 1] @ slow + (np.column_stack(pcs) @ gamma if pcs else 0.0)
+    return params, frame
+
+
+def _lagged_frame_summary(t, gains, units, pcs, gamma, rows, rest):
+    """Without a slow response: the thermometer frame part [µm] fitted on ``rows`` as a
+    first-order lag (τ in [0.1, 200] h) of the rod's steady growth target:
+    ``frame_time_constant_h`` [h] and ``frame_gain`` [-]; and the frame part."""
+    one = np.ones_like(t)
+    target = sum(g * u for g, u in zip(gains, units))
+    if rest is not None:
+        target = target - gains[rest] * sum(units)
+    frame = np.column_stack(pcs) @ gamma
+
+    def summ(x):
+        c, f = project([first_order_lag(t, target, np.exp(x) * 3600.0), one], frame, rows)
+        rr = (frame - f)[rows]
+        return float(rr @ rr)
+    rs = minimize_scalar(summ, bounds=(np.log(0.1), np.log(200.0)), method="bounded",
+                         options={"xatol": 1e-3})
+    cg, _ = project([first_order_lag(t, target, np.exp(rs.x) * 3600.0), one], frame, rows)
+    return {"frame_time_constant_h": float(np.exp(rs.x)), "frame_gain": float(cg[0])}, frame
 
 
 def _fit_frame_ensemble(t, y, speed, rows, seen, W, temperatures, ens: FrameEnsemble):
@@ -432,9 +498,8 @@ def _fit_frame_ensemble(t, y, speed, rows, seen, W, temperatures, ens: FrameEnse
               "frame_members": len(fits), "frame_structure": ens.label}
     return CandidateFit("frame_expansion", "ar+frame_expansion(thermometers, averaged)", params,
                         pred, int(round(np.mean([f.k for f in fits]))), float(r @ r),
-                        int(rows.sum()),
-                        {"time_constant_h": params["rod_time_constant_h"],
-                         "sensors": fits[0].extra["sensors"],
-                         "frame_um": np.mean([f.extra["frame_um"] for f in fits], axis=0),
-                         "structure": ens.label,
-                         "members": [f.extra["structure"] for f in fits]})
+                        int(rows.sum()), time_constant_h=params["rod_time_constant_h"],
+                        residual_um=r, fit_rows=rows,
+                        frame=FrameFit(fits[0].frame.sensors,
+                                       np.mean([f.frame.frame_um for f in fits], axis=0), (),
+                                       ens.label, tuple(f.frame.structure for f in fits)))

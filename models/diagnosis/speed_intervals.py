@@ -156,6 +156,22 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
     if not names or idx.size < 2 * MIN_BLOCKS:
         return {}
     B = blocks if blocks is not None else jackknife_blocks((y - fit.prediction)[rows])
+    vals = _block_refits(refit, rows, idx, B, names)
+    not_bounded = {}
+    if detail is not None:
+        detail.update(blocks=int(B), refits=vals, not_bounded=not_bounded)
+    out = {}
+    for k in names:
+        ci = _jackknife_interval(k, np.asarray(vals[k], float), float(fit.parameters[k]),
+                                 k in log_names, not_bounded)
+        if ci is not None:
+            out[k] = ci
+    return out
+
+
+def _block_refits(refit, rows, idx, B, names) -> dict:
+    """Parameter -> its value refitted without each of ``B`` contiguous blocks of the fit
+    rows ``idx`` (NaN where the refit failed or lacks it)."""
     vals = {k: [] for k in names}
     for part in np.array_split(idx, B):
         sub = rows.copy()
@@ -164,37 +180,34 @@ def jackknife_ci95(refit, fit, y, rows, names, blocks: int | None = None,
         for k in names:
             v = None if g is None else g.parameters.get(k)
             vals[k].append(np.nan if v is None else float(v))
-    not_bounded = {}
-    if detail is not None:
-        detail.update(blocks=int(B), refits=vals, not_bounded=not_bounded)
-    out = {}
-    for k in names:
-        v = np.asarray(vals[k], float)
-        est = float(fit.parameters[k])
-        end_lo, end_hi = SEARCH_RANGES.get(k, (-np.inf, np.inf))
-        fin = v[np.isfinite(v)]
-        if fin.size >= MIN_BLOCKS and np.ptp(fin) <= 1e-9 * max(1.0, abs(est)):
-            not_bounded[k] = "the refits without each block all returned the same value"
-            if k in SEARCH_RANGES:
-                out[k] = [end_lo, end_hi]
-            continue
-        edge = at_search_edge(k, est)
-        if edge:
-            not_bounded[k] = "at the edge of its search range"
-        log = k in log_names
-        if log:
-            if est <= 0:
-                continue
-            v = np.log(np.where(v > 0, v, np.nan))
-            est = np.log(est)
-        v = v[np.isfinite(v)]
-        if v.size < MIN_BLOCKS:
-            continue
-        b = v.size
-        half = float(_sst.t.ppf(0.975, b - 1)) * np.sqrt((b - 1) / b * np.sum((v - v.mean()) ** 2))
-        lo, hi = est - half, est + half
-        lo, hi = (float(np.exp(lo)), float(np.exp(hi))) if log else (float(lo), float(hi))
-        if edge:           # refits held at the bound: their spread says nothing
-            lo, hi = end_lo, end_hi
-        out[k] = [max(lo, end_lo), min(hi, end_hi)]
-    return out
+    return vals
+
+
+def _jackknife_interval(k, v, est, log, not_bounded) -> list | None:
+    """The grouped-jackknife 95 % interval [low, high] of parameter ``k`` (estimate
+    ``est``, refits ``v``; on the log scale if ``log``), clipped to its search range, or
+    None where too few refits are usable; records in ``not_bounded`` why the data do
+    not bound it (see :func:`jackknife_ci95`)."""
+    end_lo, end_hi = SEARCH_RANGES.get(k, (-np.inf, np.inf))
+    fin = v[np.isfinite(v)]
+    if fin.size >= MIN_BLOCKS and np.ptp(fin) <= 1e-9 * max(1.0, abs(est)):
+        not_bounded[k] = "the refits without each block all returned the same value"
+        return [end_lo, end_hi] if k in SEARCH_RANGES else None
+    edge = at_search_edge(k, est)
+    if edge:
+        not_bounded[k] = "at the edge of its search range"
+    if log:
+        if est <= 0:
+            return None
+        v = np.log(np.where(v > 0, v, np.nan))
+        est = np.log(est)
+    v = v[np.isfinite(v)]
+    if v.size < MIN_BLOCKS:
+        return None
+    b = v.size
+    half = float(_sst.t.ppf(0.975, b - 1)) * np.sqrt((b - 1) / b * np.sum((v - v.mean()) ** 2))
+    lo, hi = est - half, est + half
+    lo, hi = (float(np.exp(lo)), float(np.exp(hi))) if log else (float(lo), float(hi))
+    if edge:           # refits held at the bound: their spread says nothing
+        lo, hi = end_lo, end_hi
+    return [max(lo, end_lo), min(hi, end_hi)]

@@ -8,12 +8,15 @@ otherwise a 10 000-sample record makes every candidate "significant".
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import stats as _st
 
 __all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr", "noise_sigma",
            "resolution",
-           "bic", "f_test_p", "corr_bound", "ccf", "acf", "contiguous_blocks"]
+           "bic", "f_test_p", "corr_bound", "ccf", "acf", "contiguous_blocks",
+           "slow_noise_sandwich", "SlowNoiseCovariances"]
 
 
 def rmse(r) -> float:
@@ -411,7 +414,39 @@ def _ar1_apply(X: np.ndarray, rho: float) -> np.ndarray:
 SLOW_NOISE_Z = 3.0
 
 
-def slow_noise_sandwich(J, r, long_lag: int = 240) -> dict:
+@dataclass(frozen=True)
+class SlowNoiseCovariances:
+    """The covariances of a least-squares estimate under two slow + white noise models
+    fitted through the fit (:func:`slow_noise_sandwich`).
+
+    Attributes
+    ----------
+    ar1_cov : ndarray, shape (p, p)
+        Under a stationary AR(1) slow part plus white noise [parameter units²].
+    ar1_rho : float
+        ρ of that AR(1), per sample [-] (0 where no slow part was fitted).
+    ar1_slow_var : float
+        σa², the AR(1) part's variance [unit²].
+    ar1_white_var : float
+        σw², the white part's variance beside it [unit²].
+    walk_cov : ndarray, shape (p, p)
+        Under a random walk plus white noise [parameter units²].
+    walk_step_var : float
+        σrw², the walk's variance per sample [unit² per sample].
+    walk_white_var : float
+        σw², the white part's variance beside it [unit²].
+    """
+
+    ar1_cov: np.ndarray
+    ar1_rho: float
+    ar1_slow_var: float
+    ar1_white_var: float
+    walk_cov: np.ndarray
+    walk_step_var: float
+    walk_white_var: float
+
+
+def slow_noise_sandwich(J, r, long_lag: int = 240) -> SlowNoiseCovariances | None:
     """Covariances of a least-squares estimate under two models of slow + white noise,
     each fitted through the fit.
 
@@ -426,9 +461,9 @@ def slow_noise_sandwich(J, r, long_lag: int = 240) -> dict:
     noise models are fitted to the observed sums at lags 0, 1, L/4 and L (non-negative
     least squares; L = ``long_lag``, 4 h at 60 s, at most N/8):
 
-    * ``"ar1"``: Σ = σa² R(ρ) + σw² I, R_ij = ρ^|i−j| (stationary slow noise), ρ on a
+    * AR(1) (``ar1_*``): Σ = σa² R(ρ) + σw² I, R_ij = ρ^|i−j| (stationary slow noise), ρ on a
       grid in (1 − ρ) from 1 to 5e-4;
-    * ``"walk"``: Σ = σrw² W + σw² I, W_ij = min(i, j) + 1 (a random walk, e.g. a
+    * random walk (``walk_*``): Σ = σrw² W + σw² I, W_ij = min(i, j) + 1 (a random walk, e.g. a
       displacement sensor's electronics).
 
     Lag 1 separates the white part; the long lags see the wander at the causes' own time
@@ -451,10 +486,9 @@ def slow_noise_sandwich(J, r, long_lag: int = 240) -> dict:
 
     Returns
     -------
-    dict
-        ``{"ar1": (cov, rho, (σa², σw²)), "walk": (cov, (σrw², σw²))}``; cov (p, p) in
-        parameter units², ρ per sample [-], variances in unit² (σrw² per sample).
-        Empty where the record is too short (N < 64) or the residual is zero.
+    SlowNoiseCovariances or None
+        Both covariances and the fitted noise models; None where the record is too
+        short (N < 64) or the residual is zero.
 
     References
     ----------
@@ -473,60 +507,104 @@ def slow_noise_sandwich(J, r, long_lag: int = 240) -> dict:
     >>> e += rng.normal(0, 0.1, 3000)
     >>> r = e - J @ np.linalg.lstsq(J, e, rcond=None)[0]
     >>> out = slow_noise_sandwich(J, r)
-    >>> cov, rho, (sa2, sw2) = out["ar1"]
-    >>> bool(abs(rho - 0.99) < 0.007), bool(abs(sw2 / 0.01 - 1) < 0.1)
+    >>> bool(abs(out.ar1_rho - 0.99) < 0.007), bool(abs(out.ar1_white_var / 0.01 - 1) < 0.1)
     (True, True)
     """
-    from scipy.optimize import nnls
-    J = np.asarray(J, float)
-    r = np.asarray(r, float)
+    J, r = np.asarray(J, float), np.asarray(r, float)
     n, p = J.shape
     A = np.linalg.pinv(J.T @ J)
+    lags, obs = _observed_lag_sums(r, long_lag)
+    if obs is None:
+        return None
+    sums = _LagSums(J, A, lags)
+    m_white, MI = sums.expected(J, [n if k == 0 else 0.0 for k in lags])
+    s2, z = _white_noise_z(obs, lags, n, p)
+    if z < SLOW_NOISE_Z:       # white: both covariances are s² A
+        return SlowNoiseCovariances(s2 * A, 0.0, 0.0, float(s2), s2 * A, 0.0, float(s2))
+    sw, MW = _fit_walk_noise(sums, J, n, lags, m_white, obs)
+    rho, sa, MR = _fit_ar1_noise(sums, J, n, lags, m_white, obs)
+    return SlowNoiseCovariances(A @ (sa[0] * MR + sa[1] * MI) @ A, rho, float(sa[0]),
+                                float(sa[1]), A @ (sw[0] * MW + sw[1] * MI) @ A,
+                                float(sw[0]), float(sw[1]))
+
+
+def _observed_lag_sums(r, long_lag):
+    """The lags 0, 1, L/4 and L (L = ``long_lag``, at most N/8) and the residual's sums
+    rᵀD_k r at them [unit²]; (None, None) where L < 8 or the residual is zero."""
+    n = r.size
     L = int(min(long_lag, n // 8))
     if float(r @ r) <= 0 or L < 8:
-        return {}
+        return None, None
     lags = (0, 1, L // 4, L)
-    obs = np.array([float(r[k:] @ r[:n - k]) for k in lags])
+    return lags, np.array([float(r[k:] @ r[:n - k]) for k in lags])
 
-    def dk(X, k):                        # D_k X
-        if k == 0:
-            return X
-        Y = np.zeros_like(X)
-        Y[:-k] += 0.5 * X[k:]
-        Y[k:] += 0.5 * X[:-k]
-        return Y
 
-    DJ = {k: dk(J, k) for k in lags}
-    MD = {k: J.T @ DJ[k] for k in lags}
+class _LagSums:
+    """The expected residual lag-k sums E[rᵀD_k r] of a least-squares fit with Jacobian
+    ``J`` (N, p) and A = (JᵀJ)⁻¹, under a noise covariance Σ (see
+    :func:`slow_noise_sandwich`); D_k the symmetric lag-k pairing."""
 
-    def expected(SJ, tr_d):
-        """E[rᵀD_k r] per lag for noise covariance S (S J given, tr(D_k S) given)."""
-        MS = J.T @ SJ
+    def __init__(self, J, A, lags):
+        self.A, self.lags, self.J = A, lags, J
+        self.DJ = {k: _lag_pairing(J, k) for k in lags}
+        self.MD = {k: J.T @ self.DJ[k] for k in lags}
+
+    def expected(self, SJ, tr_d):
+        """E[rᵀD_k r] per lag for noise covariance S (S J given, tr(D_k S) given), and
+        JᵀSJ."""
+        A = self.A
+        MS = self.J.T @ SJ
         AMA = A @ MS @ A
-        return np.array([tr_d[i] - 2.0 * float(np.sum(A * (SJ.T @ DJ[k])))
-                         + float(np.sum(AMA * MD[k])) for i, k in enumerate(lags)]), MS
+        return np.array([tr_d[i] - 2.0 * float(np.sum(A * (SJ.T @ self.DJ[k])))
+                         + float(np.sum(AMA * self.MD[k]))
+                         for i, k in enumerate(self.lags)]), MS
 
-    def solve(m_slow):
-        return nnls(np.column_stack([m_slow, m_white]) / obs[0], obs / obs[0])
 
-    m_white, MI = expected(J, [n if k == 0 else 0.0 for k in lags])
-    # Under white noise a lag-k sum scatters by about σ²√(N − k): a slow part is fitted
-    # only where the long-lag sums stand above that by SLOW_NOISE_Z, since a spurious
-    # slow part of a few % of the variance, near ρ = 1, would multiply the interval.
+def _lag_pairing(X, k):
+    """D_k X: the symmetric lag-k pairing (D_0 = I)."""
+    if k == 0:
+        return X
+    Y = np.zeros_like(X)
+    Y[:-k] += 0.5 * X[k:]
+    Y[k:] += 0.5 * X[:-k]
+    return Y
+
+
+def _fit_noise_variances(m_slow, m_white, obs):
+    """Non-negative least squares of the observed lag sums on a slow and a white
+    model's expected ones (each per unit variance), scaled by the lag-0 sum: the two
+    variances [unit²] and the residual norm."""
+    from scipy.optimize import nnls
+    return nnls(np.column_stack([m_slow, m_white]) / obs[0], obs / obs[0])
+
+
+def _white_noise_z(obs, lags, n, p):
+    """The white variance s² = RSS/(N − p) [unit²] and how many of white noise's own
+    scatter the largest lag-k sum (k >= 1) stands above zero [-]. Under white noise a
+    lag-k sum scatters by about σ²√(N − k): a slow part is fitted only where the long-lag
+    sums stand above that by SLOW_NOISE_Z, since a spurious slow part of a few % of the
+    variance, near ρ = 1, would multiply the interval."""
     s2 = obs[0] / max(n - p, 1)
-    z = max(obs[i] / (s2 * np.sqrt(n - k)) for i, k in enumerate(lags) if k >= 1)
-    if z < SLOW_NOISE_Z:
-        cov = s2 * A
-        return {"ar1": (cov, 0.0, (0.0, float(s2))), "walk": (cov, (0.0, float(s2)))}
+    return s2, max(obs[i] / (s2 * np.sqrt(n - k)) for i, k in enumerate(lags) if k >= 1)
+
+
+def _fit_walk_noise(sums, J, n, lags, m_white, obs):
+    """The random walk + white noise that best fits the lag sums: ((σrw², σw²) [unit²],
+    JᵀWJ) with W_ij = min(i, j) + 1."""
     WJ = np.cumsum(np.cumsum(J[::-1], axis=0)[::-1], axis=0)    # W_ij = min(i, j) + 1
-    m_walk, MW = expected(WJ, [(n - k) * (n - k + 1) / 2.0 for k in lags])
-    sw, _ = solve(m_walk)
+    m_walk, MW = sums.expected(WJ, [(n - k) * (n - k + 1) / 2.0 for k in lags])
+    sw, _ = _fit_noise_variances(m_walk, m_white, obs)
+    return sw, MW
+
+
+def _fit_ar1_noise(sums, J, n, lags, m_white, obs):
+    """The stationary AR(1) + white noise that best fits the lag sums, ρ on a grid in
+    (1 − ρ) from 1 to 5e-4: (ρ, (σa², σw²) [unit²], JᵀR(ρ)J)."""
     best = None
     for rho in np.concatenate([[0.0], 1.0 - np.geomspace(1.0, 5e-4, 40)[1:]]):
-        m_ar, MR = expected(_ar1_apply(J, rho), [(n - k) * rho ** k for k in lags])
-        sa, res = solve(m_ar)
+        m_ar, MR = sums.expected(_ar1_apply(J, rho), [(n - k) * rho ** k for k in lags])
+        sa, res = _fit_noise_variances(m_ar, m_white, obs)
         if best is None or res < best[0]:
             best = (res, float(rho), sa, MR)
     _, rho, sa, MR = best
-    return {"ar1": (A @ (sa[0] * MR + sa[1] * MI) @ A, rho, (float(sa[0]), float(sa[1]))),
-            "walk": (A @ (sw[0] * MW + sw[1] * MI) @ A, (float(sw[0]), float(sw[1])))}
+    return rho, sa, MR
