@@ -35,6 +35,7 @@ unit; lengths in the file are in the mesh's ``unit``)::
                                   # or a CSV column name: power_W = "P_front_W";
                                   # flux_W_m2 instead of power_W for a flux
     # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
+    # scale = 1.0               optional factor on every value of the schedule [-]
 
     [[convection]]                # one per cooled surface group
     group = "housing_outer"
@@ -96,7 +97,7 @@ _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "e
         "youngs_modulus_Pa", "poisson_ratio"}
 _CYCLE = {"phases", "csv", "total_h", "total_s"}
 _PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
-_SRC = {"name", "group", "power_W", "flux_W_m2", "phases"}
+_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale"}
 _CONV = {"name", "group", "h_W_m2K", "ambient_C"}
 _SUP = {"type", "group", "points"}
 _SENS = {"name", "point", "direction", "quantity", "group"}
@@ -372,6 +373,9 @@ def _sources(data: dict, cycle: Schedule3D) -> list:
             edges, values, kind = _source_own_phases(s["phases"], w, cycle)
         else:
             edges, values, kind = _source_on_cycle(s, w, cycle)
+        if "scale" in s:          # a factor on the whole schedule (e.g. swept: 0.5, 1, 2)
+            values = values * _number(s["scale"], f"{w}.scale", positive=True,
+                                      allow_zero=True)
         spec = SourceSpec(name=name, group=grp, kind="power" if kind == "power_W" else "flux")
         sources.append(SourceSetting(spec, edges, values))
     return sources
@@ -687,9 +691,13 @@ class GeometryRun:
         return out
 
 
-def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
+def solve_geometry(model: GeometryModel, progress=None,
+                   mode_cache: dict | None = None) -> GeometryRun:
     """The scenario's transient: sensors every ``output_interval_s`` and fields every
-    ``field_interval_s``, by the reduced-modal solve or the θ-method."""
+    ``field_interval_s``, by the reduced-modal solve or the θ-method.
+
+    ``mode_cache``: the reduced solve's ``{h tuple: BodyModes}``, to be shared only
+    between runs of one model with the same h history (``arfem sweep`` over powers)."""
     progress = progress or (lambda s: None)
     sc = model.scenario
     total = sc.total_s
@@ -701,7 +709,8 @@ def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
     theta = _SOLVERS[sc.solver]
     if theta is None:
         kinds = [int(s.quantity == "displacement") for s in sc.sensors]
-        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds)
+        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
+                            mode_cache=mode_cache)
     else:
         full = solve_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
         pick = np.clip(np.searchsorted(full.times_s, t_out - 1e-6), 0, full.times_s.size - 1)

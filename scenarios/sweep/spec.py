@@ -236,6 +236,11 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
         base_source = str(base_path)
     else:
         base_name, base_source = str(sw.get("base", "<base>")), "<base>"
+    if isinstance(base_data, dict) and "geometry" in base_data:    # a mesh scenario (issue 32)
+        from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
+        return geometry_sweep_from_dict(sw, name, description, source, base_data,
+                                        None if base_source == "<base>" else Path(base_source),
+                                        base_name, max_points)
     base_sc = scenario_from_dict(base_data, base_source, limits)   # the base must be valid
 
     grid_d = sw.get("grid")
