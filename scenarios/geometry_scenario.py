@@ -760,53 +760,121 @@ def write_fields_xdmf(run: GeometryRun, path: Path) -> None:
         os.chdir(here)
 
 
-def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "") -> None:
-    """Off-screen PNG of the mesh's surface groups (one colour each) and the sensors."""
+#: distinct, saturated colours for the surface groups (tab20's pale halves left out, which
+#: made half the groups and their legend entries unreadable on white)
+_GROUP_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b",
+                  "#e377c2", "#17becf", "#bcbd22", "#393b79", "#637939", "#843c39")
+
+
+def group_roles(sc: GeometryScenario) -> dict:
+    """{surface group: what the scenario does with it}, for the picture's legend:
+    ``heat source <name>``, ``convection h = … W/(m²K)``, ``support (clamped)``."""
+    roles: dict = {}
+
+    def add(g, text):
+        roles[g] = f"{roles[g]}; {text}" if g in roles else text
+    for s in sc.sources:
+        add(s.spec.group, f"heat source {s.spec.name}")
+    for c in sc.convections:
+        a, b, m = c.h
+        add(c.spec.group, f"convection h = {a:g}" + (f" + {b:g}·n^{m:g}" if b else "")
+            + " W/(m²K)")
+    if sc.support.kind == "clamped":
+        add(sc.support.group, "support (clamped)")
+    return roles
+
+
+def _sensor_labels(sensors) -> list:
+    """[(point [m], label)]: sensors at one point share a label (``tcp_x, tcp_y, tcp_z``);
+    a thermometer's name carries ``(°C)``."""
+    at: dict = {}
+    for s in sensors:
+        if s.point is None:
+            continue
+        key = tuple(round(float(c), 12) for c in s.point)
+        at.setdefault(key, []).append(s.name + (" (°C)" if s.quantity == "temperature" else ""))
+    return [(np.array(k), ", ".join(v)) for k, v in at.items()]
+
+
+def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "",
+                     roles: dict | None = None) -> None:
+    """Off-screen PNG of the mesh's surface groups and the sensors.
+
+    Every surface group in its own saturated colour with a legend entry (its role from
+    ``roles``, e.g. :func:`group_roles`); faces on the outside drawn half transparent, so
+    that groups inside the body (a bearing seat, the motor's air gap) and the sensors
+    show through; each sensor point marked and labelled with its name, in front of the
+    geometry.
+    """
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)     # no X-server chatter
+    roles = roles or {}
     mesh = gm.mesh
     nv = int(mesh.t.max()) + 1
     P = mesh.p[:, :nv].T
-    pl = pv.Plotter(off_screen=True, window_size=(1200, 900))
-    import matplotlib
-    cmap = matplotlib.colormaps["tab20"]
+    size = float(np.ptp(P, axis=0).max())
+    pl = pv.Plotter(off_screen=True, window_size=(1000, 860))
     bnd = set(mesh.boundary_facets().tolist())
+
+    def surface(fac):
+        f = mesh.facets[:, np.asarray(fac)].T
+        return pv.PolyData(P, np.column_stack([np.full(len(f), f.shape[1]), f]).ravel())
+    entries = []
     for i, (name, fac) in enumerate(sorted(gm.surfaces.items())):
-        fac = np.asarray([f for f in fac if f in bnd])
+        fac = np.asarray(fac)
         if fac.size == 0:
             continue
-        f = mesh.facets[:, fac].T
-        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
-        surf = pv.PolyData(P, faces)
-        pl.add_mesh(surf, color=cmap(i % 20)[:3], label=name, show_edges=False)
-    # faces in no group, grey and translucent
+        colour = _GROUP_COLOURS[i % len(_GROUP_COLOURS)]
+        # a heated face, or an interface inside the body, is drawn opaque
+        outside = np.isin(fac, list(bnd)) & ("heat source" not in roles.get(name, ""))
+        if outside.any():
+            pl.add_mesh(surface(fac[outside]), color=colour, opacity=0.3)
+        if (~outside).any():
+            pl.add_mesh(surface(fac[~outside]), color=colour, opacity=1.0)
+        entries.append([f"{name}: {roles[name]}" if name in roles else name, colour])
     grouped = set(np.concatenate([np.asarray(v) for v in gm.surfaces.values()]).tolist()) \
         if gm.surfaces else set()
     rest = np.asarray(sorted(bnd - grouped))
-    if rest.size:
-        f = mesh.facets[:, rest].T
-        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
-        pl.add_mesh(pv.PolyData(P, faces), color="lightgrey", opacity=0.35,
-                    label="(no group)")
-    for s in sensors:
-        if s.point is not None:
-            pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()),
-                                  center=s.point), color="black")
-            pl.add_point_labels(np.array([s.point]), [s.name], font_size=14,
-                                point_size=1, shape_opacity=0.6)
-    pl.add_legend(bcolor="white", size=(0.22, 0.04 * (len(gm.surfaces) + 1)), face="rectangle",
-                  loc="upper left")
+    if rest.size:                                  # outer faces in no group
+        pl.add_mesh(surface(rest), color="lightgrey", opacity=0.25)
+        entries.append(["(faces in no group)", "lightgrey"])
+    for point, label in _sensor_labels(sensors):
+        pl.add_mesh(pv.Sphere(radius=0.012 * size, center=point), color="black")
+        pl.add_point_labels(point[None, :], [label], font_size=20, point_size=1,
+                            shape_opacity=0.85, shape_color="white", text_color="black",
+                            always_visible=True, margin=4)
     pl.add_axes()
-    if title:
-        pl.add_title(title, font_size=11)
     # from the front (−y), to the side (+x) and a little from below: a spindle unit's
     # nose and the TCP face the viewer, the column stub (+y) stays behind
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
-    pl.screenshot(str(path))
+    pl.camera.zoom(1.4)
+    img = pl.screenshot(None, return_img=True)
     pl.close()
+    _picture_with_legend(img, entries, title, path)
+
+
+def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path) -> None:
+    """The rendered view with the groups' legend beside it (never over the geometry)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+    fig = plt.figure(figsize=(14, 8.4))
+    ax = fig.add_axes([0.30, 0.0, 0.70, 0.94])
+    ax.imshow(img)
+    ax.set_axis_off()
+    handles = [Patch(facecolor=col, edgecolor="black", label=lab) for lab, col in entries]
+    if handles:
+        fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.01, 0.92),
+                   fontsize=10, frameon=True, title="surface groups (outer faces "
+                   "translucent)", title_fontsize=10)
+    if title:
+        fig.suptitle(title, fontsize=13)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
 
 
 def _sensor_figure(run: GeometryRun, path: Path) -> None:
@@ -899,7 +967,8 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> No
     if sc.picture:
         progress("geometry picture")
         geometry_picture(run.model.gmesh, out_dir / "geometry.png", sc.sensors,
-                         title=f"{sc.name}: physical groups and sensors")
+                         title=f"{sc.name}: physical groups and sensors",
+                         roles=group_roles(sc))
     if sc.fields and run.result.fields is not None:
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")
