@@ -167,3 +167,23 @@ def test_a_refused_value_names_its_index(tmp_path, capsys):
     assert main(["sweep", str(sw), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "sweep.grid.convection.right.h_W_m2K[1]" in err and err.count("\n") == 1
+
+
+def test_a_dask_cluster_gives_the_in_process_table(tmp_path):
+    """The mesh sweep on a Dask cluster (one in-process worker: the same submit, gather
+    and store path as a remote one) gives the in-process table, apart from timing and
+    reuse."""
+    from dask.distributed import LocalCluster
+    sw = _files(tmp_path, '"material.body.expansion_1_K" = [10e-6, 14e-6]\n'
+                          '"convection.right.ambient_C" = [18.0, 22.0]\n')
+    sweep = load_sweep(sw)
+    run_sweep(sweep, tmp_path / "local", workers=1, progress=False)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        rep = run_sweep(sweep, tmp_path / "dask", scheduler=cluster.scheduler_address,
+                        progress=False)
+    assert rep.n_computed == 4 and rep.executor.startswith("dask")
+    skip = {"run_time_s", "reused"}
+    ra, rb = _rows(tmp_path / "local"), _rows(tmp_path / "dask")
+    assert [{k: v for k, v in r.items() if k not in skip} for r in ra] == \
+        [{k: v for k, v in r.items() if k not in skip} for r in rb]

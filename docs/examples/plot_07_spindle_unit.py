@@ -21,6 +21,7 @@ P1 on the same mesh so that it builds in seconds)::
 # A scenario with ``[geometry]`` names a mesh and ties its physical groups to
 # materials, heat sources, convection, a support and sensors (every key with its unit;
 # :doc:`../geometry` has the format). Here is what the shipped file says, table by table.
+import tempfile
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -72,7 +73,7 @@ print(f"{model.gmesh.mesh.nelements} {model.gmesh.cell_type} cells, "
 print("volume groups:", ", ".join(sorted(model.gmesh.volumes)))
 for g, a in sorted(model.thermal.areas_m2.items()):
     print(f"surface group {g:<22} {a * 1e4:8.1f} cm²")
-png = Path("spindle_geometry.png").resolve()
+png = Path(tempfile.mkdtemp()) / "geometry.png"
 geometry_picture(model.gmesh, png, sc.sensors, title="spindle_unit: groups and sensors",
                  roles=group_roles(sc))
 fig, ax = plt.subplots(figsize=(10, 6), layout="constrained")
