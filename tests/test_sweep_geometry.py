@@ -18,7 +18,8 @@ import pytest
 from arfem.scenarios.cli import main
 from arfem.scenarios.geometry_scenario import (build_geometry_model, geometry_scenario_from_dict,
                                                solve_geometry)
-from arfem.scenarios.sweep import load_sweep, run_sweep
+from arfem.scenarios.sweep.runner import run_sweep
+from arfem.scenarios.sweep.spec import load_sweep
 from arfem.scenarios.sweep.geometry import (clear_geometry_cache, evaluate_geometry_point,
                                             geometry_override, sensor_metrics)
 from arfem.io import read_toml
