@@ -195,8 +195,9 @@ def _short(inputs: dict) -> str:
 
 
 def _figure(sweep: GeometrySweep, rows: list, path: Path) -> None:
-    """Peak (solid) and final (dashed) of every sensor against the first swept key, one
-    line per combination of the other keys; displacements above, temperatures below."""
+    """Peak (solid) and final (dashed) of every sensor against the first swept key: one
+    colour per sensor, one marker per combination of the other keys; displacements
+    above, temperatures below, the legends beside the panels."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -208,32 +209,32 @@ def _figure(sweep: GeometrySweep, rows: list, path: Path) -> None:
     kinds = [(q, [n for n, qq in sweep.sensors if qq == q])
              for q in ("displacement", "temperature")]
     kinds = [(q, ns) for q, ns in kinds if ns]
-    fig, axes = plt.subplots(len(kinds), 1, figsize=(9, 3.6 * len(kinds)), squeeze=False)
+    fig, axes = plt.subplots(len(kinds), 1, figsize=(11, 3.8 * len(kinds)), squeeze=False)
     colours = plt.get_cmap("tab10")
+    markers = "o^sDv<>pP*"
     for ax, (q, names) in zip(axes[:, 0], kinds):
         pre, unit = ("d", "um") if q == "displacement" else ("T", "C")
-        i = 0
-        for name in names:
-            for combo in combos:
-                rs = [r for r in rows if canonical({k: r[k] for k in others}) == combo]
-                rs.sort(key=lambda r: xs.index(r[key]))
+        for i, name in enumerate(names):
+            for j, combo in enumerate(combos):
+                rs = sorted((r for r in rows if canonical({k: r[k] for k in others}) == combo),
+                            key=lambda r: xs.index(r[key]))
                 x = [r[key] if num else xs.index(r[key]) for r in rs]
                 tag = name + (f" ({_short(json.loads(combo))})" if others else "")
-                c = colours(i % 10)
-                ax.plot(x, [r[f"{pre}_{name}_peak_{unit}"] for r in rs], "o-", color=c,
-                        label=f"{tag} peak")
-                ax.plot(x, [r[f"{pre}_{name}_final_{unit}"] for r in rs], "s--", color=c,
-                        alpha=0.7, label=f"{tag} final")
-                i += 1
+                kw = dict(color=colours(i % 10), marker=markers[j % len(markers)])
+                ax.plot(x, [r[f"{pre}_{name}_peak_{unit}"] for r in rs], "-", label=f"{tag}: peak",
+                        **kw)
+                ax.plot(x, [r[f"{pre}_{name}_final_{unit}"] for r in rs], "--", alpha=0.6,
+                        mfc="none", label=f"{tag}: final", **kw)
         ax.set_ylabel("displacement [µm]" if q == "displacement" else "temperature [°C]")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
+        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
         if not num:
             ax.set_xticks(range(len(xs)), [str(v) for v in xs])
     axes[-1, 0].set_xlabel(key)
-    axes[0, 0].set_title(f"sweep {sweep.name}: each sensor's peak and final value")
+    axes[0, 0].set_title(f"sweep {sweep.name}: each sensor's peak (solid) and final value "
+                         "(dashed)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
