@@ -850,7 +850,7 @@ def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "",
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
-    pl.camera.zoom(1.4)
+    pl.camera.zoom(1.5)
     img = pl.screenshot(None, return_img=True)
     pl.close()
     _picture_with_legend(img, entries, title, path)
@@ -869,11 +869,11 @@ def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path)
     handles = [Patch(facecolor=col, edgecolor="black", label=lab) for lab, col in entries]
     if handles:
         fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.01, 0.92),
-                   fontsize=10, frameon=True, title="surface groups (outer faces "
-                   "translucent)", title_fontsize=10)
+                   fontsize=11, frameon=True, title="surface groups (outer faces "
+                   "translucent)", title_fontsize=11)
     if title:
         fig.suptitle(title, fontsize=13)
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)
 
 
