@@ -275,8 +275,10 @@ def _readme(sweep: GeometrySweep, rows: list, summary: dict) -> str:
               "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         L += ["| " + " | ".join(_fmt(r[c]) for c in cols) + " |" for r in rows]
         L += ["", "## What was reused between points", "",
-              "Per point, as its process found it (`reused` in `results.csv`): "
-              + "; ".join(f"{n} × {w}" for w, n in summary["reused"].items()) + ".", ""]
+              "Per point, as its process found it (`reused` in `results.csv`; "
+              "`docs/commands/sweep.md` says why each reuse gives the numbers of a run "
+              "alone):", ""]
+        L += [f"- {n} point(s): {w}" for w, n in summary["reused"].items()] + [""]
     L += [f"Runs: {len(summary['runs'])}; this one computed {summary['n_computed']} point(s), "
           f"took {summary['n_stored_before']} from the store, {summary['n_failed']} failed "
           f"({summary['executor']}, {summary['wall_s']:.1f} s).", "",
