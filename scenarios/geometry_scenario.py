@@ -35,6 +35,7 @@ unit; lengths in the file are in the mesh's ``unit``)::
                                   # or a CSV column name: power_W = "P_front_W";
                                   # flux_W_m2 instead of power_W for a flux
     # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
+    # scale = 1.0               optional factor on every value of the schedule [-]
 
     [[convection]]                # one per cooled surface group
     group = "housing_outer"
@@ -96,7 +97,7 @@ _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "e
         "youngs_modulus_Pa", "poisson_ratio"}
 _CYCLE = {"phases", "csv", "total_h", "total_s"}
 _PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
-_SRC = {"name", "group", "power_W", "flux_W_m2", "phases"}
+_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale"}
 _CONV = {"name", "group", "h_W_m2K", "ambient_C"}
 _SUP = {"type", "group", "points"}
 _SENS = {"name", "point", "direction", "quantity", "group"}
@@ -271,11 +272,38 @@ def _point(v, scale: float, where: str) -> tuple:
 
 def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
                                 base: Path | None = None) -> GeometryScenario:
-    """Validate a geometry scenario given as a dict (as read from TOML)."""
+    """Validate a geometry scenario given as a dict (as read from TOML).
+
+    One reader per table, in the order a refusal is looked for: ``[scenario]`` and
+    ``[geometry]``, ``[[material]]``, ``[cycle]``, ``[[heat_source]]``,
+    ``[[convection]]``, ``[support]``, ``[[sensor]]``, ``[fem]`` and ``[outputs]``.
+    """
     base = Path(".") if base is None else base
     _unknown(data, _TOP, "")
     sc = _table(data, "scenario", "")
     _unknown(sc, {"name", "description"}, "scenario")
+    g, unit, scale, order, ref = _geometry_table(data)
+    materials = _materials(data)
+    cycle = _cycle(data, ref, base)
+    sources = _sources(data, cycle)
+    convs = _convections(data)
+    support, names = _support(data, scale)
+    sensors = _sensors(data, scale)
+    solver, dt, oi, fi, out = _fem_and_outputs(data, cycle)
+    return GeometryScenario(
+        name=_string(sc.get("name", Path(source).stem), "scenario.name"),
+        description=_string(sc.get("description", ""), "scenario.description"),
+        source=source, mesh_path=base / _string(g["mesh"], "geometry.mesh"), unit=unit,
+        order=order, reference_C=ref, materials=materials, cycle=cycle,
+        sources=tuple(sources), convections=tuple(convs), support=support,
+        support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
+        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
+        picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
+
+
+def _geometry_table(data: dict) -> tuple:
+    """``[geometry]``: the table, the mesh unit, its scale to metres [m per unit], the
+    element order (1 | 2) and the reference temperature [°C]."""
     g = _table(data, "geometry", "")
     _unknown(g, _GEOM, "geometry")
     if "mesh" not in g:
@@ -288,33 +316,48 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
     if order not in (1, 2):
         raise InputError(f"must be 1 or 2, got {order}", "geometry.order")
     ref = _number(g.get("reference_C", 20.0), "geometry.reference_C")
+    return g, unit, scale, order, ref
+
+
+def _materials(data: dict) -> dict:
+    """``[[material]]``: {volume group: :class:`Material`}, one material per group."""
     mats = data.get("material", [])
     if not isinstance(mats, list) or not mats:
         raise InputError("needs one [[material]] per volume group of the mesh", "material")
     materials = {}
     for i, m in enumerate(mats):
         w = f"material[{i}]"
-        if not isinstance(m, dict):
-            raise InputError("must be a table", w)
-        _unknown(m, _MAT, w)
-        missing = sorted(_MAT - set(m))
-        if missing:
-            raise InputError(f"missing {', '.join(missing)}", w)
-        kw = {k: _number(m[k], f"{w}.{k}", positive=k != "poisson_ratio")
-              for k in _MAT - {"group"}}
-        if not 0.0 <= kw["poisson_ratio"] < 0.5:
-            raise InputError(f"must lie in [0, 0.5), got {kw['poisson_ratio']}",
-                             f"{w}.poisson_ratio")
-        if kw["expansion_1_K"] > 1e-3:
-            raise InputError(f"{kw['expansion_1_K']:g} 1/K is not a solid's expansion "
-                             "(µm/(m·K) given as 1/K? 12 µm/(m·K) = 12e-6)",
-                             f"{w}.expansion_1_K")
-        grp = _string(m["group"], f"{w}.group")
-        if grp in materials:
-            raise InputError(f"group {grp!r} has two materials", f"{w}.group")
-        materials[grp] = Material(group=grp, **kw)
-    cycle = _cycle(data, ref, base)
-    nph = cycle.edges_s.size - 1
+        mat = _material(m, w)
+        if mat.group in materials:
+            raise InputError(f"group {mat.group!r} has two materials", f"{w}.group")
+        materials[mat.group] = mat
+    return materials
+
+
+def _material(m, w: str) -> Material:
+    """One ``[[material]]`` table (``w`` names it): every property given, each plausible."""
+    if not isinstance(m, dict):
+        raise InputError("must be a table", w)
+    _unknown(m, _MAT, w)
+    missing = sorted(_MAT - set(m))
+    if missing:
+        raise InputError(f"missing {', '.join(missing)}", w)
+    kw = {k: _number(m[k], f"{w}.{k}", positive=k != "poisson_ratio")
+          for k in _MAT - {"group"}}
+    if not 0.0 <= kw["poisson_ratio"] < 0.5:
+        raise InputError(f"must lie in [0, 0.5), got {kw['poisson_ratio']}",
+                         f"{w}.poisson_ratio")
+    if kw["expansion_1_K"] > 1e-3:
+        raise InputError(f"{kw['expansion_1_K']:g} 1/K is not a solid's expansion "
+                         "(µm/(m·K) given as 1/K? 12 µm/(m·K) = 12e-6)",
+                         f"{w}.expansion_1_K")
+    grp = _string(m["group"], f"{w}.group")
+    return Material(group=grp, **kw)
+
+
+def _sources(data: dict, cycle: Schedule3D) -> list:
+    """``[[heat_source]]``: one :class:`SourceSetting` per table, each on its own schedule
+    (its ``phases``) or on the cycle's (a constant, a value per phase, a CSV column)."""
     sources = []
     src_list = data.get("heat_source", [])
     if not isinstance(src_list, list):
@@ -326,56 +369,78 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         _unknown(s, _SRC, w)
         grp = _string(s.get("group"), f"{w}.group")
         name = _string(s.get("name", grp), f"{w}.name")
-        kinds = [k for k in ("power_W", "flux_W_m2") if k in s]
         if "phases" in s:
-            ph = s["phases"]
-            if not isinstance(ph, list) or not ph:
-                raise InputError("must be a non-empty list of phases", f"{w}.phases")
-            d, v, kind = [], [], None
-            for j, p in enumerate(ph):
-                wj = f"{w}.phases[{j}]"
-                if not isinstance(p, dict):
-                    raise InputError("must be a table", wj)
-                _unknown(p, {"duration_s", "duration_min", "duration_h", "power_W",
-                             "flux_W_m2", "label"}, wj)
-                d.append(_durations(p, wj))
-                k = [x for x in ("power_W", "flux_W_m2") if x in p]
-                if len(k) != 1:
-                    raise InputError("needs power_W or flux_W_m2", wj)
-                if kind is not None and k[0] != kind:
-                    raise InputError("mixes power_W and flux_W_m2", wj)
-                kind = k[0]
-                v.append(_number(p[kind], f"{wj}.{kind}", positive=True, allow_zero=True))
-            edges = np.concatenate([[0.0], np.cumsum(d)])
-            if abs(edges[-1] - cycle.edges_s[-1]) > 1e-9 * cycle.edges_s[-1]:
-                raise InputError(f"its phases add up to {edges[-1] / 3600:g} h, the cycle "
-                                 f"to {cycle.edges_s[-1] / 3600:g} h", f"{w}.phases")
-            values = np.asarray(v)
+            edges, values, kind = _source_own_phases(s["phases"], w, cycle)
         else:
-            if len(kinds) != 1:
-                raise InputError("needs power_W [W] or flux_W_m2 [W/m²] (or phases)", w)
-            kind = kinds[0]
-            val = s[kind]
-            edges = cycle.edges_s
-            if isinstance(val, str):
-                if val not in cycle.columns:
-                    raise InputError(f"no column {val!r} in the cycle's CSV (columns: "
-                                     f"{', '.join(sorted(cycle.columns)) or 'none'})",
-                                     f"{w}.{kind}")
-                values = cycle.columns[val]
-            elif isinstance(val, list):
-                if len(val) != nph:
-                    raise InputError(f"has {len(val)} values for {nph} cycle phases",
-                                     f"{w}.{kind}")
-                values = np.asarray([_number(x, f"{w}.{kind}", positive=True, allow_zero=True)
-                                     for x in val])
-            else:
-                values = np.full(nph, _number(val, f"{w}.{kind}", positive=True,
-                                              allow_zero=True))
-            if np.any(values < 0):
-                raise InputError("must be >= 0", f"{w}.{kind}")
+            edges, values, kind = _source_on_cycle(s, w, cycle)
+        if "scale" in s:          # a factor on the whole schedule (e.g. swept: 0.5, 1, 2)
+            values = values * _number(s["scale"], f"{w}.scale", positive=True,
+                                      allow_zero=True)
         spec = SourceSpec(name=name, group=grp, kind="power" if kind == "power_W" else "flux")
         sources.append(SourceSetting(spec, edges, values))
+    return sources
+
+
+def _source_own_phases(ph, w: str, cycle: Schedule3D) -> tuple:
+    """A source's own ``phases``: (edges [s], power [W] or flux [W/m²] per phase, kind);
+    they must add up to the cycle's length."""
+    if not isinstance(ph, list) or not ph:
+        raise InputError("must be a non-empty list of phases", f"{w}.phases")
+    d, v, kind = [], [], None
+    for j, p in enumerate(ph):
+        wj = f"{w}.phases[{j}]"
+        if not isinstance(p, dict):
+            raise InputError("must be a table", wj)
+        _unknown(p, {"duration_s", "duration_min", "duration_h", "power_W",
+                     "flux_W_m2", "label"}, wj)
+        d.append(_durations(p, wj))
+        k = [x for x in ("power_W", "flux_W_m2") if x in p]
+        if len(k) != 1:
+            raise InputError("needs power_W or flux_W_m2", wj)
+        if kind is not None and k[0] != kind:
+            raise InputError("mixes power_W and flux_W_m2", wj)
+        kind = k[0]
+        v.append(_number(p[kind], f"{wj}.{kind}", positive=True, allow_zero=True))
+    edges = np.concatenate([[0.0], np.cumsum(d)])
+    if abs(edges[-1] - cycle.edges_s[-1]) > 1e-9 * cycle.edges_s[-1]:
+        raise InputError(f"its phases add up to {edges[-1] / 3600:g} h, the cycle "
+                         f"to {cycle.edges_s[-1] / 3600:g} h", f"{w}.phases")
+    return edges, np.asarray(v), kind
+
+
+def _source_on_cycle(s: dict, w: str, cycle: Schedule3D) -> tuple:
+    """A source on the cycle's phases: (edges [s], values per phase, kind) from a
+    constant, a list (one value per phase) or the name of a column of the cycle's CSV."""
+    nph = cycle.edges_s.size - 1
+    kinds = [k for k in ("power_W", "flux_W_m2") if k in s]
+    if len(kinds) != 1:
+        raise InputError("needs power_W [W] or flux_W_m2 [W/m²] (or phases)", w)
+    kind = kinds[0]
+    val = s[kind]
+    edges = cycle.edges_s
+    if isinstance(val, str):
+        if val not in cycle.columns:
+            raise InputError(f"no column {val!r} in the cycle's CSV (columns: "
+                             f"{', '.join(sorted(cycle.columns)) or 'none'})",
+                             f"{w}.{kind}")
+        values = cycle.columns[val]
+    elif isinstance(val, list):
+        if len(val) != nph:
+            raise InputError(f"has {len(val)} values for {nph} cycle phases",
+                             f"{w}.{kind}")
+        values = np.asarray([_number(x, f"{w}.{kind}", positive=True, allow_zero=True)
+                             for x in val])
+    else:
+        values = np.full(nph, _number(val, f"{w}.{kind}", positive=True,
+                                      allow_zero=True))
+    if np.any(values < 0):
+        raise InputError("must be >= 0", f"{w}.{kind}")
+    return edges, values, kind
+
+
+def _convections(data: dict) -> list:
+    """``[[convection]]``: one :class:`ConvectionSetting` per table, h = a + b·n^m
+    [W/(m²K)] with n the cycle's speed [rpm] (a constant h is (h, 0, 1))."""
     convs = []
     for i, c in enumerate(data.get("convection", []) or []):
         w = f"convection[{i}]"
@@ -397,6 +462,12 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         amb = _number(c["ambient_C"], f"{w}.ambient_C") if "ambient_C" in c else None
         convs.append(ConvectionSetting(ConvectionSpec(_string(c.get("name", grp), f"{w}.name"),
                                                       grp), abm, amb))
+    return convs
+
+
+def _support(data: dict, scale: float) -> tuple:
+    """``[support]``: (:class:`Support`, point-group names of a 3-2-1 support or None per
+    point); coordinates scaled to metres by ``scale``."""
     sup = data.get("support")
     if not isinstance(sup, dict) or not sup:
         raise InputError("the body has no support: add [support] type = \"clamped\" with "
@@ -416,39 +487,56 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         coords = tuple(None if isinstance(p, str) else _point(p, scale, f"support.points[{j}]")
                        for j, p in enumerate(pts))
         support = Support("3-2-1", points=coords)
+    return support, names
+
+
+def _sensors(data: dict, scale: float) -> list:
+    """``[[sensor]]``: at least one :class:`SensorSpec`, names unique."""
     sensors, seen = [], set()
     for i, s in enumerate(data.get("sensor", []) or []):
-        w = f"sensor[{i}]"
-        if not isinstance(s, dict):
-            raise InputError("must be a table", w)
-        _unknown(s, _SENS, w)
-        name = _string(s.get("name"), f"{w}.name")
-        if name in seen or not name.replace("_", "").isalnum():
-            raise InputError(f"sensor names must be unique letters, digits and _, got "
-                             f"{name!r}", f"{w}.name")
-        seen.add(name)
-        q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
-                    choices=("displacement", "temperature"))
-        if q == "temperature" and name.startswith("T_"):
-            raise InputError(f"a thermometer's column is T_<name>_C (the measured-data "
-                             f"contract); name it without \"T_\" ({name[2:]!r}), or its "
-                             f"column reads T_{name}_C", f"{w}.name")
-        point = _point(s["point"], scale, f"{w}.point") if "point" in s else None
-        grp = _string(s["group"], f"{w}.group") if "group" in s else None
-        if (point is None) == (grp is None) or (q == "temperature" and point is None):
-            raise InputError("needs a point (or, for a displacement, a surface group)", w)
-        d = s.get("direction", "z")
-        if isinstance(d, str):
-            d = _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
-        else:
-            d = _point(d, 1.0, f"{w}.direction")
-            if np.linalg.norm(d) == 0:
-                raise InputError("must not be zero", f"{w}.direction")
-            d = tuple(np.asarray(d) / np.linalg.norm(d))
-        sensors.append(SensorSpec(name, q, point, grp, tuple(d)))
+        sensors.append(_sensor(s, f"sensor[{i}]", scale, seen))
     if not sensors:
         raise InputError("needs at least one [[sensor]] (e.g. name = \"tcp_z\", point = "
                          "[x, y, z], direction = \"z\")", "sensor")
+    return sensors
+
+
+def _sensor(s, w: str, scale: float, seen: set) -> SensorSpec:
+    """One ``[[sensor]]`` table (``w`` names it; ``seen``: the names so far, updated): a
+    temperature at a point, or a displacement at a point or over a surface group along
+    x, y, z or a unit vector."""
+    if not isinstance(s, dict):
+        raise InputError("must be a table", w)
+    _unknown(s, _SENS, w)
+    name = _string(s.get("name"), f"{w}.name")
+    if name in seen or not name.replace("_", "").isalnum():
+        raise InputError(f"sensor names must be unique letters, digits and _, got "
+                         f"{name!r}", f"{w}.name")
+    seen.add(name)
+    q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
+                choices=("displacement", "temperature"))
+    if q == "temperature" and name.startswith("T_"):
+        raise InputError(f"a thermometer's column is T_<name>_C (the measured-data "
+                         f"contract); name it without \"T_\" ({name[2:]!r}), or its "
+                         f"column reads T_{name}_C", f"{w}.name")
+    point = _point(s["point"], scale, f"{w}.point") if "point" in s else None
+    grp = _string(s["group"], f"{w}.group") if "group" in s else None
+    if (point is None) == (grp is None) or (q == "temperature" and point is None):
+        raise InputError("needs a point (or, for a displacement, a surface group)", w)
+    d = s.get("direction", "z")
+    if isinstance(d, str):
+        d = _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
+    else:
+        d = _point(d, 1.0, f"{w}.direction")
+        if np.linalg.norm(d) == 0:
+            raise InputError("must not be zero", f"{w}.direction")
+        d = tuple(np.asarray(d) / np.linalg.norm(d))
+    return SensorSpec(name, q, point, grp, tuple(d))
+
+
+def _fem_and_outputs(data: dict, cycle: Schedule3D) -> tuple:
+    """``[fem]`` and ``[outputs]``: (solver, dt [s], output interval [s], field interval
+    [s], the outputs table); the sample and snapshot counts bounded."""
     fem = _table(data, "fem", "")
     _unknown(fem, _FEM, "fem")
     solver = _string(fem.get("solver", "reduced"), "fem.solver", choices=tuple(_SOLVERS))
@@ -463,15 +551,7 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
     if total / fi > 2000:
         raise InputError(f"{total / fi:.0f} field snapshots; at most 2000",
                          "outputs.field_interval_s")
-    return GeometryScenario(
-        name=_string(sc.get("name", Path(source).stem), "scenario.name"),
-        description=_string(sc.get("description", ""), "scenario.description"),
-        source=source, mesh_path=base / _string(g["mesh"], "geometry.mesh"), unit=unit,
-        order=order, reference_C=ref, materials=materials, cycle=cycle,
-        sources=tuple(sources), convections=tuple(convs), support=support,
-        support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
-        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
-        picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
+    return solver, dt, oi, fi, out
 
 
 # -- the model ------------------------------------------------------------------------------
@@ -611,9 +691,13 @@ class GeometryRun:
         return out
 
 
-def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
+def solve_geometry(model: GeometryModel, progress=None,
+                   mode_cache: dict | None = None) -> GeometryRun:
     """The scenario's transient: sensors every ``output_interval_s`` and fields every
-    ``field_interval_s``, by the reduced-modal solve or the θ-method."""
+    ``field_interval_s``, by the reduced-modal solve or the θ-method.
+
+    ``mode_cache``: the reduced solve's ``{h tuple: BodyModes}``, to be shared only
+    between runs of one model with the same h history (``arfem sweep`` over powers)."""
     progress = progress or (lambda s: None)
     sc = model.scenario
     total = sc.total_s
@@ -625,7 +709,8 @@ def solve_geometry(model: GeometryModel, progress=None) -> GeometryRun:
     theta = _SOLVERS[sc.solver]
     if theta is None:
         kinds = [int(s.quantity == "displacement") for s in sc.sensors]
-        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds)
+        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
+                            mode_cache=mode_cache)
     else:
         full = solve_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
         pick = np.clip(np.searchsorted(full.times_s, t_out - 1e-6), 0, full.times_s.size - 1)
@@ -675,53 +760,121 @@ def write_fields_xdmf(run: GeometryRun, path: Path) -> None:
         os.chdir(here)
 
 
-def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "") -> None:
-    """Off-screen PNG of the mesh's surface groups (one colour each) and the sensors."""
+#: distinct, saturated colours for the surface groups (tab20's pale halves left out, which
+#: made half the groups and their legend entries unreadable on white)
+_GROUP_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b",
+                  "#e377c2", "#17becf", "#bcbd22", "#393b79", "#637939", "#843c39")
+
+
+def group_roles(sc: GeometryScenario) -> dict:
+    """{surface group: what the scenario does with it}, for the picture's legend:
+    ``heat source <name>``, ``convection h = … W/(m²K)``, ``support (clamped)``."""
+    roles: dict = {}
+
+    def add(g, text):
+        roles[g] = f"{roles[g]}; {text}" if g in roles else text
+    for s in sc.sources:
+        add(s.spec.group, f"heat source {s.spec.name}")
+    for c in sc.convections:
+        a, b, m = c.h
+        add(c.spec.group, f"convection h = {a:g}" + (f" + {b:g}·n^{m:g}" if b else "")
+            + " W/(m²K)")
+    if sc.support.kind == "clamped":
+        add(sc.support.group, "support (clamped)")
+    return roles
+
+
+def _sensor_labels(sensors) -> list:
+    """[(point [m], label)]: sensors at one point share a label (``tcp_x, tcp_y, tcp_z``);
+    a thermometer's name carries ``(°C)``."""
+    at: dict = {}
+    for s in sensors:
+        if s.point is None:
+            continue
+        key = tuple(round(float(c), 12) for c in s.point)
+        at.setdefault(key, []).append(s.name + (" (°C)" if s.quantity == "temperature" else ""))
+    return [(np.array(k), ", ".join(v)) for k, v in at.items()]
+
+
+def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "",
+                     roles: dict | None = None) -> None:
+    """Off-screen PNG of the mesh's surface groups and the sensors.
+
+    Every surface group in its own saturated colour with a legend entry (its role from
+    ``roles``, e.g. :func:`group_roles`); faces on the outside drawn half transparent, so
+    that groups inside the body (a bearing seat, the motor's air gap) and the sensors
+    show through; each sensor point marked and labelled with its name, in front of the
+    geometry.
+    """
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)     # no X-server chatter
+    roles = roles or {}
     mesh = gm.mesh
     nv = int(mesh.t.max()) + 1
     P = mesh.p[:, :nv].T
-    pl = pv.Plotter(off_screen=True, window_size=(1200, 900))
-    import matplotlib
-    cmap = matplotlib.colormaps["tab20"]
+    size = float(np.ptp(P, axis=0).max())
+    pl = pv.Plotter(off_screen=True, window_size=(1000, 860))
     bnd = set(mesh.boundary_facets().tolist())
+
+    def surface(fac):
+        f = mesh.facets[:, np.asarray(fac)].T
+        return pv.PolyData(P, np.column_stack([np.full(len(f), f.shape[1]), f]).ravel())
+    entries = []
     for i, (name, fac) in enumerate(sorted(gm.surfaces.items())):
-        fac = np.asarray([f for f in fac if f in bnd])
+        fac = np.asarray(fac)
         if fac.size == 0:
             continue
-        f = mesh.facets[:, fac].T
-        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
-        surf = pv.PolyData(P, faces)
-        pl.add_mesh(surf, color=cmap(i % 20)[:3], label=name, show_edges=False)
-    # faces in no group, grey and translucent
+        colour = _GROUP_COLOURS[i % len(_GROUP_COLOURS)]
+        # a heated face, or an interface inside the body, is drawn opaque
+        outside = np.isin(fac, list(bnd)) & ("heat source" not in roles.get(name, ""))
+        if outside.any():
+            pl.add_mesh(surface(fac[outside]), color=colour, opacity=0.3)
+        if (~outside).any():
+            pl.add_mesh(surface(fac[~outside]), color=colour, opacity=1.0)
+        entries.append([f"{name}: {roles[name]}" if name in roles else name, colour])
     grouped = set(np.concatenate([np.asarray(v) for v in gm.surfaces.values()]).tolist()) \
         if gm.surfaces else set()
     rest = np.asarray(sorted(bnd - grouped))
-    if rest.size:
-        f = mesh.facets[:, rest].T
-        faces = np.column_stack([np.full(len(f), f.shape[1]), f]).ravel()
-        pl.add_mesh(pv.PolyData(P, faces), color="lightgrey", opacity=0.35,
-                    label="(no group)")
-    for s in sensors:
-        if s.point is not None:
-            pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()),
-                                  center=s.point), color="black")
-            pl.add_point_labels(np.array([s.point]), [s.name], font_size=14,
-                                point_size=1, shape_opacity=0.6)
-    pl.add_legend(bcolor="white", size=(0.22, 0.04 * (len(gm.surfaces) + 1)), face="rectangle",
-                  loc="upper left")
+    if rest.size:                                  # outer faces in no group
+        pl.add_mesh(surface(rest), color="lightgrey", opacity=0.25)
+        entries.append(["(faces in no group)", "lightgrey"])
+    for point, label in _sensor_labels(sensors):
+        pl.add_mesh(pv.Sphere(radius=0.012 * size, center=point), color="black")
+        pl.add_point_labels(point[None, :], [label], font_size=20, point_size=1,
+                            shape_opacity=0.85, shape_color="white", text_color="black",
+                            always_visible=True, margin=4)
     pl.add_axes()
-    if title:
-        pl.add_title(title, font_size=11)
     # from the front (−y), to the side (+x) and a little from below: a spindle unit's
     # nose and the TCP face the viewer, the column stub (+y) stays behind
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
-    pl.screenshot(str(path))
+    pl.camera.zoom(1.5)
+    img = pl.screenshot(None, return_img=True)
     pl.close()
+    _picture_with_legend(img, entries, title, path)
+
+
+def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path) -> None:
+    """The rendered view with the groups' legend beside it (never over the geometry)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
+    fig = plt.figure(figsize=(14, 8.4))
+    ax = fig.add_axes([0.30, 0.0, 0.70, 0.94])
+    ax.imshow(img)
+    ax.set_axis_off()
+    handles = [Patch(facecolor=col, edgecolor="black", label=lab) for lab, col in entries]
+    if handles:
+        fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.01, 0.92),
+                   fontsize=11, frameon=True, title="surface groups (outer faces "
+                   "translucent)", title_fontsize=11)
+    if title:
+        fig.suptitle(title, fontsize=13)
+    fig.savefig(path, dpi=100, bbox_inches="tight", pad_inches=0.15)
+    plt.close(fig)
 
 
 def _sensor_figure(run: GeometryRun, path: Path) -> None:
@@ -814,7 +967,8 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> No
     if sc.picture:
         progress("geometry picture")
         geometry_picture(run.model.gmesh, out_dir / "geometry.png", sc.sensors,
-                         title=f"{sc.name}: physical groups and sensors")
+                         title=f"{sc.name}: physical groups and sensors",
+                         roles=group_roles(sc))
     if sc.fields and run.result.fields is not None:
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")

@@ -198,6 +198,7 @@ KNOWN_COMMAND_IMPORTS = {
     ("scenarios/diagnosis_run.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
     ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/sweep/geometry_run.py", "arfem.scenarios.html_report"): _REPORT,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
     ("scenarios/geometry_scenario.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep_default_path.py", "arfem.scenarios.sweep"): _SWEEP,

@@ -95,6 +95,20 @@ def n_local_workers(workers: int | None, n_todo: int, warn: Callable = note) -> 
     return n
 
 
+def _mesh_sweeps_apart(run: Callable) -> Callable:
+    """``run_sweep`` for a rod's sweep; a mesh scenario's sweep (``sweep.kind ==
+    "geometry"``, issue 32) goes to :func:`arfem.scenarios.sweep.geometry_run.
+    run_geometry_sweep`, the same store, executors and resume with its own outputs."""
+    @functools.wraps(run)
+    def dispatch(sweep, out, **kw):
+        if getattr(sweep, "kind", None) == "geometry":
+            from arfem.scenarios.sweep.geometry_run import run_geometry_sweep
+            return run_geometry_sweep(sweep, out, **kw)
+        return run(sweep, out, **kw)
+    return dispatch
+
+
+@_mesh_sweeps_apart
 def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str | None = None,
               force: bool = False, progress: bool = True, timeout_s: float = 5.0,
               worker_wait_s: float = DEFAULT_WORKER_WAIT_S, point_fn: Callable = evaluate_point,

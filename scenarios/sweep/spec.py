@@ -236,6 +236,8 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
         base_source = str(base_path)
     else:
         base_name, base_source = str(sw.get("base", "<base>")), "<base>"
+    if isinstance(base_data, dict) and "geometry" in base_data:    # a mesh scenario (issue 32)
+        return _mesh_sweep(sw, name, description, source, base_data, base_source, max_points)
     base_sc = scenario_from_dict(base_data, base_source, limits)   # the base must be valid
 
     grid_d = sw.get("grid")
@@ -286,6 +288,14 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
         points.append(Point(i, inputs, d, point_key(resolved_inputs(sc))))
     return Sweep(name=name, description=description, source=source, base=base_name,
                  grid=grid, paths=paths, points=tuple(points))
+
+
+def _mesh_sweep(sw, name, description, source, base_data, base_source, max_points):
+    """The sweep of a mesh scenario (``[geometry]``): :mod:`arfem.scenarios.sweep.geometry`."""
+    from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
+    return geometry_sweep_from_dict(sw, name, description, source, base_data,
+                                    None if base_source == "<base>" else Path(base_source),
+                                    str(sw.get("base", "<base>")), max_points)
 
 
 def check_size(grid: dict, base, max_points: int | None = None) -> tuple[int, float]:
