@@ -49,4 +49,5 @@ __all__ = ["Sweep", "Point", "PointStore", "load_sweep", "sweep_from_dict", "poi
            "resolved_inputs", "evaluate_point", "blas_threads", "clear_worker_cache",
            "run_sweep", "RunReport", "results_rows", "rows_to_csv", "biot_threshold",
            "thresholds", "render_readme", "write_outputs",
-           "STORE_VERSION", "METRIC_COLUMNS", "CORE_INPUTS", "TIMING_COLUMNS"]
+           "STORE_VERSION", "METRIC_COLUMNS", "CORE_INPUTS", "TIMING_COLUMNS", "MAX_POINTS",
+           "DEFAULT_WORKER_WAIT_S", "MAX_CONNECT_S", "MAX_WAIT_S"]
