@@ -22,6 +22,7 @@ Quick start (the FEM and the paper's AR(1) on your own rod in a few lines):
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -41,6 +42,7 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
     from numpy.typing import ArrayLike
 
     from arfem.models.diagnosis.dataset import Dataset
+    from arfem.scenarios.checking import Criterion
     from arfem.scenarios.config import Scenario
     from arfem.scenarios.sweep.runner import RunReport
 
@@ -119,7 +121,7 @@ class FemResult:
     ndofs: int
     error_estimate_um: np.ndarray | None = None
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """``time_s``, ``growth_um``, ``heat_J`` as a pandas DataFrame."""
         return _frame({"time_s": self.times_s, "growth_um": self.growth_um,
                        "heat_J": self.heat_J})
@@ -218,7 +220,7 @@ class AR1Result:
     C2_um_per_W_m2: float
     corrected: bool
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """``time_s``, ``growth_um`` as a pandas DataFrame."""
         return _frame({"time_s": self.times_s, "growth_um": self.growth_um})
 
@@ -288,7 +290,7 @@ class Comparison:
     ar_corrected_um: np.ndarray
     metrics: dict = field(repr=False)
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """``time_s``, ``fem_um``, ``ar_um``, ``ar_corrected_um`` as a DataFrame."""
         return _frame({"time_s": self.times_s, "fem_um": self.fem_um, "ar_um": self.ar_um,
                        "ar_corrected_um": self.ar_corrected_um})
@@ -334,19 +336,24 @@ class CheckResult:
 
     Attributes
     ----------
+    scenario : str
+        The scenario's name.
     passed : bool
         Every criterion holds.
-    criteria : list of dict
-        ``name``, ``value``, ``limit``, ``unit``, ``passed``, ``message``.
+    criteria : tuple of arfem.scenarios.checking.Criterion
+        Each criterion (frozen): ``name``, ``value`` against ``limit`` (in ``unit``),
+        ``passed``, and the ``message`` ``arfem check`` prints.
     """
 
     scenario: str
     passed: bool
-    criteria: list
+    criteria: tuple[Criterion, ...]
 
     def to_json(self) -> str:
-        """The result as a JSON document."""
-        return json_text(self.__dict__)
+        """The result as a JSON document: ``scenario``, ``passed`` and each criterion's
+        fields, as in ``arfem check --json``)."""
+        return json_text({"scenario": self.scenario, "passed": self.passed,
+                          "criteria": [dataclasses.asdict(c) for c in self.criteria]})
 
 
 def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
@@ -375,7 +382,7 @@ def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, 
     Examples
     --------
     >>> r = check("paper_fig2")
-    >>> r.passed, [c["name"] for c in r.criteria]
+    >>> r.passed, [c.name for c in r.criteria]
     (True, ['max_abs_diff_pct_of_peak', 'C1_abs_diff'])
     """
     from arfem.scenarios.checking import check_scenario
@@ -391,7 +398,7 @@ def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, 
         r = check_geometry_case(load_geometry_case(scenario), max_abs_pct, model)
     else:
         r = check_scenario(_scenario(scenario), max_abs_pct, max_c1_diff, model)
-    return CheckResult(r.scenario, r.passed, [dict(c.__dict__) for c in r.criteria])
+    return CheckResult(r.scenario, r.passed, tuple(r.criteria))
 
 
 def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None,
@@ -559,7 +566,7 @@ class DiagnosisResult:
             "time_s", "growth_um", "baseline_um", "extended_um", "outlier")),
             None if s.get("mlr_um") is None else np.asarray(s["mlr_um"]))
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """The equal-length arrays of ``series`` as a pandas DataFrame."""
         n = len(self.series.get("time_s", ()))
         return _frame({k: np.asarray(v) for k, v in self.series.items()
@@ -619,7 +626,7 @@ class Record:
     notes: tuple = field(repr=False)
     _dataset: Dataset = field(repr=False, compare=False)
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """The samples (:attr:`data`, a copy) as a pandas DataFrame."""
         return self.data.copy()
 

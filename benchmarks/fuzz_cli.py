@@ -617,9 +617,9 @@ def main(argv=None) -> int:
     if args.hangs:
         extra += hang_part()
     import arfem.scenarios.cli as cli                        # noqa: F401 - imported once
-    for mod in ("arfem.scenarios.run", "arfem.scenarios.compensate", "arfem.scenarios.sweep",
+    for mod in ("arfem.scenarios.run", "arfem.scenarios.compensate", "arfem.scenarios.sweep.command",
                 "arfem.scenarios.diagnose", "arfem.scenarios.allocate", "arfem.scenarios.check",
-                "arfem.scenarios.html_report", "arfem.scenarios.twin", "arfem.scenarios.live",
+                "arfem.scenarios.report", "arfem.scenarios.twin", "arfem.scenarios.live",
                 "matplotlib.pyplot"):
         __import__(mod)
     rng = random.Random(args.seed)

@@ -130,6 +130,52 @@ def elastic_forms(axisymmetric: bool, lam: float, mu: float, alpha: float):
     return stiffness, coupling
 
 
+def _fixed_dofs(mesh, vb, rod: Rod, axi: bool) -> np.ndarray:
+    """The displacement dofs held fixed: u_z on the heated face, and what removes the
+    rigid-body motions left (u_r on the axis; in 3D both lateral components at the
+    heated face's centre vertex and one at a second vertex in its row, which stops the
+    rotation about z). Sorted, unique."""
+    zc = mesh.dim() - 1
+    fixed = [vb.get_dofs("heated").all(f"u^{zc + 1}")]
+    nv = mesh.nvertices if hasattr(mesh, "nvertices") else mesh.p.shape[1]
+    pv = mesh.p[:, :nv]
+    tol = 1e-9 * max(rod.radius_m, rod.length_m)
+    if axi:
+        if "axis" not in mesh.boundaries:
+            raise InputError("axisymmetric mesh has no boundary tagged 'axis'", "mesh")
+        fixed += [vb.get_dofs("axis").all("u^1")]
+    else:
+        heated_v = np.unique(mesh.facets[:, mesh.boundaries["heated"]])
+        heated_v = heated_v[heated_v < nv]
+        rad = np.hypot(pv[0, heated_v], pv[1, heated_v])
+        a = heated_v[np.argmin(rad)]
+        row = heated_v[np.abs(pv[1, heated_v] - pv[1, a]) < tol]
+        row = row[row != a]
+        if row.size == 0:
+            raise InputError("no second heated-face vertex in the row of the centre one; "
+                             "cannot fix the rotation about z", "mesh")
+        b = row[np.argmax(np.abs(pv[0, row] - pv[0, a]))]
+        fixed += [vb.nodal_dofs[:2, a], vb.nodal_dofs[1:2, b]]
+    return np.unique(np.concatenate([np.asarray(f, int).ravel() for f in fixed]))
+
+
+def _far_face_weights(mesh, vb, axi: bool, intorder: int | None):
+    """Weights w with wᵀu = the face-averaged u_z [m] over the far face (∫ v_z dA / ∫ dA),
+    and the face's area A_far [m²]."""
+    zc = mesh.dim() - 1
+    fb = FacetBasis(mesh, vb.elem, facets=mesh.boundaries["far"], intorder=intorder or 6)
+    wr = (lambda x: 2.0 * np.pi * x[0]) if axi else (lambda x: 1.0 + 0.0 * x[0])
+
+    @LinearForm
+    def face_uz(v, w):
+        return v.value[zc] * wr(w.x)
+
+    fw = face_uz.assemble(fb)
+    area = float(np.sum(fw))      # ∫ v_z dA with v_z ≡ 1 on every u_z dof = A_far
+    # (u_z dofs carry a partition of unity, so summing the weights gives the area)
+    return fw / area, area
+
+
 @dataclass(frozen=True)
 class ThermoElastic:
     """Factored thermo-elastic operator on the mesh of a :class:`HeatFEM`.
@@ -204,42 +250,9 @@ class ThermoElastic:
         T = coupling.assemble(sb, vb).tocsr()
 
         zc = dim - 1                                     # index of the axial component
-        fixed = [vb.get_dofs("heated").all(f"u^{zc + 1}")]
-        nv = mesh.nvertices if hasattr(mesh, "nvertices") else mesh.p.shape[1]
-        pv = mesh.p[:, :nv]
-        tol = 1e-9 * max(rod.radius_m, rod.length_m)
-        if axi:
-            if "axis" not in mesh.boundaries:
-                raise InputError("axisymmetric mesh has no boundary tagged 'axis'", "mesh")
-            fixed += [vb.get_dofs("axis").all("u^1")]
-        else:
-            heated_v = np.unique(mesh.facets[:, mesh.boundaries["heated"]])
-            heated_v = heated_v[heated_v < nv]
-            rad = np.hypot(pv[0, heated_v], pv[1, heated_v])
-            a = heated_v[np.argmin(rad)]
-            row = heated_v[np.abs(pv[1, heated_v] - pv[1, a]) < tol]
-            row = row[row != a]
-            if row.size == 0:
-                raise InputError("no second heated-face vertex in the row of the centre one; "
-                                 "cannot fix the rotation about z", "mesh")
-            b = row[np.argmax(np.abs(pv[0, row] - pv[0, a]))]
-            fixed += [vb.nodal_dofs[:2, a], vb.nodal_dofs[1:2, b]]
-        D = np.unique(np.concatenate([np.asarray(f, int).ravel() for f in fixed]))
-        free = np.setdiff1d(np.arange(vb.N), D)
+        free = np.setdiff1d(np.arange(vb.N), _fixed_dofs(mesh, vb, rod, axi))
         lu = factorize_spd(K[free][:, free])
-
-        # face-averaged u_z over the far face: ∫ v_z dA / ∫ dA
-        fb = FacetBasis(mesh, vb.elem, facets=mesh.boundaries["far"], intorder=intorder or 6)
-        wr = (lambda x: 2.0 * np.pi * x[0]) if axi else (lambda x: 1.0 + 0.0 * x[0])
-
-        @LinearForm
-        def face_uz(v, w):
-            return v.value[zc] * wr(w.x)
-
-        fw = face_uz.assemble(fb)
-        area = float(np.sum(fw))      # ∫ v_z dA with v_z ≡ 1 on every u_z dof = A_far
-        # (u_z dofs carry a partition of unity, so summing the weights gives the area)
-        far_weight = fw / area
+        far_weight, area = _far_face_weights(mesh, vb, axi, intorder)
 
         # u_z on the axis at the far end, interpolated (no node needs to lie there)
         target = np.zeros((dim, 1))

@@ -268,9 +268,6 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     ...         print(r.num_steps, t, sorted(pd), cells[0].type)
     5 86400.0 ['T_C', 'theta_K'] quad9
     """
-    import xml.etree.ElementTree as ET
-
-    import h5py
     path = Path(path)
     if path.suffix.lower() not in (".xdmf3", ".xdmf"):
         raise InputError(f"must end in .xdmf3 (or .xdmf), got {path.name!r}", "path")
@@ -284,6 +281,18 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
     names = ["T_C", "theta_K"] + (["displacement_m"] if disp is not None else [])
     shapes = {"cells": cells.shape, "points": pts.shape, "T_C": (len(pts),),
               "theta_K": (len(pts),), "displacement_m": (len(pts), 3)}
+    times_s = np.asarray(result.times_s, float)[idx]
+    _write_h5(h5path, pts, cells, times_s, theta, model.rod.ambient_C, disp)
+    peak = None if peak_index is None else int(np.searchsorted(idx, int(peak_index)))
+    _write_xdmf(path, h5path.name, kind_x, shapes, times_s, names, peak)
+    return path
+
+
+def _write_h5(h5path: Path, pts, cells, times_s, theta, ambient_C: float, disp) -> None:
+    """The heavy data of :func:`write_fields` (atomically): the mesh once, then per frame
+    θ [K], T [°C] = θ + ``ambient_C`` and (``disp`` not None) the displacement [m], each
+    a gzip-compressed dataset."""
+    import h5py
     gz = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
     with atomic_path(h5path) as tmp:
         # HDF5 1.10 object format: compact metadata (a third of the file with the 1.8 default)
@@ -292,26 +301,31 @@ def write_fields(model: HeatFEM, result: HeatResult, path, elastic=None,
             f.attrs["generator"] = "arfem"
             f.create_dataset("mesh/points", data=pts, **gz)
             f.create_dataset("mesh/cells", data=cells, **gz)
-            f.create_dataset("time_s", data=np.asarray(result.times_s, float)[idx])
-            for k in range(idx.size):
+            f.create_dataset("time_s", data=times_s)
+            for k in range(len(times_s)):
                 f.create_dataset(f"theta_K/step_{k:05d}", data=theta[k], **gz)
-                f.create_dataset(f"T_C/step_{k:05d}", data=theta[k] + model.rod.ambient_C, **gz)
+                f.create_dataset(f"T_C/step_{k:05d}", data=theta[k] + ambient_C, **gz)
                 if disp is not None:
                     f.create_dataset(f"displacement_m/step_{k:05d}", data=disp[k], **gz)
+
+
+def _write_xdmf(path: Path, h5name: str, kind_x, shapes: dict, times_s, names: list,
+                peak: int | None) -> None:
+    """The XDMF 3 descriptions of :func:`write_fields` on the HDF5 file ``h5name``: a
+    temporal collection with one grid per frame at ``path``, and (``peak`` not None)
+    ``peak.xdmf`` beside it, the one grid of frame ``peak``."""
+    import xml.etree.ElementTree as ET
     root = ET.Element("Xdmf", Version="3.0")
     coll = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", Name="arfem_fields",
                          GridType="Collection", CollectionType="Temporal")
-    for k, i in enumerate(idx):
-        _xdmf_grid(coll, f"t_{k:05d}", h5path.name, kind_x, shapes, k,
-                   float(result.times_s[i]), names)
+    for k, t in enumerate(times_s):
+        _xdmf_grid(coll, f"t_{k:05d}", h5name, kind_x, shapes, k, float(t), names)
     atomic_write_text(path, _xdmf_text(root))
-    if peak_index is not None:
-        k = int(np.searchsorted(idx, int(peak_index)))
+    if peak is not None:
         root = ET.Element("Xdmf", Version="3.0")
-        _xdmf_grid(ET.SubElement(root, "Domain"), "peak", h5path.name, kind_x, shapes, k,
+        _xdmf_grid(ET.SubElement(root, "Domain"), "peak", h5name, kind_x, shapes, peak,
                    None, names)
         atomic_write_text(path.with_name("peak.xdmf"), _xdmf_text(root))
-    return path
 
 
 def read_fields(path):

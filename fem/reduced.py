@@ -201,28 +201,14 @@ def reduced_modes(model: HeatFEM, h_W_m2K: float, n_modes: int | None = None,
     (True, True)
     """
     n = model.ndofs
-    if method not in METHODS:
-        raise InputError(f"must be one of {', '.join(METHODS)}, got {method!r}", "method")
-    if n_modes is not None and (not isinstance(n_modes, (int, np.integer))
-                                or not 1 <= n_modes <= n - 2):
-        raise InputError(f"must be an integer in [1, {n - 2}], got {n_modes!r}", "n_modes")
+    _check_request(n, n_modes, method)
     A = model.operator(h_W_m2K)
-    fac = factorize_spd(A, factor_method if factor_method is not None
-                        else default_method(few_solves=True, n=n))
-    F = np.column_stack([model.f_q, model.f_b])
-    AFg = fac.solve(np.column_stack([F, model.growth]))
+    fac, F, AFg = _static_solves(model, A, factor_method)
     AF, Ag = AFg[:, :2], AFg[:, 2]
     extra = {}
     if method == "eigsh":
         k = DEFAULT_N_MODES if n_modes is None else int(n_modes)
-        op = LinearOperator((n, n), matvec=fac.solve, dtype=float)
-        v0 = np.ones(n)                  # fixed start vector: the same modes every run
-        mu, phi = eigsh(A, k=k + 1, M=model.M, sigma=0.0, which="LM", OPinv=op,
-                        v0=v0, tol=1e-12)
-        order = np.argsort(mu)
-        mu, phi = mu[order], phi[:, order]
-        phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, model.M @ phi))
-        mu_next, mu, phi = float(mu[-1]), mu[:-1], phi[:, :-1]
+        mu, phi, mu_next = _slowest_modes(model, A, fac, k)
     else:
         cap = min(n - 2, 120) if n_modes is None else int(n_modes)
         mu, phi, change, blocks = _krylov_ritz(model, A, fac, AFg, F, tol, cap)
@@ -240,6 +226,39 @@ def reduced_modes(model: HeatFEM, h_W_m2K: float, n_modes: int | None = None,
         h_W_m2K=float(h_W_m2K), mu=mu, mu_next=mu_next, phi=phi, Fk=Fk, gk=gk, vk=vk,
         Dg=model.growth @ AF - gk @ Fk_mu, Dv=model.volume @ AF - vk @ Fk_mu,
         X=AF - phi @ Fk_mu, g_rest=g_rest, G_rest=G_rest, **extra)
+
+
+def _static_solves(model: HeatFEM, A, factor_method):
+    """The factorised operator A = K + hB, the loads F = [f_q, f_b] (ndofs, 2) and the
+    static responses A⁻¹[f_q, f_b, g] (ndofs, 3)."""
+    fac = factorize_spd(A, factor_method if factor_method is not None
+                        else default_method(few_solves=True, n=model.ndofs))
+    F = np.column_stack([model.f_q, model.f_b])
+    return fac, F, fac.solve(np.column_stack([F, model.growth]))
+
+
+def _check_request(n: int, n_modes, method: str) -> None:
+    """``method`` one of :data:`METHODS`, ``n_modes`` None or an integer in [1, n − 2]
+    (``n`` degrees of freedom); else an :class:`InputError` naming the argument."""
+    if method not in METHODS:
+        raise InputError(f"must be one of {', '.join(METHODS)}, got {method!r}", "method")
+    if n_modes is not None and (not isinstance(n_modes, (int, np.integer))
+                                or not 1 <= n_modes <= n - 2):
+        raise InputError(f"must be an integer in [1, {n - 2}], got {n_modes!r}", "n_modes")
+
+
+def _slowest_modes(model: HeatFEM, A, fac, k: int):
+    """The ``k`` slowest modes of M θ' = −Aθ by shift-invert Lanczos, M-orthonormal and
+    sorted: (μ [1/s], shape (k,); φ, shape (ndofs, k); the first omitted μ [1/s])."""
+    n = model.ndofs
+    op = LinearOperator((n, n), matvec=fac.solve, dtype=float)
+    v0 = np.ones(n)                  # fixed start vector: the same modes every run
+    mu, phi = eigsh(A, k=k + 1, M=model.M, sigma=0.0, which="LM", OPinv=op,
+                    v0=v0, tol=1e-12)
+    order = np.argsort(mu)
+    mu, phi = mu[order], phi[:, order]
+    phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, model.M @ phi))
+    return mu[:-1], phi[:, :-1], float(mu[-1])
 
 
 def _m_orthonormal(M, V, W):
@@ -385,6 +404,34 @@ def _error_curves(events: list, times_s: np.ndarray):
     return est, bound
 
 
+def _cached_modes(cache: dict, model: HeatFEM, h_W_m2K: float, n_modes, factor_method,
+                  method: str) -> ReducedModes:
+    """The reduced modes at ``h_W_m2K``, computed once per (h, n_modes, method) and kept
+    in ``cache``."""
+    key = (h_W_m2K, n_modes, method)
+    if key not in cache:
+        cache[key] = reduced_modes(model, h_W_m2K, n_modes, factor_method, method)
+    return cache[key]
+
+
+def _trajectory(model: HeatFEM, x: np.ndarray, n: int, store_fields: bool):
+    """Growth [m] and heat content [m³·K] at ``n`` breakpoints (and the states θ [K],
+    shape (n, ndofs), if ``store_fields``; else None), the first filled from ``x``."""
+    growth, heat = np.empty(n), np.empty(n)
+    states = np.empty((n, model.ndofs)) if store_fields else None
+    growth[0], heat[0] = model.growth @ x, model.volume @ x
+    if states is not None:
+        states[0] = x
+    return growth, heat, states
+
+
+def _run_start(model: HeatFEM, md: ReducedModes, x: np.ndarray, u0: np.ndarray):
+    """At the start of a run of equal h: the state ``x`` [K] in the kept modes, and the
+    omitted modes' growth mismatch [m] (exact: the state is continuous)."""
+    c = md.phi.T @ (model.M @ x)
+    return c, float(model.growth @ x - md.gk @ c - md.Dg @ u0)
+
+
 def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
                   store_fields: bool = False, theta0=None, n_modes: int | None = None,
                   mode_cache: dict | None = None,
@@ -432,27 +479,17 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
     cache = {} if mode_cache is None else mode_cache
     x = _initial(model, theta0)
-    nb = bps.size
-    growth, heat = np.empty(nb), np.empty(nb)
-    states = np.empty((nb, model.ndofs)) if store_fields else None
-    growth[0], heat[0] = model.growth @ x, model.volume @ x
-    if store_fields:
-        states[0] = x
+    growth, heat, states = _trajectory(model, x, bps.size, store_fields)
     rigorous = not np.any(x)             # the bound needs a known (zero) omitted start
     events = []                          # (time, estimate size, bound size, decay rate)
     runs = n_kept = 0
     u_prev = None
     for k, j in _runs_of_equal(h[seg]):
         hk = float(h[seg[k]])
-        key = (hk, n_modes, method)
-        if key not in cache:
-            cache[key] = reduced_modes(model, hk, n_modes, factor_method, method)
-        md = cache[key]
+        md = _cached_modes(cache, model, hk, n_modes, factor_method, method)
         idx = np.arange(k, j + 1)
         U = np.column_stack([q[seg[idx]], hk * amb[seg[idx]]])        # (intervals, 2)
-        c = md.phi.T @ (model.M @ x)
-        # the omitted modes' mismatch at the run's start: exact, the state is continuous
-        e0 = float(model.growth @ x - md.gk @ c - md.Dg @ U[0])
+        c, e0 = _run_start(model, md, x, U[0])
         # a Ritz basis has no first omitted mode: nothing is assumed to decay, no bound
         rigorous = rigorous and md.method != "krylov"
         events += _omitted_mode_events(md, U, bps[k:j + 2], e0, u_prev)
@@ -472,6 +509,6 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     pick = b.pick
     rhoc = model.rod.density_kg_m3 * model.rod.specific_heat_J_kgK
     return ReducedResult(out_t.copy(), growth[pick], rhoc * heat[pick],
-                         states[pick] if store_fields else None,
+                         None if states is None else states[pick],
                          error_estimate_m=est[pick], error_bound_m=bound[pick],
                          n_modes=int(n_kept))

@@ -242,20 +242,11 @@ def fit_transfer_functions(growth_um, inputs: dict, units: dict, *, dtau_s: floa
     ([1.0], 2.0)
     """
     y = np.asarray(growth_um, float)
-    if heat_source not in inputs:
-        raise InputError(f"needs the heat source {heat_source!r}", "inputs")
-    ref = {k: float(np.asarray(v, float)[0]) for k, v in inputs.items()}
-    ref.update(reference or {})
-    U = {k: np.asarray(v, float) - ref[k] for k, v in inputs.items()}
-    for k, v in U.items():
-        if v.shape != y.shape or not np.all(np.isfinite(v)):
-            raise InputError("must be finite and as long as the growth", f"inputs: {k}")
+    ref, U = _referenced_inputs(y, inputs, heat_source, reference)
     valid = np.isfinite(y) if valid is None else (np.asarray(valid, bool) & np.isfinite(y))
     y = np.where(np.isfinite(y), y, 0.0)
     idx = np.flatnonzero(valid)
     folds = [np.isin(np.arange(y.size), b) for b in np.array_split(idx, n_blocks)]
-    blk = _Blocks(y, folds)
-    every = np.ones(n_blocks, bool)
     memo = {}
 
     def cache(u, tau):
@@ -264,7 +255,61 @@ def fit_transfer_functions(growth_um, inputs: dict, units: dict, *, dtau_s: floa
             memo[key] = _lag(u, tau, dtau_s)
         return memo[key]
 
-    # step 0: the heat source, order 1 or 2
+    chosen, selection, cv = _forward_selection(U, heat_source, _Blocks(y, folds), cache,
+                                               min_gain, max_added)
+    terms, intercept, rms = _final_fit(chosen, U, y, valid, dtau_s, refine, units, ref)
+    return TransferFunctionFit(terms, intercept, float(dtau_s), rms, float(cv),
+                               tuple(selection))
+
+
+def _final_fit(chosen: list, U: dict, y: np.ndarray, valid: np.ndarray, dtau_s: float,
+               refine: bool, units: dict, ref: dict) -> tuple[tuple, float, float]:
+    """The chosen structure refitted on every valid row, its time constants refined off
+    the grid (``refine``): the terms, the intercept [µm] and the fit RMS [µm]."""
+    taus_all = [t for _, taus, _ in chosen for t in taus]
+    if refine:
+        taus_all = _refine_taus(chosen, taus_all, U, y, valid, dtau_s)
+    groups, k = [], 0
+    for nm, taus, d in chosen:
+        groups.append((nm, tuple(float(t) for t in taus_all[k:k + len(taus)]), d))
+        k += len(taus)
+    cols = [c for nm, ts, d in groups for c in _columns(U[nm], ts, d, dtau_s)]
+    coef, pred = _lstsq(cols, y, valid)
+    terms, j = [], 1
+    for nm, ts, d in groups:
+        p = len(ts)
+        gains = tuple(float(c) for c in coef[j:j + p])
+        direct = float(coef[j + p]) if d else 0.0
+        j += p + (1 if d else 0)
+        terms.append(TFTerm(nm, str(units.get(nm, "")), ref[nm], ts, gains, direct))
+    rms = float(np.sqrt(np.mean((y[valid] - pred[valid]) ** 2)))
+    return tuple(terms), float(coef[0]), rms
+
+
+def _referenced_inputs(y: np.ndarray, inputs: dict, heat_source: str,
+                       reference: dict | None) -> tuple[dict, dict]:
+    """Each input's value at rest (``reference``, default its first reading) and the
+    readings less it; an :class:`InputError` for a missing heat source or an input not
+    finite or not as long as the growth."""
+    if heat_source not in inputs:
+        raise InputError(f"needs the heat source {heat_source!r}", "inputs")
+    ref = {k: float(np.asarray(v, float)[0]) for k, v in inputs.items()}
+    ref.update(reference or {})
+    U = {k: np.asarray(v, float) - ref[k] for k, v in inputs.items()}
+    for k, v in U.items():
+        if v.shape != y.shape or not np.all(np.isfinite(v)):
+            raise InputError("must be finite and as long as the growth", f"inputs: {k}")
+    return ref, U
+
+
+def _forward_selection(U: dict, heat_source: str, blk, cache, min_gain: float,
+                       max_added: int) -> tuple[list, list, float]:
+    """The preregistered structure search: the heat source with order 1 or 2 (lower CV
+    score; a tie to the lower order), then the other inputs added one at a time while
+    the best lowers the CV score by at least ``min_gain``. Returns the chosen terms
+    (name, time constants [s] on the grid, direct term), the selection steps (name,
+    order, CV score) and the final CV score."""
+    every = np.ones(len(blk.masks), bool)
     hs = U[heat_source]
     scores = {o: _cv_score([], hs, o, False, blk, cache) for o in (1, 2)}
     # a tie (within 1e-6 relative or 1e-9 µm) goes to the lower order
@@ -291,27 +336,7 @@ def fit_transfer_functions(growth_um, inputs: dict, units: dict, *, dtau_s: floa
         cv, nm, o = cand
         chosen.append((nm, _best_taus(base(), U[nm], o, True, blk, every, cache), True))
         selection.append((nm, o, cv))
-
-    taus_all = [t for _, taus, _ in chosen for t in taus]
-    if refine:
-        taus_all = _refine_taus(chosen, taus_all, U, y, valid, dtau_s)
-    groups, k = [], 0
-    for nm, taus, d in chosen:
-        groups.append((nm, tuple(float(t) for t in taus_all[k:k + len(taus)]), d))
-        k += len(taus)
-    cols = [c for nm, ts, d in groups for c in _columns(U[nm], ts, d, dtau_s)]
-    coef, pred = _lstsq(cols, y, valid)
-    terms, j = [], 1
-    for nm, ts, d in groups:
-        p = len(ts)
-        gains = tuple(float(c) for c in coef[j:j + p])
-        direct = float(coef[j + p]) if d else 0.0
-        j += p + (1 if d else 0)
-        terms.append(TFTerm(nm, str(units.get(nm, "")), ref[nm], ts, gains, direct))
-    rms = float(np.sqrt(np.mean((y[valid] - pred[valid]) ** 2)))
-    return TransferFunctionFit(tuple(terms), float(coef[0]), float(dtau_s), rms, float(cv),
-                               tuple(selection))
-
+    return chosen, selection, cv
 
 def _refine_taus(chosen, taus0, U, y, valid, dtau_s):
     """Bounded least squares on log τ, gains by linear least squares (variable projection)."""

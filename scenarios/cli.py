@@ -27,11 +27,11 @@ from arfem.params import InputError, one_line
 COMMANDS = {
     "run": "arfem.scenarios.run",
     "reproduce": "arfem.scenarios.run",
-    "sweep": "arfem.scenarios.sweep",
+    "sweep": "arfem.scenarios.sweep.command",
     "diagnose": "arfem.scenarios.diagnose",
     "allocate": "arfem.scenarios.allocate",
     "check": "arfem.scenarios.check",
-    "report": "arfem.scenarios.html_report",
+    "report": "arfem.scenarios.report",
     "compensate": "arfem.scenarios.compensate",
     "twin": "arfem.scenarios.twin",
 }

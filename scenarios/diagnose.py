@@ -8,7 +8,8 @@ temperatures; see ``arfem compensate``), atomically. Bad input: one line, exit 2
 """
 from __future__ import annotations
 
-from arfem.scenarios.diagnosis_run import run_diagnosis, terminal_line
+from arfem.scenarios import diagnosis_run
+from arfem.scenarios.diagnosis_run import terminal_line
 from arfem.scenarios.progress import Progress, add_progress_flag
 
 __all__ = ["add_parser", "main"]
@@ -49,7 +50,7 @@ def add_parser(subparsers):
 def main(args) -> int:
     with Progress(12 + max(args.stability, 0), "arfem diagnose",
                   enabled=not args.no_progress) as progress:
-        s = run_diagnosis(args.case, args.out, args.holdout_start, args.force,
+        s = diagnosis_run.run_diagnosis(args.case, args.out, args.holdout_start, args.force,
                           args.frame_search, progress, args.drift_last, args.limits,
                           args.stability)
     print(terminal_line(s) + f"; wrote {args.out}")

@@ -218,12 +218,10 @@ def verdict(j: dict) -> list[str]:
     return L + ["", "## Warnings and the named cause in full", ""]
 
 
-def _markdown(diag) -> str:
-    j = diag.summary
-    b, e, h = j["baseline"], j["extended"], j["holdout"]
-    L = [f"# Diagnosis of `{j['dataset']}`", ""] + verdict(j)
-    for w in j.get("warnings", []):
-        L += [f"> **Warning:** {w}", ""]
+def _cause_lines(j: dict) -> list[str]:
+    """The named cause(s) with their parameters and 95 % intervals, the best candidate
+    not established, and an equivalent alternative."""
+    L: list[str] = []
     causes = j.get("causes")
     if causes:
         for i, c in enumerate(causes):
@@ -254,6 +252,14 @@ def _markdown(diag) -> str:
     if eq:
         L += [f"Equivalent alternative: `{eq['cause']}` (" + ", ".join(
             f"`{k}` = {_fmt(v, 4)}" for k, v in eq["parameters"].items()) + f"). {eq['why']}.", ""]
+    return L
+
+
+def _residual_lines(j: dict) -> list[str]:
+    """"What the nominal simulation gets wrong": baseline against extended, per phase,
+    and the residual's cross-correlation with every recorded signal."""
+    b, e = j["baseline"], j["extended"]
+    L: list[str] = []
     L += ["## What the nominal simulation gets wrong", "",
          f"Baseline model: **{b['model']}** ({j['ar_form_description'] if b['model'] == 'ar' else 'FEM with the [rod] values, exact modal integration at the sample times'}).",
          "", "| measure | baseline | extended |", "|---|---|---|"]
@@ -273,48 +279,63 @@ def _markdown(diag) -> str:
           "| signal | xcorr | beyond N_eff bound |", "|---|---|---|"]
     for k, v in b["cross_correlation"].items():
         L.append(f"| {k} | {v:+.3f} | {'yes' if abs(v) > b['cross_correlation_bound_neff'] else 'no'} |")
-    sel = j["selection"]
-    L += ["", "## Naming the cause", "", f"Rule: {sel['rule']}. "
-          f"N = {sel['n']}, lag-1 autocorrelation {sel['rho1']:.3f}, "
-          f"N_eff = {sel['n_eff']:.1f}.", ""]
-    if j["input_kind"] == "q_W_m2":
-        L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
-              "|---|---|---|---|---|"]
-        for c in j["candidates"] + j.get("refused_candidates", []):
-            if "refused" in c:
-                L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
-                    f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
-                continue
-            L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
-                     f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
-                         f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
-    else:
-        blocks = ", ".join(f"{a / 3600:.2f}-{b / 3600:.2f} h" for a, b in sel["validation_blocks_s"])
-        L += [f"Validation blocks (each fitted on everything before it): {blocks}. Baseline "
-              f"(AR(1) output error) validation RMSE per block: "
-              + ", ".join(_fmt(v) for v in sel["baseline_cv_per_block_um"]) + " µm.", ""]
-        if "frame_structure" in sel:
-            fs = sel["frame_structure"]
-            L += [(f"Thermometer frame structure chosen by the same validation: "
-                   f"{fs['components']} principal components, sensor lag {fs['sensor_lag_h']:g} h "
-                   "(validation RMSE of every structure tried, µm: " + ", ".join(
-                       f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").")
-                  if isinstance(fs["components"], int) else       # FrameEnsemble: no choice
-                  f"Thermometer frame: no structure chosen, the {fs['label']} structures. "
-                  "Its `frame_time_constant_h` is the members' median; members with a "
-                  "sensor lag add that lag to it, so where the thermometers follow the "
-                  "frame without lag it runs long, and its 95 % interval (noise only) "
-                  "held the truth in 2 of 8 generated cases "
-                  "(`benchmarks/bench_speed_intervals.py --kinds frame_average`).", ""]
-        if "drift_rule" in sel:                # --drift-last (post hoc option)
-            L += [f"Naming: {sel['drift_rule']}.", ""]
-        L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
-              "|---|---|---|---|---|---|"]
-        for c in j["candidates"]:
-            per = ", ".join(_fmt(v) for v in c.get("cv_per_block_um", []))
-            L.append(f"| {c['cause']} | {_fmt(c['score'])} | {per} | {_fmt(c.get('rmse_cut_pct'))} | "
-                     f"{c.get('blocks_won', '')} | " + ", ".join(
-                         f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    return L
+
+
+def _heat_flux_candidates(j: dict) -> list[str]:
+    """The candidates of a q_W_m2 record: BIC score, F test, fit-RMSE cut (refused
+    ones with their reason)."""
+    L: list[str] = []
+    L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
+          "|---|---|---|---|---|"]
+    for c in j["candidates"] + j.get("refused_candidates", []):
+        if "refused" in c:
+            L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
+                f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+            continue
+        L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
+                 f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
+                     f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    return L
+
+
+def _speed_candidates(j: dict, sel: dict) -> list[str]:
+    """The candidates of a speed_rpm record, chosen by blocked validation: the blocks,
+    the thermometer frame structure, and each candidate's validation RMSE."""
+    L: list[str] = []
+    blocks = ", ".join(f"{a / 3600:.2f}-{b / 3600:.2f} h" for a, b in sel["validation_blocks_s"])
+    L += [f"Validation blocks (each fitted on everything before it): {blocks}. Baseline "
+          f"(AR(1) output error) validation RMSE per block: "
+          + ", ".join(_fmt(v) for v in sel["baseline_cv_per_block_um"]) + " µm.", ""]
+    if "frame_structure" in sel:
+        fs = sel["frame_structure"]
+        L += [(f"Thermometer frame structure chosen by the same validation: "
+               f"{fs['components']} principal components, sensor lag {fs['sensor_lag_h']:g} h "
+               "(validation RMSE of every structure tried, µm: " + ", ".join(
+                   f"{k}: {_fmt(v)}" for k, v in fs["validation_rmse_um"].items()) + ").")
+              if isinstance(fs["components"], int) else       # FrameEnsemble: no choice
+              f"Thermometer frame: no structure chosen, the {fs['label']} structures. "
+              "Its `frame_time_constant_h` is the members' median; members with a "
+              "sensor lag add that lag to it, so where the thermometers follow the "
+              "frame without lag it runs long, and its 95 % interval (noise only) "
+              "held the truth in 2 of 8 generated cases "
+              "(`benchmarks/bench_speed_intervals.py --kinds frame_average`).", ""]
+    if "drift_rule" in sel:                # --drift-last (post hoc option)
+        L += [f"Naming: {sel['drift_rule']}.", ""]
+    L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
+          "|---|---|---|---|---|---|"]
+    for c in j["candidates"]:
+        per = ", ".join(_fmt(v) for v in c.get("cv_per_block_um", []))
+        L.append(f"| {c['cause']} | {_fmt(c['score'])} | {per} | {_fmt(c.get('rmse_cut_pct'))} | "
+                 f"{c.get('blocks_won', '')} | " + ", ".join(
+                     f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+    return L
+
+
+def _second_cause_lines(j: dict) -> list[str]:
+    """Each partner fitted together with the first cause, and whether it is
+    significant."""
+    L: list[str] = []
     pairs = j.get("second_cause_tests") or []
     if pairs:
         L += ["", "Second cause: each partner fitted together with the first cause "
@@ -327,6 +348,18 @@ def _markdown(diag) -> str:
                      f"{_fmt(t['rmse_cut_pct'])} | {t['n_eff']:.1f} | "
                      f"{'yes' if t['significant'] else 'no' + (' (refused)' if 'refused' in t else '')} | "
                      + ", ".join(f"{k}={_fmt(v, 4)}" for k, v in t["parameters"].items()) + " |")
+    return L
+
+
+def _naming_lines(j: dict) -> list[str]:
+    """"Naming the cause": the rule, the candidates, a second cause, what does not
+    apply, a cause named by misfit and the runner-up."""
+    sel = j["selection"]
+    L = ["", "## Naming the cause", "", f"Rule: {sel['rule']}. "
+          f"N = {sel['n']}, lag-1 autocorrelation {sel['rho1']:.3f}, "
+          f"N_eff = {sel['n_eff']:.1f}.", ""]
+    L += _heat_flux_candidates(j) if j["input_kind"] == "q_W_m2" else _speed_candidates(j, sel)
+    L += _second_cause_lines(j)
     if j["not_applicable"]:
         L.append("")
         L.append("Not applicable to this record: " + ", ".join(j["not_applicable"]) +
@@ -346,6 +379,15 @@ def _markdown(diag) -> str:
     if j.get("runner_up"):
         r = j["runner_up"]
         L += ["", f"Runner-up: `{r['cause']}` — lost because {r['why_lost']}."]
+    return L
+
+
+def _markdown(diag) -> str:
+    j = diag.summary
+    L = [f"# Diagnosis of `{j['dataset']}`", ""] + verdict(j)
+    for w in j.get("warnings", []):
+        L += [f"> **Warning:** {w}", ""]
+    L += _cause_lines(j) + _residual_lines(j) + _naming_lines(j)
     L += _holdout_section(j)
     L += ["", "## Data notes", ""] + [f"- {x}" for n in j["data_notes"] for x in _sentences(n)] + \
          [f"- {x}" for t in diag.text for x in _sentences(t)] + \

@@ -1,4 +1,5 @@
-"""``arfem report DIR``: one self-contained ``report.html`` for any arfem output directory.
+"""One self-contained ``report.html`` for any arfem output directory: the library behind
+``arfem report DIR`` (:mod:`arfem.scenarios.report`) and every command that writes a folder.
 
 Data flow: an output directory (of ``run``, ``reproduce``, ``diagnose``, ``sweep`` or
 ``allocate``) → discovery of what is in it → ``DIR/report.html``. Nothing is assumed
@@ -37,7 +38,7 @@ from markdown_it import MarkdownIt
 from arfem.io import atomic_write_text
 from arfem.params import InputError
 
-__all__ = ["write_html_report", "REPORT_NAME", "add_parser"]
+__all__ = ["write_html_report", "REPORT_NAME"]
 
 REPORT_NAME = "report.html"
 #: a folder with more JSON files than this is listed, not tabulated (a sweep's points/)
@@ -379,64 +380,92 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
     sections = []
     toc = []
     for d in sorted(by_dir, key=lambda p: (len(p.parts), p.as_posix())):
-        rels = by_dir[d]
         name = "outputs" if d == Path(".") else d.as_posix()
-        body = []
-        pngs = [r for r in rels if r.suffix.lower() == ".png" and r not in shown]
-        body += [f'<p class="note">{_e(r.as_posix())}: shown in the verdict above '
-                 f'(<a href="{_href(r)}">file</a>).</p>' for r in rels if r in shown]
-        jsons = [r for r in rels if r.suffix.lower() == ".json"]
-        mds = [r for r in rels if r.suffix.lower() == ".md"]
-        tomls = [r for r in rels if r.suffix.lower() == ".toml"]
-        for r in pngs:
-            p = root / r
-            data = p.read_bytes()
-            if len(data) > MAX_EMBED or data[:8] != b"\x89PNG\r\n\x1a\n":
-                body.append(f'<p><a href="{_href(r)}">{_e(r.as_posix())}</a> '
-                            f"({_size(len(data))}, linked)</p>")
-                continue
-            uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
-            body.append(f'<figure id="{_e(_anchor(r))}"><img src="{uri}" alt="{_e(r.name)}">'
-                        f'<figcaption><a href="{_href(r)}">{_e(r.as_posix())}</a>'
-                        "</figcaption></figure>")
-        if len(jsons) > MAX_JSON_TABLES:
-            body.append(f'<p class="note">{len(jsons)} JSON files in '
-                        f"<code>{_e(name)}/</code> (listed under Files, not tabulated)</p>")
-        else:
-            for r in jsons:
-                body.append(_json_section(root / r, r, inputs, root))
-        for r in tomls:
-            text = (root / r).read_text("utf-8", errors="replace")
-            body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
-                        f"<pre>{_e(text)}</pre>")
-        # the top folder's README (else its first Markdown file) is the page's lead text,
-        # open; every other Markdown file is collapsed
-        mds.sort(key=lambda r: (r.name != "README.md", r.name))
-        for k, r in enumerate(mds):
-            text = (root / r).read_text("utf-8", errors="replace")
-            if verdict_from is not None and r == Path(verdict_from):
-                text = _without_verdict(text)
-            opened = " open" if d == Path(".") and k == 0 else ""
-            body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
-                           f"{_e(r.as_posix())}</a></summary>"
-                           f"{_markdown(text, (root / r).parent, root)}</details>")
+        body = _folder_body(root, d, by_dir[d], shown, inputs, verdict_from)
         if body:
             sid = "d-" + _anchor(d)
             toc.append(f'<li><a href="#{_e(sid)}">{_e(name)}</a></li>')
             sections.append(f'<h2 id="{_e(sid)}">{_e(name)}</h2>' + "".join(body))
-    # inputs named by the JSON files but living elsewhere: linked relative to the report
+    page = _page(title, lead, toc, sections, _external_inputs(inputs, root), root, files,
+                 file_sizes)
+    path = root / REPORT_NAME
+    atomic_write_text(path, _scroll_tables(page))
+    return path
+
+
+def _figure(root: Path, r: Path) -> str:
+    """A PNG embedded as a ``data:`` URI with a link to its file; one too large (or not a
+    PNG) only linked."""
+    data = (root / r).read_bytes()
+    if len(data) > MAX_EMBED or data[:8] != b"\x89PNG\r\n\x1a\n":
+        return (f'<p><a href="{_href(r)}">{_e(r.as_posix())}</a> '
+                f"({_size(len(data))}, linked)</p>")
+    uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+    return (f'<figure id="{_e(_anchor(r))}"><img src="{uri}" alt="{_e(r.name)}">'
+            f'<figcaption><a href="{_href(r)}">{_e(r.as_posix())}</a>'
+            "</figcaption></figure>")
+
+
+def _folder_body(root: Path, d: Path, rels: list[Path], shown: set, inputs: dict,
+                 verdict_from) -> list[str]:
+    """The HTML blocks of one folder ``d`` of the output directory: its Markdown files
+    first (the top folder's README open, the others collapsed), then its figures, JSON
+    tables and TOML inputs; ``inputs`` collects the input files the JSON names."""
+    name = "outputs" if d == Path(".") else d.as_posix()
+    body = []
+    pngs = [r for r in rels if r.suffix.lower() == ".png" and r not in shown]
+    body += [f'<p class="note">{_e(r.as_posix())}: shown in the verdict above '
+             f'(<a href="{_href(r)}">file</a>).</p>' for r in rels if r in shown]
+    jsons = [r for r in rels if r.suffix.lower() == ".json"]
+    mds = [r for r in rels if r.suffix.lower() == ".md"]
+    tomls = [r for r in rels if r.suffix.lower() == ".toml"]
+    body += [_figure(root, r) for r in pngs]
+    if len(jsons) > MAX_JSON_TABLES:
+        body.append(f'<p class="note">{len(jsons)} JSON files in '
+                    f"<code>{_e(name)}/</code> (listed under Files, not tabulated)</p>")
+    else:
+        for r in jsons:
+            body.append(_json_section(root / r, r, inputs, root))
+    for r in tomls:
+        text = (root / r).read_text("utf-8", errors="replace")
+        body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
+                    f"<pre>{_e(text)}</pre>")
+    # the top folder's README (else its first Markdown file) is the page's lead text,
+    # open; every other Markdown file is collapsed
+    mds.sort(key=lambda r: (r.name != "README.md", r.name))
+    for k, r in enumerate(mds):
+        text = (root / r).read_text("utf-8", errors="replace")
+        if verdict_from is not None and r == Path(verdict_from):
+            text = _without_verdict(text)
+        opened = " open" if d == Path(".") and k == 0 else ""
+        body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
+                       f"{_e(r.as_posix())}</a></summary>"
+                       f"{_markdown(text, (root / r).parent, root)}</details>")
+    return body
+
+
+def _external_inputs(inputs: dict, root: Path) -> list[str]:
+    """List items linking the inputs the JSON files name that live outside the
+    directory, relative to the report."""
     ext = []
     for p in sorted(inputs.values()):
         if p.is_relative_to(root.resolve()):
             continue                                   # shown or listed with the outputs
         rel = Path(os.path.relpath(p, root.resolve()))
         ext.append(f'<li><a href="{_href(rel)}">{_e(rel.as_posix())}</a></li>')
+    return ext
+
+
+def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[str],
+          root: Path, files: list[Path], file_sizes: bool) -> str:
+    """The whole page: title, verdict, contents, the folders' sections, the inputs, the
+    file listing and the software versions."""
     listing = "".join(
         f'<tr><td><a href="{_href(r)}">{_e(r.as_posix())}</a></td>'
         + (f'<td class="num">{_e(_size((root / r).stat().st_size))}</td>' if file_sizes else "")
         + "</tr>" for r in files)
     versions = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _versions())
-    page = (
+    return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
         f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>"
@@ -459,36 +488,3 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         + '<h2 id="versions">software</h2><p class="note">Versions installed where this '
         f"report was written.</p><table>{versions}</table>"
         "</body></html>\n")
-    path = root / REPORT_NAME
-    atomic_write_text(path, _scroll_tables(page))
-    return path
-
-
-# -- CLI -----------------------------------------------------------------------------------
-
-def _main(args) -> int:
-    """``arfem report DIR``: only into a folder arfem wrote, never over a ``report.html``
-    arfem did not write (``docs/safety.md``), and listed in the folder's ownership
-    manifest with its current SHA-256, so that every later arfem command (a resumed sweep,
-    a ``--force`` re-run) may replace it (:func:`arfem.scenarios.outdir.replace_owned_file`)."""
-    from arfem.scenarios.outdir import replace_owned_file
-    p = replace_owned_file(args.dir, REPORT_NAME, lambda dst: write_html_report(dst.parent),
-                           force=args.force)
-    print(p)
-    return 0
-
-
-def add_parser(sub) -> None:
-    p = sub.add_parser("report", help="write DIR/report.html: one self-contained page of an "
-                                      "output directory",
-                       description="Write a self-contained report.html (figures embedded, the "
-                                   "JSON numbers as tables, inputs, software versions, links "
-                                   "to the data files) into an arfem output directory. Only "
-                                   "into a folder arfem wrote (its .arfem-outputs.json lists "
-                                   "its files); a report.html arfem did not write is never "
-                                   "replaced.")
-    p.add_argument("dir", help="an output directory of arfem run, reproduce, diagnose, sweep "
-                               "or allocate")
-    p.add_argument("--force", action="store_true",
-                   help="replace arfem's own report.html also if it was changed since")
-    p.set_defaults(func=_main)

@@ -64,9 +64,7 @@ def growth_figure(ev: Evaluation):
     matplotlib.figure.Figure
     """
     from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
     th = ev.times_s / 3600.0
-    m = ev.metrics
     fig = Figure(figsize=(8.0, 8.6), dpi=150, layout="constrained")
     ax, bx, cx = fig.subplots(3, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1, 1]})
     edges = ev.scenario.schedule.edges_s / 3600.0
@@ -75,6 +73,27 @@ def growth_figure(ev: Evaluation):
         if qv > 0:
             for a in (ax, bx, cx):
                 a.axvspan(edges[i], edges[i + 1], color=_C_HEAT, alpha=0.15, lw=0)
+    _growth_panel(ax, ev, th, levels)
+    _ar_error_panel(bx, ev, th)
+    _corrected_error_panel(cx, ev)
+    cx.set_xlabel("time t [h]")
+    cx.set_xlim(th[0], th[-1])
+    if th[-1] - th[0] <= 48:
+        from matplotlib.ticker import MultipleLocator
+        cx.xaxis.set_major_locator(MultipleLocator(2 if th[-1] - th[0] > 6 else 0.5))
+    for a in (ax, bx, cx):
+        a.grid(alpha=0.3)
+        a.tick_params(labelsize=8)
+    fig.align_ylabels([ax, bx, cx])
+    return fig
+
+
+def _growth_panel(ax, ev: Evaluation, th, levels: list) -> None:
+    """Panel (a) of :func:`growth_figure`: the growth [µm] of the FEM, the paper's AR(1)
+    and the corrected AR(1) against time ``th`` [h], the heat-flux ``levels`` [W/m²] in
+    the legend."""
+    from matplotlib.patches import Patch
+    m = ev.metrics
     ax.plot(th, ev.fem_growth_um, "-", color=_C_FEM, lw=2.4, label="FEM (scikit-fem)")
     ax.plot(th, ev.ar_growth_um, "--", color=_C_AR, lw=1.6, label="AR(1), paper eqs. 12–14")
     ax.plot(th, ev.ar_corrected_growth_um, ":", color=_C_ARC, lw=2.0,
@@ -96,6 +115,11 @@ def growth_figure(ev: Evaluation):
                  fontsize=9)
     ax.text(0.005, 0.98, "(a)", transform=ax.transAxes, va="top", fontsize=9)
 
+
+def _ar_error_panel(bx, ev: Evaluation, th) -> None:
+    """Panel (b) of :func:`growth_figure`: paper AR(1) − FEM [µm] with the CI tolerance
+    (± AR_TOLERANCE_PCT % of the FEM peak) as labelled lines."""
+    m = ev.metrics
     d = ev.ar_growth_um - ev.fem_growth_um
     thr = AR_TOLERANCE_PCT / 100.0 * m["fem_peak_um"]
     bx.plot(th, d, "--", color=_C_AR, lw=1.4)
@@ -116,6 +140,11 @@ def growth_figure(ev: Evaluation):
             f"({m['max_abs_diff_pct_of_peak']:.2f} % of peak)", transform=bx.transAxes,
             va="top", fontsize=8)
 
+
+def _corrected_error_panel(cx, ev: Evaluation) -> None:
+    """Panel (c) of :func:`growth_figure`: corrected AR(1) − FEM [nm]."""
+    m = ev.metrics
+    th = ev.times_s / 3600.0
     dc = (ev.ar_corrected_growth_um - ev.fem_growth_um) * 1e3
     cx.plot(th, dc, ":", color=_C_ARC, lw=1.8)
     cx.axhline(0, color="0.5", lw=0.6)
@@ -125,16 +154,6 @@ def growth_figure(ev: Evaluation):
     cx.text(0.005, 0.96, f"(c) max |corrected AR − FEM| = {m['corrected_max_abs_diff_um'] * 1e3:.3g}"
             f" nm ({m['corrected_max_abs_diff_pct_of_peak']:.2g} % of peak)",
             transform=cx.transAxes, va="top", fontsize=8)
-    cx.set_xlabel("time t [h]")
-    cx.set_xlim(th[0], th[-1])
-    if th[-1] - th[0] <= 48:
-        from matplotlib.ticker import MultipleLocator
-        cx.xaxis.set_major_locator(MultipleLocator(2 if th[-1] - th[0] > 6 else 0.5))
-    for a in (ax, bx, cx):
-        a.grid(alpha=0.3)
-        a.tick_params(labelsize=8)
-    fig.align_ylabels([ax, bx, cx])
-    return fig
 
 
 def _figure(ev: Evaluation, path: Path) -> None:

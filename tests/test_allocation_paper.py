@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from arfem.models.allocation import paper
-from arfem.scenarios import allocate as alloc_cli
+from arfem.scenarios import allocation_run
 from arfem.scenarios.cli import main
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "pallet_changer_paper.toml"
@@ -57,7 +57,7 @@ def test_cli_paper_literal_reports_the_seed_spread(tmp_path, monkeypatch):
     """The command runs the printed model over the seeds, places Table 1 in the spread of
     picked values (percentiles in [0, 100]) and runs the converged check (made small
     here: the real one is 200 × 1000, a benchmark's job)."""
-    monkeypatch.setattr(alloc_cli, "CONVERGED", {"pop_size": 20, "n_gen": 15, "converge": True})
+    monkeypatch.setattr(allocation_run, "CONVERGED", {"pop_size": 20, "n_gen": 15, "converge": True})
     out = tmp_path / "p"
     assert main(["allocate", str(SCENARIO), "--out", str(out), "--seeds", "4"]) == 0
     a = json.loads((out / "allocation.json").read_text())

@@ -200,3 +200,17 @@ def test_the_allocation_reader_refuses_as_the_strict_reader_does():
         with pytest.raises(InputError) as theirs:
             check(value, "a.toml: t.k")
         assert str(mine.value) == str(theirs.value)
+    # integers and the elements of a vector too: a float for a count, and a number too
+    # large for a float in a vector (before: an OverflowError traceback from isfinite)
+    for value, call, where, kw in ((2.5, lambda v: rd.integer({"k": v}, "k", "t.k", 1, 1, 9),
+                                    "a.toml: t.k", {"integer": True}),
+                                   (10 ** 400, lambda v: rd.vector({"k": [0, v, 0]}, "k", "t.k"),
+                                    "a.toml: t.k[1]", {}),
+                                   (float("nan"), lambda v: rd.vector({"k": [v, 0, 0]}, "k",
+                                                                      "t.k"),
+                                    "a.toml: t.k[0]", {})):
+        with pytest.raises(InputError) as mine:
+            call(value)
+        with pytest.raises(InputError) as theirs:
+            strict.number(value, where, **kw)
+        assert str(mine.value) == str(theirs.value)

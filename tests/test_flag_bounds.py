@@ -10,14 +10,12 @@ accepted by the check.
 """
 from __future__ import annotations
 
-import argparse
 import re
 import warnings
 from pathlib import Path
 
 import pytest
 
-from arfem.params import InputError
 from arfem.scenarios.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
@@ -40,15 +38,24 @@ def test_twin_refuses_each_flag_out_of_bounds_in_one_line(flag, value, capsys, t
     assert not (tmp_path / "r").exists()
 
 
-def test_twin_start_is_bounded_in_intervals_too():
-    from arfem.scenarios.twin import MAX_START_STEPS, check_flags
-    ok = argparse.Namespace(dtau_s=60.0, period_s=1.0, ambient_amplitude_K=2.0,
-                            noise_um=0.05, start_h=720.0, port=0, steps=0, seed=0,
-                            nan_at_step=-1)
-    check_flags(ok)                                    # 43200 intervals: accepted
-    with pytest.raises(InputError, match="--start-h"):
-        check_flags(argparse.Namespace(**{**vars(ok), "dtau_s": 1.0}))
-    assert 720.0 * 3600 / 1.0 > MAX_START_STEPS
+def test_twin_start_is_bounded_in_intervals_too(capsys, tmp_path):
+    """--start-h is bounded in intervals of Δτ as well as in hours: 720 h at Δτ = 60 s
+    (43200 intervals) passes the flag checks, the same 720 h at Δτ = 1 s (2.6 million)
+    is refused naming --start-h. Run through the command; the accepted case is stopped
+    right after the checks by a --record folder that already holds a twin.csv (so the
+    error names --record, not --start-h, and no twin is built or served)."""
+    pytest.importorskip("asyncua")
+    rec = tmp_path / "r"
+    rec.mkdir()
+    (rec / "twin.csv").write_text("mine\n")
+    base = ["twin", "--port", "0", "--steps", "1", "--record", str(rec), "--start-h", "720"]
+    assert main([*base, "--dtau-s", "60"]) == 2
+    err = capsys.readouterr().err
+    assert "--record" in err and "--start-h" not in err, err
+    assert main([*base, "--dtau-s", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("arfem: error: --start-h") and "2592000 intervals" in err, err
+    assert (rec / "twin.csv").read_text() == "mine\n"
 
 
 def _alloc(tmp_path, bounds: str, formula_paper: bool = False) -> Path:
@@ -76,6 +83,6 @@ def test_allocation_refuses_bounds_that_overflow(tmp_path, capsys, bounds):
 
 def test_allocation_keeps_the_papers_zero_lower_bound():
     """The paper's literal formula has no reciprocal cost: its [0, 0.005] stays valid."""
-    from arfem.scenarios.allocate import load_allocation_scenario
+    from arfem.scenarios.allocation_file import load_allocation_scenario
     sc = load_allocation_scenario(REPO / "scenarios" / "pallet_changer_paper.toml")
     assert sc is not None

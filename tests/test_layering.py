@@ -173,42 +173,14 @@ def test_only_arfem_is_installed():
 #
 # A command module (one that defines ``add_parser``, which scenarios/cli.py registers) is
 # the CLI's: what another module, a report script, a benchmark or a test needs from it
-# lives in a library module (issue 31). The pairs below still break the rule; each names
-# why it is not moved yet. The list may only shrink: an entry that no longer occurs fails
-# too, so it is removed when its import goes.
+# lives in a library module (issue 31). The list of exceptions below is empty; an entry
+# that no longer occurs fails too, so that the list may only shrink.
 
 #: the one module that may import a command module
 CLI = "arfem.scenarios.cli"
-_REPORT = ("the report's ownership is reworked in parallel (issue 30); write_html_report "
-           "moves out of the `report` command after that merges")
-_SWEEP = ("the sweep package is its own command (add_parser in sweep/__init__.py) and is "
-          "reworked in parallel; its CLI moves to sweep/command.py after that merges")
-_PARALLEL = ("written for issue 29 in parallel with this rule; the command's flag checks "
-             "move to a library module next")
-#: (importing file, command module) -> why it is still allowed
-KNOWN_COMMAND_IMPORTS = {
-    ("tests/test_flag_bounds.py", "arfem.scenarios.allocate"): _PARALLEL,
-    ("tests/test_flag_bounds.py", "arfem.scenarios.twin"): _PARALLEL,
-    ("tests/test_report_ownership.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("tests/test_staging_cleanup.py", "arfem.scenarios.html_report"): _REPORT,
-    ("tests/test_sweep_resume_validation.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("arfem/api.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("scenarios/allocate.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/compensate.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/diagnosis_run.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/run_outputs.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
-    ("scenarios/sweep/geometry_run.py", "arfem.scenarios.html_report"): _REPORT,
-    ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("scenarios/geometry_scenario.py", "arfem.scenarios.html_report"): _REPORT,
-    ("tests/test_sweep_default_path.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("tests/test_allocation_paper.py", "arfem.scenarios.allocate"): "tests the command's converged-run setting (CONVERGED, patched smaller)",
-    ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"):
-        "tests the command's own flags and printed notes by patching what it calls",
-    ("tests/test_fuzz.py", "arfem.scenarios.sweep"): _SWEEP,
-    ("tests/test_html_report.py", "arfem.scenarios.html_report"): _REPORT,
-    ("tests/test_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
-}
+#: (importing file, command module) -> why it is still allowed (none left: keep it empty;
+#: a new entry needs a reason that a reviewer accepts)
+KNOWN_COMMAND_IMPORTS: dict[tuple[str, str], str] = {}
 #: folders of scripts that are checked besides the package (a test of a command module
 #: runs it through arfem.scenarios.cli.main)
 SCRIPT_FOLDERS = ("benchmarks", "reports", "tests")

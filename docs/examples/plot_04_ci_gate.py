@@ -31,15 +31,15 @@ dtau_s = 30.0
 """)
     results[h] = arfem.check(path)
     for c in results[h].criteria:
-        verdict = "PASS" if c["passed"] else "FAIL"      # short lines: none is cut
-        unit = "" if c["unit"] == "-" else f" {c['unit']}"
-        print(f"h = {h:g}: {verdict}  {c['name']} = {c['value']:.4g}{unit}, "
-              f"limit {c['limit']:.4g}")
+        verdict = "PASS" if c.passed else "FAIL"         # short lines: none is cut
+        unit = "" if c.unit == "-" else f" {c.unit}"
+        print(f"h = {h:g}: {verdict}  {c.name} = {c.value:.4g}{unit}, "
+              f"limit {c.limit:.4g}")
 
 fig, ax = plt.subplots(figsize=(6, 3), layout="constrained")
-vals = [results[h].criteria[0]["value"] for h in results]
+vals = [results[h].criteria[0].value for h in results]
 ax.bar([f"h = {h:g}" for h in results], vals,
        color=["tab:green" if results[h].passed else "tab:red" for h in results])
-ax.axhline(results[55.0].criteria[0]["limit"], color="k", ls="--", label="limit")
+ax.axhline(results[55.0].criteria[0].limit, color="k", ls="--", label="limit")
 ax.set_ylabel("max|AR − FEM| [% of peak]")
 _ = ax.legend()

@@ -559,6 +559,58 @@ def _loosen_idle(chain: Chain, X, hi) -> np.ndarray:
     return X
 
 
+def _refuse_oversize(chain: Chain, st: Settings, max_evaluations: int | None) -> None:
+    """A ValueError before any work when the chain has nothing to allocate or the run
+    would take more than ``max_evaluations`` evaluations (None: no limit)."""
+    if not chain.variables:
+        raise ValueError("the chain has no design variables")
+    work = work_estimate(st)
+    if max_evaluations is not None and work > max_evaluations:
+        raise ValueError(f"pop_size × n_gen = {st.pop_size} × {st.n_gen} = {work:,} evaluations "
+                         f"exceeds the limit of {max_evaluations:,} (about 2 min here); lower "
+                         f"them or lift the limit (--no-work-limit)")
+
+
+def _nsga2(st: Settings):
+    """pymoo's NSGA-II with the settings' SBX crossover and polynomial mutation, and its
+    termination: pymoo's default criteria or ``n_gen`` with ``st.converge``, else
+    exactly ``n_gen`` generations."""
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.operators.crossover.sbx import SBX
+    from pymoo.operators.mutation.pm import PM
+    from pymoo.termination.default import DefaultMultiObjectiveTermination
+    from pymoo.termination.max_gen import MaximumGenerationTermination
+    algo = NSGA2(pop_size=st.pop_size,
+                 crossover=SBX(prob=st.crossover_prob, eta=st.eta_crossover),
+                 mutation=PM(prob=1.0, prob_var=st.mutation_prob, eta=st.eta_mutation),
+                 eliminate_duplicates=True)
+    term = (DefaultMultiObjectiveTermination(n_max_gen=st.n_gen,
+                                             n_max_evals=st.pop_size * (st.n_gen + 1))
+            if st.converge
+            else MaximumGenerationTermination(st.n_gen))
+    return algo, term
+
+
+def _sorted_front(chain: Chain, st: Settings, res, hi: np.ndarray):
+    """The final front of a pymoo result (or, if nothing is feasible, the least-violating
+    member), idle tolerances loosened to ``hi`` (screw formula), sorted by cost then
+    stack: (X, its evaluation, its objectives, feasible)."""
+    if res.X is not None:
+        X = np.atleast_2d(res.X)
+        feasible = True
+    else:  # nothing feasible: keep the least-violating candidate
+        pop = res.pop
+        X = np.atleast_2d(pop.get("X")[int(np.argmin(pop.get("CV").ravel()))])
+        feasible = False
+    if st.formula == "screw":
+        X = _loosen_idle(chain, X, hi)
+    F, _ = _objectives(evaluate_design(chain, X, st), st)
+    X = X[np.lexsort((F[:, 1], F[:, 0]))]
+    ev = evaluate_design(chain, X, st)
+    F, _ = _objectives(ev, st)
+    return X, ev, F, feasible
+
+
 def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX_EVALUATIONS,
              record_history: bool = True) -> AllocationResult:
     """Solve the allocation with pymoo's NSGA-II, seeded (same inputs, same front).
@@ -582,25 +634,14 @@ def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX
     -------
     AllocationResult
     """
-    from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback
     from pymoo.core.problem import Problem
     from pymoo.indicators.hv import HV
-    from pymoo.operators.crossover.sbx import SBX
-    from pymoo.operators.mutation.pm import PM
     from pymoo.optimize import minimize
-    from pymoo.termination.default import DefaultMultiObjectiveTermination
-    from pymoo.termination.max_gen import MaximumGenerationTermination
     from threadpoolctl import threadpool_limits
 
     st = settings
-    if not chain.variables:
-        raise ValueError("the chain has no design variables")
-    work = work_estimate(st)
-    if max_evaluations is not None and work > max_evaluations:
-        raise ValueError(f"pop_size × n_gen = {st.pop_size} × {st.n_gen} = {work:,} evaluations "
-                         f"exceeds the limit of {max_evaluations:,} (about 2 min here); lower "
-                         f"them or lift the limit (--no-work-limit)")
+    _refuse_oversize(chain, st, max_evaluations)
     lo, hi = chain.bounds()
     ref = _hv_reference(chain, st)
     hv = HV(ref_point=np.ones(2))
@@ -625,32 +666,12 @@ def allocate(chain: Chain, settings: Settings, max_evaluations: int | None = MAX
             hist["hv"].append(val)
             hist["n_front"].append(int(ok.sum()))
 
-    algo = NSGA2(pop_size=st.pop_size,
-                 crossover=SBX(prob=st.crossover_prob, eta=st.eta_crossover),
-                 mutation=PM(prob=1.0, prob_var=st.mutation_prob, eta=st.eta_mutation),
-                 eliminate_duplicates=True)
-    term = (DefaultMultiObjectiveTermination(n_max_gen=st.n_gen,
-                                             n_max_evals=st.pop_size * (st.n_gen + 1))
-            if st.converge
-            else MaximumGenerationTermination(st.n_gen))
+    algo, term = _nsga2(st)
     with threadpool_limits(1):          # small matrices: BLAS threads only contend
         res = minimize(_Alloc(), algo, term, seed=int(st.seed), verbose=False,
                        save_history=False, callback=_Record() if record_history else None)
         n_gen = len(hist["hv"]) if record_history else int(res.algorithm.n_gen) - 1
-        if res.X is not None:
-            X = np.atleast_2d(res.X)
-            feasible = True
-        else:  # nothing feasible: keep the least-violating candidate
-            pop = res.pop
-            X = np.atleast_2d(pop.get("X")[int(np.argmin(pop.get("CV").ravel()))])
-            feasible = False
-        if st.formula == "screw":
-            X = _loosen_idle(chain, X, hi)
-        F, _ = _objectives(evaluate_design(chain, X, st), st)
-        order = np.lexsort((F[:, 1], F[:, 0]))
-        X = X[order]
-        ev = evaluate_design(chain, X, st)
-        F, _ = _objectives(ev, st)
+        X, ev, F, feasible = _sorted_front(chain, st, res, hi)
     return AllocationResult(chain, st, X, ev, pick_index(F, st.pick), feasible,
                             int(res.algorithm.evaluator.n_eval), n_gen,
                             bool(st.converge and n_gen < st.n_gen),

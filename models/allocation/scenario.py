@@ -166,8 +166,7 @@ class _Reader:
         if key not in d:
             return int(default)
         v = d[key]
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise self.err(path, f"must be an integer, got {type(v).__name__} {v!r}")
+        strict.number(v, self.at(path), integer=True)
         if v < low:
             raise self.err(path, f"must be >= {low}, got {v}")
         if v > high:
@@ -206,12 +205,11 @@ class _Reader:
             raise self.err(path, f"must be a list of {n} numbers, got {v!r}")
         out = []
         for i, x in enumerate(v):
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-                raise self.err(f"{path}[{i}]", f"must be a finite number, got {x!r}")
-            if abs(x) > bound:
+            f = strict.number(x, self.at(f"{path}[{i}]"))
+            if abs(f) > bound:
                 raise self.err(f"{path}[{i}]", f"must be within ±{bound:g} (wrong unit?), "
-                                               f"got {x:g}")
-            out.append(float(x))
+                                               f"got {f:g}")
+            out.append(f)
         return np.array(out)
 
     def interval(self, d, key, path, default):

@@ -155,27 +155,11 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     run_id = time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:8]
     try:
         with DirLock(out):
-            store = PointStore(out)
-            store.dir.mkdir(parents=True, exist_ok=True)
-            store.remove_temporaries()
-            man = out / STORE_MANIFEST
-            if mode != "resume" or not man.is_file():
-                write_json(man, sweep.manifest())
-            # the folder is arfem's from its first file on (``arfem report`` writes only
-            # into a folder whose ownership manifest says so, and lists its page there)
-            adopt_outputs(out, [STORE_MANIFEST])
+            store = _ready_store(out, sweep, mode)
             todo, bad = stored_or_todo(sweep, store)
             if bad:
                 warn(bad_points_line(bad))
-            seen, unique = set(), []
-            for p in todo:                                  # identical inputs: compute once
-                if p.key not in seen:
-                    seen.add(p.key)
-                    unique.append(p)
-            # points that share everything but Δτ and q share the FEM model and its
-            # eigen-decomposition: submit them together so worker caches hit
-            unique.sort(key=lambda p: canonical({k: v for k, v in p.inputs.items()
-                                                  if k not in ("dtau_s", "q_W_m2")}))
+            unique = _in_cache_order(todo)
             rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
             if unique:
                 if executor is None:
@@ -204,6 +188,36 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
         if isinstance(executor, DaskExecutor):
             executor.close()
     return rep
+
+
+def _ready_store(out: Path, sweep: Sweep, mode: str) -> PointStore:
+    """The point store in ``out``, ready to take points: its folder made, temporaries of
+    an interrupted run removed, the sweep's manifest written (kept on a resume), and
+    the folder adopted as arfem's."""
+    store = PointStore(out)
+    store.dir.mkdir(parents=True, exist_ok=True)
+    store.remove_temporaries()
+    man = out / STORE_MANIFEST
+    if mode != "resume" or not man.is_file():
+        write_json(man, sweep.manifest())
+    # the folder is arfem's from its first file on (``arfem report`` writes only
+    # into a folder whose ownership manifest says so, and lists its page there)
+    adopt_outputs(out, [STORE_MANIFEST])
+    return store
+
+
+def _in_cache_order(todo: list) -> list:
+    """The points to compute, each key once (identical inputs: compute once), those that
+    share everything but Δτ and q side by side: they share the FEM model and its
+    eigen-decomposition, so submitted together the worker caches hit."""
+    seen, unique = set(), []
+    for p in todo:
+        if p.key not in seen:
+            seen.add(p.key)
+            unique.append(p)
+    unique.sort(key=lambda p: canonical({k: v for k, v in p.inputs.items()
+                                          if k not in ("dtau_s", "q_W_m2")}))
+    return unique
 
 
 def stored_or_todo(sweep: Sweep, store: PointStore) -> tuple[list, list]:
