@@ -216,9 +216,9 @@ def test_api_check_takes_a_mesh_scenario():
     import arfem
     r = arfem.check(ROD)
     assert r.passed
-    assert [c["name"] for c in r.criteria] == [
+    assert [c.name for c in r.criteria] == [
         f"max_abs_diff_pct_of_peak[{s}]" for s in ("far_face", "heated_face", "far_axis")]
-    assert all(c["value"] < c["limit"] == 15.0 for c in r.criteria)
+    assert all(c.value < c.limit == 15.0 for c in r.criteria)
 
 
 def test_the_shipped_spindle_unit_passes_the_gate_with_p1_elements(tmp_path, capsys):
