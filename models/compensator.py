@@ -30,7 +30,8 @@ before.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from dataclasses import replace as _with_fields
 from typing import Mapping
 
 import numpy as np
@@ -693,11 +694,11 @@ class Cycle:
 
     def with_axis_alarm(self, axis: str, alarm: str) -> "Cycle":
         """This cycle with ``alarm`` added to ``axis`` (and to :attr:`alarms`, tagged)."""
-        axes = tuple(replace(a, alarms=a.alarms + (alarm,)) if a.axis == axis else a
+        axes = tuple(_with_fields(a, alarms=a.alarms + (alarm,)) if a.axis == axis else a
                      for a in self.axes)
         kind, _, rest = alarm.partition(":")
         tagged = f"{kind}@{axis}" + (f":{rest}" if rest else "")
-        return replace(self, alarms=self.alarms + (tagged,), axes=axes)
+        return _with_fields(self, alarms=self.alarms + (tagged,), axes=axes)
 
 
 def alarm_kind(alarm: str) -> str:
