@@ -26,7 +26,6 @@ LONG_FUNCTIONS = {
     "models/diagnosis/candidates.py::fit_causes": 120,
     "models/diagnosis/stats.py::slow_noise_sandwich": 119,
     "models/diagnosis/engine.py::_diagnose_fem": 115,
-    "scenarios/twin.py::serve": 108,
     "models/diagnosis/speed_intervals.py::jackknife_ci95": 99,
     "models/diagnosis/candidates.py::parameter_ci95": 97,
     "models/allocation/problem.py::allocate": 96,
