@@ -180,3 +180,36 @@ def test_the_command_runs_a_version_2_model_and_refuses_bad_axes_config(box, tmp
     from arfem.params import InputError
     with pytest.raises(InputError, match="several axes"):
         load_config(tmp_path / "live.toml", ar1_model(0.99, 1e-3, dtau_s=60.0))
+
+
+def test_the_machine_clock_holds_and_advances_every_axis_together(box, tmp_path):
+    """Missed intervals (a jump of 5 Δτ) are stepped for the shared state: the predicted
+    values after the gap equal (==) those of the stream that carried the missing rows
+    with the last inputs (at most 64 intervals are stepped one by one, the same floats);
+    a clock set back holds every axis with ``clock_backwards``."""
+    run_dir, model, ds, inputs = box
+    gap = set(range(41, 46))
+
+    def hold_last(k, row):                 # rows 41-45 repeat row 40's inputs
+        if k in gap:
+            return {"time_s": row["time_s"],
+                    **{nm: float(v[40]) for nm, v in inputs.items()}}
+        return row
+    full = lines_of(ds, inputs, edit=hold_last)
+    jumped = [x for k, x in enumerate(full, start=1) if k not in gap]
+    _, ref = run(tmp_path, model, full, "f.log")
+    _, ans = run(tmp_path, model, jumped, "g.log")
+    after = ans[40]                                   # the reading at row 46
+    assert after["time_s"] == ref[45]["time_s"] and not after["held"]
+    for ax in model.axes:
+        assert after["axes"][ax]["predicted_um"] == ref[45]["axes"][ax]["predicted_um"]
+    log = [json.loads(x) for x in (tmp_path / "g.log").read_text().splitlines()]
+    assert any(e.get("missed_intervals") == 5 for e in log)
+
+    def back(k, row):
+        return {**row, "time_s": 0.0} if k == 30 else row
+    _, bk = run(tmp_path, model, lines_of(ds, inputs, stop=35, edit=back), "h.log")
+    a = bk[29]
+    assert a["held"] and "clock_backwards" in a["alarms"]
+    assert all(a["axes"][ax]["offset_um"] == bk[28]["axes"][ax]["offset_um"]
+               for ax in model.axes)
