@@ -12,9 +12,10 @@ What is verified and why:
 * each axis keeps its own clamp and step limit ([live.axes.X], [live.axes.Y]; Z the
   common ones) on every answer, and a binding limit is that axis's alarm only
   (``clamped`` in X's alarms, ``clamped@X`` in the cycle's);
-* an input fault (a NaN power, a missing ambient) holds every axis (they share the
-  inputs) with the alarm, and is never fed to the state: the answers that follow equal
-  those of the stream with that reading missing;
+* an input fault (a NaN power, a negative one outside its plausible range, a missing
+  ambient) holds every axis (they share the inputs) with the alarm, and is never fed to
+  the state: the answers that follow equal those of the stream with that reading
+  missing;
 * ``controller_offsets_um`` on a line (what the gateway read back) sets where each
   named axis's rate limit counts from: the next offset of that axis is within its step
   of the value read, the other axes are untouched;
@@ -108,18 +109,21 @@ def test_live_equals_replay_per_axis_and_each_axis_keeps_its_limits(box, tmp_pat
 def test_an_input_fault_holds_every_axis_and_never_reaches_the_state(box, tmp_path):
     run_dir, model, ds, inputs = box
 
-    def nan_at_20(k, row):                     # a NaN power at 20, no ambient at 30
-        if k == 20:
+    def nan_at_20(k, row):                     # a NaN power at 20, no ambient at 30,
+        if k == 20:                            # a negative power at 25
             return {**row, "P_heater_W": math.nan}
+        if k == 25:
+            return {**row, "P_side_W": -5.0}
         if k == 30:
             return {kk: v for kk, v in row.items() if kk != "ambient_C"}
         return row
 
     def missing(k, row):
-        return {"time_s": row["time_s"]} if k in (20, 30) else row
+        return {"time_s": row["time_s"]} if k in (20, 25, 30) else row
     _, bad = run(tmp_path, model, lines_of(ds, inputs, edit=nan_at_20), "b.log")
     _, ref = run(tmp_path, model, lines_of(ds, inputs, edit=missing), "c.log")
-    for k, tag in ((20, "nonfinite:P_heater_W"), (30, "missing:ambient_C")):
+    for k, tag in ((20, "nonfinite:P_heater_W"), (25, "out_of_range:P_side_W"),
+                   (30, "missing:ambient_C")):
         a = bad[k - 1]
         assert a["held"] and tag in a["alarms"]
         assert all(a["axes"][ax]["offset_um"] == bad[k - 2]["axes"][ax]["offset_um"]
