@@ -174,3 +174,25 @@ def test_axis_limits_refusals(tmp_path, capsys):
         err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
         assert rc == 2 and len(err) == 1 and "--axis-limits" in err[0], err
         assert not (tmp_path / "o").exists()
+
+
+def test_a_record_without_an_axis_or_with_a_bad_cell_is_one_line(tmp_path, capsys):
+    """The replay of a version-2 model refuses a record that lacks an output's column or
+    holds a cell that is not a number in one, naming the column (and the CSV's line)."""
+    from arfem.scenarios.cli import main
+    toml = box_scenario(tmp_path, 0.0)
+    assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
+    text = (tmp_path / "run" / "record.csv").read_text().splitlines()
+    header = text[0].split(",")
+    j = header.index("d_tip_x_um")
+    drop = [",".join(c for i, c in enumerate(ln.split(",")) if i != j) for ln in text]
+    bad = text[:5] + [",".join("abc" if i == j else c for i, c in enumerate(
+        text[5].split(",")))] + text[6:]
+    for rows, words in ((drop, "d_tip_x_um"), (bad, "line 6")):
+        (tmp_path / "run" / "record.csv").write_text("\n".join(rows) + "\n")
+        capsys.readouterr()
+        rc = main(["compensate", str(tmp_path / "run" / "model.json"),
+                   str(tmp_path / "run" / "record.toml"), "--out", str(tmp_path / "o")])
+        err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+        assert rc == 2 and len(err) == 1 and words in err[0], err
+        assert not (tmp_path / "o").exists()
