@@ -39,7 +39,8 @@ import numpy as np
 from arfem.params import InputError
 
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
-           "StateSpaceModel", "AxisCycle", "Cycle", "Compensator", "ar1_model", "fit_speed_ar1_model", "fit_mlr_model",
+           "StateSpaceModel", "AxisCycle", "Cycle", "Compensator", "ar1_model",
+           "fit_speed_ar1_model", "fit_mlr_model",
            "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind"]
 
 #: version of the ``model.json`` layout of a one-output model (the rod's growth)

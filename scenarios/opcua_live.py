@@ -87,10 +87,10 @@ from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
 
-_KEYS = {"endpoint", "inputs", "offset_node", "alarm_node", "time_node", "axes", "security_mode",
-         "security_policy", "certificate_env", "private_key_env", "server_certificate_env",
-         "username_env", "password_env", "timeout_s", "reconnect_initial_s",
-         "reconnect_max_s"}
+_KEYS = {"endpoint", "inputs", "offset_node", "alarm_node", "time_node", "axes",
+         "security_mode", "security_policy", "certificate_env", "private_key_env",
+         "server_certificate_env", "username_env", "password_env", "timeout_s",
+         "reconnect_initial_s", "reconnect_max_s"}
 _SECRETS = {"password", "username", "user", "certificate", "private_key", "key"}
 MODES = ("None", "Sign", "SignAndEncrypt")
 POLICIES = ("None", "Basic256Sha256", "Aes128_Sha256_RsaOaep", "Aes256_Sha256_RsaPss")
