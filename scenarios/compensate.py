@@ -202,6 +202,7 @@ def _main_axes(args, model, ds, probe) -> int:
                       score_from_s=args.score_from, where=str(args.record))
     with staged_out_dir(args.out, args.force) as stage:
         write_axes_replay(res, stage)
+        write_html_report(stage)
     print(terminal_line(res, args.out))
     return 0
 

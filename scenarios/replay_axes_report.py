@@ -1,9 +1,9 @@
 """The files of a several-axes replay (``arfem compensate`` on a version-2 model):
-``compensated.csv``, ``summary.json``, ``summary.md``, ``figure.png``, ``report.html``."""
+``compensated.csv``, ``summary.json``, ``summary.md``, ``figure.png`` (the command adds
+``report.html`` from them)."""
 from __future__ import annotations
 
 from arfem.io import atomic_write_text, write_csv, write_json
-from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.replay_axes import AxesReplay
 
 __all__ = ["write_axes_replay", "axes_figure", "axes_markdown", "terminal_line"]
@@ -71,12 +71,11 @@ def axes_markdown(res: AxesReplay) -> str:
 
 
 def write_axes_replay(res: AxesReplay, stage) -> None:
-    """Write the replay's files into ``stage`` (a staging directory)."""
+    """Write the replay's files into ``stage`` (a staging directory), but report.html."""
     write_csv(stage / "compensated.csv", res.series.columns())
     write_json(stage / "summary.json", res.summary.to_dict())
     atomic_write_text(stage / "summary.md", axes_markdown(res))
     axes_figure(res, stage / "figure.png")
-    write_html_report(stage)
 
 
 def terminal_line(res: AxesReplay, out) -> str:
