@@ -172,3 +172,68 @@ def test_axis_config_refusals_are_one_line(box, tmp_path):
         err = [ln for ln in p.stderr.splitlines() if ln.strip()]
         assert p.returncode == 2 and len(err) == 1 and key in err[0], (key, err)
         assert not (tmp_path / "live.log").exists()
+
+
+def test_a_lost_server_that_comes_back_is_read_back_per_axis(box, tmp_path):
+    """The machine goes away after request 15 and comes back with other offsets on its
+    axes (set by hand meanwhile): the cycles in between hold with ``connection_lost``
+    and send nothing, the compensator reconnects and each axis's first write after it is
+    within that axis's step of what the axis now holds (and so is every write). The
+    loop runs until SIGTERM, sent once the machine has seen 15 requests after its
+    return, so the count of lost cycles (which depends on the load) is never asserted."""
+    import signal
+    run_dir, model, rows = box
+    back = {"X": -4.0, "Y": 1.5, "Z": -2.0}
+    state = {"restarted": False, "task": None}
+
+    async def restart(m):
+        await m.stop()
+        m.held = dict(back)
+        await asyncio.sleep(0.3)
+        await m.start()
+        state["restarted"] = True
+
+    async def on_advance(m, n):
+        if n == 15:
+            state["task"] = asyncio.get_running_loop().create_task(restart(m))
+
+    async def scenario():
+        m = AxesMachine(free_port(), rows, held=HELD, on_advance=on_advance)
+        await m.start()
+        try:
+            cfg = write_config(tmp_path, m.endpoint, [i.name for i in model.inputs],
+                               limits={"X": LIMITS["X"], "Y": LIMITS["Y"]}, cycles=0)
+            err = open(tmp_path / "c.stderr", "w")
+            p = await asyncio.create_subprocess_exec(
+                sys.executable, "-m", "arfem", "compensate", str(run_dir / "model.json"),
+                "--live", str(cfg), stdout=asyncio.subprocess.DEVNULL, stderr=err)
+            err.close()
+            try:
+                await until(lambda: state["restarted"] and m.requests >= 30,
+                            "15 requests after the return", p)
+                p.send_signal(signal.SIGTERM)
+                rc = await asyncio.wait_for(p.wait(), 120)
+            finally:
+                if p.returncode is None:
+                    p.kill()
+                    await p.wait()
+        finally:
+            await m.stop()
+        return m, rc
+
+    m, rc = asyncio.run(scenario())
+    assert rc == 0, (tmp_path / "c.stderr").read_text()
+    for w in m.writes:
+        clamp, step = LIMITS[w.axis]
+        assert abs(w.value) <= clamp + 1e-9, w
+        assert abs(w.value - w.held_before_um) <= step + 1e-9, w
+    for ax in "XYZ":
+        first = next(w for w in m.writes if w.axis == ax and w.n == 16)
+        assert first.held_before_um == back[ax]
+        assert abs(first.value - back[ax]) <= LIMITS[ax][1] + 1e-9
+    log = log_lines(tmp_path / "live.log")
+    assert any(e.get("event") == "reconnected" and
+               e.get("controller_offsets_um") == back for e in log)
+    lost = [e for e in log if "cycle" in e and "connection_lost" in e.get("alarms", [])]
+    assert lost and all(e["held"] and not e["sent"] for e in lost)
+    assert log[-1]["event"] == "stopped"
