@@ -756,7 +756,7 @@ class Compensator:
             if p and len(vals) not in (1, p):
                 raise InputError(f"needs one value per axis ({p}), got {len(vals)}", name)
             for x in vals:
-                if not (isinstance(x, (int, float)) and not isinstance(x, bool) and x > 0):
+                if not (isinstance(x, (int, float)) and x > 0):
                     raise InputError(f"must be > 0, got {x!r}", name)
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
