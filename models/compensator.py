@@ -18,23 +18,36 @@ the state then advances with the last good inputs, so that it stays on time.
 
 A measured growth (a touch probe) corrects the state by a Kalman update whose noises
 come from the fit: Q the one-step innovation variance, R the measurement noise.
+
+``model_version`` 2 (issue 32) has several outputs, one per controller axis (the tool
+centre point's drift in X, Y, Z of a spindle unit from a mesh): C is p × n, D p × m,
+d0 a p-vector, and each output carries the axis its offset is written to. The cycle is
+the same, per axis: offset_j = clamp(−ŷ_j, ±max_offset_j), rate-limited to
+±max_step_j; an unusable input holds every axis (they share the inputs), a clamp or a
+rate limit is that axis's alarm (``clamped@X``). Version 1 is read and run exactly as
+before.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from dataclasses import replace as _with_fields
 from typing import Mapping
 
 import numpy as np
 
 from arfem.params import InputError
 
-__all__ = ["MODEL_VERSION", "MAX_ABS_NUMBER", "InputSpec", "StateSpaceModel", "Cycle",
-           "Compensator", "ar1_model", "fit_speed_ar1_model", "fit_mlr_model",
-           "plausible_ranges", "propagate", "INFORMATIVE"]
+__all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
+           "StateSpaceModel", "AxisCycle", "Cycle", "Compensator", "ar1_model",
+           "fit_speed_ar1_model", "fit_mlr_model",
+           "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind"]
 
-#: version of the ``model.json`` layout this module reads and writes
+#: version of the ``model.json`` layout of a one-output model (the rod's growth)
 MODEL_VERSION = 1
+#: the versions this module reads: 1 (one output, ``growth_um``) and 2 (several outputs,
+#: one per axis)
+MODEL_VERSIONS = (1, 2)
 
 
 @dataclass(frozen=True)
@@ -43,6 +56,17 @@ class InputSpec:
 
     name: str
     unit: str
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """One output of a version-2 model: its name (the record's column, ``d_<sensor>_um``),
+    unit (µm) and the controller axis its offset is written to (``"X"``, ``"Y"``,
+    ``"Z"``, or any other axis name)."""
+
+    name: str
+    unit: str
+    axis: str
 
 
 @dataclass(frozen=True)
@@ -56,9 +80,10 @@ class StateSpaceModel:
     dtau_s : float
         Interval Δτ [s] the matrices belong to.
     A, B, C, D : ndarray
-        (n, n), (n, m), (1, n), (1, m): state update and output; growth in [µm].
-    d0_um : float
-        Constant output term [µm].
+        (n, n), (n, m), (p, n), (p, m): state update and output; growth in [µm]; p = 1
+        for version 1, the number of ``outputs`` for version 2.
+    d0_um : float or tuple of float
+        Constant output term [µm]: a float (version 1) or one per output (version 2).
     inputs : tuple of InputSpec
         The m inputs, in the order of the columns of B and D.
     x0 : ndarray
@@ -77,6 +102,9 @@ class StateSpaceModel:
     fit_window_s : tuple of float, optional
         (first, last) sample time [s] of the rows the model was fitted on; None for a
         model that is not fitted (the paper's eqs. 13-14 from the rod's values).
+    outputs : tuple of OutputSpec
+        Version 2: the p outputs, in the order of the rows of C and D, each with its
+        axis; empty for version 1 (the one output ``growth_um``).
     """
 
     kind: str
@@ -95,10 +123,25 @@ class StateSpaceModel:
     input_maps: dict = field(default_factory=dict)
     input_offsets: dict = field(default_factory=dict)
     fit_window_s: tuple | None = None
+    outputs: tuple = ()
 
     @property
     def n_states(self) -> int:
         return int(self.A.shape[0])
+
+    @property
+    def version(self) -> int:
+        """``model_version``: 2 for a model with named outputs, else 1."""
+        return 2 if self.outputs else 1
+
+    @property
+    def axes(self) -> tuple:
+        """The axis of each output (version 2); () for version 1."""
+        return tuple(o.axis for o in self.outputs)
+
+    def d0_vector(self) -> np.ndarray:
+        """The constant output term as a (p,) array [µm]."""
+        return np.atleast_1d(np.asarray(self.d0_um, float))
 
     def mapped(self, name: str, value: float) -> tuple[float, bool]:
         """An input as the matrices take it: minus its reference where the model has one
@@ -121,12 +164,30 @@ class StateSpaceModel:
 
     def to_dict(self) -> dict:
         """The ``model.json`` document (``docs/model-json.md``)."""
+        if self.outputs:
+            return self._to_dict_v2()
         return {"model_version": MODEL_VERSION, "kind": self.kind, "dtau_s": self.dtau_s,
                 "inputs": [{"name": i.name, "unit": i.unit} for i in self.inputs],
                 "output": {"name": "growth_um", "unit": "µm"},
                 "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
                 "D": self.D.tolist(), "d0_um": self.d0_um, "x0": self.x0.tolist(),
                 "noise": {"Q_um2": self.Q, "R_um2": self.R},
+                "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
+                               for k, (x, y) in self.input_maps.items()},
+                "description": self.description, "arfem_version": self.arfem_version,
+                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {}),
+                **({"fit_window_s": [float(v) for v in self.fit_window_s]}
+                   if self.fit_window_s is not None else {})}
+
+    def _to_dict_v2(self) -> dict:
+        """The version-2 document: ``outputs`` instead of ``output``, ``d0_um`` a list."""
+        return {"model_version": 2, "kind": self.kind, "dtau_s": self.dtau_s,
+                "inputs": [{"name": i.name, "unit": i.unit} for i in self.inputs],
+                "outputs": [{"name": o.name, "unit": o.unit, "axis": o.axis}
+                            for o in self.outputs],
+                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
+                "D": self.D.tolist(), "d0_um": [float(v) for v in self.d0_vector()],
+                "x0": self.x0.tolist(), "noise": {"Q_um2": self.Q, "R_um2": self.R},
                 "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
                                for k, (x, y) in self.input_maps.items()},
                 "description": self.description, "arfem_version": self.arfem_version,
@@ -151,7 +212,7 @@ class StateSpaceModel:
         >>> StateSpaceModel.from_dict({**m.to_dict(), "model_version": 7})
         Traceback (most recent call last):
         ...
-        arfem.params.InputError: model: model_version: is 7; this arfem reads version 1
+        arfem.params.InputError: model: model_version: is 7; this arfem reads versions 1 and 2
         >>> StateSpaceModel.from_dict({**m.to_dict(), "d0_um": float("nan")})
         Traceback (most recent call last):
         ...
@@ -171,8 +232,17 @@ MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B
                   "D", "d0_um", "x0")
 MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
                   "arfem_version")
+#: version 2: ``outputs`` (several, each with its axis) in place of ``output``
+MODEL_REQUIRED_V2 = tuple("outputs" if k == "output" else k for k in MODEL_REQUIRED)
 #: input names of the measured-data contract (the schema's ``pattern``)
 INPUT_NAME_PATTERN = r"^(q_W_m2|speed_rpm|ambient_C|T_[A-Za-z0-9_]+_C)$"
+#: version 2 also reads each heat source's power ``P_<source>_W`` [W] or flux
+#: ``q_<source>_W_m2`` [W/m²] (the sources of a ``[geometry]`` scenario)
+INPUT_NAME_PATTERN_V2 = (r"^(q_W_m2|speed_rpm|ambient_C|T_[A-Za-z0-9_]+_C|P_[A-Za-z0-9_]+_W"
+                         r"|q_[A-Za-z0-9_]+_W_m2)$")
+#: version 2's output names: a displacement sensor's column, and axis names
+OUTPUT_NAME_PATTERN = r"^d_[A-Za-z0-9_]+_um$"
+AXIS_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,31}$"
 
 
 def _is_number(v) -> bool:
@@ -253,23 +323,66 @@ def _string(v, key: str) -> str:
 def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
     """The one strict reading of a ``model.json`` document (see
     :meth:`StateSpaceModel.from_dict`); every refusal is one :class:`InputError`
-    ``<where>: <key>: <what is wrong>``."""
-    import re
+    ``<where>: <key>: <what is wrong>``. Version 1 has one output (``output``,
+    ``growth_um``); version 2 several (``outputs``, each with its axis)."""
     if not isinstance(d, dict):
         raise InputError("must be a JSON object", where)
-    extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL), key=str)
+    k = lambda name: f"{where}: {name}"              # noqa: E731 - the key's label
+    version = d.get("model_version")
+    if version not in MODEL_VERSIONS or isinstance(version, bool):
+        extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL)
+                       - {"outputs"}, key=str)
+        if extra:
+            raise InputError(f"unknown key {extra[0]!r}", where)
+        raise InputError(f"is {_short_repr(version)}; this arfem reads versions 1 and 2",
+                         k("model_version"))
+    required = MODEL_REQUIRED if version == 1 else MODEL_REQUIRED_V2
+    other = "outputs" if version == 1 else "output"
+    if other in d and other not in required and (version == 1) != ("output" in d):
+        raise InputError(f"is {version}, whose layout has {'output' if version == 1 else 'outputs'}"
+                         f", not {other} (version 1: one output, growth_um; version 2: one "
+                         "output per axis)", k("model_version"))
+    extra = sorted(set(d) - set(required) - set(MODEL_OPTIONAL), key=str)
     if extra:
         raise InputError(f"unknown key {extra[0]!r}", where)
-    k = lambda name: f"{where}: {name}"              # noqa: E731 - the key's label
-    if d.get("model_version") != MODEL_VERSION or isinstance(d.get("model_version"), bool):
-        raise InputError(f"is {_short_repr(d.get('model_version'))}; this arfem reads "
-                         f"version {MODEL_VERSION}", k("model_version"))
-    for name in MODEL_REQUIRED:
+    for name in required:
         if name not in d:
             raise InputError("missing", k(name))
     kind = _string(d["kind"], k("kind"))
     dtau = _number(d["dtau_s"], k("dtau_s"), "a positive number of seconds", 0.0, True)
-    ins = d["inputs"]
+    names = _read_inputs(d["inputs"], k, INPUT_NAME_PATTERN if version == 1
+                         else INPUT_NAME_PATTERN_V2)
+    if version == 1:
+        out = _object(d["output"], k("output"), ("name", "unit"), ("name", "unit"))
+        if out["name"] != "growth_um" or out["unit"] != "µm":
+            raise InputError(f"must be {{\"name\": \"growth_um\", \"unit\": \"µm\"}}, got "
+                             f"{_short_repr(out)}", k("output"))
+        outputs = ()
+    else:
+        outputs = _read_outputs(d["outputs"], k)
+    A, B, C, D, x0 = _read_matrices(d, k, len(names), max(len(outputs), 1))
+    if version == 1:
+        d0 = _number(d["d0_um"], k("d0_um"), "a finite number of µm")
+    else:
+        d0 = tuple(float(v) for v in _shaped(_numbers(d["d0_um"], k("d0_um"), 1),
+                                             (len(outputs),), k("d0_um")))
+    noise = _object(d.get("noise", {}), k("noise"), ("Q_um2", "R_um2"))
+    Q, R = (_number(noise.get(q, 0.0), k(f"noise.{q}"), "a finite variance >= 0 [µm²]", 0.0)
+            for q in ("Q_um2", "R_um2"))
+    maps, offsets = _read_maps(d, k, names), _read_offsets(d, k, names)
+    fw = _read_window(d, k)
+    description = _string(d.get("description", ""), k("description"))
+    arfem_version = _string(d.get("arfem_version", ""), k("arfem_version"))
+    return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
+               inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
+               d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
+               input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs)
+
+
+def _read_inputs(ins, k, pattern: str) -> list:
+    """The input names of ``inputs``: ``{name, unit}`` each, names matching ``pattern``
+    (the measured-data contract's), each once."""
+    import re
     if not isinstance(ins, list):
         raise InputError(f"must be a list of {{name, unit}}, got {_short_repr(ins)}",
                          k("inputs"))
@@ -279,37 +392,69 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
         _object(spec, key, ("name", "unit"), ("name", "unit"))
         name = _string(spec["name"], f"{key}.name")
         _string(spec["unit"], f"{key}.unit")
-        if not re.match(INPUT_NAME_PATTERN, name):
+        if not re.match(pattern, name):
             raise InputError(f"{name!r} is not an input of the measured-data contract "
-                             "(q_W_m2, speed_rpm, ambient_C, T_<name>_C)", f"{key}.name")
+                             "(q_W_m2, speed_rpm, ambient_C, T_<name>_C"
+                             + (", P_<source>_W, q_<source>_W_m2)" if pattern
+                                != INPUT_NAME_PATTERN else ")"), f"{key}.name")
         if name in names:
             raise InputError(f"{name!r} is read twice", f"{key}.name")
         names.append(name)
-    out = _object(d["output"], k("output"), ("name", "unit"), ("name", "unit"))
-    if out["name"] != "growth_um" or out["unit"] != "µm":
-        raise InputError(f"must be {{\"name\": \"growth_um\", \"unit\": \"µm\"}}, got "
-                         f"{_short_repr(out)}", k("output"))
+    return names
+
+
+def _read_outputs(outs, k) -> tuple:
+    """Version 2's ``outputs``: at least one ``{name, unit, axis}``, names
+    ``d_<sensor>_um`` in µm, names and axes each once."""
+    import re
+    if not isinstance(outs, list) or not outs:
+        raise InputError(f"must be a list of at least one {{name, unit, axis}}, got "
+                         f"{_short_repr(outs)}", k("outputs"))
+    specs = []
+    for i, spec in enumerate(outs):
+        key = k(f"outputs[{i}]")
+        _object(spec, key, ("name", "unit", "axis"), ("name", "unit", "axis"))
+        name = _string(spec["name"], f"{key}.name")
+        axis = _string(spec["axis"], f"{key}.axis")
+        if _string(spec["unit"], f"{key}.unit") != "µm":
+            raise InputError(f"must be \"µm\", got {spec['unit']!r}", f"{key}.unit")
+        if not re.match(OUTPUT_NAME_PATTERN, name):
+            raise InputError(f"{name!r} is not a displacement column d_<sensor>_um",
+                             f"{key}.name")
+        if not re.match(AXIS_PATTERN, axis):
+            raise InputError(f"{axis!r} is not an axis name (a letter, then letters, "
+                             "digits or _; e.g. X)", f"{key}.axis")
+        if any(o.name == name for o in specs) or any(o.axis == axis for o in specs):
+            raise InputError("names an output or an axis twice", key)
+        specs.append(OutputSpec(name, "µm", axis))
+    return tuple(specs)
+
+
+def _read_matrices(d, k, m: int, p: int) -> tuple:
+    """A (n × n, stable), B (n × m), C (p × n), D (p × m) and x0 (n)."""
     A = _numbers(d["A"], k("A"), 2)
     if A.shape[0] != (A.shape[1] if A.ndim == 2 else 0):
         raise InputError(f"must be square, got shape {A.shape}", k("A"))
-    n, m = A.shape[0], len(names)
+    n = A.shape[0]
     B = _shaped(_numbers(d["B"], k("B"), 2), (n, m), k("B"))
+    rows = "one row" if p == 1 else f"{p} rows, one per output"
     C = _numbers(d["C"], k("C"), 2)
-    if C.shape[0] != 1:
-        raise InputError(f"must be one row, got {C.shape[0]}", k("C"))
-    C = _shaped(C, (1, n), k("C"))
+    if C.shape[0] != p:
+        raise InputError(f"must be {rows}, got {C.shape[0]}", k("C"))
+    C = _shaped(C, (p, n), k("C"))
     D = _numbers(d["D"], k("D"), 2)
-    if D.shape[0] != 1:
-        raise InputError(f"must be one row, got {D.shape[0]}", k("D"))
-    D = _shaped(D, (1, m), k("D"))
+    if D.shape[0] != p:
+        raise InputError(f"must be {rows}, got {D.shape[0]}", k("D"))
+    D = _shaped(D, (p, m), k("D"))
     x0 = _shaped(_numbers(d["x0"], k("x0"), 1), (n,), k("x0"))
     if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
         raise InputError("has an eigenvalue on or outside the unit circle: the model "
                          "would not settle", k("A"))
-    d0 = _number(d["d0_um"], k("d0_um"), "a finite number of µm")
-    noise = _object(d.get("noise", {}), k("noise"), ("Q_um2", "R_um2"))
-    Q, R = (_number(noise.get(q, 0.0), k(f"noise.{q}"), "a finite variance >= 0 [µm²]", 0.0)
-            for q in ("Q_um2", "R_um2"))
+    return A, B, C, D, x0
+
+
+def _read_maps(d, k, names) -> dict:
+    """``input_maps``: name → (x, y), x strictly increasing, as many x as y."""
     maps = {}
     for name, mp in _object(d.get("input_maps", {}), k("input_maps")).items():
         key = k(f"input_maps.{name}")
@@ -321,28 +466,33 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
         if x.shape != y.shape or np.any(np.diff(x) <= 0):
             raise InputError("x must increase strictly and match y, all finite", key)
         maps[name] = (x, y)
+    return maps
+
+
+def _read_offsets(d, k, names) -> dict:
+    """``input_offsets``: name → the reference subtracted from the reading."""
     offsets = {}
     for name, v in _object(d.get("input_offsets", {}), k("input_offsets")).items():
         key = k(f"input_offsets.{name}")
         offsets[name] = _number(v, key)
         if name not in names:
             raise InputError("offsets an input the model does not read", key)
-    fw = None
-    if "fit_window_s" in d:                          # null is not a window: refused
-        fw = d["fit_window_s"]
-        bad = InputError(f"must be [first, last] sample times in seconds, got "
-                         f"{_short_repr(fw)}", k("fit_window_s"))
-        if not (isinstance(fw, list) and len(fw) == 2):
-            raise bad
-        fw = tuple(_number(v, k("fit_window_s")) for v in fw)
-        if fw[0] > fw[1]:
-            raise bad
-    description = _string(d.get("description", ""), k("description"))
-    version = _string(d.get("arfem_version", ""), k("arfem_version"))
-    return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
-               inputs=tuple(InputSpec(s["name"], s["unit"]) for s in ins), x0=x0,
-               d0_um=d0, Q=Q, R=R, description=description, arfem_version=version,
-               input_maps=maps, input_offsets=offsets, fit_window_s=fw)
+    return offsets
+
+
+def _read_window(d, k):
+    """``fit_window_s``: (first, last) in order, or None where the key is absent."""
+    if "fit_window_s" not in d:                      # null is not a window: refused
+        return None
+    fw = d["fit_window_s"]
+    bad = InputError(f"must be [first, last] sample times in seconds, got "
+                     f"{_short_repr(fw)}", k("fit_window_s"))
+    if not (isinstance(fw, list) and len(fw) == 2):
+        raise bad
+    fw = tuple(_number(v, k("fit_window_s")) for v in fw)
+    if fw[0] > fw[1]:
+        raise bad
+    return fw
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",
@@ -453,9 +603,11 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     """
     n = model.n_states
     if n:
-        dc = (model.C @ np.linalg.solve(np.eye(n) - model.A, model.B) + model.D)[0]
+        dc = model.C @ np.linalg.solve(np.eye(n) - model.A, model.B) + model.D
     else:
-        dc = model.D[0]
+        dc = model.D
+    # one output: its row; several: each input's largest share over the outputs
+    dc = dc[0] if not model.outputs else np.max(np.abs(dc), axis=0)
     out = {}
     for j, spec in enumerate(model.inputs):
         nm, unit = spec.name, spec.unit
@@ -478,6 +630,33 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
 
 
 @dataclass(frozen=True)
+class AxisCycle:
+    """What one cycle decided for one axis of a version-2 model.
+
+    Attributes
+    ----------
+    axis : str
+        The controller axis (``"X"``, ``"Y"``, ``"Z"``).
+    output : str
+        The model's output it compensates (``d_tcp_x_um``).
+    offset_um : float
+        The correction to write on this axis [µm] (−predicted, clamped and
+        rate-limited by this axis's limits; held where the inputs were not usable).
+    predicted_um : float
+        The model's output [µm] (NaN where the inputs were not usable).
+    alarms : tuple of str
+        This axis's own alarms: ``clamped``, ``rate_limited`` (informative), and any a
+        transport adds for it (``write_refused:STATUS``).
+    """
+
+    axis: str
+    output: str
+    offset_um: float
+    predicted_um: float
+    alarms: tuple = ()
+
+
+@dataclass(frozen=True)
 class Cycle:
     """What one compensator cycle decided.
 
@@ -485,21 +664,51 @@ class Cycle:
     ----------
     offset_um : float
         The correction to write [µm] (−predicted growth, clamped and rate-limited).
+        NaN for a version-2 model: its offsets are per axis, in ``axes``.
     predicted_growth_um : float
-        The model's growth [µm] (NaN where the inputs were not usable).
+        The model's growth [µm] (NaN where the inputs were not usable, and for a
+        version-2 model).
     alarms : tuple of str
         ``missing:NAME``, ``nonfinite:NAME``, ``out_of_range:NAME``, ``stale:NAME`` and
         any other alarm from the transport: the offset is held; ``clamped``,
         ``rate_limited``, ``extrapolated:NAME`` (an input beyond its map's fitted points):
-        informative (:data:`INFORMATIVE`).
+        informative (:data:`INFORMATIVE`). A version-2 model's axis alarms appear here
+        too, tagged with their axis (``clamped@X``, ``write_refused@Y:BadNotWritable``).
     held : bool
-        True when the last offset was kept because an input was not usable.
+        True when the last offset was kept because an input was not usable (every axis
+        is held: they share the inputs).
+    axes : tuple of AxisCycle
+        Version 2: one per output, in the model's order; () for version 1.
     """
 
     offset_um: float
     predicted_growth_um: float
     alarms: tuple = ()
     held: bool = False
+    axes: tuple = ()
+
+    def axis_alarms(self, axis: str) -> tuple:
+        """The alarms that concern ``axis``: every alarm not tagged with an axis (the
+        inputs', the transport's) and this axis's own, untagged."""
+        own = next((a.alarms for a in self.axes if a.axis == axis), ())
+        return tuple(a for a in self.alarms if "@" not in a.split(":")[0]) + own
+
+    def with_axis_alarm(self, axis: str, alarm: str) -> "Cycle":
+        """This cycle with ``alarm`` added to ``axis`` (and to :attr:`alarms`, tagged)."""
+        axes = tuple(_with_fields(a, alarms=a.alarms + (alarm,)) if a.axis == axis else a
+                     for a in self.axes)
+        kind, _, rest = alarm.partition(":")
+        tagged = f"{kind}@{axis}" + (f":{rest}" if rest else "")
+        return _with_fields(self, alarms=self.alarms + (tagged,), axes=axes)
+
+
+def alarm_kind(alarm: str) -> str:
+    """An alarm's kind: the part before ``:`` and before an axis tag ``@``.
+
+    >>> alarm_kind("clamped@X"), alarm_kind("missing:q_W_m2"), alarm_kind("clamped")
+    ('clamped', 'missing', 'clamped')
+    """
+    return alarm.split(":")[0].split("@")[0]
 
 
 @dataclass
@@ -509,10 +718,12 @@ class Compensator:
     Parameters
     ----------
     model : StateSpaceModel
-    max_offset_um : float
-        Limit on the absolute offset [µm] (the controller's compensation range).
-    max_step_um : float
-        Largest change of the offset per cycle [µm] (large jumps spoil the surface).
+    max_offset_um : float or tuple of float
+        Limit on the absolute offset [µm] (the controller's compensation range); for a
+        version-2 model one per axis (in the order of its outputs) or one for all.
+    max_step_um : float or tuple of float
+        Largest change of the offset per cycle [µm] (large jumps spoil the surface); per
+        axis as ``max_offset_um``.
     ranges : mapping, optional
         Input name → (lo, hi): the plausible range of its raw reading
         (:func:`plausible_ranges`); a reading outside is ``out_of_range:NAME``, held and
@@ -523,25 +734,41 @@ class Compensator:
     :attr:`offset_um` is the offset the controller holds: the rate limit counts from
     it. A transport that reads the controller's value back (on start, on reconnect, after
     a refused write) sets it with :meth:`resume`, so that the next offset is at most
-    ``max_step_um`` from what the machine actually has.
+    ``max_step_um`` from what the machine actually has. A version-2 model keeps one such
+    value per axis, :attr:`offsets_um` (:meth:`resume_axis`).
     """
 
     model: StateSpaceModel
-    max_offset_um: float = math.inf
-    max_step_um: float = math.inf
+    max_offset_um: float | tuple = math.inf
+    max_step_um: float | tuple = math.inf
     ranges: Mapping | None = None
     x: np.ndarray = field(init=False)
     P: np.ndarray = field(init=False)
     offset_um: float = field(init=False, default=0.0)
+    offsets_um: np.ndarray = field(init=False)
     _u_last: np.ndarray | None = field(init=False, default=None)
 
     def __post_init__(self):
+        p = len(self.model.outputs)
         for name in ("max_offset_um", "max_step_um"):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and v > 0):
-                raise InputError(f"must be > 0, got {v!r}", name)
+            vals = v if (p and isinstance(v, (tuple, list))) else (v,)
+            if p and len(vals) not in (1, p):
+                raise InputError(f"needs one value per axis ({p}), got {len(vals)}", name)
+            for x in vals:
+                if not (isinstance(x, (int, float)) and x > 0):
+                    raise InputError(f"must be > 0, got {x!r}", name)
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
+        self.offsets_um = np.zeros(p)
+
+    def limits(self, j: int) -> tuple[float, float]:
+        """(max_offset_um, max_step_um) of axis ``j`` [µm] (version 2)."""
+        out = []
+        for v in (self.max_offset_um, self.max_step_um):
+            vals = v if isinstance(v, (tuple, list)) else (v,)
+            out.append(float(vals[j] if len(vals) > 1 else vals[0]))
+        return out[0], out[1]
 
     def step(self, inputs: Mapping[str, float | None], alarms=(), advance: bool = True) -> Cycle:
         """One cycle: read the inputs of interval k, advance the state, set the offset.
@@ -590,8 +817,12 @@ class Compensator:
             self.x = mdl.A @ self.x + mdl.B @ u_run
             self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
         if not usable:
+            if mdl.outputs:
+                return self._axes_cycle(None, alarms)
             return Cycle(self.offset_um, float("nan"), tuple(alarms), True)
         alarms += notes                           # informative: the offset is not held
+        if mdl.outputs:
+            return self._axes_cycle(u, alarms)
         y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
         want = -y
         if abs(want) > self.max_offset_um:
@@ -602,6 +833,38 @@ class Compensator:
             alarms.append("rate_limited")
         self.offset_um = float(want)
         return Cycle(self.offset_um, y, tuple(alarms), False)
+
+    def _axes_cycle(self, u, alarms: list) -> Cycle:
+        """A version-2 cycle: each axis's offset from its output, clamped and
+        rate-limited by its own limits, counted from what that axis holds; ``u`` None:
+        every axis held."""
+        mdl = self.model
+        if u is None:
+            axes = tuple(AxisCycle(o.axis, o.name, float(self.offsets_um[j]), float("nan"))
+                         for j, o in enumerate(mdl.outputs))
+            return Cycle(float("nan"), float("nan"), tuple(alarms), True, axes)
+        y = mdl.C @ self.x + mdl.D @ u + mdl.d0_vector()
+        axes = []
+        for j, o in enumerate(mdl.outputs):
+            lim, step = self.limits(j)
+            own = []
+            want = -float(y[j])
+            if abs(want) > lim:
+                want = math.copysign(lim, want)
+                own.append("clamped")
+            held = float(self.offsets_um[j])
+            if abs(want - held) > step:
+                want = held + math.copysign(step, want - held)
+                own.append("rate_limited")
+            self.offsets_um[j] = want
+            alarms += [f"{a}@{o.axis}" for a in own]
+            axes.append(AxisCycle(o.axis, o.name, float(want), float(y[j]), tuple(own)))
+        return Cycle(float("nan"), float("nan"), tuple(alarms), False, tuple(axes))
+
+    def resume_axis(self, j: int, offset_um: float) -> None:
+        """Count axis ``j``'s rate limit from ``offset_um`` [µm], the value that axis of
+        the controller holds (version 2; :meth:`resume` for all axes at once)."""
+        self.offsets_um[j] = float(offset_um)
 
     def advance_idle(self, k: int) -> None:
         """Advance the state through ``k`` intervals not seen, with the last good inputs
@@ -633,7 +896,12 @@ class Compensator:
     def resume(self, offset_um: float) -> None:
         """Count the rate limit from ``offset_um`` [µm], the value the controller holds
         (read back on start or reconnect, or the last accepted one after a refused
-        write): the next offset is at most ``max_step_um`` from it."""
+        write): the next offset is at most ``max_step_um`` from it. A version-2 model
+        takes one value per axis (a sequence) or one for all."""
+        if self.model.outputs:
+            self.offsets_um[:] = np.broadcast_to(np.asarray(offset_um, float),
+                                                 self.offsets_um.shape)
+            return
         self.offset_um = float(offset_um)
 
     def state(self) -> dict:
@@ -663,6 +931,8 @@ class Compensator:
         jumps to the measurement, with Q = 0 (P = 0) the probe changes nothing.
         """
         mdl = self.model
+        if mdl.outputs:
+            raise ValueError("a probe update needs a one-output (version 1) model")
         if mdl.n_states == 0 or not math.isfinite(measured_growth_um):
             return 0.0
         u = self._u_last if self._u_last is not None else np.zeros(len(mdl.inputs))

@@ -10,6 +10,12 @@ the seed paper names as its model's open limit: the ambient air temperature vari
 paper's AR(1) (eqs. 12-14) sees only the heat input. The readings are those of a
 machine: speed, heat flux, ambient and two rod temperatures, and the growth a
 displacement sensor reads (the true growth plus white noise).
+
+:class:`AxesTwin` is a machine with several compensation axes (issue 32 item 5): a
+solved ``[geometry]`` scenario (the spindle unit's FEM, with its speed-dependent
+convection, which the exported linear model only approximates) served interval by
+interval: the inputs, the thermometers and each displacement sensor's reading (true
+displacement plus white noise), and per axis the true drift of the tool centre point.
 """
 from __future__ import annotations
 
@@ -19,7 +25,8 @@ import numpy as np
 
 from arfem.params import InputError, Rod
 
-__all__ = ["TwinProgram", "SpindleTwin", "TwinReading", "DEFAULT_PROGRAM"]
+__all__ = ["TwinProgram", "SpindleTwin", "TwinReading", "DEFAULT_PROGRAM", "AxesReading",
+           "AxesTwin"]
 
 #: (duration [h], speed [1/min]) segments of the default 20 h program, repeated
 DEFAULT_PROGRAM = ((3.0, 3000.0), (1.0, 0.0), (4.0, 4500.0), (2.0, 0.0), (2.0, 6000.0),
@@ -164,3 +171,97 @@ class SpindleTwin:
             q_W_m2=float("nan") if self.step_index == p.nan_at_step else float(q),
             ambient_C=float(amb + p.temperature_noise_K * noise[0]), **temps,
             true_growth_um=g, growth_um=float(g + p.growth_noise_um * noise[3]))
+
+
+@dataclass(frozen=True)
+class AxesReading:
+    """What an :class:`AxesTwin` reads at the end of one interval.
+
+    ``time_s`` [s]; ``values``: reading name → value (the inputs over the interval,
+    e.g. ``P_front_bearing_W`` [W], ``speed_rpm``, ``ambient_C``; the thermometers
+    ``T_<name>_C`` [°C]; each displacement sensor ``d_<name>_um`` and ``growth_um`` (the
+    Z axis's) as measured [µm]); ``true_um``: axis → the true displacement [µm].
+    """
+
+    time_s: float
+    values: dict
+    true_um: dict
+
+    def as_dict(self) -> dict:
+        """Reading name → value: the time, the readings, then ``true_<AXIS>_um``."""
+        return {"time_s": self.time_s, **self.values,
+                **{f"true_{ax}_um": v for ax, v in self.true_um.items()}}
+
+
+@dataclass
+class AxesTwin:
+    """A machine with several axes that replays a solved run, one interval per
+    :meth:`advance`.
+
+    Parameters
+    ----------
+    time_s : ndarray (n,)
+        Sample times [s], the first at 0 (the start, not served).
+    readings : dict
+        Reading name → (n,) values (each over the interval that ends at the sample).
+    true_um : dict
+        Axis → (n,) true displacement [µm].
+    measured : dict
+        Axis → the name of its displacement reading (``d_<sensor>_um``), which is served
+        as true + noise.
+    noise_um : float
+        White noise σ of the displacement sensors [µm].
+    seed : int
+        Seed of the noise.
+
+    Examples
+    --------
+    >>> t = np.arange(4) * 60.0
+    >>> tw = AxesTwin(t, {"P_a_W": np.full(4, 5.0)}, {"Z": np.array([0, 1, 2, 3.0])},
+    ...               {"Z": "d_tcp_z_um"})
+    >>> r = tw.advance()
+    >>> r.time_s, r.values["d_tcp_z_um"], r.true_um, tw.n_steps
+    (60.0, 1.0, {'Z': 1.0}, 3)
+    """
+
+    time_s: np.ndarray
+    readings: dict
+    true_um: dict
+    measured: dict
+    noise_um: float = 0.0
+    seed: int = 0
+    step_index: int = field(init=False, default=0)
+
+    def __post_init__(self):
+        if not self.noise_um >= 0:
+            raise InputError(f"must be >= 0, got {self.noise_um!r}", "noise_um")
+        self._rng = np.random.default_rng(self.seed)
+
+    @property
+    def axes(self) -> tuple:
+        return tuple(self.true_um)
+
+    @property
+    def names(self) -> tuple:
+        """The readings' names, in the order :meth:`advance` gives them."""
+        return tuple(self.readings) + tuple(self.measured.values()) + ("growth_um",)
+
+    @property
+    def n_steps(self) -> int:
+        """Intervals the run holds (after the start)."""
+        return int(np.asarray(self.time_s).size - 1)
+
+    def advance(self) -> AxesReading:
+        """The next interval's readings; :class:`IndexError` past the run's end."""
+        if self.step_index >= self.n_steps:
+            raise IndexError("the run has ended")
+        self.step_index += 1
+        k = self.step_index
+        values = {nm: float(v[k]) for nm, v in self.readings.items()}
+        true = {ax: float(v[k]) for ax, v in self.true_um.items()}
+        noise = self._rng.standard_normal(len(self.axes))
+        for j, ax in enumerate(self.axes):
+            values[self.measured[ax]] = true[ax] + self.noise_um * float(noise[j])
+        z = "Z" if "Z" in true else self.axes[0]
+        values["growth_um"] = values[self.measured[z]]
+        return AxesReading(float(self.time_s[k]), values, true)

@@ -26,7 +26,7 @@ from arfem.scenarios.model_file import read_model
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios.replay import Replay, replay
 
-__all__ = ["parse_duration_s", "add_parser", "main", "WRITES"]
+__all__ = ["parse_duration_s", "axis_limits", "add_parser", "main", "WRITES"]
 
 WRITES = ("compensated.csv", "summary.json", "summary.md", "figure.png", "report.html")
 
@@ -143,6 +143,11 @@ def add_parser(sub) -> None:
                    help="largest |offset| written [µm] (default: no limit)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
                    help="largest change of the offset per cycle [µm] (default: no limit)")
+    p.add_argument("--axis-limits", action="append", default=None,
+                   metavar="AXIS=OFFSET:STEP",
+                   help="a version-2 model's clamp and step limit of one axis [µm], e.g. "
+                        "X=20:0.5 (repeat per axis); axes not named take --max-offset-um "
+                        "and --max-step-um")
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
                         "correct the model's state (Kalman update); default: never")
@@ -153,6 +158,53 @@ def add_parser(sub) -> None:
                         "always starts at the first row")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out")
     p.set_defaults(func=main)
+
+
+def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:
+    """(max offsets, max steps) per axis of a version-2 model [µm] from ``--axis-limits
+    AXIS=OFFSET:STEP`` items over the common limits; one line naming a bad item.
+
+    >>> from types import SimpleNamespace as N
+    >>> m = N(outputs=(N(axis="X"), N(axis="Z")))
+    >>> axis_limits(m, ["Z=20:0.5"], 50.0, 1.0)
+    ((50.0, 20.0), (1.0, 0.5))
+    """
+    axes = [o.axis for o in model.outputs]
+    off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
+    for item in items or ():
+        m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
+        if not axes:
+            raise InputError("is for a model with several axes (model_version 2)",
+                             "--axis-limits")
+        if not m or m.group(1) not in axes:
+            raise InputError(f"must be AXIS=OFFSET:STEP with AXIS one of "
+                             f"{', '.join(axes)}, got {item!r}", "--axis-limits")
+        try:
+            vals = float(m.group(2)), float(m.group(3))
+        except ValueError:
+            vals = (math.nan, math.nan)
+        if not all(math.isfinite(v) and v > 0 for v in vals):
+            raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
+        j = axes.index(m.group(1))
+        off[j], step[j] = vals
+    return tuple(off), tuple(step)
+
+
+def _main_axes(args, model, ds, probe) -> int:
+    """The replay of a version-2 model: one offset per axis."""
+    from arfem.scenarios.replay_axes import replay_axes
+    from arfem.scenarios.replay_axes_report import terminal_line, write_axes_replay
+    off, step = axis_limits(model, args.axis_limits, args.max_offset_um, args.max_step_um)
+    if probe is not None:
+        raise InputError("probe updates need a one-output (version 1) model",
+                         "--probe-every")
+    res = replay_axes(model, ds, max_offset_um=off, max_step_um=step,
+                      score_from_s=args.score_from, where=str(args.record))
+    with staged_out_dir(args.out, args.force) as stage:
+        write_axes_replay(res, stage)
+        write_html_report(stage)
+    print(terminal_line(res, args.out))
+    return 0
 
 
 def main(args) -> int:
@@ -177,6 +229,8 @@ def main(args) -> int:
     if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")
+    if model.outputs or getattr(args, "axis_limits", None):
+        return _main_axes(args, model, ds, probe)
     res = replay(model, ds, max_offset_um=args.max_offset_um, max_step_um=args.max_step_um,
                  probe_every_s=probe, score_from_s=args.score_from, where=str(args.record))
     with staged_out_dir(args.out, args.force) as stage:

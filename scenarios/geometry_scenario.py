@@ -108,7 +108,7 @@ _DIRS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 #: Files ``arfem run`` writes for a geometry scenario.
 WRITES = ("sensors.csv", "sensors.json", "summary.json", "summary.md", "geometry.png",
           "sensors.png", "scenario.toml", "report.html", "fields/fields.xdmf3",
-          "fields/fields.h5")
+          "fields/fields.h5", "model.json", "record.toml", "record.csv")
 
 
 @dataclass(frozen=True)
@@ -975,6 +975,10 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> No
     src = Path(sc.source)
     if src.is_file():
         atomic_write_text(out_dir / "scenario.toml", read_text_utf8(src))
+    progress("model.json")                      # issue 32 item 5: the MIMO model
+    from arfem import __version__
+    from arfem.scenarios.geometry_export import write_exports
+    write_exports(run, out_dir, __version__)
 
 
 def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:

@@ -37,6 +37,16 @@ Safety, per cycle (``docs/safety.md`` lists every fault):
   the end of the input. A status line goes to standard error every ``status_every``
   cycles and whenever the set of alarms changes.
 
+A version-2 model (several axes, e.g. the X, Y, Z drift of a spindle unit's tool centre
+point) answers per axis,
+
+    {"time_s": 1830.0, "axes": {"X": {"offset_um": -1.2, "predicted_um": 1.2,
+     "alarms": []}, "Z": {...}}, "alarms": [], "held": false}
+
+each axis with its own clamp and step limit (``[live.axes.<AXIS>]``), counted from what
+that axis holds (``controller_offsets_um``: ``{"X": ..., "Z": ...}`` on an input line);
+an input fault holds every axis, a clamp or rate limit is that axis's alarm.
+
 Transport ``opcua`` (:mod:`arfem.scenarios.opcua_live`, an asyncua client): every
 ``period_s`` the loop reads the input nodes, runs the same step and writes the offset
 (and the alarm) node; it reads the controller's offset back on start and on every
@@ -55,7 +65,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Mapping
 
 from arfem.io import read_toml
-from arfem.models.compensator import INFORMATIVE, Compensator, plausible_ranges
+from arfem.models.compensator import INFORMATIVE, Compensator, alarm_kind, plausible_ranges
 from arfem.params import InputError
 from arfem.strict import boolean, check_keys, number
 
@@ -63,10 +73,11 @@ if TYPE_CHECKING:                                  # (opcua_live imports this mo
     from arfem.scenarios.opcua_live import OpcuaConfig
 
 __all__ = ["LiveConfig", "Clock", "CycleLog", "Status", "load_config", "clocked_step",
-           "model_sha", "warm_start", "faults", "run_jsonl", "run_live"]
+           "model_sha", "warm_start", "faults", "resume_from", "offsets_text", "answer",
+           "run_jsonl", "run_live"]
 
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
-         "cycles", "max_clock_jump_s", "fsync", "status_every", "ranges"}
+         "cycles", "max_clock_jump_s", "fsync", "status_every", "ranges", "axes"}
 
 #: a JSON line longer than this [characters] is not a reading (held, skipped to its end)
 MAX_LINE = 65536
@@ -105,6 +116,9 @@ class LiveConfig:
         ((input name, lo, hi), ...): the plausible range of each input's reading.
     opcua : OpcuaConfig or None
         The ``[opcua]`` table, for that transport.
+    axes : tuple
+        ((axis, max_offset_um, max_step_um), ...): a version-2 model's limits per axis,
+        in the model's order ([live.axes.<AXIS>] over the common ones); () otherwise.
     """
 
     transport: str
@@ -119,9 +133,20 @@ class LiveConfig:
     fsync: bool = True
     status_every: int = 100
     ranges: tuple = ()
+    axes: tuple = ()
 
     def ranges_dict(self) -> dict:
         return {nm: (lo, hi) for nm, lo, hi in self.ranges}
+
+    def compensator(self, model) -> Compensator:
+        """The compensator this config runs ``model`` with: its limits (per axis for a
+        version-2 model) and plausible ranges."""
+        if self.axes:
+            return Compensator(model, max_offset_um=tuple(a[1] for a in self.axes),
+                               max_step_um=tuple(a[2] for a in self.axes),
+                               ranges=self.ranges_dict())
+        return Compensator(model, max_offset_um=self.max_offset_um,
+                           max_step_um=self.max_step_um, ranges=self.ranges_dict())
 
 
 def load_config(path, model=None) -> LiveConfig:
@@ -137,7 +162,8 @@ def load_config(path, model=None) -> LiveConfig:
     ``input = [lo, hi]`` (plausible ranges; defaults from the model,
     :func:`arfem.models.compensator.plausible_ranges`). The ``opcua`` transport also
     needs an ``[opcua]`` table (:func:`arfem.scenarios.opcua_live.parse_config`),
-    checked against ``model``'s inputs.
+    checked against ``model``'s inputs. A version-2 model's axes take the common limits
+    or their own, ``[live.axes.X] max_offset_um = 20.0, max_step_um = 0.5``.
     """
     from pathlib import Path
     doc = read_toml(path)
@@ -174,6 +200,8 @@ def load_config(path, model=None) -> LiveConfig:
     if not isinstance(log, str) or not log:
         raise InputError(f"must be a file name, got {log!r}", f"{where}.log")
     ranges = _ranges(live.get("ranges", {}), f"{where}.ranges", model)
+    axes = _axes(live.get("axes", {}), f"{where}.axes", model, vals["max_offset_um"],
+                 vals["max_step_um"])
     opc = None
     if transport == "opcua":
         from arfem.scenarios.opcua_live import parse_config
@@ -183,7 +211,37 @@ def load_config(path, model=None) -> LiveConfig:
     return LiveConfig(transport, vals["max_offset_um"], vals["max_step_um"],
                       vals["stale_after_s"], str(Path(path).parent / log),
                       vals["period_s"], ints["cycles"], opc, vals["max_clock_jump_s"],
-                      fsync, ints["status_every"], ranges)
+                      fsync, ints["status_every"], ranges, axes)
+
+
+def _axes(table, where: str, model, max_offset_um: float, max_step_um: float) -> tuple:
+    """``[live.axes]``: per axis of a version-2 model its ``max_offset_um`` and
+    ``max_step_um`` [µm] (default the common ones): ((axis, offset, step), ...)."""
+    if not isinstance(table, dict):
+        raise InputError("must be a table of [live.axes.<AXIS>] tables", where)
+    names = list(model.axes) if model is not None else list(table)
+    if table and not names:
+        raise InputError("is for a model with several axes (model_version 2)", where)
+    for ax in table:
+        if ax not in names:
+            raise InputError(f"the model has no axis {ax!r} (it has {', '.join(names)})",
+                             f"{where}.{ax}")
+    out = []
+    for ax in names:
+        t = table.get(ax, {})
+        if not isinstance(t, dict):
+            raise InputError("must be a table with max_offset_um, max_step_um", f"{where}.{ax}")
+        check_keys(t, {"max_offset_um", "max_step_um"}, f"{where}.{ax}")
+        vals = []
+        for key, default in (("max_offset_um", max_offset_um), ("max_step_um", max_step_um)):
+            v = t.get(key, default)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or \
+                    not math.isfinite(v) or v <= 0:
+                raise InputError(f"must be a positive number, got {v!r}",
+                                 f"{where}.{ax}.{key}")
+            vals.append(float(v))
+        out.append((ax, vals[0], vals[1]))
+    return tuple(out)
 
 
 def _ranges(table, where: str, model) -> tuple:
@@ -313,6 +371,7 @@ class WarmStart:
     reason: str
     time_s: float | None = None
     offset_um: float | None = None
+    offsets_um: dict | None = None          # version 2: axis → offset [µm]
 
 
 def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
@@ -347,7 +406,10 @@ def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
         t, off = doc.get("time_s"), doc.get("offset_um")
         t = float(t) if _num(t) else None
         off = float(off) if _num(off) else None
-        return WarmStart("warm", f"state of the log's line at time_s = {t}", t, off)
+        axes = doc.get("axes") if isinstance(doc.get("axes"), dict) else {}
+        offs = {ax: float(v["offset_um"]) for ax, v in axes.items()
+                if isinstance(v, dict) and _num(v.get("offset_um"))} or None
+        return WarmStart("warm", f"state of the log's line at time_s = {t}", t, off, offs)
     return WarmStart("cold", "the log's last state is of another model" if other
                      else "no state in the log")
 
@@ -356,10 +418,43 @@ def _num(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def faults(cyc) -> list:
+def faults(cyc, axis: str | None = None) -> list:
     """The alarms of a cycle that are faults (not the informative ``clamped``,
-    ``rate_limited``, ``extrapolated``)."""
-    return sorted({a for a in cyc.alarms if a.split(":")[0] not in INFORMATIVE})
+    ``rate_limited``, ``extrapolated``, also when tagged with an axis: ``clamped@X``);
+    with ``axis``, those that concern that axis (:meth:`Cycle.axis_alarms`)."""
+    alarms = cyc.alarms if axis is None else cyc.axis_alarms(axis)
+    return sorted({a for a in alarms if alarm_kind(a) not in INFORMATIVE})
+
+
+def resume_from(comp: Compensator, offsets_um) -> None:
+    """Count each axis's rate limit from what that axis holds: ``offsets_um`` a mapping
+    axis → offset [µm] (axes it lacks or holding a non-number are left as they are)."""
+    for j, ax in enumerate(comp.model.axes):
+        v = offsets_um.get(ax) if isinstance(offsets_um, Mapping) else None
+        if _num(v):
+            comp.resume_axis(j, float(v))
+
+
+def offsets_text(cyc) -> str:
+    """The offset(s) of a cycle for a status line."""
+    if cyc.axes:
+        return "offsets " + ", ".join(f"{a.axis} {a.offset_um:+.3f}" for a in cyc.axes) + " um"
+    return f"offset {cyc.offset_um:+.3f} um"
+
+
+def answer(cyc, t) -> dict:
+    """A cycle's answer line (and the log's copy): one offset, or one per axis."""
+    g = cyc.predicted_growth_um
+    if not cyc.axes:
+        return {"time_s": t, "offset_um": cyc.offset_um,
+                "predicted_growth_um": None if math.isnan(g) else g,
+                "alarms": list(cyc.alarms), "held": cyc.held}
+    return {"time_s": t,
+            "axes": {a.axis: {"offset_um": a.offset_um,
+                              "predicted_um": None if math.isnan(a.predicted_um)
+                              else a.predicted_um, "alarms": list(a.alarms)}
+                     for a in cyc.axes},
+            "alarms": list(cyc.alarms), "held": cyc.held}
 
 
 class Status:
@@ -376,7 +471,7 @@ class Status:
         f = faults(cyc)
         if f != self.last or (self.every and n % self.every == 0):
             when = f"t = {t:g} s, " if isinstance(t, (int, float)) else ""
-            self.say(f"cycle {n}, {when}offset {cyc.offset_um:+.3f} um, "
+            self.say(f"cycle {n}, {when}{offsets_text(cyc)}, "
                      + (f"ALARM {', '.join(f)}" if f else "no alarm"))
         self.last = f
 
@@ -389,8 +484,7 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     stdin = sys.stdin if stdin is None else stdin
     stdout = sys.stdout if stdout is None else stdout
     status = status or Status(cfg.status_every)
-    comp = Compensator(model, max_offset_um=cfg.max_offset_um, max_step_um=cfg.max_step_um,
-                       ranges=cfg.ranges_dict())
+    comp = cfg.compensator(model)
     stop = {"signal": None, "busy": False}
 
     def on_signal(signum, frame):
@@ -403,6 +497,8 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     ws = warm_start(cfg.log, comp, sha)
     if ws.offset_um is not None:              # what the gateway may have been sent last
         comp.resume(ws.offset_um)
+    if ws.offsets_um:
+        resume_from(comp, ws.offsets_um)
     run = _JsonRun(comp, [i.name for i in model.inputs], cfg, sha, Clock(ws.time_s),
                    stdout, status)
     n = 0
@@ -411,7 +507,8 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
         try:
             run.log.write({"event": "started", "model": sha, "kind": model.kind,
                            "transport": "jsonl", "start": ws.mode, "start_reason": ws.reason,
-                           "offset_um": comp.offset_um, "wall_time": time.time()})
+                           "offset_um": comp.offset_um, **_axes_held(comp),
+                           "wall_time": time.time()})
             status.say(f"live (JSON lines), {ws.mode} start ({ws.reason}); log {cfg.log}")
             try:
                 while True:
@@ -428,15 +525,25 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
             reason = stop["signal"] or ("cycles done" if cfg.cycles and n >= cfg.cycles
                                         else "end of input")
             run.log.write({"event": "stopped", "cycles": n, "reason": reason,
-                           "last_offset_um": comp.offset_um, "wall_time": time.time()})
-            status.say(f"stopped after {n} cycles ({reason}); last offset "
-                       f"{comp.offset_um:+.3f} um")
+                           "last_offset_um": comp.offset_um, **_axes_held(comp),
+                           "wall_time": time.time()})
+            status.say(f"stopped after {n} cycles ({reason}); last "
+                       + (", ".join(f"{a} {v:+.3f}" for a, v in _axes_held(comp)
+                                    ["offsets_um"].items()) + " um" if model.axes
+                          else f"offset {comp.offset_um:+.3f} um"))
         finally:
             run.log.close()
     finally:
         for s_, h in old.items():
             signal.signal(s_, h)
     return 0
+
+
+def _axes_held(comp: Compensator) -> dict:
+    """``{"offsets_um": {axis: offset}}`` for a version-2 model's log lines; {} else."""
+    if not comp.model.axes:
+        return {}
+    return {"offsets_um": {ax: float(v) for ax, v in zip(comp.model.axes, comp.offsets_um)}}
 
 
 class _Stop(Exception):
@@ -503,15 +610,14 @@ class _JsonRun:
                 values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
                     else None
             held = doc.get("controller_offset_um")
-            if _num(held):
+            if _num(held) and not self.comp.model.axes:
                 self.comp.resume(held)
+            if isinstance(doc.get("controller_offsets_um"), dict):
+                resume_from(self.comp, doc["controller_offsets_um"])
             cyc, self.clock = clocked_step(
                 self.comp, values, t, self.clock, stale_after_s=self.cfg.stale_after_s,
                 max_clock_jump_s=self.cfg.max_clock_jump_s, alarms=alarms)
-        g = cyc.predicted_growth_um
-        out = {"time_s": t, "offset_um": cyc.offset_um,
-               "predicted_growth_um": None if math.isnan(g) else g,
-               "alarms": list(cyc.alarms), "held": cyc.held}
+        out = answer(cyc, t)
         entry = {"time_s": t, "inputs": values, **out, "model": self.sha,
                  "state": self.comp.state()}
         if bad is not None:

@@ -33,6 +33,21 @@ writes the offset node and the alarm node in one request. The config::
     [opcua.inputs]                          # one node per input the model reads
     speed_rpm = "ns=2;s=Spindle.speed_rpm"
 
+A version-2 model (one output per axis) writes one offset node per axis instead of
+``offset_node``/``alarm_node``, each checked as above, read back on start and on every
+reconnect, and written in the same request as the others::
+
+    [opcua.axes.X]
+    offset_node = "ns=2;s=X.thermal_offset_um"
+    alarm_node = "ns=2;s=X.thermal_alarm"   # optional, per axis
+    [opcua.axes.Z]
+    offset_node = "ns=2;s=Z.thermal_offset_um"
+
+Each axis has its own clamp and step limit (``[live.axes.<AXIS>]``); a refused write on
+one axis (``write_refused@X:STATUS``) puts that axis's command back to the value it
+last accepted and raises that axis's alarm until one of its writes is accepted; the
+other axes go on.
+
 Before any offset is written the endpoint is reached, every node is read and the
 model's inputs are matched with ``[opcua.inputs]``: a node id that does not exist, an
 offset node that this client cannot write, or one whose type is not Double or Float, is
@@ -65,18 +80,17 @@ import signal
 import time
 from dataclasses import dataclass, replace
 
-from arfem.models.compensator import Compensator
 from arfem.params import InputError, one_line
-from arfem.scenarios.live import (Clock, CycleLog, Status, clocked_step, faults, model_sha,
-                                  warm_start)
+from arfem.scenarios.live import (Clock, CycleLog, Status, answer, clocked_step, faults,
+                                  model_sha, warm_start)
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
 
-_KEYS = {"endpoint", "inputs", "offset_node", "alarm_node", "time_node", "security_mode",
-         "security_policy", "certificate_env", "private_key_env", "server_certificate_env",
-         "username_env", "password_env", "timeout_s", "reconnect_initial_s",
-         "reconnect_max_s"}
+_KEYS = {"endpoint", "inputs", "offset_node", "alarm_node", "time_node", "axes",
+         "security_mode", "security_policy", "certificate_env", "private_key_env",
+         "server_certificate_env", "username_env", "password_env", "timeout_s",
+         "reconnect_initial_s", "reconnect_max_s"}
 _SECRETS = {"password", "username", "user", "certificate", "private_key", "key"}
 MODES = ("None", "Sign", "SignAndEncrypt")
 POLICIES = ("None", "Basic256Sha256", "Aes128_Sha256_RsaOaep", "Aes256_Sha256_RsaPss")
@@ -103,6 +117,7 @@ class OpcuaConfig:
     timeout_s: float = 2.0
     reconnect_initial_s: float = 1.0
     reconnect_max_s: float = 60.0
+    axes: tuple = ()         # version 2: ((axis, offset node id, alarm node id or None), ...)
 
 
 def _ua():
@@ -188,9 +203,58 @@ def parse_config(table, path: str, model=None) -> OpcuaConfig:
     nums = {k: number(table.get(k, d), f"{where}.{k}", positive=True)
             for k, d in (("timeout_s", 2.0), ("reconnect_initial_s", 1.0),
                          ("reconnect_max_s", 60.0))}
-    return OpcuaConfig(where, endpoint, tuple(inputs), node("offset_node", True),
-                       node("alarm_node", False), node("time_node", False), mode, policy,
-                       **envs, **nums)
+    axes = _axis_nodes(table, where, model, ua)
+    return OpcuaConfig(where, endpoint, tuple(inputs),
+                       None if axes else node("offset_node", True),
+                       None if axes else node("alarm_node", False), node("time_node", False),
+                       mode, policy, **envs, **nums, axes=axes)
+
+
+def _axis_nodes(table, where: str, model, ua) -> tuple:
+    """``[opcua.axes.<AXIS>]`` of a version-2 model: ((axis, offset node, alarm node or
+    None), ...) in the model's order; () for a one-output model."""
+    names = list(model.axes) if model is not None else list(table.get("axes") or {})
+    axes = table.get("axes")
+    if not names:
+        if axes is not None:
+            raise InputError("is for a model with several axes (model_version 2)",
+                             f"{where}.axes")
+        return ()
+    for key in ("offset_node", "alarm_node"):
+        if key in table:
+            raise InputError("a model with several axes writes one node per axis: "
+                             f"[opcua.axes.<AXIS>] {key}", f"{where}.{key}")
+    if not isinstance(axes, dict):
+        raise InputError(f"needs an [opcua.axes.<AXIS>] table per axis ({', '.join(names)})",
+                         f"{where}.axes")
+    for ax in axes:
+        if ax not in names:
+            raise InputError(f"the model has no axis {ax!r} (it has {', '.join(names)})",
+                             f"{where}.axes.{ax}")
+    out = []
+    for ax in names:
+        key = f"{where}.axes.{ax}"
+        t = axes.get(ax)
+        if not isinstance(t, dict):
+            raise InputError("is missing: every axis of the model needs its offset_node",
+                             key)
+        check_keys(t, {"offset_node", "alarm_node"}, key)
+        ids = []
+        for k, required in (("offset_node", True), ("alarm_node", False)):
+            v = t.get(k)
+            if v is None:
+                if required:
+                    raise InputError("is required", f"{key}.{k}")
+                ids.append(None)
+                continue
+            v = string(v, f"{key}.{k}")
+            try:
+                ua.NodeId.from_string(v)
+            except Exception:
+                raise InputError(f"is not an OPC UA node id: {v!r}", f"{key}.{k}") from None
+            ids.append(v)
+        out.append((ax, ids[0], ids[1]))
+    return tuple(out)
 
 
 def _env(cfg: OpcuaConfig, key: str) -> str | None:
@@ -233,12 +297,12 @@ async def _drop(c) -> None:
 
 
 @dataclass(frozen=True)
-class _Nodes:
-    """The resolved nodes: input ids (+ the time node last, if any), the offset node and
-    its variant type, the alarm node and its type, and the offset the controller holds
-    (None where it is not a finite number)."""
+class _AxisNodes:
+    """One axis's resolved nodes: its offset node and variant type, its alarm node and
+    type (None: none), and the offset that axis of the controller holds (None where it
+    is not a finite number)."""
 
-    ids: list
+    axis: str | None
     offset: object
     offset_type: object
     alarm: object = None
@@ -246,47 +310,83 @@ class _Nodes:
     held_um: float | None = None
 
 
+@dataclass(frozen=True)
+class _Nodes:
+    """The resolved nodes: input ids (+ the time node last, if any), the offset node and
+    its variant type, the alarm node and its type, and the offset the controller holds
+    (None where it is not a finite number); a version-2 model's axes in ``axes`` (the
+    single-offset fields then unused)."""
+
+    ids: list
+    offset: object
+    offset_type: object
+    alarm: object = None
+    alarm_type: object = None
+    held_um: float | None = None
+    axes: tuple = ()
+
+
 _FLOATS = ("Double", "Float")
 
 
+def _outputs(cfg: OpcuaConfig) -> list:
+    """(axis, (key, offset node), (key, alarm node) or None) of every offset written."""
+    if not cfg.axes:
+        return [(None, (f"{cfg.where}.offset_node", cfg.offset_node),
+                 (f"{cfg.where}.alarm_node", cfg.alarm_node) if cfg.alarm_node else None)]
+    return [(ax, (f"{cfg.where}.axes.{ax}.offset_node", off),
+             (f"{cfg.where}.axes.{ax}.alarm_node", al) if al else None)
+            for ax, off, al in cfg.axes]
+
+
 async def _resolve(c, cfg: OpcuaConfig) -> _Nodes:
-    """Check every node exists, the offset/alarm nodes can be written and the offset
-    node is a Double or Float; read the offset the controller holds. One-line
+    """Check every node exists, the offset/alarm nodes can be written and every offset
+    node is a Double or Float; read the offset the controller holds (per axis). One-line
     :class:`InputError` naming the key and node otherwise."""
     ua = _ua()
     keys = [(f"{cfg.where}.inputs.{nm}", nid) for nm, nid in cfg.inputs]
     if cfg.time_node:
         keys.append((f"{cfg.where}.time_node", cfg.time_node))
-    outs = [(f"{cfg.where}.offset_node", cfg.offset_node)]
-    if cfg.alarm_node:
-        outs.append((f"{cfg.where}.alarm_node", cfg.alarm_node))
+    plan = _outputs(cfg)
+    outs = [o for _, off, al in plan for o in ((off, al) if al else (off,))]
     ids = [ua.NodeId.from_string(n) for _, n in keys + outs]
     dvs = await c.uaclient.read_attributes(ids, ua.AttributeIds.Value)
     for (key, nid), dv in zip(keys + outs, dvs):
         if dv.StatusCode.value == ua.StatusCodes.BadNodeIdUnknown:
             raise InputError(f"node {nid} does not exist on {cfg.endpoint}", key)
-    acc = await c.uaclient.read_attributes(ids[len(keys):], ua.AttributeIds.UserAccessLevel)
-    dtype = (await c.uaclient.read_attributes([ids[len(keys)]], ua.AttributeIds.DataType))[0]
+    n_in = len(keys)
+    acc = await c.uaclient.read_attributes(ids[n_in:], ua.AttributeIds.UserAccessLevel)
+    first = [n_in + i for i, o in enumerate(outs) if any(o is p[1] for p in plan)]
+    dtypes = await c.uaclient.read_attributes([ids[i] for i in first], ua.AttributeIds.DataType)
     types = []
-    for (key, nid), a, dv in zip(outs, acc, dvs[len(keys):]):
+    for (key, nid), a, dv in zip(outs, acc, dvs[n_in:]):
         level = a.Value.Value if a.StatusCode.is_good() else 0
         if not level & ua.AccessLevel.CurrentWrite.mask:
             raise InputError(f"node {nid} is not writable by this client", key)
         types.append(dv.Value.VariantType if dv.Value is not None
                      and dv.Value.VariantType != ua.VariantType.Null else None)
-    okey, onid = outs[0]
-    tname = _type_name(ua, dtype, types[0])
-    if tname not in _FLOATS:
-        raise InputError(f"node {onid} has type {tname}; the offset needs a Double or Float "
-                         "node (an integer node would round or refuse every offset)", okey)
-    ovt = getattr(ua.VariantType, tname)
-    v = dvs[len(keys)].Value.Value if dvs[len(keys)].Value is not None else None
-    held = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) \
-        and math.isfinite(v) else None
-    alarm, atype = None, None
-    if cfg.alarm_node:
-        alarm, atype = ids[len(keys) + 1], types[1] or ua.VariantType.String
-    return _Nodes(ids[:len(keys)], ids[len(keys)], ovt, alarm, atype, held)
+    axes, i = [], 0
+    for (ax, (okey, onid), al), dtype in zip(plan, dtypes):
+        tname = _type_name(ua, dtype, types[i])
+        if tname not in _FLOATS:
+            raise InputError(f"node {onid} has type {tname}; the offset needs a Double or "
+                             "Float node (an integer node would round or refuse every "
+                             "offset)", okey)
+        dv = dvs[n_in + i]
+        v = dv.Value.Value if dv.Value is not None else None
+        held = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) \
+            and math.isfinite(v) else None
+        alarm, atype = None, None
+        if al is not None:
+            alarm, atype = ids[n_in + i + 1], types[i + 1] or ua.VariantType.String
+        axes.append(_AxisNodes(ax, ids[n_in + i], getattr(ua.VariantType, tname), alarm,
+                               atype, held))
+        i += 2 if al is not None else 1
+    if not cfg.axes:
+        one = axes[0]
+        return _Nodes(ids[:n_in], one.offset, one.offset_type, one.alarm, one.alarm_type,
+                      one.held_um)
+    return _Nodes(ids[:n_in], None, None, axes=tuple(axes))
 
 
 def _type_name(ua, dtype, vtype) -> str:
@@ -303,14 +403,16 @@ def _type_name(ua, dtype, vtype) -> str:
     return vtype.name if vtype is not None else "unknown"
 
 
-def _alarm_value(ua, vtype, cyc):
+def _alarm_value(ua, vtype, cyc, axis: str | None = None):
     """The alarm node's value: Boolean -- set while the offset is held or any fault
-    lasts; String -- the alarm names; an integer type -- their number."""
+    lasts; String -- the alarm names; an integer type -- their number. With ``axis``
+    (version 2): the alarms that concern that axis (the inputs' and its own)."""
+    alarms = cyc.alarms if axis is None else cyc.axis_alarms(axis)
     if vtype == ua.VariantType.Boolean:
-        return ua.Variant(bool(cyc.held or faults(cyc)), vtype)
+        return ua.Variant(bool(cyc.held or faults(cyc, axis)), vtype)
     if vtype == ua.VariantType.String:
-        return ua.Variant(",".join(cyc.alarms), vtype)
-    return ua.Variant(len(cyc.alarms), vtype)
+        return ua.Variant(",".join(alarms), vtype)
+    return ua.Variant(len(alarms), vtype)
 
 
 def _err(exc) -> str:
@@ -322,8 +424,7 @@ class _Loop:
 
     def __init__(self, model, cfg, status=None):
         self.model, self.cfg, self.o = model, cfg, cfg.opcua
-        self.comp = Compensator(model, max_offset_um=cfg.max_offset_um,
-                                max_step_um=cfg.max_step_um, ranges=cfg.ranges_dict())
+        self.comp = cfg.compensator(model)
         self.names = [i.name for i in model.inputs]
         self.sha = model_sha(model)
         self.status = status or Status(cfg.status_every)
@@ -332,6 +433,9 @@ class _Loop:
         self.clock = Clock()
         self.accepted = 0.0           # the offset the controller holds (last accepted)
         self.write_fault = None       # the last write's refusal, until one is accepted
+        # version 2: the same per axis
+        self.accepted_axes = {ax: 0.0 for ax in model.axes}
+        self.axis_faults = {ax: None for ax in model.axes}
         self.backoff = self.o.reconnect_initial_s
         self.next_try = 0.0
         self.stop = None
@@ -342,7 +446,18 @@ class _Loop:
         self.log.write(obj)
 
     def _take_controller(self, held_um, event):
-        """The controller's offset, read back: the rate limit counts from it."""
+        """The controller's offset, read back: the rate limit counts from it (per axis
+        for a version-2 model: ``held_um`` None, the nodes' values are used)."""
+        if self.model.axes:
+            for j, a in enumerate(self.nodes.axes):
+                v = a.held_um
+                if v is None:
+                    self.status.say(f"{event}: axis {a.axis}: the controller's offset is "
+                                    "not a finite number; ramping from 0")
+                    v = 0.0
+                self.accepted_axes[a.axis] = v
+                self.comp.resume_axis(j, v)
+            return
         if held_um is None:
             self.status.say(f"{event}: the controller's offset is not a finite number; "
                             "ramping from 0")
@@ -376,8 +491,19 @@ class _Loop:
         self.backoff = self.o.reconnect_initial_s
         self._take_controller(nodes.held_um, "reconnected")
         self._log({"event": "reconnected", "wall_time": time.time(),
-                   "controller_offset_um": nodes.held_um})
-        self.status.say(f"reconnected; the controller holds {self.accepted:+.3f} um")
+                   **self._held_doc(nodes)})
+        self.status.say(f"reconnected; the controller holds {self._held_text()}")
+
+    def _held_doc(self, nodes) -> dict:
+        """What the controller held when read, for a log line."""
+        if not self.model.axes:
+            return {"controller_offset_um": nodes.held_um}
+        return {"controller_offsets_um": {a.axis: a.held_um for a in nodes.axes}}
+
+    def _held_text(self) -> str:
+        if not self.model.axes:
+            return f"{self.accepted:+.3f} um"
+        return ", ".join(f"{ax} {v:+.3f}" for ax, v in self.accepted_axes.items()) + " um"
 
     async def _read(self, ua, values, transport):
         """Read the inputs (and the time); returns the machine time or None."""
@@ -400,8 +526,41 @@ class _Loop:
         transport.append("missing:time_s")
         return None
 
+    async def _write_axes(self, ua, k, cyc):
+        """Send every axis's offset (and alarm) in one request and check each answer: a
+        refused axis goes back to what it last accepted, the others go on."""
+        nodes, vals, where = [], [], []
+        for a, n in zip(cyc.axes, self.nodes.axes):
+            where.append((a, len(nodes)))
+            nodes.append(n.offset)
+            vals.append(ua.DataValue(ua.Variant(a.offset_um, n.offset_type)))
+            if n.alarm is not None:
+                nodes.append(n.alarm)
+                vals.append(ua.DataValue(_alarm_value(ua, n.alarm_type, cyc, a.axis)))
+        try:
+            res = await asyncio.wait_for(self.client.uaclient.write_attributes(
+                nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
+        except Exception as exc:               # unknown whether it landed: read it back
+            await self._lose(exc, asyncio.get_running_loop().time())
+            return
+        for j, (a, i) in enumerate(where):
+            if res[i].is_good():
+                self.accepted_axes[a.axis], self.axis_faults[a.axis] = a.offset_um, None
+            else:
+                self.axis_faults[a.axis] = f"write_refused:{res[i].name}"
+                self.comp.resume_axis(j, self.accepted_axes[a.axis])
+                self._log({"event": "write_refused", "cycle": k, "axis": a.axis,
+                           "status": res[i].name, "offset_um": a.offset_um,
+                           "controller_offset_um": self.accepted_axes[a.axis],
+                           "wall_time": time.time()})
+            if self.nodes.axes[j].alarm is not None and not res[i + 1].is_good():
+                self._log({"event": "alarm_write_refused", "cycle": k, "axis": a.axis,
+                           "status": res[i + 1].name})
+
     async def _write(self, ua, k, cyc):
         """Send the offset (and alarm) and check the answer."""
+        if self.model.axes:
+            return await self._write_axes(ua, k, cyc)
         nodes = [self.nodes.offset]
         vals = [ua.DataValue(ua.Variant(cyc.offset_um, self.nodes.offset_type))]
         if self.nodes.alarm is not None:
@@ -445,21 +604,36 @@ class _Loop:
             clock_only=bool(self.o.time_node))
         if self.write_fault:                   # the alarm lasts until a write is accepted;
             cyc = replace(cyc, alarms=cyc.alarms + (self.write_fault,))  # the inputs still
-        send = self.client is not None         # feed the state (they were read)
-        g = cyc.predicted_growth_um
+        for ax, fault in self.axis_faults.items():     # feed the state (they were read)
+            if fault:
+                cyc = cyc.with_axis_alarm(ax, fault)
+        send = self.client is not None
         missed = self.clock.missed + missed_periods
-        self._log({"cycle": k, "time_s": t, "wall_time": time.time(),
-                   "lateness_s": start - deadline, "cycle_s": loop.time() - start,
-                   "inputs": values,
-                   "transport_alarms": transport, "offset_um": cyc.offset_um,
-                   "predicted_growth_um": None if math.isnan(g) else g,
-                   "alarms": list(cyc.alarms), "held": cyc.held, "sent": send,
-                   "controller_offset_um": self.accepted, "model": self.sha,
-                   "state": self.comp.state(),
-                   **({"missed_intervals": missed} if missed else {})})
+        self._log(self._cycle_doc(cyc, k, t, values, transport, send, missed,
+                                  start - deadline, loop.time() - start))
         if send:                               # the log line above is ahead of it
             await self._write(ua, k, cyc)
         self.status.cycle(k + 1, t, cyc)
+
+    def _cycle_doc(self, cyc, k, t, values, transport, send, missed, late, took) -> dict:
+        """A cycle's log line: its offset, or one per axis (version 2)."""
+        if cyc.axes:
+            return {"cycle": k, "wall_time": time.time(), "lateness_s": late,
+                    "cycle_s": took, "inputs": values, "transport_alarms": transport,
+                    **answer(cyc, t), "sent": send,
+                    "controller_offsets_um": dict(self.accepted_axes), "model": self.sha,
+                    "state": self.comp.state(),
+                    **({"missed_intervals": missed} if missed else {})}
+        g = cyc.predicted_growth_um
+        return {"cycle": k, "time_s": t, "wall_time": time.time(),
+                "lateness_s": late, "cycle_s": took,
+                "inputs": values,
+                "transport_alarms": transport, "offset_um": cyc.offset_um,
+                "predicted_growth_um": None if math.isnan(g) else g,
+                "alarms": list(cyc.alarms), "held": cyc.held, "sent": send,
+                "controller_offset_um": self.accepted, "model": self.sha,
+                "state": self.comp.state(),
+                **({"missed_intervals": missed} if missed else {})}
 
     async def _start(self):
         """Connect and resolve (refused in one line), read the controller's offset."""
@@ -513,10 +687,9 @@ class _Loop:
             self._log({"event": "started", "model": self.sha, "kind": self.model.kind,
                        "transport": "opcua", "endpoint": self.o.endpoint,
                        "period_s": period, "start": ws.mode, "start_reason": ws.reason,
-                       "controller_offset_um": self.nodes.held_um,
-                       "wall_time": time.time()})
+                       **self._held_doc(self.nodes), "wall_time": time.time()})
             self.status.say(f"live (OPC UA {self.o.endpoint}), {ws.mode} start "
-                            f"({ws.reason}); the controller holds {self.accepted:+.3f} um; "
+                            f"({ws.reason}); the controller holds {self._held_text()}; "
                             f"log {self.cfg.log}")
             t0, k = loop.time(), 0                 # k: deadline index; n: cycles run
             while not self.stop.is_set() and not (self.cfg.cycles and n >= self.cfg.cycles):
@@ -540,9 +713,11 @@ class _Loop:
             self._log({"event": "stopped", "cycles": n,
                        "reason": self.reason or "cycles done",
                        "last_offset_um": self.comp.offset_um,
-                       "controller_offset_um": self.accepted, "wall_time": time.time()})
+                       **({"controller_offsets_um": dict(self.accepted_axes)}
+                          if self.model.axes else {"controller_offset_um": self.accepted}),
+                       "wall_time": time.time()})
             self.status.say(f"stopped after {n} cycles ({self.reason or 'cycles done'}); "
-                            f"the controller holds {self.accepted:+.3f} um")
+                            f"the controller holds {self._held_text()}")
         finally:
             if self.log is not None:
                 self.log.close()

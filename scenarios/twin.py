@@ -1,7 +1,15 @@
 """``arfem twin``: a simulated spindle behind an OPC UA server, to try a compensator on.
 
 The machine is :class:`arfem.models.twin.SpindleTwin` (the FEM rod under a speed
-program, with a daily ambient swing the paper's AR(1) does not model). The server
+program, with a daily ambient swing the paper's AR(1) does not model), or with
+``--scenario TOML`` a ``[geometry]`` scenario such as the shipped spindle unit
+(:class:`arfem.models.twin.AxesTwin`: its FEM, with the speed-dependent convection,
+served interval by interval), which has one compensation axis per displacement sensor:
+its nodes are the scenario's inputs (``P_<source>_W``, ``speed_rpm``, ``ambient_C``),
+thermometers (``T_<name>_C``), displacement sensors (``d_<sensor>_um``, true + noise),
+``growth_um`` (the Z axis's), and per axis ``offset_<AXIS>_um`` (writable),
+``alarm_<AXIS>`` (writable, String), ``true_<AXIS>_um`` and ``error_<AXIS>_um`` (true +
+the offset in force). It stops at the end of the scenario's cycle. The server
 listens on 127.0.0.1 only and exposes, under the object ``Spindle`` of namespace
 ``urn:arfem:twin`` (node ids ``ns=2;s=Spindle.<name>``):
 
@@ -30,7 +38,7 @@ import signal
 import sys
 
 from arfem.params import InputError
-from arfem.scenarios.twin_record import TwinCycle, free_port, write_record
+from arfem.scenarios.twin_record import AxesTwinCycle, TwinCycle, free_port, write_record
 
 __all__ = ["NAMESPACE", "READINGS", "serve", "add_parser", "main"]
 
@@ -52,18 +60,11 @@ def _user_manager(name: str, secret: str):
     return _One()
 
 
-async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
-                ready=None, secure_dir=None, credentials=None) -> list:
-    """Run the server until ``steps`` intervals are done (0 = until cancelled or a
-    signal); returns the history (one :class:`TwinCycle` per interval).
-
-    ``secure_dir``: serve Basic256Sha256 SignAndEncrypt only, with a self-signed server
-    certificate kept there (made on first use); ``credentials``: (user, password), the
-    only identity admitted (anonymous refused)."""
+async def _server(port: int, secure_dir, credentials):
+    """An initialised asyncua server on 127.0.0.1:``port`` and its endpoint: no security,
+    or (``secure_dir``) Basic256Sha256 SignAndEncrypt only with a self-signed
+    certificate kept there; ``credentials`` (user, password): the only identity admitted."""
     from asyncua import Server, ua
-    from asyncua.common.callback import CallbackType
-
-    logging.getLogger("asyncua").setLevel(logging.CRITICAL)
     server = Server(user_manager=None if credentials is None else _user_manager(*credentials))
     await server.init()
     endpoint = f"opc.tcp://127.0.0.1:{port}/arfem/twin"
@@ -86,80 +87,143 @@ async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
         await server.load_private_key(str(d / "twin_key.pem"))
     if credentials is not None:
         server.set_security_IDs(["Username"])
-    idx = await server.register_namespace(NAMESPACE)
-    obj = await server.nodes.objects.add_object(ua.NodeId("Spindle", idx), "Spindle")
-    nodes = {}
-    for name in READINGS + ("offset_um",):
-        nodes[name] = await obj.add_variable(ua.NodeId(f"Spindle.{name}", idx), name, 0.0,
-                                             varianttype=ua.VariantType.Double)
-    nodes["alarm"] = await obj.add_variable(ua.NodeId("Spindle.alarm", idx), "alarm", "",
-                                            varianttype=ua.VariantType.String)
-    await nodes["offset_um"].set_writable()
-    await nodes["alarm"].set_writable()
-    offset_id, alarm_id = nodes["offset_um"].nodeid, nodes["alarm"].nodeid
-    history: list = []
-    state = {"offset": 0.0, "alarm": "", "now": None}
-    done = asyncio.Event()
+    return server, endpoint
 
-    async def publish(values: dict):
-        for name in READINGS:
+
+def _layout(twin) -> tuple:
+    """(readings, axes): the names the twin publishes and its compensation axes, each
+    axis a tuple (axis, offset node name, alarm node name, error reading, true reading).
+    The rod: :data:`READINGS` and one axis ``None`` on ``offset_um``/``alarm``."""
+    axes = tuple(getattr(twin, "axes", ()) or ())
+    if not axes:
+        return READINGS, ((None, "offset_um", "alarm", "error_um", "true_growth_um"),)
+    names = ["time_s"] + list(twin.names)
+    names += [f"true_{ax}_um" for ax in axes] + [f"error_{ax}_um" for ax in axes]
+    return tuple(dict.fromkeys(names)), tuple(
+        (ax, f"offset_{ax}_um", f"alarm_{ax}", f"error_{ax}_um", f"true_{ax}_um")
+        for ax in axes)
+
+
+class _Served:
+    """The twin behind a server: its nodes, the offsets written, the interval in force
+    and the history (one :class:`TwinCycle` or :class:`AxesTwinCycle` per interval)."""
+
+    def __init__(self, server, twin, lockstep: bool, steps: int):
+        self.server, self.twin, self.lockstep = server, twin, lockstep
+        n = getattr(twin, "n_steps", None)
+        self.steps = steps if n is None else (min(steps, n) if steps else n)
+        self.readings, self.axes = _layout(twin)
+        self.nodes, self.history, self.now = {}, [], None
+        self.offset = {a[0]: 0.0 for a in self.axes}
+        self.alarm = {a[0]: "" for a in self.axes}
+        self.done = asyncio.Event()
+
+    async def add_nodes(self) -> None:
+        from asyncua import ua
+        idx = await self.server.register_namespace(NAMESPACE)
+        obj = await self.server.nodes.objects.add_object(ua.NodeId("Spindle", idx), "Spindle")
+        for name in self.readings + tuple(a[1] for a in self.axes):
+            self.nodes[name] = await obj.add_variable(
+                ua.NodeId(f"Spindle.{name}", idx), name, 0.0, varianttype=ua.VariantType.Double)
+        for a in self.axes:
+            self.nodes[a[2]] = await obj.add_variable(
+                ua.NodeId(f"Spindle.{a[2]}", idx), a[2], "", varianttype=ua.VariantType.String)
+            await self.nodes[a[1]].set_writable()
+            await self.nodes[a[2]].set_writable()
+
+    def errors(self, r) -> dict:
+        """Each axis's error: true displacement + the offset in force [µm]."""
+        if self.axes[0][0] is None:
+            return {"error_um": r.true_growth_um + self.offset[None]}
+        return {a[3]: r.true_um[a[0]] + self.offset[a[0]] for a in self.axes}
+
+    async def publish(self, values: dict) -> None:
+        from asyncua import ua
+        for name in self.readings:
             if name in values:
-                await server.write_attribute_value(
-                    nodes[name].nodeid,
+                await self.server.write_attribute_value(
+                    self.nodes[name].nodeid,
                     ua.DataValue(ua.Variant(values[name], ua.VariantType.Double)))
 
-    def close():
-        """The interval in force ends: its offset, alarm and error go to the history."""
-        r = state.pop("now", None)
-        state["now"] = None
-        if r is not None:
-            history.append(TwinCycle(r, offset_um=state["offset"],
-                                     alarm_set=1.0 if state["alarm"] else 0.0,
-                                     error_um=r.true_growth_um + state["offset"]))
-
-    async def advance():
-        """Close the interval in force and start the next (unless ``steps`` are done)."""
-        close()
-        if steps and len(history) >= steps:
-            done.set()
+    def close(self) -> None:
+        """The interval in force ends: its offsets, alarms and errors go to the history."""
+        r, self.now = self.now, None
+        if r is None:
             return
-        r = twin.advance()
-        state["now"] = r
-        await publish({**r.as_dict(), "error_um": r.true_growth_um + state["offset"]})
+        if self.axes[0][0] is None:
+            self.history.append(TwinCycle(r, offset_um=self.offset[None],
+                                          alarm_set=1.0 if self.alarm[None] else 0.0,
+                                          error_um=r.true_growth_um + self.offset[None]))
+        else:
+            self.history.append(AxesTwinCycle(r, dict(self.offset),
+                                              {k: 1.0 if v else 0.0
+                                               for k, v in self.alarm.items()},
+                                              self.errors(r)))
 
-    async def on_write(event, dispatcher):
+    async def advance(self) -> None:
+        """Close the interval in force and start the next (unless ``steps`` are done)."""
+        self.close()
+        if self.steps and len(self.history) >= self.steps:
+            self.done.set()
+            return
+        r = self.twin.advance()
+        self.now = r
+        await self.publish({**r.as_dict(), **self.errors(r)})
+
+    async def on_write(self, event, dispatcher) -> None:
         ids = [w.NodeId for w in event.request_params.NodesToWrite]
-        if alarm_id in ids:
-            state["alarm"] = str(server.read_attribute_value(alarm_id).Value.Value or "")
-        if offset_id in ids:
-            state["offset"] = float(server.read_attribute_value(offset_id).Value.Value)
-            if lockstep:
-                await advance()
+        wrote = False
+        for ax, off, alarm, _, _ in self.axes:
+            if self.nodes[alarm].nodeid in ids:
+                v = self.server.read_attribute_value(self.nodes[alarm].nodeid).Value.Value
+                self.alarm[ax] = str(v or "")
+            if self.nodes[off].nodeid in ids:
+                v = self.server.read_attribute_value(self.nodes[off].nodeid).Value.Value
+                self.offset[ax] = float(v)
+                wrote = True
+        if wrote and self.lockstep:
+            await self.advance()
 
-    server.subscribe_server_callback(CallbackType.PostWrite, on_write)
+
+async def serve(twin, port: int, period_s: float, lockstep: bool, steps: int,
+                ready=None, secure_dir=None, credentials=None) -> list:
+    """Run the server until ``steps`` intervals are done (0 = until cancelled or a
+    signal, or a run's end for a twin with several axes); returns the history (one
+    :class:`TwinCycle`, or :class:`AxesTwinCycle`, per interval).
+
+    ``secure_dir``: serve Basic256Sha256 SignAndEncrypt only, with a self-signed server
+    certificate kept there (made on first use); ``credentials``: (user, password), the
+    only identity admitted (anonymous refused)."""
+    from asyncua.common.callback import CallbackType
+
+    logging.getLogger("asyncua").setLevel(logging.CRITICAL)
+    server, endpoint = await _server(port, secure_dir, credentials)
+    sv = _Served(server, twin, lockstep, steps)
+    await sv.add_nodes()
+    server.subscribe_server_callback(CallbackType.PostWrite, sv.on_write)
     loop = asyncio.get_running_loop()
     for s in (signal.SIGINT, signal.SIGTERM):
         try:
-            loop.add_signal_handler(s, done.set)
+            loop.add_signal_handler(s, sv.done.set)
         except (RuntimeError, ValueError):      # not the main thread: cancel instead
             pass
     async with server:
-        await advance()
+        await sv.advance()
         if ready is not None:
             ready(endpoint)
         if lockstep:
-            await done.wait()
+            await sv.done.wait()
         else:
-            t0 = loop.time()
-            k = 1
-            while not done.is_set():
+            t0, k = loop.time(), 1
+            while not sv.done.is_set():
                 try:
-                    await asyncio.wait_for(done.wait(), max(0.0, t0 + k * period_s - loop.time()))
+                    await asyncio.wait_for(sv.done.wait(),
+                                           max(0.0, t0 + k * period_s - loop.time()))
                 except asyncio.TimeoutError:
-                    await advance()
+                    await sv.advance()
                     k += 1
-    close()                                  # stopped early: the interval in force ends
-    return history
+    sv.close()                               # stopped early: the interval in force ends
+    return sv.history
 
 
 def add_parser(sub) -> None:
@@ -168,6 +232,11 @@ def add_parser(sub) -> None:
                      "arfem compensate --live on",
         description="A FEM spindle rod with a hidden daily ambient swing, run in "
                     "accelerated time behind an OPC UA server on 127.0.0.1.")
+    p.add_argument("--scenario", metavar="TOML",
+                   help="serve a [geometry] scenario (e.g. scenarios/spindle_unit.toml) "
+                        "instead of the rod: its FEM solved once, then served interval by "
+                        "interval with one offset node per axis (offset_<AXIS>_um, "
+                        "alarm_<AXIS>, error_<AXIS>_um); Δτ is its output_interval_s")
     p.add_argument("--port", type=int, default=4840, help="TCP port; 0 = a free one "
                    "(default 4840)")
     p.add_argument("--dtau-s", type=float, default=60.0, help="simulated interval Δτ [s]")
@@ -235,6 +304,27 @@ def check_flags(args) -> None:
                          "shorter --start-h)", "--start-h")
 
 
+#: the rod's flags and their defaults: a geometry scenario brings its own program
+_ROD_ONLY = (("--dtau-s", "dtau_s", 60.0), ("--ambient-amplitude-K", "ambient_amplitude_K", 2.0),
+             ("--start-h", "start_h", 0.0), ("--nan-at-step", "nan_at_step", -1))
+
+
+def _scenario_twin(args):
+    """The twin of ``--scenario`` (:func:`arfem.scenarios.geometry_export.axes_twin`)."""
+    from arfem.scenarios.geometry_export import axes_twin
+    from arfem.scenarios.geometry_scenario import is_geometry_scenario
+    for flag, name, default in _ROD_ONLY:
+        if getattr(args, name) != default:
+            raise InputError("is for the rod; a --scenario brings its own program and "
+                             "interval", flag)
+    if not is_geometry_scenario(args.scenario):
+        raise InputError("must be a scenario TOML with a [geometry] table", "--scenario")
+    import contextlib
+    with contextlib.redirect_stdout(sys.stderr):   # (the mesh reader prints): the first
+        twin, _ = axes_twin(args.scenario, args.noise_um, args.seed)   # line stays ours
+    return twin
+
+
 def main(args) -> int:
     from pathlib import Path
 
@@ -252,12 +342,15 @@ def main(args) -> int:
                                  "--record")
         if Path(args.record).exists() and not Path(args.record).is_dir():
             raise InputError("exists and is not a directory", "--record")
-    twin = SpindleTwin(TwinProgram(dtau_s=args.dtau_s,
-                                   ambient_amplitude_K=args.ambient_amplitude_K,
-                                   growth_noise_um=args.noise_um, seed=args.seed,
-                                   nan_at_step=args.nan_at_step))
-    for _ in range(int(round(args.start_h * 3600.0 / args.dtau_s))):
-        twin.advance()
+    if getattr(args, "scenario", None) is not None:
+        twin = _scenario_twin(args)
+    else:
+        twin = SpindleTwin(TwinProgram(dtau_s=args.dtau_s,
+                                       ambient_amplitude_K=args.ambient_amplitude_K,
+                                       growth_noise_um=args.noise_um, seed=args.seed,
+                                       nan_at_step=args.nan_at_step))
+        for _ in range(int(round(args.start_h * 3600.0 / args.dtau_s))):
+            twin.advance()
     port = free_port() if args.port == 0 else args.port
     credentials = None
     if (args.user_env is None) != (args.password_env is None):

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from arfem.io import atomic_write_text
-from arfem.models.twin import TwinReading
+from arfem.models.twin import AxesReading, TwinReading
 
-__all__ = ["TwinCycle", "write_record", "free_port", "RECORD_COLUMNS"]
+__all__ = ["TwinCycle", "AxesTwinCycle", "write_record", "free_port", "RECORD_COLUMNS"]
 
 #: the columns of the record's CSV, in order
 RECORD_COLUMNS = ("time_s", "growth_um", "speed_rpm", "q_W_m2", "ambient_C", "T_face_C",
@@ -34,6 +34,25 @@ class TwinCycle:
                 "alarm_set": self.alarm_set, "error_um": self.error_um}
 
 
+@dataclass(frozen=True)
+class AxesTwinCycle:
+    """One interval of a twin with several axes: the readings at its end, per axis the
+    offset a client wrote during it [µm], whether its alarm was set (1.0 or 0.0), and
+    the error left, true displacement + offset [µm] (``error_<AXIS>_um``)."""
+
+    reading: AxesReading
+    offsets_um: dict
+    alarms_set: dict
+    errors_um: dict
+
+    def as_dict(self) -> dict:
+        """Column name → value: the readings, then per axis offset, alarm and error."""
+        return {**self.reading.as_dict(),
+                **{f"offset_{ax}_um": v for ax, v in self.offsets_um.items()},
+                **{f"alarm_{ax}_set": v for ax, v in self.alarms_set.items()},
+                **self.errors_um}
+
+
 def free_port() -> int:
     """A TCP port free on 127.0.0.1 now (the OS's choice)."""
     with socket.socket() as s:
@@ -50,12 +69,17 @@ def write_record(directory, rows: list, name: str = "twin") -> None:
 
     def cell(v):
         return "" if v is None or not math.isfinite(v) else repr(float(v))
-    lines = [",".join(RECORD_COLUMNS)]
+    axes = bool(rows) and isinstance(rows[0], AxesTwinCycle)
+    columns = list(rows[0].as_dict()) if axes else RECORD_COLUMNS
+    lines = [",".join(columns)]
     for r in rows:
         values = r.as_dict()
-        lines.append(",".join(cell(values.get(c)) for c in RECORD_COLUMNS))
+        lines.append(",".join(cell(values.get(c)) for c in columns))
     atomic_write_text(d / f"{name}.csv", "\n".join(lines) + "\n")
-    atomic_write_text(d / f"{name}.toml", (
-        "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
-        "# a daily ambient swing; growth_um = true growth + sensor noise\n"
-        f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n'))
+    what = ("# arfem twin: a [geometry] scenario's FEM served interval by interval; each\n"
+            "# d_<sensor>_um = true displacement + sensor noise, growth_um = the Z axis's\n"
+            if axes else
+            "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
+            "# a daily ambient swing; growth_um = true growth + sensor noise\n")
+    atomic_write_text(d / f"{name}.toml",
+                      what + f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n')

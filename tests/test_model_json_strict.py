@@ -46,7 +46,23 @@ def _speed_model() -> dict:
 
 
 SPEED = _speed_model()
-SEEDS = [AR1, SPEED]
+
+
+def _axes_model() -> dict:
+    """A version-2 model (issue 32): two sources' powers in, two axes out."""
+    import numpy as np
+
+    from arfem.models.modal_export import modal_state_space
+    m = modal_state_space([1e-3, 4e-3], [[1e-3, 5e-4], [2e-3, 0.0]],
+                          [[2e-6, 1e-6], [-1e-6, 3e-6]], [[0.0, 0.0], [1e-9, 0.0]],
+                          dtau_s=60.0, input_map=np.eye(2),
+                          inputs=[("P_front_W", "W"), ("P_rear_W", "W")],
+                          outputs=[("d_tcp_x_um", "X"), ("d_tcp_z_um", "Z")])
+    return json.loads(json.dumps(m.to_dict()))
+
+
+AXES = _axes_model()
+SEEDS = [AR1, SPEED, AXES]
 
 
 # -- the cases of the issue ----------------------------------------------------------------
@@ -150,8 +166,9 @@ def mutated(draw, malformed_only: bool = True):
         # stability, the order of map points and of the fit window, a whole matrix or
         # input list replaced (its shape against the others)
         maybe = (path[0] in ("A", "input_maps", "fit_window_s")
-                 or (path[0] in ("B", "C", "D", "inputs") and len(path) < 3)
-                 or (path[0] == "x0" and len(path) < 2))
+                 or (path[0] in ("B", "C", "D", "inputs", "outputs") and len(path) < 3)
+                 or (path[0] == "x0" and len(path) < 2)
+                 or (path[0] == "d0_um" and len(path) < 2 and isinstance(seed["d0_um"], list)))
         return doc, "maybe" if maybe else "layout"
     if kind == "delete":
         required = [p for p in paths if len(p) == 1 and p[0] in SCHEMA["required"]] + \
@@ -274,6 +291,43 @@ def test_compensate_refuses_any_malformed_model_in_one_line(case, record, tmp_pa
     assert rc == 2
     assert len(err) == 1 and err[0].startswith("arfem: error:") and "model.json" in err[0], err
     assert not (d / "o").exists()
+
+
+V2_CASES = [
+    ("outputs", []), ("outputs", [{"name": "d_tcp_x_um", "unit": "µm"}]),
+    ("outputs", [{"name": "tcp_x", "unit": "µm", "axis": "X"}] * 2),
+    ("outputs", [{"name": "d_a_um", "unit": "mm", "axis": "X"},
+                 {"name": "d_b_um", "unit": "µm", "axis": "Z"}]),
+    ("outputs", [{"name": "d_a_um", "unit": "µm", "axis": "X"},
+                 {"name": "d_b_um", "unit": "µm", "axis": "X"}]),
+    ("d0_um", 0.0), ("d0_um", [0.0]), ("C", [[1.0, 0.0]]), ("D", [[0.0, 0.0]] * 3),
+    ("output", {"name": "growth_um", "unit": "µm"}),
+    ("inputs", [{"name": "P_front", "unit": "W"}, {"name": "P_rear_W", "unit": "W"}]),
+]
+
+
+@pytest.mark.parametrize("key,value", V2_CASES, ids=[f"{k}={v!r}" for k, v in V2_CASES])
+def test_version_2_refusals_name_their_key(key, value):
+    """A version-2 model with a wrong ``outputs`` (none, a key missing, a name that is
+    not a displacement column, a unit not µm, an axis twice), a ``d0_um`` not one per
+    output, C/D with other than one row per output, a version-1 ``output``, an input
+    name outside the contract: one InputError naming the key (``output`` is named
+    through model_version, whose layout it is not)."""
+    doc = {**copy.deepcopy(AXES), key: value}
+    with pytest.raises(InputError) as e:
+        StateSpaceModel.from_dict(doc, "m.json")
+    msg = str(e.value)
+    assert "\n" not in msg and (key in msg or "model_version" in msg), msg
+    assert not _schema_accepts(doc) or key in ("outputs", "d0_um", "C", "D"), doc
+
+
+def test_version_1_documents_are_written_as_before():
+    """A one-output model's document has no key of version 2 (byte-identical files)."""
+    assert AR1["model_version"] == 1 and "outputs" not in AR1 and AR1["output"] == {
+        "name": "growth_um", "unit": "µm"}
+    assert AXES["model_version"] == 2 and "output" not in AXES
+    assert [o["axis"] for o in AXES["outputs"]] == ["X", "Z"]
+    assert _schema_accepts(AR1) and _schema_accepts(AXES)
 
 
 def test_bound_is_stated_in_the_schema():

@@ -1,0 +1,223 @@
+"""``model.json`` (version 2) and a replayable record from a solved ``[geometry]`` scenario.
+
+``arfem run`` on a mesh scenario writes, beside the sensors' histories:
+
+* ``model.json``: the reduced modal model as a discrete state-space model at the
+  sensors' interval (``[fem] output_interval_s``), exactly discretised
+  (:func:`arfem.models.modal_export.modal_state_space`); inputs each heat source's power
+  ``P_<source>_W`` [W] (or flux ``q_<source>_W_m2``) and ``ambient_C`` (the cycle's
+  ambient, counted from ``reference_C``); outputs each displacement sensor along x, y or
+  z (``d_<sensor>_um``, axis X, Y, Z; a sensor along another direction, or a second one
+  on an axis, is its own axis named after it);
+* ``record.toml`` + ``record.csv``: the run as a measured-data record (``time_s``,
+  ``growth_um`` = the Z sensor's displacement, ``speed_rpm``, ``ambient_C``, each
+  source's input, each displacement sensor ``d_<sensor>_um``), for
+  ``arfem compensate model.json record.toml`` to replay.
+
+The model is linear time-invariant, the FEM is not where h depends on the speed
+(h = a + b·n^m): the model takes each convection group's h at its time-weighted mean
+over the cycle (stated in the model's ``description`` and in ``summary.json``); with
+speed-independent h it reproduces the reduced solve to round-off (tested).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from arfem.io import atomic_write_text, write_csv
+from arfem.models.compensator import StateSpaceModel
+from arfem.models.modal_export import modal_state_space
+from arfem.scenarios.model_file import write_model
+
+__all__ = ["ExportedModel", "export_state_space", "record_columns", "write_exports",
+           "axes_twin", "WRITES"]
+
+#: files :func:`write_exports` adds to a geometry run's output
+WRITES = ("model.json", "record.toml", "record.csv")
+_AXES = {(1.0, 0.0, 0.0): "X", (0.0, 1.0, 0.0): "Y", (0.0, 0.0, 1.0): "Z"}
+
+
+@dataclass(frozen=True)
+class ExportedModel:
+    """The exported model, or why there is none.
+
+    Attributes
+    ----------
+    model : StateSpaceModel or None
+    h_W_m2K : tuple
+        The convection coefficient of each group the model is linearised at [W/(m²K)].
+    note : str
+        Why no model was exported ('' when one was).
+    """
+
+    model: StateSpaceModel | None
+    h_W_m2K: tuple = ()
+    note: str = ""
+
+
+def _axes(sensors) -> list:
+    """(sensor, axis) of each displacement sensor: X/Y/Z by its direction, else (or
+    when an axis is taken) the sensor's name."""
+    out, used = [], set()
+    for s in sensors:
+        if s.quantity != "displacement":
+            continue
+        ax = _AXES.get(tuple(float(round(v, 12)) for v in s.direction))
+        if ax is None or ax in used:
+            ax = s.name
+        used.add(ax)
+        out.append((s, ax))
+    return out
+
+
+def _input_map(gmodel, h_ref: np.ndarray):
+    """(T, inputs, note): body inputs per model input; the sources' inputs, then the
+    ambient through the groups that follow the cycle's ambient."""
+    sc = gmodel.scenario
+    S, Gc = len(sc.sources), len(sc.convections)
+    follow = [c.ambient_C is None for c in sc.convections]
+    fixed = [c for c in sc.convections
+             if c.ambient_C is not None and c.ambient_C != sc.reference_C]
+    if fixed:
+        return None, None, (f"convection on {fixed[0].spec.group!r} has its own ambient "
+                            f"{fixed[0].ambient_C:g} °C, not the reference; a constant "
+                            "forcing has no input of the model")
+    T = np.zeros((S + Gc, S + 1))
+    T[np.arange(S), np.arange(S)] = 1.0
+    T[S:, S] = np.where(follow, h_ref, 0.0)
+    inputs = [((f"P_{s.spec.name}_W", "W") if s.spec.kind == "power"
+               else (f"q_{s.spec.name}_W_m2", "W/m²")) for s in sc.sources]
+    return T, inputs + [("ambient_C", "°C")], ""
+
+
+def export_state_space(gmodel, arfem_version: str = "") -> ExportedModel:
+    """The scenario's reduced modal model as a version-2 :class:`StateSpaceModel`.
+
+    Parameters
+    ----------
+    gmodel : GeometryModel
+        The assembled scenario (:func:`arfem.scenarios.geometry_scenario.build_geometry_model`).
+
+    Returns
+    -------
+    ExportedModel
+        No model (and why) when the scenario has no displacement sensor or a convection
+        group with a fixed ambient other than the reference.
+    """
+    from arfem.fem.thermal3d import body_modes
+    sc = gmodel.scenario
+    axes = _axes(sc.sensors)
+    if not axes:
+        return ExportedModel(None, note="no displacement sensor to compensate")
+    hist = gmodel.history
+    w = hist.durations_s / hist.total_s
+    h_ref = (w @ hist.h_W_m2K) if hist.h_W_m2K.size else np.zeros(0)
+    T, inputs, note = _input_map(gmodel, h_ref)
+    if T is None:
+        return ExportedModel(None, tuple(h_ref), note)
+    cols = [j for j, s in enumerate(sc.sensors) if s.quantity == "displacement"]
+    # the space the run's reduced solve grows (every sensor, the same tolerance), so that
+    # at the same h the model and the run agree to round-off
+    kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+    md = body_modes(gmodel.thermal, h_ref, gmodel.G, kinds=kinds)
+    speed_dep = any(c.h[1] != 0.0 for c in sc.convections)
+    desc = (f"reduced modal model of {sc.name} ({md.n_modes} modes), exact zero-order-hold "
+            f"discretisation at {sc.output_interval_s:g} s; convection h at "
+            + ("its time-weighted mean over the cycle (h depends on the speed: the model "
+               "is linearised there)" if speed_dep else "its constant value")
+            + ": " + ", ".join(f"{c.spec.group} {h:.4g}" for c, h in zip(sc.convections,
+                                                                        h_ref))
+            + " W/m²K")
+    model = modal_state_space(
+        md.mu, md.Fk, md.Gk[:, cols], md.D[cols], dtau_s=sc.output_interval_s, input_map=T,
+        inputs=inputs, outputs=[(f"d_{s.name}_um", ax) for s, ax in axes],
+        input_offsets={"ambient_C": sc.reference_C}, kind="fem_modal",
+        description=desc, arfem_version=arfem_version)
+    return ExportedModel(model, tuple(float(h) for h in h_ref))
+
+
+def record_columns(run, model: StateSpaceModel) -> dict:
+    """The run as a record's columns: each row's inputs over the interval that ends at
+    it (the contract's zero-order hold), and the sensors' displacements [µm]."""
+    sc = run.model.scenario
+    hist = run.model.history
+    t = run.result.times_s
+    prev = np.concatenate([[0.0], t[:-1]])
+    mid = np.where(t > 0, 0.5 * (prev + t), 0.0)
+    seg = np.clip(np.searchsorted(hist.edges_s, mid, side="right") - 1, 0,
+                  hist.u.shape[0] - 1)
+    cyc = sc.cycle
+    cseg = np.clip(np.searchsorted(cyc.edges_s, mid, side="right") - 1, 0,
+                   len(cyc.speed_rpm) - 1)
+    ser = run.sensor_series()
+    cols = {"time_s": t}
+    z = next((o.name for o in model.outputs if o.axis == "Z"), model.outputs[0].name)
+    cols["growth_um"] = ser[z]
+    cols["speed_rpm"] = np.asarray(cyc.speed_rpm, float)[cseg]
+    cols["ambient_C"] = np.asarray(cyc.ambient_C, float)[cseg]
+    for j, spec in enumerate(model.inputs[:-1]):            # the sources, in order
+        cols[spec.name] = hist.u[seg, j]
+    for o in model.outputs:
+        cols[o.name] = ser[o.name]
+    return cols
+
+
+def _record_toml(name: str) -> str:
+    return (f'# {name} as a measured-data record (docs/measured-data.md), written by '
+            'arfem run: replay\n# it with arfem compensate model.json record.toml '
+            '--out DIR\n[dataset]\n'
+            f'name = "{name}"\ncsv = "record.csv"\n')
+
+
+def write_exports(run, out_dir, arfem_version: str = "") -> ExportedModel:
+    """Write ``model.json``, ``record.toml`` and ``record.csv`` into ``out_dir`` (a
+    staging directory); nothing where the scenario has no model (see
+    :class:`ExportedModel`)."""
+    ex = export_state_space(run.model, arfem_version)
+    if ex.model is None:
+        return ex
+    write_model(out_dir / "model.json", ex.model)
+    write_csv(out_dir / "record.csv", record_columns(run, ex.model))
+    atomic_write_text(out_dir / "record.toml", _record_toml(run.model.scenario.name))
+    return ex
+
+
+def axes_twin(path, noise_um: float = 0.0, seed: int = 0, progress=None):
+    """An :class:`arfem.models.twin.AxesTwin` of the ``[geometry]`` scenario at ``path``:
+    its FEM solved once (with the speed-dependent convection the exported model only
+    approximates), then served interval by interval (``arfem twin --scenario``).
+
+    Returns
+    -------
+    (AxesTwin, float)
+        The twin and its interval Δτ [s] (the scenario's ``output_interval_s``).
+    """
+    from arfem.models.twin import AxesTwin
+    from arfem.params import InputError
+    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+                                                   load_geometry_scenario, solve_geometry)
+    sc = load_geometry_scenario(path)
+    axes = _axes(sc.sensors)
+    if not axes:
+        raise InputError("has no displacement sensor: a twin needs an axis to compensate",
+                         str(path))
+    run = solve_geometry(build_geometry_model(sc, progress), progress)
+    ser = run.sensor_series()
+    hist = run.model.history
+    t = run.result.times_s
+    prev = np.concatenate([[0.0], t[:-1]])
+    mid = np.where(t > 0, 0.5 * (prev + t), 0.0)
+    seg = np.clip(np.searchsorted(hist.edges_s, mid, side="right") - 1, 0, hist.u.shape[0] - 1)
+    cseg = np.clip(np.searchsorted(sc.cycle.edges_s, mid, side="right") - 1, 0,
+                   len(sc.cycle.speed_rpm) - 1)
+    readings = {"speed_rpm": np.asarray(sc.cycle.speed_rpm, float)[cseg],
+                "ambient_C": np.asarray(sc.cycle.ambient_C, float)[cseg]}
+    for j, src in enumerate(sc.sources):
+        name = (f"P_{src.spec.name}_W" if src.spec.kind == "power"
+                else f"q_{src.spec.name}_W_m2")
+        readings[name] = hist.u[seg, j]
+    readings.update({k: v for k, v in ser.items() if k.startswith("T_")})
+    true = {ax: ser[f"d_{s.name}_um"] for s, ax in axes}
+    measured = {ax: f"d_{s.name}_um" for s, ax in axes}
+    return AxesTwin(t, readings, true, measured, noise_um, seed), sc.output_interval_s
