@@ -47,7 +47,6 @@ LONG_FUNCTIONS = {
     "models/compensator.py::_read_model_doc": 93,
     "models/peers.py::fit_transfer_functions": 123,
     "scenarios/geometry_scenario.py::geometry_scenario_from_dict": 203,
-    "scenarios/gmsh_models.py::spindle_unit_mesh": 105,
 }
 
 
