@@ -192,18 +192,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
         raise InputError("has no physical groups: name the volumes, the heated and "
                          "cooled surfaces and the supports (Gmsh: Physical Volume / "
                          "Physical Surface with a name)", where)
-    vol_types = {cb.type for cb in m.cells if _cell_dim(cb.type) == 3}
-    bad = sorted(vol_types - set(VOLUME_CELLS))
-    if bad:
-        raise InputError(f"has {', '.join(bad)} cells; arfem solves on one of "
-                         f"{', '.join(VOLUME_CELLS)} (Gmsh: Mesh.ElementOrder 1 or 2, no "
-                         "serendipity or prism cells)", where)
-    if not vol_types:
-        raise InputError("has no volume cells (a surface mesh? Gmsh: mesh in 3D)", where)
-    if len(vol_types) > 1:
-        raise InputError(f"mixes {' and '.join(sorted(vol_types))} cells; arfem needs one "
-                         "kind of volume cell per mesh", where)
-    ctype = vol_types.pop()
+    ctype = _volume_cell_type(m, where)
     pts = np.asarray(m.points, float)
     if pts.shape[1] != 3:
         raise InputError(f"has {pts.shape[1]}-D points; a volume mesh needs 3-D", where)
@@ -213,16 +202,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
     ncorner = 8 if ctype == "hexahedron" else 4
     corners = cells[:, :ncorner]
     used = np.unique(corners)
-    span = pts[used].max(axis=0) - pts[used].min(axis=0)
-    diag = float(np.linalg.norm(span))
-    if diag > BBOX_MAX_M:
-        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: larger than a "
-                         f"machine ({BBOX_MAX_M:g} m); the file is likely in mm, declare "
-                         "geometry.unit = \"mm\"", where)
-    if diag < BBOX_MIN_M:
-        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: smaller than "
-                         f"{BBOX_MIN_M * 1e3:g} mm; the file is likely in m, declare "
-                         "geometry.unit = \"m\"", where)
+    _check_extent(pts[used], unit, where)
     renum = -np.ones(pts.shape[0], np.int64)
     renum[used] = np.arange(used.size)
     t = renum[corners].T.copy()
@@ -235,8 +215,51 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
         mesh = MeshTet1(p, t)
         if ctype == "tetra10":
             mesh = _quadratic_tet(mesh, pts, cells, renum, used)
-    # element index offsets per block, for volume groups
-    offsets, n = {}, 0
+    volumes, surfaces, points = _groups(m, sets, blocks, mesh, renum, pts, where)
+    for name, el in volumes.items():
+        if el.size == 0:
+            raise InputError(f"volume group {name!r} has no {ctype} cells", where)
+    if not volumes:
+        raise InputError("has no physical volume group: every volume must belong to one, "
+                         "so that it gets a material", where)
+    return GroupedMesh(mesh=mesh, cell_type=ctype, volumes=volumes, surfaces=surfaces,
+                       points=points, source=where)
+
+
+def _volume_cell_type(m, where: str) -> str:
+    """The mesh's one kind of volume cell; refuses none, several or an unsupported one."""
+    vol_types = {cb.type for cb in m.cells if _cell_dim(cb.type) == 3}
+    bad = sorted(vol_types - set(VOLUME_CELLS))
+    if bad:
+        raise InputError(f"has {', '.join(bad)} cells; arfem solves on one of "
+                         f"{', '.join(VOLUME_CELLS)} (Gmsh: Mesh.ElementOrder 1 or 2, no "
+                         "serendipity or prism cells)", where)
+    if not vol_types:
+        raise InputError("has no volume cells (a surface mesh? Gmsh: mesh in 3D)", where)
+    if len(vol_types) > 1:
+        raise InputError(f"mixes {' and '.join(sorted(vol_types))} cells; arfem needs one "
+                         "kind of volume cell per mesh", where)
+    return vol_types.pop()
+
+
+def _check_extent(pts_m: np.ndarray, unit: str, where: str) -> None:
+    """Refuse a bounding box (of the cells' corners [m]) larger than a machine or
+    smaller than a millimetre: the file's unit is then likely the other one."""
+    diag = float(np.linalg.norm(pts_m.max(axis=0) - pts_m.min(axis=0)))
+    if diag > BBOX_MAX_M:
+        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: larger than a "
+                         f"machine ({BBOX_MAX_M:g} m); the file is likely in mm, declare "
+                         "geometry.unit = \"mm\"", where)
+    if diag < BBOX_MIN_M:
+        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: smaller than "
+                         f"{BBOX_MIN_M * 1e3:g} mm; the file is likely in m, declare "
+                         "geometry.unit = \"m\"", where)
+
+
+def _groups(m, sets: dict, blocks: list, mesh, renum, pts, where: str):
+    """({volume group: element indices}, {surface group: facet indices}, {point group:
+    coordinates [m]}) of the named sets on the skfem ``mesh``."""
+    offsets, n = {}, 0                 # element index offsets per block, for volume groups
     for i in blocks:
         offsets[i] = n
         n += len(m.cells[i].data)
@@ -268,14 +291,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
             for cb, mk in zip(m.cells, masks):
                 if cb.type == "vertex" and mk.any():
                     points[name] = pts[np.asarray(cb.data, np.int64)[mk][0, 0]].copy()
-    for name, el in volumes.items():
-        if el.size == 0:
-            raise InputError(f"volume group {name!r} has no {ctype} cells", where)
-    if not volumes:
-        raise InputError("has no physical volume group: every volume must belong to one, "
-                         "so that it gets a material", where)
-    return GroupedMesh(mesh=mesh, cell_type=ctype, volumes=volumes, surfaces=surfaces,
-                       points=points, source=where)
+    return volumes, surfaces, points
 
 
 #: VTK hexahedron corner i -> skfem MeshHex1 corner (skfem's order is x-fastest binary,

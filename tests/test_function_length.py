@@ -43,7 +43,6 @@ LONG_FUNCTIONS = {
     "models/diagnosis/engine.py::diagnose": 82,
     # grown or added by the branches of issues 28-34 merged on 2026-11-25 in parallel
     # with this list (post-merge lengths); they are split next, as the rest
-    "fem/gmsh_io.py::grouped_mesh_from_meshio": 93,
     "models/compensator.py::_read_model_doc": 93,
     "models/peers.py::fit_transfer_functions": 123,
     "scenarios/geometry_scenario.py::geometry_scenario_from_dict": 203,
