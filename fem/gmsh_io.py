@@ -32,7 +32,8 @@ from arfem.params import InputError
 
 __all__ = ["GroupedMesh", "read_grouped_mesh", "grouped_mesh_from_meshio", "UNITS",
            "VOLUME_CELLS", "estimate_memory_bytes", "available_memory_bytes",
-           "check_memory", "BBOX_MAX_M", "BBOX_MIN_M"]
+           "check_memory", "BBOX_MAX_M", "BBOX_MIN_M", "ELASTIC_DIRECT_MAX_DOFS",
+           "ELASTIC_FACTOR_MAX_DOFS"]
 
 #: Declared length units and their factor to metres.
 UNITS = {"m": 1.0, "mm": 1e-3}
@@ -379,20 +380,44 @@ def _triple(p, c, a, b, d):
 #: fem/linsolve.py) and 23.4 on the spindle unit's P2-tetrahedron elastic stiffness
 #: (75 255 unknowns, 74.6 M entries); 30 leaves a margin.
 FILL_COEFF = 30.0
+#: The same for the P2-tetrahedron heat operator (one unknown per node, 26 entries per
+#: row): measured 12.5 on the shipped spindle unit (25 271 unknowns, 9.26 M entries) and
+#: 15.6 on its 97 393-unknown version (70.1 M entries; 2026-11-25); it grows slowly with
+#: n, so 20 leaves a margin up to about 500k unknowns.
+HEAT_FILL_COEFF = 20.0
 #: Bytes per factor entry at the peak: value and index (12) doubled for SuperLU's
 #: working copies; the shipped spindle unit's run peaked at 2.4 GB with its elastic
 #: factor of 74.6 M entries.
 BYTES_PER_ENTRY = 24.0
+#: Up to this many displacement unknowns the elastic stiffness is factored; above, its
+#: solves are AMG-preconditioned CG (:mod:`arfem.fem.body`), whose memory grows linearly.
+ELASTIC_DIRECT_MAX_DOFS = 50_000
+#: Up to this many the stiffness may still be factored for the many solves of field
+#: snapshots (:meth:`arfem.fem.body.ElasticBody.displacement`): the estimate counts the
+#: factor up to here.
+ELASTIC_FACTOR_MAX_DOFS = 150_000
+#: Bytes per displacement unknown of the AMG path at its peak: the assembled stiffness
+#: (about 81 entries per row for P2 tetrahedra) with its element-matrix triplets during
+#: assembly, the free-dof copy and pyamg's hierarchy (AMG_BYTES_CALIBRATION).
+AMG_BYTES_PER_DOF = 4_000.0
+#: Dense columns per temperature unknown the reduced solve holds at its peak: the Krylov
+#: basis (up to :data:`arfem.fem.thermal3d.KRYLOV_CAP` = 400 vectors), its Ritz vectors
+#: and A·V, 8 bytes each.
+KRYLOV_COLUMNS = 3 * 400
+#: The interpreter, NumPy, SciPy, scikit-fem and meshio loaded [bytes].
+BASE_BYTES = 300e6
 
 
 def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> int:
     """Peak memory [bytes] of a geometry run, estimated before anything is assembled.
 
-    The run holds the heat matrices (M, K and one per convection group) and one
-    factor of the conductance, then the elastic stiffness (3n unknowns, 9× the
-    entries per row) and its factor. The factors dominate:
-    nnz(L+U) ≈ :data:`FILL_COEFF` · n^{4/3} for a METIS-ordered 3D mesh, 12 bytes each
-    (value and index).
+    The run holds the heat matrices (M, K, one per convection group and the operators
+    built from them), one factor of the conductance (nnz(L+U) ≈ :data:`HEAT_FILL_COEFF`
+    · n^{4/3} for a METIS-ordered P2 mesh, :data:`FILL_COEFF` for others,
+    :data:`BYTES_PER_ENTRY` each), the reduced
+    solve's dense basis (:data:`KRYLOV_COLUMNS` columns), and the elastic stiffness
+    (3n unknowns): its factor up to :data:`ELASTIC_FACTOR_MAX_DOFS` unknowns, else the
+    AMG hierarchy (:data:`AMG_BYTES_PER_DOF`).
 
     Parameters
     ----------
@@ -412,11 +437,14 @@ def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> i
     True
     """
     n = float(n_heat_dofs)
-    heat_mats = 4 * n * nnz_per_row_heat * 12
-    heat_factor = FILL_COEFF * n ** (4 / 3) * BYTES_PER_ENTRY
-    elastic_mat = 3 * n * 3 * nnz_per_row_heat * 12
-    elastic_factor = FILL_COEFF * (3 * n) ** (4 / 3) * BYTES_PER_ENTRY
-    return int(heat_mats + heat_factor + elastic_mat + elastic_factor + 200e6)
+    heat_mats = 6 * n * nnz_per_row_heat * 12
+    heat_factor = (HEAT_FILL_COEFF if nnz_per_row_heat >= 20 else FILL_COEFF) \
+        * n ** (4 / 3) * BYTES_PER_ENTRY
+    krylov = KRYLOV_COLUMNS * n * 8
+    n_u = 3 * n
+    elastic = (FILL_COEFF * n_u ** (4 / 3) * BYTES_PER_ENTRY if n_u <= ELASTIC_FACTOR_MAX_DOFS
+               else AMG_BYTES_PER_DOF * n_u)
+    return int(heat_mats + heat_factor + krylov + elastic + BASE_BYTES)
 
 
 def available_memory_bytes() -> int:
