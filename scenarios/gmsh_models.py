@@ -227,7 +227,11 @@ def _spindle_surface_groups(gmsh, d: SpindleUnit, vols: dict) -> dict:
     return surf
 
 
-if __name__ == "__main__":          # python -m arfem.scenarios.gmsh_models
+if __name__ == "__main__":          # python -m arfem.scenarios.gmsh_models [size size_min out]
+    import sys
     here = Path(__file__).resolve().parent
-    spindle_unit_mesh(here / "spindle_unit.msh")
-    print("wrote", here / "spindle_unit.msh")
+    args = sys.argv[1:]
+    dims = SpindleUnit(size=float(args[0]), size_min=float(args[1])) if args else SpindleUnit()
+    out = Path(args[2]) if len(args) > 2 else here / "spindle_unit.msh"
+    spindle_unit_mesh(out, dims)
+    print("wrote", out)
