@@ -483,8 +483,13 @@ class ElasticBody:
 
     @classmethod
     def build(cls, thermal: ThermalBody, support: Support,
-              factor_method: str | None = None) -> "ElasticBody":
-        """Assemble and factor the stiffness with ``support``'s constraints."""
+              factor_method: str | None = None, n_solves: int = 0) -> "ElasticBody":
+        """Assemble and factor the stiffness with ``support``'s constraints.
+
+        ``n_solves``: the solves expected (sensors and field snapshots); from
+        :data:`FIELDS_FACTOR_MIN_SOLVES` on, the stiffness is factored up to
+        :data:`FIELDS_DIRECT_MAX_DOFS` free unknowns instead of set up for AMG-CG.
+        """
         gm = thermal.gmesh
         mesh = gm.mesh
         sb = thermal.basis
@@ -519,7 +524,8 @@ class ElasticBody:
                              "support.type")
         free = np.setdiff1d(np.arange(vb.N), D)
         Kf = K[free][:, free].tocsr()
-        if factor_method is None and free.size > DIRECT_MAX_DOFS:
+        many = n_solves >= FIELDS_FACTOR_MIN_SOLVES and free.size <= FIELDS_DIRECT_MAX_DOFS
+        if factor_method is None and free.size > DIRECT_MAX_DOFS and not many:
             pv = vb.doflocs[:, free]
             lu = _AMGSolver(Kf, pv, free % 3)
         else:

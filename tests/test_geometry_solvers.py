@@ -56,6 +56,10 @@ def test_amg_cg_gives_the_factors_sensor_rows_and_fields(rod, monkeypatch):
     assert np.max(np.abs(u_a - u_d)) <= 1e-10 * np.max(np.abs(u_d))
     u_1 = amg.displacement(theta[0])               # one solve: CG
     assert np.max(np.abs(u_1 - u_d[0])) <= 1e-8 * np.max(np.abs(u_d[0]))
+    # a run that announces its field snapshots is factored from the start (no AMG set-up
+    # and sensor CG solves wasted before the factor the snapshots need)
+    many = ElasticBody.build(tb, sup, n_solves=body.FIELDS_FACTOR_MIN_SOLVES)
+    assert not isinstance(many.factor, body._AMGSolver) and many.nnz_factor > 0
 
 
 def test_memory_estimate_grows_with_size_and_drops_at_the_amg_switch():
