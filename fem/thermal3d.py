@@ -263,8 +263,7 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
     scale = _output_scale(gain, kinds)
     V = _m_orthonormal(M, None, start)
     W = V
-    AV = A @ V
-    Ar = V.T @ AV
+    Ar = V.T @ (A @ V)
     t = prev = change = None
     blocks = 1
     while True:
@@ -316,11 +315,11 @@ def _static_fields(body, h_W_m2K, fac, rtol: float = 1e-10, maxiter: int = 200):
     A = body.operator(h_W_m2K)
     F = body.F
     X = fac.solve(F)
+    nb = np.sqrt(np.abs(np.einsum("ij,ij->j", F, X)))       # preconditioned norms of F
     R = F - A @ X
     Z = fac.solve(R)
     P = Z.copy()
     rz = np.einsum("ij,ij->j", R, Z)
-    nb = np.sqrt(np.abs(np.einsum("ij,ij->j", F, fac.solve(F))))   # preconditioned norms
     for _ in range(maxiter):
         if np.all(np.sqrt(np.abs(rz)) <= rtol * nb):
             break
