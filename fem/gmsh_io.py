@@ -398,8 +398,11 @@ ELASTIC_DIRECT_MAX_DOFS = 50_000
 ELASTIC_FACTOR_MAX_DOFS = 150_000
 #: Bytes per displacement unknown of the AMG path at its peak: the assembled stiffness
 #: (about 81 entries per row for P2 tetrahedra) with its element-matrix triplets during
-#: assembly, the free-dof copy and pyamg's hierarchy (AMG_BYTES_CALIBRATION).
-AMG_BYTES_PER_DOF = 4_000.0
+#: assembly, the free-dof copy and pyamg's hierarchy. Calibrated on the spindle unit
+#: (2026-11-25, sensors only, peak ru_maxrss): 50 536 heat unknowns, peak 2.60 GB,
+#: estimate 2.70 GB; 97 393, peak 4.17 GB, estimate 5.35 GB; and on the factored path,
+#: 25 271 with fields, peak 2.72 GB, estimate 3.26 GB.
+AMG_BYTES_PER_DOF = 6_000.0
 #: Dense columns per temperature unknown the reduced solve holds at its peak: the Krylov
 #: basis (up to :data:`arfem.fem.thermal3d.KRYLOV_CAP` = 400 vectors), its Ritz vectors
 #: and A·V, 8 bytes each.
