@@ -36,7 +36,7 @@ from skfem import (Basis, BilinearForm, ElementHex1, ElementHexS2, ElementTetP1,
                    ElementTetP2, ElementVector, FacetBasis, Functional, LinearForm)
 from skfem.helpers import dot, grad
 
-from arfem.fem.gmsh_io import GroupedMesh
+from arfem.fem.gmsh_io import ELASTIC_DIRECT_MAX_DOFS, ELASTIC_FACTOR_MAX_DOFS, GroupedMesh
 from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError
 
@@ -391,19 +391,36 @@ def _nearest_vertex(mesh, point, where: str) -> int:
 
 #: Above this many free displacement unknowns the elastic solves use conjugate gradients
 #: preconditioned by smoothed-aggregation AMG (pyamg) instead of a sparse factorisation:
-#: the factor of P2-tetrahedron elasticity fills in badly (nnz(L+U) = 74.6 M for 75 k
-#: unknowns, 71 s and 2.4 GB at load 17; at 290 k unknowns it would exceed 8 GB), while
+#: the factor of P2-tetrahedron elasticity fills in badly (nnz(L+U) = 75.2 M for 73 k
+#: free unknowns of the 25k-dof spindle unit: 13.5 s CPU in SuperLU and 1.8 GB), while
 #: the geometry path needs only a handful of solves (one per displacement sensor, one
-#: per field snapshot).
-DIRECT_MAX_DOFS = 150_000
+#: per field snapshot); the tuned AMG-CG (:class:`_AMGSolver`) took 2.9 s to set up and
+#: 2 s CPU per solve there, in a tenth of the memory.
+DIRECT_MAX_DOFS = ELASTIC_DIRECT_MAX_DOFS
+
+#: Fields (many displacement solves) factor the stiffness after all, up to this many
+#: free unknowns (the factor that :data:`DIRECT_MAX_DOFS` avoids for the sensors'
+#: few solves: 1.8 GB at 73k unknowns), from this many solves at once.
+FIELDS_DIRECT_MAX_DOFS = ELASTIC_FACTOR_MAX_DOFS
+FIELDS_FACTOR_MIN_SOLVES = 8
 
 #: Relative residual at which the AMG-preconditioned CG stops.
 CG_RTOL = 1e-10
 
+#: pyamg's smoothed aggregation for P2 elasticity, chosen on the 25k-dof spindle unit's
+#: stiffness (73k free unknowns, 2026-11-25): default settings took 44 CG iterations to
+#: 1e-8 (0.07 s CPU each; its dense coarse pseudo-inverse alone 2.8 s); Jacobi smoothing
+#: 92; energy-minimising prolongation with a sparse-LU coarse solve, 30.
+AMG_OPTIONS = dict(strength=("symmetric", {"theta": 0.0}), smooth=("energy", {"degree": 1}),
+                   presmoother=("gauss_seidel", {"sweep": "symmetric"}),
+                   postsmoother=("gauss_seidel", {"sweep": "symmetric"}),
+                   max_coarse=3000, coarse_solver="splu")
+
 
 class _AMGSolver:
     """CG with a smoothed-aggregation AMG preconditioner built on the rigid-body modes
-    (pyamg), exposing ``solve(b)`` like :class:`arfem.fem.linsolve.SPDFactor`."""
+    (pyamg, :data:`AMG_OPTIONS`), exposing ``solve(b)`` like
+    :class:`arfem.fem.linsolve.SPDFactor`."""
 
     def __init__(self, K, coords: np.ndarray, comp: np.ndarray):
         import pyamg
@@ -417,7 +434,7 @@ class _AMGSolver:
         B[comp == 1, 4], B[comp == 2, 4] = -z[comp == 1], y[comp == 2]
         B[comp == 2, 5], B[comp == 0, 5] = -x[comp == 2], z[comp == 0]
         self.K = K
-        self.ml = pyamg.smoothed_aggregation_solver(K, B=B, max_coarse=500)
+        self.ml = pyamg.smoothed_aggregation_solver(K, B=B, **AMG_OPTIONS)
         self.M = self.ml.aspreconditioner(cycle="V")
         self.nnz = 0
         self.iterations: list = []
@@ -463,11 +480,17 @@ class ElasticBody:
     free: np.ndarray = field(repr=False)
     factor: object = field(repr=False)
     nnz_factor: int = 0
+    _many: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def build(cls, thermal: ThermalBody, support: Support,
-              factor_method: str | None = None) -> "ElasticBody":
-        """Assemble and factor the stiffness with ``support``'s constraints."""
+              factor_method: str | None = None, n_solves: int = 0) -> "ElasticBody":
+        """Assemble and factor the stiffness with ``support``'s constraints.
+
+        ``n_solves``: the solves expected (sensors and field snapshots); from
+        :data:`FIELDS_FACTOR_MIN_SOLVES` on, the stiffness is factored up to
+        :data:`FIELDS_DIRECT_MAX_DOFS` free unknowns instead of set up for AMG-CG.
+        """
         gm = thermal.gmesh
         mesh = gm.mesh
         sb = thermal.basis
@@ -502,7 +525,8 @@ class ElasticBody:
                              "support.type")
         free = np.setdiff1d(np.arange(vb.N), D)
         Kf = K[free][:, free].tocsr()
-        if factor_method is None and free.size > DIRECT_MAX_DOFS:
+        many = n_solves >= FIELDS_FACTOR_MIN_SOLVES and free.size <= FIELDS_DIRECT_MAX_DOFS
+        if factor_method is None and free.size > DIRECT_MAX_DOFS and not many:
             pv = vb.doflocs[:, free]
             lu = _AMGSolver(Kf, pv, free % 3)
         else:
@@ -523,8 +547,20 @@ class ElasticBody:
         th = np.atleast_2d(np.asarray(theta, float))
         F = np.asarray(self.T @ th.T)
         U = np.zeros((self.ndofs, th.shape[0]))
-        U[self.free] = self.factor.solve(np.ascontiguousarray(F[self.free]))
+        U[self.free] = self._solver(th.shape[0]).solve(np.ascontiguousarray(F[self.free]))
         return U[:, 0] if np.ndim(theta) == 1 else U.T
+
+    def _solver(self, n_solves: int):
+        """The AMG-CG of ``build`` for a few solves; for many (field snapshots) a factor
+        of the stiffness, made once, while it fits (:data:`FIELDS_DIRECT_MAX_DOFS`):
+        on the 25k-dof spindle unit 25 hourly snapshots took 25 CG solves of about
+        2 s CPU each against one factorisation of 15 s and solves of 0.1 s."""
+        if (n_solves < FIELDS_FACTOR_MIN_SOLVES or not isinstance(self.factor, _AMGSolver)
+                or self.free.size > FIELDS_DIRECT_MAX_DOFS):
+            return self.factor
+        if "factor" not in self._many:
+            self._many["factor"] = factorize_spd(self.factor.K)
+        return self._many["factor"]
 
     def functional(self, w: np.ndarray) -> np.ndarray:
         """The row g over θ with wᵀu(θ) = gᵀθ: g = TᵀK⁻¹w (one solve per column of w)."""

@@ -32,7 +32,8 @@ from arfem.params import InputError
 
 __all__ = ["GroupedMesh", "read_grouped_mesh", "grouped_mesh_from_meshio", "UNITS",
            "VOLUME_CELLS", "estimate_memory_bytes", "available_memory_bytes",
-           "check_memory", "BBOX_MAX_M", "BBOX_MIN_M"]
+           "check_memory", "BBOX_MAX_M", "BBOX_MIN_M", "ELASTIC_DIRECT_MAX_DOFS",
+           "ELASTIC_FACTOR_MAX_DOFS"]
 
 #: Declared length units and their factor to metres.
 UNITS = {"m": 1.0, "mm": 1e-3}
@@ -192,18 +193,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
         raise InputError("has no physical groups: name the volumes, the heated and "
                          "cooled surfaces and the supports (Gmsh: Physical Volume / "
                          "Physical Surface with a name)", where)
-    vol_types = {cb.type for cb in m.cells if _cell_dim(cb.type) == 3}
-    bad = sorted(vol_types - set(VOLUME_CELLS))
-    if bad:
-        raise InputError(f"has {', '.join(bad)} cells; arfem solves on one of "
-                         f"{', '.join(VOLUME_CELLS)} (Gmsh: Mesh.ElementOrder 1 or 2, no "
-                         "serendipity or prism cells)", where)
-    if not vol_types:
-        raise InputError("has no volume cells (a surface mesh? Gmsh: mesh in 3D)", where)
-    if len(vol_types) > 1:
-        raise InputError(f"mixes {' and '.join(sorted(vol_types))} cells; arfem needs one "
-                         "kind of volume cell per mesh", where)
-    ctype = vol_types.pop()
+    ctype = _volume_cell_type(m, where)
     pts = np.asarray(m.points, float)
     if pts.shape[1] != 3:
         raise InputError(f"has {pts.shape[1]}-D points; a volume mesh needs 3-D", where)
@@ -213,16 +203,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
     ncorner = 8 if ctype == "hexahedron" else 4
     corners = cells[:, :ncorner]
     used = np.unique(corners)
-    span = pts[used].max(axis=0) - pts[used].min(axis=0)
-    diag = float(np.linalg.norm(span))
-    if diag > BBOX_MAX_M:
-        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: larger than a "
-                         f"machine ({BBOX_MAX_M:g} m); the file is likely in mm, declare "
-                         "geometry.unit = \"mm\"", where)
-    if diag < BBOX_MIN_M:
-        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: smaller than "
-                         f"{BBOX_MIN_M * 1e3:g} mm; the file is likely in m, declare "
-                         "geometry.unit = \"m\"", where)
+    _check_extent(pts[used], unit, where)
     renum = -np.ones(pts.shape[0], np.int64)
     renum[used] = np.arange(used.size)
     t = renum[corners].T.copy()
@@ -235,8 +216,51 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
         mesh = MeshTet1(p, t)
         if ctype == "tetra10":
             mesh = _quadratic_tet(mesh, pts, cells, renum, used)
-    # element index offsets per block, for volume groups
-    offsets, n = {}, 0
+    volumes, surfaces, points = _groups(m, sets, blocks, mesh, renum, pts, where)
+    for name, el in volumes.items():
+        if el.size == 0:
+            raise InputError(f"volume group {name!r} has no {ctype} cells", where)
+    if not volumes:
+        raise InputError("has no physical volume group: every volume must belong to one, "
+                         "so that it gets a material", where)
+    return GroupedMesh(mesh=mesh, cell_type=ctype, volumes=volumes, surfaces=surfaces,
+                       points=points, source=where)
+
+
+def _volume_cell_type(m, where: str) -> str:
+    """The mesh's one kind of volume cell; refuses none, several or an unsupported one."""
+    vol_types = {cb.type for cb in m.cells if _cell_dim(cb.type) == 3}
+    bad = sorted(vol_types - set(VOLUME_CELLS))
+    if bad:
+        raise InputError(f"has {', '.join(bad)} cells; arfem solves on one of "
+                         f"{', '.join(VOLUME_CELLS)} (Gmsh: Mesh.ElementOrder 1 or 2, no "
+                         "serendipity or prism cells)", where)
+    if not vol_types:
+        raise InputError("has no volume cells (a surface mesh? Gmsh: mesh in 3D)", where)
+    if len(vol_types) > 1:
+        raise InputError(f"mixes {' and '.join(sorted(vol_types))} cells; arfem needs one "
+                         "kind of volume cell per mesh", where)
+    return vol_types.pop()
+
+
+def _check_extent(pts_m: np.ndarray, unit: str, where: str) -> None:
+    """Refuse a bounding box (of the cells' corners [m]) larger than a machine or
+    smaller than a millimetre: the file's unit is then likely the other one."""
+    diag = float(np.linalg.norm(pts_m.max(axis=0) - pts_m.min(axis=0)))
+    if diag > BBOX_MAX_M:
+        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: larger than a "
+                         f"machine ({BBOX_MAX_M:g} m); the file is likely in mm, declare "
+                         "geometry.unit = \"mm\"", where)
+    if diag < BBOX_MIN_M:
+        raise InputError(f"bounding box {diag:.3g} m across in unit {unit!r}: smaller than "
+                         f"{BBOX_MIN_M * 1e3:g} mm; the file is likely in m, declare "
+                         "geometry.unit = \"m\"", where)
+
+
+def _groups(m, sets: dict, blocks: list, mesh, renum, pts, where: str):
+    """({volume group: element indices}, {surface group: facet indices}, {point group:
+    coordinates [m]}) of the named sets on the skfem ``mesh``."""
+    offsets, n = {}, 0                 # element index offsets per block, for volume groups
     for i in blocks:
         offsets[i] = n
         n += len(m.cells[i].data)
@@ -268,14 +292,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
             for cb, mk in zip(m.cells, masks):
                 if cb.type == "vertex" and mk.any():
                     points[name] = pts[np.asarray(cb.data, np.int64)[mk][0, 0]].copy()
-    for name, el in volumes.items():
-        if el.size == 0:
-            raise InputError(f"volume group {name!r} has no {ctype} cells", where)
-    if not volumes:
-        raise InputError("has no physical volume group: every volume must belong to one, "
-                         "so that it gets a material", where)
-    return GroupedMesh(mesh=mesh, cell_type=ctype, volumes=volumes, surfaces=surfaces,
-                       points=points, source=where)
+    return volumes, surfaces, points
 
 
 #: VTK hexahedron corner i -> skfem MeshHex1 corner (skfem's order is x-fastest binary,
@@ -363,20 +380,47 @@ def _triple(p, c, a, b, d):
 #: fem/linsolve.py) and 23.4 on the spindle unit's P2-tetrahedron elastic stiffness
 #: (75 255 unknowns, 74.6 M entries); 30 leaves a margin.
 FILL_COEFF = 30.0
+#: The same for the P2-tetrahedron heat operator (one unknown per node, 26 entries per
+#: row): measured 12.5 on the shipped spindle unit (25 271 unknowns, 9.26 M entries) and
+#: 15.6 on its 97 393-unknown version (70.1 M entries; 2026-11-25); it grows slowly with
+#: n, so 20 leaves a margin up to about 500k unknowns.
+HEAT_FILL_COEFF = 20.0
 #: Bytes per factor entry at the peak: value and index (12) doubled for SuperLU's
 #: working copies; the shipped spindle unit's run peaked at 2.4 GB with its elastic
 #: factor of 74.6 M entries.
 BYTES_PER_ENTRY = 24.0
+#: Up to this many displacement unknowns the elastic stiffness is factored; above, its
+#: solves are AMG-preconditioned CG (:mod:`arfem.fem.body`), whose memory grows linearly.
+ELASTIC_DIRECT_MAX_DOFS = 50_000
+#: Up to this many the stiffness may still be factored for the many solves of field
+#: snapshots (:meth:`arfem.fem.body.ElasticBody.displacement`): the estimate counts the
+#: factor up to here.
+ELASTIC_FACTOR_MAX_DOFS = 150_000
+#: Bytes per displacement unknown of the AMG path at its peak: the assembled stiffness
+#: (about 81 entries per row for P2 tetrahedra) with its element-matrix triplets during
+#: assembly, the free-dof copy and pyamg's hierarchy. Calibrated on the spindle unit
+#: (2026-11-25, sensors only, peak ru_maxrss): 50 536 heat unknowns, peak 2.60 GB,
+#: estimate 2.70 GB; 97 393, peak 4.17 GB, estimate 5.35 GB; and on the factored path,
+#: 25 271 with fields, peak 2.72 GB, estimate 3.26 GB.
+AMG_BYTES_PER_DOF = 6_000.0
+#: Dense columns per temperature unknown the reduced solve holds at its peak: the Krylov
+#: basis (up to :data:`arfem.fem.thermal3d.KRYLOV_CAP` = 400 vectors), its Ritz vectors
+#: and A·V, 8 bytes each.
+KRYLOV_COLUMNS = 3 * 400
+#: The interpreter, NumPy, SciPy, scikit-fem and meshio loaded [bytes].
+BASE_BYTES = 300e6
 
 
 def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> int:
     """Peak memory [bytes] of a geometry run, estimated before anything is assembled.
 
-    The run holds the heat matrices (M, K and one per convection group) and one
-    factor of the conductance, then the elastic stiffness (3n unknowns, 9× the
-    entries per row) and its factor. The factors dominate:
-    nnz(L+U) ≈ :data:`FILL_COEFF` · n^{4/3} for a METIS-ordered 3D mesh, 12 bytes each
-    (value and index).
+    The run holds the heat matrices (M, K, one per convection group and the operators
+    built from them), one factor of the conductance (nnz(L+U) ≈ :data:`HEAT_FILL_COEFF`
+    · n^{4/3} for a METIS-ordered P2 mesh, :data:`FILL_COEFF` for others,
+    :data:`BYTES_PER_ENTRY` each), the reduced
+    solve's dense basis (:data:`KRYLOV_COLUMNS` columns), and the elastic stiffness
+    (3n unknowns): its factor up to :data:`ELASTIC_FACTOR_MAX_DOFS` unknowns, else the
+    AMG hierarchy (:data:`AMG_BYTES_PER_DOF`).
 
     Parameters
     ----------
@@ -396,11 +440,14 @@ def estimate_memory_bytes(n_heat_dofs: int, nnz_per_row_heat: float = 30.0) -> i
     True
     """
     n = float(n_heat_dofs)
-    heat_mats = 4 * n * nnz_per_row_heat * 12
-    heat_factor = FILL_COEFF * n ** (4 / 3) * BYTES_PER_ENTRY
-    elastic_mat = 3 * n * 3 * nnz_per_row_heat * 12
-    elastic_factor = FILL_COEFF * (3 * n) ** (4 / 3) * BYTES_PER_ENTRY
-    return int(heat_mats + heat_factor + elastic_mat + elastic_factor + 200e6)
+    heat_mats = 6 * n * nnz_per_row_heat * 12
+    heat_factor = (HEAT_FILL_COEFF if nnz_per_row_heat >= 20 else FILL_COEFF) \
+        * n ** (4 / 3) * BYTES_PER_ENTRY
+    krylov = KRYLOV_COLUMNS * n * 8
+    n_u = 3 * n
+    elastic = (FILL_COEFF * n_u ** (4 / 3) * BYTES_PER_ENTRY if n_u <= ELASTIC_FACTOR_MAX_DOFS
+               else AMG_BYTES_PER_DOF * n_u)
+    return int(heat_mats + heat_factor + krylov + elastic + BASE_BYTES)
 
 
 def available_memory_bytes() -> int:

@@ -36,6 +36,9 @@ __all__ = ["InputHistory", "BodyResult", "BodyModes", "body_modes", "projected_m
 #: spindle unit to the 400-vector cap).
 KRYLOV_TOL = 1e-5
 
+#: Most Ritz vectors of :func:`body_modes`.
+KRYLOV_CAP = 400
+
 
 @dataclass(frozen=True)
 class InputHistory:
@@ -190,8 +193,9 @@ class BodyModes:
         return int(self.mu.size)
 
 
-def body_modes(body, h_W_m2K, G: np.ndarray, tol: float = KRYLOV_TOL, cap: int = 400,
-               factor_method: str | None = None, kinds=None) -> BodyModes:
+def body_modes(body, h_W_m2K, G: np.ndarray, tol: float = KRYLOV_TOL, cap: int = KRYLOV_CAP,
+               factor_method: str | None = None, kinds=None,
+               t_min_s: float = 1.0, other_h=()) -> BodyModes:
     """Ritz modes of A(h) in K_j(A⁻¹M; A⁻¹[F, G]) until the step responses settle.
 
     Parameters
@@ -206,16 +210,47 @@ def body_modes(body, h_W_m2K, G: np.ndarray, tol: float = KRYLOV_TOL, cap: int =
         Most Ritz vectors.
     kinds : array_like of int, shape (r,), optional
         Output kinds (e.g. 0 temperature, 1 displacement) for the tolerance's floor.
+    t_min_s : float
+        Earliest time [s] after a step at which the step responses are compared: the
+        shortest interval between two instants the solve reports or changes an input
+        at (a response is never sampled sooner after a step than that).
+    other_h : sequence of array_like, shape (G,) each
+        Other convection coefficients whose modes :func:`projected_modes` will take
+        from this space: their static fields A(h)⁻¹F join the space (by conjugate
+        gradients preconditioned with this factor), so that the projection's steady
+        state is exact for them too.
     """
     import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS first, so that the limit reaches it)
     from threadpoolctl import threadpool_limits
     # one BLAS thread: the small dense products and eigenproblems here ran 10x slower
     # with threads contending on a busy 2-core machine (0.26 s CPU, 9.4 s wall at load 18)
     with threadpool_limits(limits=1):
-        return _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds)
+        return _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
+                           other_h)
 
 
-def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds) -> BodyModes:
+def _output_scale(gain: np.ndarray, kinds) -> np.ndarray:
+    """Per output: its largest static gain, floored at 1e-3 of the largest gain of any
+    output of the same kind, so that an output the loads hardly reach (the TCP across a
+    plane of symmetry) is not asked for digits below round-off."""
+    own = np.max(np.abs(gain), axis=1)
+    kinds = np.zeros(gain.shape[0], int) if kinds is None else np.asarray(kinds)
+    floor = np.array([own[kinds == k].max() for k in kinds])
+    return np.maximum(np.maximum(own, 1e-3 * floor), 1e-300)
+
+
+def _step_responses(t: np.ndarray, mu: np.ndarray, Gk: np.ndarray, Fk: np.ndarray,
+                    gain: np.ndarray) -> np.ndarray:
+    """Step response (nt, r, p) of every output to every input at times ``t`` [s]:
+    gain − Σ_k Gk_ki Fk_kj e^{−μ_k t}/μ_k, as one matrix product."""
+    k, r = Gk.shape
+    p = Fk.shape[1]
+    C = (Gk[:, :, None] * (Fk / mu[:, None])[:, None, :]).reshape(k, r * p)
+    return gain[None] - (np.exp(-np.outer(t, mu)) @ C).reshape(t.size, r, p)
+
+
+def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
+                other_h) -> BodyModes:
     A = body.operator(h_W_m2K)
     M = body.M
     n = body.ndofs
@@ -225,30 +260,23 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds) -> BodyModes:
     start = fac.solve(np.column_stack([F, G]))
     AF = start[:, :F.shape[1]]
     gain = G.T @ AF                                         # (r, p) static gains
-    # per output: its largest static gain, floored at 1e-3 of the largest gain of any
-    # output of the same kind (``kinds``), so that an output the loads hardly reach (the
-    # TCP across a plane of symmetry) is not asked for digits below round-off
-    own = np.max(np.abs(gain), axis=1)
-    kinds = np.zeros(G.shape[1], int) if kinds is None else np.asarray(kinds)
-    floor = np.array([own[kinds == k].max() for k in kinds])
-    scale = np.maximum(np.maximum(own, 1e-3 * floor), 1e-300)
+    scale = _output_scale(gain, kinds)
     V = _m_orthonormal(M, None, start)
     W = V
+    Ar = V.T @ (A @ V)
     t = prev = change = None
     blocks = 1
     while True:
-        Ar = V.T @ (A @ V)
         mu, Y = np.linalg.eigh(0.5 * (Ar + Ar.T))
         phi = V @ Y
         Fk, Gk = phi.T @ F, phi.T @ G
         if t is None:
-            # from 1 s: a thermometer beside a heated face has millisecond dynamics that
-            # a Krylov space resolves only with hundreds of vectors, and no output is
-            # sampled that finely (the rod's growth, a volume integral, starts at 0.01 s)
-            t = np.concatenate([[0.0], np.geomspace(1.0, 1e3 / mu[0], 200)])
-        E = np.exp(-np.outer(t, mu))                        # (nt, k)
-        # step response of output i to input j: gain − Σ_k Gk_ki Fk_kj e^{−μ t}/μ
-        step = gain[None] - np.einsum("tk,ki,kj->tij", E, Gk, Fk / mu[:, None])
+            # from the first instant any output is sampled after a step (``t_min_s``): a
+            # thermometer beside a heated face has millisecond dynamics that a Krylov
+            # space resolves only with hundreds of vectors, and that no output sees
+            t = np.concatenate([[0.0], np.geomspace(max(t_min_s, 1e-3),
+                                                    max(1e3 / mu[0], 10 * t_min_s), 200)])
+        step = _step_responses(t, mu, Gk, Fk, gain)
         if prev is not None:
             change = np.max(np.abs(step - prev), axis=(0, 2))
             if np.all(change <= tol * scale):
@@ -260,13 +288,50 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds) -> BodyModes:
         if W.shape[1] == 0:
             change = np.zeros(G.shape[1])
             break
+        AW = A @ W                          # the projection grows by one block, not anew
+        Ar = np.block([[Ar, V.T @ AW], [AW.T @ V, W.T @ AW]])
         V = np.hstack([V, W])
         blocks += 1
     if change is None:
         change = scale
+    if len(other_h):
+        W = _m_orthonormal(M, V, np.hstack([_static_fields(body, h, fac) for h in other_h]))
+        if W.shape[1]:
+            AW = A @ W
+            Ar = np.block([[Ar, V.T @ AW], [AW.T @ V, W.T @ AW]])
+            V = np.hstack([V, W])
+            mu, Y = np.linalg.eigh(0.5 * (Ar + Ar.T))
+            phi = V @ Y
+            Fk, Gk = phi.T @ F, phi.T @ G
     Fk_mu = Fk / mu[:, None]
     return BodyModes(tuple(float(h) for h in np.atleast_1d(h_W_m2K)), mu, phi, Fk, Gk,
                      G.T @ AF - Gk.T @ Fk_mu, AF - phi @ Fk_mu, change, blocks)
+
+
+def _static_fields(body, h_W_m2K, fac, rtol: float = 1e-10, maxiter: int = 200):
+    """A(h)⁻¹F [K per unit input] by conjugate gradients, all columns at once,
+    preconditioned by ``fac`` (the factor of A at another h: A(h) differs from it only
+    by surface terms, so a few iterations suffice)."""
+    A = body.operator(h_W_m2K)
+    F = body.F
+    X = fac.solve(F)
+    nb = np.sqrt(np.abs(np.einsum("ij,ij->j", F, X)))       # preconditioned norms of F
+    R = F - A @ X
+    Z = fac.solve(R)
+    P = Z.copy()
+    rz = np.einsum("ij,ij->j", R, Z)
+    for _ in range(maxiter):
+        if np.all(np.sqrt(np.abs(rz)) <= rtol * nb):
+            break
+        AP = A @ P
+        alpha = rz / np.where(rz == 0, 1.0, np.einsum("ij,ij->j", P, AP))
+        X += P * alpha
+        R -= AP * alpha
+        Z = fac.solve(R)
+        rz_new = np.einsum("ij,ij->j", R, Z)
+        P = Z + P * (rz_new / np.where(rz == 0, 1.0, rz))
+        rz = rz_new
+    return X
 
 
 def projected_modes(body, base: BodyModes, h_W_m2K, G: np.ndarray) -> BodyModes:
@@ -275,8 +340,9 @@ def projected_modes(body, base: BodyModes, h_W_m2K, G: np.ndarray) -> BodyModes:
     A change of h (speed-dependent convection) alters A only by surface terms, so the
     Krylov space grown once (from the loads and the sensors) carries the other h's
     responses too; this costs one projection instead of a new factorisation and Krylov
-    growth per speed. It is not exact in the steady state for the new h (no static
-    correction): ``benchmarks/bench_geometry.py`` measures it against Crank–Nicolson.
+    growth per speed. The steady state for the new h is exact when ``base`` was built
+    with it among its ``other_h`` (its static fields are then in the space);
+    ``benchmarks/bench_geometry.py`` measures the whole against Crank–Nicolson.
     """
     V = base.phi
     Ar = V.T @ (body.operator(h_W_m2K) @ V)
@@ -304,6 +370,9 @@ def solve_reduced(body, hist: InputHistory, G: np.ndarray, output_times_s=None,
     seg = np.clip(np.searchsorted(edges, bps[1:], side="left") - 1, 0, len(edges) - 2)
     d = np.diff(bps)
     cache = {} if mode_cache is None else mode_cache
+    # no response is sampled sooner after a step than the shortest interval between
+    # breakpoints: the Krylov growth's stopping test starts there
+    t_min = float(d[d > 0].min()) if np.any(d > 0) else 1.0
     r = G.shape[1]
     Y = np.zeros((bps.size, r))
     want_f = np.searchsorted(bps, ft)
@@ -319,7 +388,11 @@ def solve_reduced(body, hist: InputHistory, G: np.ndarray, output_times_s=None,
         hk = hkeys[seg[k]]
         if hk not in cache:
             base = next(iter(cache.values()), None)
-            cache[hk] = (body_modes(body, np.array(hk), G, tol, kinds=kinds) if base is None
+            others = [np.array(h) for h in dict.fromkeys(hkeys) if h not in cache
+                      and h != hk]
+            cache[hk] = (body_modes(body, np.array(hk), G, tol, kinds=kinds, t_min_s=t_min,
+                                    other_h=others)
+                         if base is None
                          else projected_modes(body, base, np.array(hk), G))
         md = cache[hk]
         nk = max(nk, md.n_modes)

@@ -645,7 +645,8 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         el = None
         if disp or sc.fields:
             progress("assembling and factoring elasticity")
-            el = ElasticBody.build(th, support)
+            n_fields = int(sc.total_s // sc.field_interval_s) + 1 if sc.fields else 0
+            el = ElasticBody.build(th, support, n_solves=len(disp) + n_fields)
         tm["elastic_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         W = []

@@ -117,80 +117,10 @@ def spindle_unit_mesh(path, dims: SpindleUnit = SpindleUnit()) -> Path:
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("spindle_unit")
-        occ = gmsh.model.occ
-        z0, z1 = d.housing_z
-        # the shaft in two pieces, split where it leaves the housing, so that the nose's
-        # surface (forced convection in the open) is a face of its own
-        nose = occ.addCylinder(0, 0, d.shaft_bottom, 0, 0, z0 - d.shaft_bottom,
-                               d.shaft_radius)
-        shaft = occ.addCylinder(0, 0, z0, 0, 0, d.shaft_top - z0, d.shaft_radius)
-
-        def ring(za, zb, r_in, r_out):
-            a = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_out)
-            b = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_in)
-            out, _ = occ.cut([(3, a)], [(3, b)])
-            return out[0][1]
-        front = ring(*d.front_bearing_z, d.shaft_radius, d.bearing_outer_radius)
-        rear = ring(*d.rear_bearing_z, d.shaft_radius, d.bearing_outer_radius)
-        stator = ring(*d.stator_z, d.bearing_outer_radius, d.stator_outer_radius)
-        housing = ring(z0, z1, d.bearing_outer_radius, d.housing_radius)
-        box = occ.addBox(d.column_x[0], d.column_y[0], z0, d.column_x[1] - d.column_x[0],
-                         d.column_y[1] - d.column_y[0], z1 - z0)
-        cyl = occ.addCylinder(0, 0, z0, 0, 0, z1 - z0, d.housing_radius)
-        column = occ.cut([(3, box)], [(3, cyl)])[0][0][1]
-        tools = [(3, t) for t in (nose, front, rear, stator, housing, column)]
-        out, _ = occ.fragment([(3, shaft)], tools)
-        occ.synchronize()
-        vols = {}
-        for dim, tag in gmsh.model.getEntities(3):
-            x, y, z = occ.getCenterOfMass(dim, tag)
-            xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(dim, tag)
-            rmax = max(abs(xmin), abs(xmax))
-            if ymax > d.housing_radius + 1:
-                name = "column"
-            elif rmax <= d.shaft_radius + 1e-6 * d.housing_radius:
-                name = "shaft"
-            elif rmax <= d.bearing_outer_radius + 1:
-                name = "front_bearing" if z < d.stator_z[0] else "rear_bearing"
-            elif rmax <= d.stator_outer_radius + 1:
-                name = "stator"
-            else:
-                name = "housing"
-            vols.setdefault(name, []).append(tag)
-        surf = {}
-        tol = 1e-3
-        for dim, tag in gmsh.model.getEntities(2):
-            up, _ = gmsh.model.getAdjacencies(2, tag)
-            owners = {n for n, tags in vols.items() for t in up if t in tags}
-            xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(2, tag)
-            cx, cy, cz = occ.getCenterOfMass(2, tag)
-            if len(up) == 2:
-                if owners == {"shaft", "front_bearing"}:
-                    name = "front_bearing_contact"
-                elif owners == {"shaft", "rear_bearing"}:
-                    name = "rear_bearing_contact"
-                else:
-                    continue                      # other interfaces: no group needed
-            else:
-                (own,) = owners
-                r_c = (xmax - xmin) / 2
-                if own == "column":
-                    name = "column_foot" if abs(ymin - d.column_y[1]) < tol and \
-                        abs(ymax - d.column_y[1]) < tol else "column_faces"
-                elif own == "shaft":
-                    name = ("shaft_exposed" if (zmax <= z0 + tol or zmin >= z1 - tol)
-                            else "spindle_bore")
-                elif own == "stator" and abs(r_c - d.bearing_outer_radius) < 1:
-                    name = "motor_airgap"
-                elif own == "housing" and abs(r_c - d.housing_radius) < 1:
-                    name = "housing_outer"
-                elif own == "housing" and (abs(cz - z0) < tol or abs(cz - z1) < tol):
-                    # annular end faces: outer part of the housing, in the air
-                    name = ("housing_outer" if xmax - xmin > 2 * d.bearing_outer_radius + 1
-                            else "spindle_bore")
-                else:
-                    name = "spindle_bore"
-            surf.setdefault(name, []).append(tag)
+        _spindle_solids(gmsh.model.occ, d)
+        gmsh.model.occ.synchronize()
+        vols = _spindle_volume_groups(gmsh, d)
+        surf = _spindle_surface_groups(gmsh, d, vols)
         for name, tags in vols.items():
             gmsh.model.addPhysicalGroup(3, tags, name=name)
         for name, tags in surf.items():
@@ -207,7 +137,101 @@ def spindle_unit_mesh(path, dims: SpindleUnit = SpindleUnit()) -> Path:
         gmsh.finalize()
 
 
-if __name__ == "__main__":          # python -m arfem.scenarios.gmsh_models
+def _spindle_solids(occ, d: SpindleUnit) -> None:
+    """The unit's solids in Gmsh's OpenCASCADE kernel, fragmented into one conforming
+    assembly (shared faces between shaft, rings, housing and column)."""
+    z0, z1 = d.housing_z
+    # the shaft in two pieces, split where it leaves the housing, so that the nose's
+    # surface (forced convection in the open) is a face of its own
+    nose = occ.addCylinder(0, 0, d.shaft_bottom, 0, 0, z0 - d.shaft_bottom, d.shaft_radius)
+    shaft = occ.addCylinder(0, 0, z0, 0, 0, d.shaft_top - z0, d.shaft_radius)
+
+    def ring(za, zb, r_in, r_out):
+        a = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_out)
+        b = occ.addCylinder(0, 0, za, 0, 0, zb - za, r_in)
+        out, _ = occ.cut([(3, a)], [(3, b)])
+        return out[0][1]
+    front = ring(*d.front_bearing_z, d.shaft_radius, d.bearing_outer_radius)
+    rear = ring(*d.rear_bearing_z, d.shaft_radius, d.bearing_outer_radius)
+    stator = ring(*d.stator_z, d.bearing_outer_radius, d.stator_outer_radius)
+    housing = ring(z0, z1, d.bearing_outer_radius, d.housing_radius)
+    box = occ.addBox(d.column_x[0], d.column_y[0], z0, d.column_x[1] - d.column_x[0],
+                     d.column_y[1] - d.column_y[0], z1 - z0)
+    cyl = occ.addCylinder(0, 0, z0, 0, 0, z1 - z0, d.housing_radius)
+    column = occ.cut([(3, box)], [(3, cyl)])[0][0][1]
+    tools = [(3, t) for t in (nose, front, rear, stator, housing, column)]
+    occ.fragment([(3, shaft)], tools)
+
+
+def _spindle_volume_groups(gmsh, d: SpindleUnit) -> dict:
+    """{volume group name: [Gmsh volume tags]}, each volume named by its extent."""
+    occ = gmsh.model.occ
+    vols = {}
+    for dim, tag in gmsh.model.getEntities(3):
+        x, y, z = occ.getCenterOfMass(dim, tag)
+        xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(dim, tag)
+        rmax = max(abs(xmin), abs(xmax))
+        if ymax > d.housing_radius + 1:
+            name = "column"
+        elif rmax <= d.shaft_radius + 1e-6 * d.housing_radius:
+            name = "shaft"
+        elif rmax <= d.bearing_outer_radius + 1:
+            name = "front_bearing" if z < d.stator_z[0] else "rear_bearing"
+        elif rmax <= d.stator_outer_radius + 1:
+            name = "stator"
+        else:
+            name = "housing"
+        vols.setdefault(name, []).append(tag)
+    return vols
+
+
+def _spindle_surface_groups(gmsh, d: SpindleUnit, vols: dict) -> dict:
+    """{surface group name: [Gmsh surface tags]}: the bearing contacts among the inner
+    interfaces, and every outer face by the volume it bounds and its place."""
+    occ = gmsh.model.occ
+    z0, z1 = d.housing_z
+    surf = {}
+    tol = 1e-3
+    for dim, tag in gmsh.model.getEntities(2):
+        up, _ = gmsh.model.getAdjacencies(2, tag)
+        owners = {n for n, tags in vols.items() for t in up if t in tags}
+        xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(2, tag)
+        cx, cy, cz = occ.getCenterOfMass(2, tag)
+        if len(up) == 2:
+            if owners == {"shaft", "front_bearing"}:
+                name = "front_bearing_contact"
+            elif owners == {"shaft", "rear_bearing"}:
+                name = "rear_bearing_contact"
+            else:
+                continue                      # other interfaces: no group needed
+        else:
+            (own,) = owners
+            r_c = (xmax - xmin) / 2
+            if own == "column":
+                name = "column_foot" if abs(ymin - d.column_y[1]) < tol and \
+                    abs(ymax - d.column_y[1]) < tol else "column_faces"
+            elif own == "shaft":
+                name = ("shaft_exposed" if (zmax <= z0 + tol or zmin >= z1 - tol)
+                        else "spindle_bore")
+            elif own == "stator" and abs(r_c - d.bearing_outer_radius) < 1:
+                name = "motor_airgap"
+            elif own == "housing" and abs(r_c - d.housing_radius) < 1:
+                name = "housing_outer"
+            elif own == "housing" and (abs(cz - z0) < tol or abs(cz - z1) < tol):
+                # annular end faces: outer part of the housing, in the air
+                name = ("housing_outer" if xmax - xmin > 2 * d.bearing_outer_radius + 1
+                        else "spindle_bore")
+            else:
+                name = "spindle_bore"
+        surf.setdefault(name, []).append(tag)
+    return surf
+
+
+if __name__ == "__main__":          # python -m arfem.scenarios.gmsh_models [size size_min out]
+    import sys
     here = Path(__file__).resolve().parent
-    spindle_unit_mesh(here / "spindle_unit.msh")
-    print("wrote", here / "spindle_unit.msh")
+    args = sys.argv[1:]
+    dims = SpindleUnit(size=float(args[0]), size_min=float(args[1])) if args else SpindleUnit()
+    out = Path(args[2]) if len(args) > 2 else here / "spindle_unit.msh"
+    spindle_unit_mesh(out, dims)
+    print("wrote", out)
