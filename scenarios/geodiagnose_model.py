@@ -99,8 +99,12 @@ def reduced_model(plant: Plant, sc: GeometryScenario, spec: DiagnosisSpec,
     a, b, m = plant.h_law.T
     h0 = a + b * np.power(max(h_speed_rpm, 0.0), m)
     rb = build_reduced(body, plant.G, loads, h0, spec.interface_groups, keep_basis=keep_basis)
+
+    def regrow(h_scale, kappa):
+        return build_reduced(body, plant.G, loads, h0 * np.asarray(h_scale),
+                             spec.interface_groups, kappa0=kappa)
     own = np.array([np.nan if c.ambient_C is None else c.ambient_C for c in sc.convections])
     model = GeoModel(rb, plant.sources, plant.convections,
                      tuple(c.spec.group for c in sc.convections), plant.h_law, own,
-                     sc.reference_C, spec.candidate_groups, spec.interface_groups)
+                     sc.reference_C, spec.candidate_groups, spec.interface_groups, regrow)
     return model, time.perf_counter() - t0

@@ -28,6 +28,7 @@ Procedure (fixed before any fresh batch was scored; ``benchmarks/bench_geodiagno
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -256,7 +257,14 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     if first is not None:
         progress("screening a second cause")
         pair = _second(ctx, first, singles, train, hold, n_tests)
-        named = fit_causes(ctx, (pair or first).causes, train)
+        named = fit_causes(ctx, (pair or first).causes, train, intervals=False)
+        if model.regrow is not None and any(c.nonlinear for c in named.causes):
+            progress("regrowing the reduced basis at the named setting")
+            s = named.setting
+            ctx = make_context(dataclasses.replace(model, rb=model.regrow(s.h_scale, s.kappa)),
+                               rec)
+            base = fit_causes(ctx, (), train)
+        named = fit_causes(ctx, named.causes, train)
     ext = named if named is not None else base
     wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
     gain = 100.0 * (1.0 - we / wb) if wb > 0 else 0.0

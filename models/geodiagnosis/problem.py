@@ -85,6 +85,10 @@ class GeoModel:
     reference_C : float, start and stress-free temperature [°C]
     candidates : tuple of str, candidate surface groups for a missing source
     interfaces : tuple of str, volume groups whose conductivity may be scaled
+    regrow : callable or None
+        ``regrow(h_scale, kappa) -> ReducedBody``: the same reduced model with its basis
+        grown at another setting (one new factorisation), used once to refit a named
+        nonlinear cause where the basis was grown (its bias there is then gone).
     """
 
     rb: ReducedBody
@@ -96,6 +100,7 @@ class GeoModel:
     reference_C: float
     candidates: tuple
     interfaces: tuple
+    regrow: object = None
 
 
 @dataclass(frozen=True)

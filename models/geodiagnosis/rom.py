@@ -112,7 +112,8 @@ class ReducedBody:
 
 
 def build_reduced(body, G: np.ndarray, loads: np.ndarray, h0_W_m2K, volume_groups=(),
-                  blocks: int = 3, cap: int = 260, keep_basis: bool = False) -> ReducedBody:
+                  blocks: int = 3, cap: int = 260, keep_basis: bool = False,
+                  kappa0=None) -> ReducedBody:
     """Grow the basis once and project (module docstring).
 
     Parameters
@@ -132,20 +133,26 @@ def build_reduced(body, G: np.ndarray, loads: np.ndarray, h0_W_m2K, volume_group
         Most basis vectors.
     keep_basis : bool
         Keep V (n × k) for :func:`rom_error`.
+    kappa0 : array_like (V,), optional
+        Conductivity scales of the one factorisation (default 1: nominal); a basis grown
+        at a fitted setting removes the reduced model's bias there.
     """
     import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
     with threadpool_limits(limits=1):
         return _build(body, G, loads, np.asarray(h0_W_m2K, float), tuple(volume_groups),
-                      blocks, cap, keep_basis)
+                      blocks, cap, keep_basis, kappa0)
 
 
-def _build(body, G, loads, h0, vgroups, blocks, cap, keep_basis) -> ReducedBody:
+def _build(body, G, loads, h0, vgroups, blocks, cap, keep_basis, kappa0) -> ReducedBody:
     A0 = body.operator(h0)
     M = body.M
     n = body.ndofs
-    fac = factorize_spd(A0.tocsc(), default_method(few_solves=True, n=n))
     Kvs = [group_conduction(body, g) for g in vgroups]
+    for kv, Kv in zip(kappa0 if kappa0 is not None else (), Kvs):
+        if kv != 1.0:
+            A0 = A0 + (kv - 1.0) * Kv
+    fac = factorize_spd(A0.tocsc(), default_method(few_solves=True, n=n))
     X = fac.solve(np.ascontiguousarray(loads))
     sens = [B @ X for B in body.B] + [Kv @ X for Kv in Kvs]
     S = fac.solve(np.ascontiguousarray(np.column_stack(sens))) if sens else np.zeros((n, 0))
