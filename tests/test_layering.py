@@ -200,6 +200,7 @@ KNOWN_COMMAND_IMPORTS = {
     ("scenarios/sweep/report.py", "arfem.scenarios.html_report"): _REPORT,
     ("benchmarks/bench_sweep.py", "arfem.scenarios.sweep"): _SWEEP,
     ("scenarios/geometry_scenario.py", "arfem.scenarios.html_report"): _REPORT,
+    ("scenarios/geodiagnose_report.py", "arfem.scenarios.html_report"): _REPORT,
     ("tests/test_sweep_default_path.py", "arfem.scenarios.sweep"): _SWEEP,
     ("tests/test_allocation_paper.py", "arfem.scenarios.allocate"): "tests the command's converged-run setting (CONVERGED, patched smaller)",
     ("tests/test_diagnosis_drift_last.py", "arfem.scenarios.diagnose"):

@@ -28,7 +28,6 @@ Procedure (fixed before any fresh batch was scored; ``benchmarks/bench_geodiagno
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -261,8 +260,8 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
         if model.regrow is not None and any(c.nonlinear for c in named.causes):
             progress("regrowing the reduced basis at the named setting")
             s = named.setting
-            ctx = make_context(dataclasses.replace(model, rb=model.regrow(s.h_scale, s.kappa)),
-                               rec)
+            regrown = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
+            ctx = make_context(regrown, rec)
             base = fit_causes(ctx, (), train)
         named = fit_causes(ctx, named.causes, train)
     ext = named if named is not None else base
