@@ -124,7 +124,7 @@ def ambient_lagged(time_s: np.ndarray, ambient_C: np.ndarray, lag_s: float) -> n
     piecewise-constant (zero-order hold) ambient, starting at its first value.
 
     >>> a = ambient_lagged(np.array([0., 3600., 7200.]), np.array([20., 21., 21.]), 3600.)
-    >>> [round(v, 3) for v in a]
+    >>> [round(float(v), 3) for v in a]
     [20.0, 20.632, 20.865]
     """
     if lag_s <= 0:
