@@ -9,7 +9,9 @@ Procedure (fixed before any fresh batch was scored; ``benchmarks/bench_geodiagno
 2. Every single cause of :func:`.fit.candidate_causes` is fitted. A cause passes when
    its nested F test against the nominal model, on the pooled effective sample size of
    its residual (Σ_c N_eff,c, :func:`arfem.models.diagnosis.stats.noise_n_eff`), has
-   p < 0.01 / (number of candidates) (Bonferroni).
+   p < 0.01 / (number of candidates) (Bonferroni) and its fit is physical
+   (:func:`.fit.implausible`: no missing "source" of negative power, no parameter at
+   an end of its range; such a fit is a sign of another cause or of wrong units).
 3. Among the passing causes, the three best by BIC on N_eff are compared on the
    hold-out; the lowest weighted hold-out error is named (selection on a time
    hold-out: near-equivalent causes on the fit window are told apart by data the fit
@@ -34,8 +36,9 @@ import numpy as np
 
 from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff
 from arfem.models.diagnosis.verdict import ljung_box_p_neff
-from arfem.models.geodiagnosis.fit import (BOUNDS, NO_EFFECT, PLAUSIBLE, Cause, Fit, FitContext,
-                                           candidate_causes, fit_causes, make_context)
+from arfem.models.geodiagnosis.fit import (BOUNDS, NO_EFFECT, PLAUSIBLE, Fit, FitContext,
+                                           candidate_causes, fit_causes, implausible,
+                                           make_context)
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 
 __all__ = ["GeoDiagnosis", "diagnose_geometry", "default_holdout", "mlr_holdout",
@@ -146,7 +149,7 @@ def _screen(ctx, singles, train, hold, base, n_tests):
                      _weighted_rms(ctx, f.prediction, hold)))
     rows.sort(key=lambda r: r[2])
     ranking = tuple((r[0].name, r[2], r[3], r[4]) for r in rows)
-    passing = [r for r in rows if r[3] < ALPHA / n_tests][:3]
+    passing = [r for r in rows if r[3] < ALPHA / n_tests and implausible(r[1]) is None][:3]
     if not passing:
         return ranking, None
     return ranking, min(passing, key=lambda r: r[4])[1]
@@ -166,7 +169,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests):
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
         b = bic(f.sse_w, N, ne, f.n_params)
-        if p < ALPHA / n_tests and (best is None or b < best[0]):
+        if p < ALPHA / n_tests and implausible(f) is None and (best is None or b < best[0]):
             best = (b, f)
     if best is None:
         return None

@@ -47,13 +47,26 @@ from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "candidate_causes", "fit_causes",
-           "BOUNDS", "NO_EFFECT"]
+           "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
 BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
           "lag_h": (0.02, 48.0)}
 #: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
-PLAUSIBLE = {"scale": (0.2, 5.0)}
+PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
+
+
+def implausible(fit) -> str | None:
+    """Why a fitted cause is not physical (a magnitude outside :data:`PLAUSIBLE`, e.g. a
+    missing "source" of negative power, which is a sink; a nonlinear parameter at an
+    end of :data:`BOUNDS`), or None."""
+    for c, p in zip(fit.causes, fit.params):
+        for k, v in p.items():
+            if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= v <= PLAUSIBLE[k][1]:
+                return f"{c.name}: {k} = {v:.3g} outside {PLAUSIBLE[k]}"
+            if k in BOUNDS and not BOUNDS[k][0] * 1.01 < v < BOUNDS[k][1] * 0.99:
+                return f"{c.name}: {k} = {v:.3g} at an end of {BOUNDS[k]}"
+    return None
 NO_EFFECT = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 0.0, "scale": 1.0,
              "power_W": 0.0, "initial_offset_K": 0.0}
 _Z95 = float(norm.ppf(0.975))
