@@ -36,7 +36,7 @@ machine; the engine at commit "a fit that is not physical is not a cause", which
 made on dev seed 2 before any fresh record was scored; nothing changed since):
 
 * fresh batch, 30 records: causes named right on 15/24 records with causes (62 %;
-  target >= 95 %: MISSED) -- white noise 8/8, random walk 2/8, quantised 5/8; by kind
+  target >= 95 %: MISSED) -- white noise 8/8, random walk 1/8, quantised 6/8; by kind
   convection_scale 3/3, source_scale 2/3, missing_source 1/3, contact_conductance 2/3,
   ambient_lag 2/3, sensor_drift 2/3, warm_start 2/3. Under the random walk most records
   end "unconfirmed" (the walk-noise covariance widens the intervals to hold "no
