@@ -52,6 +52,9 @@ made on dev seed 2 before any fresh record was scored; nothing changed since):
   (target <= 60 s: MISSED by CPU); assembly 55.6 s wall (elastic factorisation), reduced
   model 7.9 s, diagnosis 88.0 s wall; the reduced model's largest error against the
   full solve 0.0019 µm (TCP), 0.003 K (thermometers).
+  Rerun at 21:37 UTC at load 1.1-3.2: CPU 68.3 s, wall 80.8 s (MISSED): assembly 17.6 s,
+  reduced model 2.3 s, the diagnosis itself 27.8 s, the rest (~30 s) the error
+  statement's full reference solve, the pictures and writing.
 """
 from __future__ import annotations
 
