@@ -48,6 +48,9 @@ def add_parser(subparsers):
 
 
 def main(args) -> int:
+    from arfem.scenarios.geodiagnose import is_mesh_record, main_geodiagnose
+    if is_mesh_record(args.case):        # contract v3: the record names a mesh scenario
+        return main_geodiagnose(args)
     with Progress(12 + max(args.stability, 0), "arfem diagnose",
                   enabled=not args.no_progress) as progress:
         s = diagnosis_run.run_diagnosis(args.case, args.out, args.holdout_start, args.force,

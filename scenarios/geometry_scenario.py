@@ -91,6 +91,7 @@ __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
            "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES"]
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
+        "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
         "sensor", "fem", "outputs", "check"}   # [check]: arfem check's (scenarios/geometry_check.py)
 _GEOM = {"mesh", "unit", "order", "reference_C"}
 _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "expansion_1_K",

@@ -1,0 +1,234 @@
+"""Issue 33 targets for the mesh diagnosis, printed (never asserted).
+
+PRE-REGISTERED PROCEDURE (fixed on 2026-11-25 before the fresh batch was scored; the
+engine is ``arfem.models.geodiagnosis.engine`` at the commit that adds this file;
+anything changed after the first score is labelled post hoc in the commit and here):
+
+* Plant: the spindle unit on the coarse mesh of the tests (tests/data/geodiag, 48 mm
+  P1, for CPU on a shared 2-core machine), candidate groups spindle_bore and
+  housing_outer, interface groups front_bearing and rear_bearing.
+* Fresh batch: seeds 50000 + i (the tests use 1000-1099). For each noise kind (white
+  0.3 µm / 0.03 K; random walk (0.05 σ per sample) on top of it; white quantised at
+  4 σ) one record per single cause kind (convection_scale, source_scale, missing_source,
+  contact_conductance, ambient_lag, sensor_drift, warm_start) with target and magnitude
+  drawn at random (ranges in ``_draw``), one pair of two different kinds, and two clean
+  records. 24 h at 2 min, the random duty cycle of ``synth.duty_cycle``. Full-order
+  generation (a fresh Krylov basis at the changed operator).
+* Scores: a record with hidden causes is right when the ESTABLISHED causes equal the
+  hidden ones (kind and target); a clean record is right when nothing is established.
+  Coverage: for every established hidden cause, whether the 95 % interval of its effect
+  parameter (h_scale, scale, power_W, conductivity_scale, lag_h, drift_<u>_per_h,
+  initial_offset_K) holds the true value. Compensation: on the hold-out, the RMS over
+  the displacement channels of the extended model (where something is named, else the
+  nominal) against the uncalibrated nominal model and against the MLR of paper eq. 18
+  on the thermometers and the ambient, both fitted on the same window.
+* Speed: a 48 h record at 1 min on the SHIPPED spindle unit (P2) with a hidden
+  convection_scale, diagnosed by ``run_geodiagnosis`` end to end (reading, assembly,
+  reduced model, diagnosis, error statement, writing); CPU (user + sys) and wall.
+
+Targets (issue 33): >= 95 % right, 0 causes on clean records, coverage 92-98 %, 48 h in
+<= 60 s, extended residual <= 25 % of the uncalibrated and below the MLR.
+
+Usage: python benchmarks/bench_geodiagnosis.py [--batch] [--speed] [--n-noise K]
+
+FIRST SCORING (2026-11-25, 21:05-21:24 UTC, load average 12-14 on the shared 2-core
+machine; the engine at commit "a fit that is not physical is not a cause", which was
+made on dev seed 2 before any fresh record was scored; nothing changed since):
+
+* fresh batch, 30 records: causes named right on 15/24 records with causes (62 %;
+  target >= 95 %: MISSED) -- white noise 8/8, random walk 1/8, quantised 6/8; by kind
+  convection_scale 3/3, source_scale 2/3, missing_source 1/3, contact_conductance 2/3,
+  ambient_lag 2/3, sensor_drift 2/3, warm_start 2/3. Under the random walk most records
+  end "unconfirmed" (the walk-noise covariance widens the intervals to hold "no
+  effect"), and two name a wrong cause (source_scale:motor for rear_bearing; an extra
+  source_scale beside a warm start).
+* clean records with a cause established: 1/6 (target 0: MISSED): a quantised record
+  (quantum 1.2 µm) got sensor_drift on d_tcp_x_um, a channel the model holds near 0.
+* 95 % interval coverage: 18/18 (100 %; target 92-98 %: above, i.e. conservative).
+* extended / uncalibrated hold-out RMS over the displacement channels, median over the
+  24 records with causes: 0.861 (target <= 0.25: MISSED; where a cause is small against
+  0.3 µm noise both are near the noise floor), extended below the MLR of eq. 18 on 18/24.
+* 48 h at 1 min on the shipped unit: CPU 74.4 s (user + sys), wall 227 s at load ~13
+  (target <= 60 s: MISSED by CPU); assembly 55.6 s wall (elastic factorisation), reduced
+  model 7.9 s, diagnosis 88.0 s wall; the reduced model's largest error against the
+  full solve 0.0019 µm (TCP), 0.003 K (thermometers).
+  Rerun at 21:37 UTC at load 1.1-3.2: CPU 68.3 s, wall 80.8 s (MISSED): assembly 17.6 s,
+  reduced model 2.3 s, the diagnosis itself 27.8 s, the rest (~30 s) the error
+  statement's full reference solve, the pictures and writing.
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from arfem.models.geodiagnosis.engine import diagnose_geometry, mlr_holdout
+from arfem.models.geodiagnosis.problem import make_record
+from arfem.models.geodiagnosis.synth import NOISE_KINDS, Hidden, duty_cycle, generate
+from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
+
+ROOT = Path(__file__).resolve().parents[1]
+COARSE = ROOT / "tests" / "data" / "geodiag" / "spindle_coarse.toml"
+KINDS = ("convection_scale", "source_scale", "missing_source", "contact_conductance",
+         "ambient_lag", "sensor_drift", "warm_start")
+EFFECT = {"convection_scale": "h_scale", "source_scale": "scale", "missing_source": "power_W",
+          "contact_conductance": "conductivity_scale", "ambient_lag": "lag_h",
+          "warm_start": "initial_offset_K"}
+
+
+def _draw(rng, kind, plant, model) -> Hidden:
+    if kind == "convection_scale":
+        return Hidden(kind, str(rng.choice(plant.convections)),
+                      float(rng.choice([rng.uniform(0.4, 0.65), rng.uniform(1.6, 2.5)])))
+    if kind == "source_scale":
+        return Hidden(kind, str(rng.choice(plant.sources)),
+                      float(rng.choice([rng.uniform(0.5, 0.7), rng.uniform(1.4, 1.8)])))
+    if kind == "missing_source":
+        return Hidden(kind, str(rng.choice(model.candidates)), float(rng.uniform(8.0, 20.0)))
+    if kind == "contact_conductance":
+        return Hidden(kind, str(rng.choice(model.interfaces)), float(rng.uniform(0.2, 0.5)))
+    if kind == "ambient_lag":
+        return Hidden(kind, "", float(rng.uniform(1.0, 4.0)))
+    if kind == "sensor_drift":
+        return Hidden(kind, "d_tcp_z_um", float(rng.choice([-1, 1]) * rng.uniform(0.1, 0.3)))
+    return Hidden(kind, "", float(rng.uniform(1.0, 3.0)))
+
+
+def _cols(plant):
+    return [("d_%s_um" if k == "displacement" else "T_%s_C") % n
+            for n, k in zip(plant.names, plant.kinds)]
+
+
+def _score(d, hidden, rec) -> dict:
+    est = {(c.kind, c.target) for c in d.established}
+    truth = {(h.kind, h.target) for h in hidden}
+    cover = []
+    if d.verdict == "established":
+        for h in hidden:
+            for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
+                if (c.kind, c.target) == (h.kind, h.target):
+                    key = EFFECT.get(h.kind) or [k for k in ci if k.startswith("drift")][0]
+                    lo, hi = ci[key]
+                    cover.append(bool(lo <= h.value <= hi))
+    train = rec.time_s < d.holdout_start_s
+    hold = ~train
+    mlr = mlr_holdout(rec, train)
+    disp = [j for j, c in enumerate(rec.channels) if c.kind == "displacement"]
+    ext = d.named.prediction if d.named is not None and d.verdict == "established" \
+        else d.baseline.prediction
+
+    def rms(P):
+        return float(np.sqrt(np.mean((rec.data[hold][:, disp] - P[hold][:, disp]) ** 2)))
+    m = np.column_stack([mlr[rec.channels[j].column] for j in disp]) if mlr else None
+    mp = np.zeros_like(rec.data)
+    if m is not None:
+        mp[:, disp] = m
+    return {"right": est == truth, "established": sorted(est), "verdict": d.verdict,
+            "cover": cover, "base": rms(d.baseline.prediction), "ext": rms(ext),
+            "mlr": rms(mp) if m is not None else float("nan")}
+
+
+def batch(n_noise: int) -> None:
+    sc, spec = load_diagnosis_scenario(COARSE)
+    plant, _ = plant_of(sc)
+    model, _ = reduced_model(plant, sc, spec, 8000.0)
+    rows, seed = [], 50000
+    for noise in NOISE_KINDS[:n_noise]:
+        plans = [[k] for k in KINDS] + [["pair"], [], []]
+        for plan in plans:
+            rng = np.random.default_rng(seed)
+            if plan == ["pair"]:
+                a, b = rng.choice(len(KINDS), 2, replace=False)
+                hidden = [_draw(rng, KINDS[a], plant, model), _draw(rng, KINDS[b], plant, model)]
+            else:
+                hidden = [_draw(rng, k, plant, model) for k in plan]
+            t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
+            y = generate(plant, hidden, t, speed, power, amb, rng, noise)
+            rec = make_record(f"s{seed}", t, y, _cols(plant), plant.names, plant.kinds, power,
+                              speed, amb, plant.reference_C)
+            c0 = time.process_time()
+            d = diagnose_geometry(model, rec)
+            s = _score(d, hidden, rec)
+            s.update(seed=seed, noise=noise, hidden=[(h.kind, h.target, round(h.value, 3))
+                                                   for h in hidden],
+                     cpu_s=time.process_time() - c0)
+            rows.append(s)
+            print(f"{seed} {noise:9s} hidden={s['hidden']} -> {s['verdict']} "
+                  f"{s['established']} right={s['right']} cover={s['cover']} "
+                  f"rms base/ext/mlr {s['base']:.3f}/{s['ext']:.3f}/{s['mlr']:.3f} µm "
+                  f"cpu {s['cpu_s']:.1f} s", flush=True)
+            seed += 1
+    caused = [r for r in rows if r["hidden"]]
+    clean = [r for r in rows if not r["hidden"]]
+    cov = [c for r in rows for c in r["cover"]]
+    print(f"\nrecords with causes named right: {sum(r['right'] for r in caused)}/{len(caused)} "
+          f"({100 * np.mean([r['right'] for r in caused]):.0f} %; target >= 95 %)")
+    print(f"clean records with a cause established: "
+          f"{sum(bool(r['established']) for r in clean)}/{len(clean)} (target 0)")
+    if cov:
+        print(f"95 % interval coverage: {sum(cov)}/{len(cov)} ({100 * np.mean(cov):.0f} %; "
+              "target 92-98 %)")
+    ratio = [r["ext"] / r["base"] for r in caused if r["base"] > 0]
+    below = [r["ext"] < r["mlr"] for r in caused if np.isfinite(r["mlr"])]
+    print(f"extended / uncalibrated hold-out RMS (displacements), median over records with a "
+          f"cause: {np.median(ratio):.3f} (target <= 0.25); extended below the MLR on "
+          f"{sum(below)}/{len(below)}")
+    print("by cause kind (right/records):")
+    for k in KINDS:
+        rk = [r for r in caused if len(r["hidden"]) == 1 and r["hidden"][0][0] == k]
+        print(f"  {k:20s} {sum(r['right'] for r in rk)}/{len(rk)}")
+
+
+def speed() -> None:
+    """48 h at 1 min on the shipped spindle unit, end to end through the command's
+    library function."""
+    from arfem.scenarios.geodiagnose import run_geodiagnosis
+    from arfem.scenarios.georecord import write_record
+    tmp = Path(tempfile.mkdtemp(prefix="bench_geodiag_"))
+    try:
+        shutil.copy(ROOT / "scenarios" / "spindle_unit.msh", tmp)
+        text = (ROOT / "scenarios" / "spindle_unit.toml").read_text()
+        (tmp / "spindle_unit.toml").write_text(
+            text + '\n[diagnosis]\ncandidate_groups = ["spindle_bore", "housing_outer"]\n'
+                   'interface_groups = ["front_bearing", "rear_bearing"]\n')
+        sc, spec = load_diagnosis_scenario(tmp / "spindle_unit.toml")
+        plant, _ = plant_of(sc)
+        rng = np.random.default_rng(60000)
+        t, sp, power, amb = duty_cycle(rng, 48.0, 60.0, plant.sources)
+        y = generate(plant, [Hidden("convection_scale", "housing_outer", 1.8)], t, sp, power,
+                     amb, rng, "white")
+        cols = {"time_s": t, "speed_rpm": sp, "ambient_C": amb}
+        cols.update({c: y[:, j] for j, c in enumerate(_cols(plant))})
+        cols.update({f"P_{s}_W": power[:, j] for j, s in enumerate(plant.sources)})
+        toml = write_record(tmp / "rec48.toml", "spindle_unit.toml", cols)
+        r0 = resource.getrusage(resource.RUSAGE_SELF)
+        w0 = time.perf_counter()
+        s = run_geodiagnosis(toml, tmp / "out")
+        wall = time.perf_counter() - w0
+        r1 = resource.getrusage(resource.RUSAGE_SELF)
+        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+        print(f"48 h at 1 min ({t.size} rows, 6 channels) on the shipped spindle unit "
+              f"({plant.body.ndofs} heat dofs, P2): verdict {s['verdict']}, cause "
+              f"{s['cause']}; CPU {cpu:.1f} s, wall {wall:.1f} s (target <= 60 s); "
+              f"steps {({k: round(v, 1) for k, v in s['timings_s'].items()})}")
+        print(f"reduced model: {s['reduced_model']['basis_vectors']} vectors; largest error "
+              f"vs the full solve: {s['reduced_model']['max_abs_error']} (µm / K)")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--batch", action="store_true")
+    ap.add_argument("--speed", action="store_true")
+    ap.add_argument("--n-noise", type=int, default=3)
+    a = ap.parse_args()
+    if a.speed or not a.batch:
+        speed()
+    if a.batch or not a.speed:
+        batch(a.n_noise)

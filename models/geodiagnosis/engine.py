@@ -1,0 +1,292 @@
+"""Which part of the user's model is wrong: selection of causes on a time hold-out and
+the verdict in the rod's words (issue 33 item 2; the rules of
+:mod:`arfem.models.diagnosis.verdict`, on several channels).
+
+Procedure (fixed before any fresh batch was scored; ``benchmarks/bench_geodiagnosis.py``):
+
+1. The hold-out is the last third of the record (or ``holdout_start_s``); every fit
+   uses the rows before it only.
+2. Every single cause of :func:`.fit.candidate_causes` is fitted. A cause passes when
+   its nested F test against the nominal model, on the pooled effective sample size of
+   its residual (Σ_c N_eff,c, :func:`arfem.models.diagnosis.stats.noise_n_eff`), has
+   p < 0.01 / (number of candidates) (Bonferroni) and its fit is physical
+   (:func:`.fit.implausible`: no missing "source" of negative power, no parameter at
+   an end of its range; such a fit is a sign of another cause or of wrong units).
+3. Among the passing causes, the three best by BIC on N_eff are compared on the
+   hold-out; the lowest weighted hold-out error is named (selection on a time
+   hold-out: near-equivalent causes on the fit window are told apart by data the fit
+   never saw).
+4. A second cause is screened with the first's nonlinear parameter held, fitted jointly
+   for the best, and added when its F test against the first passes the same level
+   and it lowers the hold-out error.
+5. Verdict (:func:`verdict_of`): ``established`` when each named cause's 95 % interval
+   of its effect excludes "no effect", no interval reaches an end of the range the fit
+   can return, magnitudes are plausible and the hold-out gain is positive;
+   ``explained`` when nothing is named and the nominal residual is within the noise on
+   every channel (Ljung–Box on N_eff, p ≥ 0.05/C) with no MLR on the thermometers
+   (paper eq. 18) better on the hold-out by 5 % or more; ``unconfirmed`` when a cause
+   was named but not established; ``not_explained`` otherwise. A cause is reported as
+   the cause only when established.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff
+from arfem.models.diagnosis.verdict import ljung_box_p_neff
+from arfem.models.geodiagnosis.fit import (BOUNDS, NO_EFFECT, PLAUSIBLE, Fit, FitContext,
+                                           candidate_causes, fit_causes, implausible,
+                                           make_context)
+from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
+
+__all__ = ["GeoDiagnosis", "diagnose_geometry", "default_holdout", "mlr_holdout",
+           "verdict_of", "ALPHA"]
+
+#: Family-wise level of the naming tests.
+ALPHA = 0.01
+
+
+@dataclass(frozen=True)
+class GeoDiagnosis:
+    """The diagnosis of one record on a mesh model.
+
+    Attributes
+    ----------
+    record : str
+    verdict : str, ``established`` | ``explained`` | ``unconfirmed`` | ``not_explained``
+    named : Fit or None, the causes the selection rules named (with intervals)
+    baseline : Fit, the nominal model
+    holdout_start_s : float
+    holdout_rmse : dict, per channel {column: (baseline, extended, mlr or None)} in
+        record units (µm, K) on the hold-out
+    gain_pct : float, 100 (1 − extended/baseline) of the weighted hold-out RMS
+    failed : tuple of str, the checks of ``established`` the named causes fail
+    ranking : tuple of (cause name, BIC, F-test p, hold-out weighted RMS)
+    within_noise : dict, per channel Ljung–Box p on N_eff of the nominal residual
+    text : str, the verdict in words
+    sigma : dict, per channel noise σ [record unit]
+    """
+
+    record: str
+    verdict: str
+    named: Fit | None
+    baseline: Fit
+    holdout_start_s: float
+    holdout_rmse: dict
+    gain_pct: float
+    failed: tuple
+    ranking: tuple
+    within_noise: dict
+    text: str
+    sigma: dict = field(default_factory=dict)
+
+    @property
+    def established(self) -> tuple:
+        """The established causes (empty unless the verdict is ``established``)."""
+        return self.named.causes if self.verdict == "established" and self.named else ()
+
+
+def default_holdout(time_s: np.ndarray, shape: np.ndarray) -> float:
+    """The start of the last third, moved back to the last change of the input before
+    it if the last third holds none [s]."""
+    t0 = float(time_s[0] + (time_s[-1] - time_s[0]) * 2.0 / 3.0)
+    tail = shape[time_s >= t0]
+    if tail.size and np.ptp(tail) > 0:
+        return t0
+    ch = np.flatnonzero(np.diff(shape) != 0)
+    return float(time_s[ch[-1]]) if ch.size else t0
+
+
+def _weighted_rms(ctx: FitContext, pred, rows) -> float:
+    ok = ctx.valid & rows[:, None]
+    r = (ctx.rec.data - pred)[ok] * np.broadcast_to(ctx.weights, ok.shape)[ok]
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+
+def _n_eff(ctx: FitContext, pred, rows) -> float:
+    tot = 0.0
+    for j in range(ctx.rec.data.shape[1]):
+        ok = ctx.valid[:, j] & rows
+        if ok.sum() > 10:
+            tot += noise_n_eff(ctx.rec.data[ok, j] - pred[ok, j])
+    return max(tot, 3.0)
+
+
+def mlr_holdout(rec: GeoRecord, rows: np.ndarray) -> dict:
+    """The MLR of paper eq. 18 per displacement channel on the thermometers (and the
+    ambient): fitted on ``rows``, its prediction on every row, {column: (N,)}; empty
+    where the record has no thermometer."""
+    T = [j for j, c in enumerate(rec.channels) if c.kind == "temperature"]
+    X = [rec.data[:, j] for j in T]
+    if rec.ambient_C is not None:
+        X.append(rec.ambient_C)
+    if not X:
+        return {}
+    X = np.column_stack([np.ones(rec.time_s.size)] + X)
+    out = {}
+    for j, c in enumerate(rec.channels):
+        if c.kind != "displacement":
+            continue
+        ok = rows & np.all(np.isfinite(X), axis=1) & np.isfinite(rec.data[:, j])
+        if ok.sum() < X.shape[1] + 2:
+            continue
+        b, *_ = np.linalg.lstsq(X[ok], rec.data[ok, j], rcond=None)
+        out[c.column] = X @ b
+    return out
+
+
+def _screen(ctx, singles, train, hold, base, n_tests):
+    """Steps 2-3: (ranking, the named single Fit or None)."""
+    rows = []
+    N = int((ctx.valid & train[:, None]).sum())
+    for c in singles:
+        f = fit_causes(ctx, (c,), train, intervals=False)
+        ne = _n_eff(ctx, f.prediction, train)
+        p = f_test_p(base.sse_w, f.sse_w, f.n_params, ne)
+        rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
+                     _weighted_rms(ctx, f.prediction, hold)))
+    rows.sort(key=lambda r: r[2])
+    ranking = tuple((r[0].name, r[2], r[3], r[4]) for r in rows)
+    passing = [r for r in rows if r[3] < ALPHA / n_tests and implausible(r[1]) is None][:3]
+    if not passing:
+        return ranking, None
+    return ranking, min(passing, key=lambda r: r[4])[1]
+
+
+def _second(ctx, first: Fit, singles, train, hold, n_tests):
+    """Step 4: the pair, or None."""
+    lead = first.causes[0]
+    held = {lead.name: first.params[0][lead.nonlinear]} if lead.nonlinear else {}
+    best = None
+    N = int((ctx.valid & train[:, None]).sum())
+    for c in singles:
+        if c == lead or (c.nonlinear and c.nonlinear == lead.nonlinear and c.kind == lead.kind
+                         and c.target == lead.target):
+            continue
+        f = fit_causes(ctx, (lead, c), train, intervals=False, fixed=held)
+        ne = _n_eff(ctx, f.prediction, train)
+        p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
+        b = bic(f.sse_w, N, ne, f.n_params)
+        if p < ALPHA / n_tests and implausible(f) is None and (best is None or b < best[0]):
+            best = (b, f)
+    if best is None:
+        return None
+    pair = fit_causes(ctx, best[1].causes, train, intervals=False)
+    if _weighted_rms(ctx, pair.prediction, hold) >= _weighted_rms(ctx, first.prediction, hold):
+        return None
+    return pair
+
+
+def _effect_failures(fit: Fit) -> list:
+    out = []
+    for c, p, ci in zip(fit.causes, fit.params, fit.ci95):
+        if c.kind == "sensor_drift":
+            if all(lo <= 0.0 <= hi for lo, hi in ci.values()):
+                out.append(f"{c.name}: the intervals of offset and drift both hold 0")
+            continue
+        for k, (lo, hi) in ci.items():
+            if k in NO_EFFECT and lo <= NO_EFFECT[k] <= hi:
+                out.append(f"{c.name}: the 95 % interval of {k} [{lo:.3g}, {hi:.3g}] holds "
+                           f"'no effect' ({NO_EFFECT[k]:g})")
+            if k in BOUNDS:
+                a, b = BOUNDS[k]
+                if lo <= a * 1.01 or hi >= b * 0.99:
+                    out.append(f"{c.name}: the interval of {k} reaches an end of the range "
+                               f"the fit can return [{a:g}, {b:g}]")
+            if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= p[k] <= PLAUSIBLE[k][1]:
+                out.append(f"{c.name}: {k} = {p[k]:.3g} is implausible (outside "
+                           f"{PLAUSIBLE[k]}): check the record's units")
+            if not np.isfinite(lo) or not np.isfinite(hi):
+                out.append(f"{c.name}: no finite interval for {k}")
+    return out
+
+
+def verdict_of(named: Fit | None, gain_pct: float, within: dict, mlr_better: bool):
+    """(verdict, failed checks) by the rules of the module docstring."""
+    if named is not None:
+        failed = _effect_failures(named)
+        if not gain_pct > 0:
+            failed.append(f"the extended model does not beat the nominal on the hold-out "
+                          f"(gain {gain_pct:.1f} %)")
+        return ("established" if not failed else "unconfirmed"), tuple(failed)
+    ok = all(p >= 0.05 / max(len(within), 1) for p in within.values() if np.isfinite(p))
+    return ("explained" if ok and not mlr_better else "not_explained"), ()
+
+
+def _text(rec: GeoRecord, verdict: str, named: Fit | None, failed, gain: float) -> str:
+    if verdict == "established":
+        parts = []
+        for c, p, ci in zip(named.causes, named.params, named.ci95):
+            ps = ", ".join(f"{k} = {v:.3g} [{ci[k][0]:.3g}, {ci[k][1]:.3g}]" for k, v in p.items())
+            parts.append(f"{c.name} ({ps})")
+        return (f"The model is wrong here: {' and '.join(parts)}; the extended model cuts the "
+                f"hold-out error by {gain:.0f} %.")
+    if verdict == "unconfirmed":
+        return (f"Best candidate {' + '.join(c.name for c in named.causes)}, not established: "
+                f"{'; '.join(failed)}.")
+    if verdict == "explained":
+        return ("The nominal model explains the record to within its noise on every channel; "
+                "no cause is named.")
+    return ("The nominal model does not explain the record (its residual is not within the "
+            "noise) and no cause of the vocabulary passes the naming test: the difference "
+            "is not attributed.")
+
+
+def diagnose_geometry(model: GeoModel, rec: GeoRecord, holdout_start_s: float | None = None,
+                      progress=None) -> GeoDiagnosis:
+    """Diagnose ``rec`` against ``model`` (module docstring)."""
+    import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS first, so that the limit reaches it)
+    from threadpoolctl import threadpool_limits
+    # one BLAS thread: hundreds of small eigenproblems (k ~ 100-300) ran 40x slower with
+    # threads contending on a busy 2-core machine
+    with threadpool_limits(limits=1):
+        return _diagnose(model, rec, holdout_start_s, progress)
+
+
+def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
+    progress = progress or (lambda s: None)
+    ctx = make_context(model, rec)
+    h0 = default_holdout(rec.time_s, ctx.shape) if holdout_start_s is None else holdout_start_s
+    train, hold = rec.time_s < h0, rec.time_s >= h0
+    base = fit_causes(ctx, (), train)
+    singles = candidate_causes(ctx)
+    n_tests = max(len(singles), 1)
+    progress(f"fitting {len(singles)} single causes")
+    ranking, first = _screen(ctx, singles, train, hold, base, n_tests)
+    named = None
+    if first is not None:
+        progress("screening a second cause")
+        pair = _second(ctx, first, singles, train, hold, n_tests)
+        named = fit_causes(ctx, (pair or first).causes, train, intervals=False)
+        if model.regrow is not None and any(c.nonlinear for c in named.causes):
+            progress("regrowing the reduced basis at the named setting")
+            s = named.setting
+            regrown = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
+            ctx = make_context(regrown, rec)
+            base = fit_causes(ctx, (), train)
+        named = fit_causes(ctx, named.causes, train)
+    ext = named if named is not None else base
+    wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
+    gain = 100.0 * (1.0 - we / wb) if wb > 0 else 0.0
+    mlr = mlr_holdout(rec, train)
+    table, mlr_better = {}, False
+    for j, c in enumerate(rec.channels):
+        ok = hold & ctx.valid[:, j]
+
+        def rms(p):
+            return float(np.sqrt(np.mean((rec.data[ok, j] - p[ok]) ** 2))) if ok.any() else np.nan
+        m = rms(mlr[c.column]) if c.column in mlr else None
+        b = rms(base.prediction[:, j])
+        table[c.column] = (b, rms(ext.prediction[:, j]), m)
+        if m is not None and m < 0.95 * b:
+            mlr_better = True
+    within = {}
+    for j, c in enumerate(rec.channels):
+        ok = ctx.valid[:, j]
+        within[c.column] = ljung_box_p_neff(rec.data[ok, j] - base.prediction[ok, j])
+    verdict, failed = verdict_of(named, gain, within, mlr_better)
+    return GeoDiagnosis(rec.name, verdict, named, base, float(h0), table, float(gain), failed,
+                        ranking, within, _text(rec, verdict, named, failed, gain),
+                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)})

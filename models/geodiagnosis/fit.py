@@ -1,0 +1,367 @@
+"""Causes on the model's own parts and their fits with 95 % intervals (issue 33 item 2).
+
+A cause changes one named part of the user's model:
+
+================== ================== ========================== =================
+kind               target             parameters                 "no effect"
+================== ================== ========================== =================
+convection_scale   convection group   ``h_scale`` (× nominal h)  1
+source_scale       heat source        ``scale`` (× its input)    1
+missing_source     candidate group    ``power_W`` (at the largest 0
+                                      input of the record)
+contact_conductance interface volume  ``conductivity_scale``     1
+                   group (thin ring)  (× its conductivity)
+ambient_lag        (all surfaces)     ``lag_h``                  0
+sensor_drift       a channel          ``offset_<u>``,            0, 0
+                                      ``drift_<u>_per_h``
+warm_start         (whole body)       ``initial_offset_K``       0
+================== ================== ========================== =================
+
+A contact resistance at an interface is modelled as the scaled conductivity of the
+thin volume group named for it (e.g. a bearing ring between shaft and housing): a
+conductance per area across a ring of thickness t is λ/t, so a scale κ on λ is a scale
+κ on the interface's conductance in series with the ring's bulk.
+
+A missing source follows the record's speed (n / n_max) where the record has one, else
+the sum of the recorded source inputs (1 at its largest), and is spread evenly over
+its candidate surface group.
+
+Every fit is joint over all channels, displacements and thermometers, each weighted by
+1/σ_c (its measurement noise, from second differences, floored by its quantum/√12):
+a cause must explain the temperatures it predicts as well as the displacements.
+Nonlinear parameters (h_scale, conductivity_scale, lag_h) are profiled (bounded search
+on a log scale, the linear ones by least squares at each trial); the 95 % intervals come
+from the Gauss–Newton sandwich A (Σ_c w_c⁴ J_cᵀ Σ_c J_c) A with each channel's noise
+covariance Σ_c fitted through the fit as a slow AR(1) or a random walk plus white noise
+(:func:`arfem.models.diagnosis.stats.slow_noise_sandwich`), the wider of the two.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.stats import norm
+
+from arfem.models.diagnosis.stats import slow_noise_sandwich
+from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
+
+__all__ = ["Cause", "Fit", "FitContext", "make_context", "candidate_causes", "fit_causes",
+           "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
+
+#: Ranges the fit can return (natural units); an interval reaching one is not a cause.
+BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
+          "lag_h": (0.02, 48.0)}
+#: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
+PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
+
+
+def implausible(fit) -> str | None:
+    """Why a fitted cause is not physical (a magnitude outside :data:`PLAUSIBLE`, e.g. a
+    missing "source" of negative power, which is a sink; a nonlinear parameter at an
+    end of :data:`BOUNDS`), or None."""
+    for c, p in zip(fit.causes, fit.params):
+        for k, v in p.items():
+            if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= v <= PLAUSIBLE[k][1]:
+                return f"{c.name}: {k} = {v:.3g} outside {PLAUSIBLE[k]}"
+            if k in BOUNDS and not BOUNDS[k][0] * 1.01 < v < BOUNDS[k][1] * 0.99:
+                return f"{c.name}: {k} = {v:.3g} at an end of {BOUNDS[k]}"
+    return None
+NO_EFFECT = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 0.0, "scale": 1.0,
+             "power_W": 0.0, "initial_offset_K": 0.0}
+_Z95 = float(norm.ppf(0.975))
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One cause: its ``kind`` (module table) and ``target`` (a group, source or
+    channel name; empty for whole-body causes)."""
+
+    kind: str
+    target: str = ""
+
+    @property
+    def name(self) -> str:
+        return f"{self.kind}:{self.target}" if self.target else self.kind
+
+    @property
+    def nonlinear(self) -> str | None:
+        return {"convection_scale": "h_scale", "contact_conductance": "conductivity_scale",
+                "ambient_lag": "lag_h"}.get(self.kind)
+
+
+@dataclass(frozen=True)
+class FitContext:
+    """A record and its model, with the weights and the nominal responses cached."""
+
+    model: GeoModel
+    rec: GeoRecord
+    weights: np.ndarray           # (C,) 1/σ_c
+    sigma: np.ndarray             # (C,) σ_c [µm or K]
+    shape: np.ndarray             # (N,) the missing source's schedule
+    valid: np.ndarray             # (N, C) finite readings
+    cache: dict = field(default_factory=dict, repr=False)
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted set of causes (``()`` for the nominal model).
+
+    Attributes
+    ----------
+    causes : tuple of Cause
+    params : tuple of dict, per cause {name: value}
+    ci95 : tuple of dict, per cause {name: (low, high)}
+    prediction : ndarray (N, C), record units
+    sse_w : float, weighted SSE on the fit rows [-]
+    n_params : int
+    setting : Setting
+    """
+
+    causes: tuple
+    params: tuple
+    ci95: tuple
+    prediction: np.ndarray = field(repr=False)
+    sse_w: float
+    n_params: int
+    setting: Setting
+
+
+def _sigma(y: np.ndarray, unit: str) -> float:
+    from arfem.models.diagnosis.stats import noise_sigma, resolution
+    y = y[np.isfinite(y)]
+    s = noise_sigma(y) if y.size > 20 else float("nan")
+    q = resolution(y) / np.sqrt(12.0) if y.size > 20 else 0.0
+    floor = 1e-3 if unit == "um" else 1e-3
+    return float(max(s if np.isfinite(s) else floor, q, floor))
+
+
+def make_context(model: GeoModel, rec: GeoRecord) -> FitContext:
+    """Weights, the missing-source schedule and the validity mask of a record."""
+    sig = np.array([_sigma(rec.data[:, j], c.unit) for j, c in enumerate(rec.channels)])
+    if np.any(rec.speed_rpm > 0):
+        shape = rec.speed_rpm / float(np.max(rec.speed_rpm))
+    else:
+        tot = rec.power_W.sum(axis=1)
+        shape = tot / float(np.max(tot)) if np.max(tot) > 0 else np.zeros_like(tot)
+    return FitContext(model, rec, 1.0 / sig, sig, shape, np.isfinite(rec.data))
+
+
+def candidate_causes(ctx: FitContext) -> list:
+    """Every single cause the record and the model can tell (module table)."""
+    m, rec = ctx.model, ctx.rec
+    out = [Cause("convection_scale", g) for g in m.convections]
+    out += [Cause("source_scale", s) for j, s in enumerate(m.sources)
+            if np.any(rec.power_W[:, j] != 0)]
+    if np.any(ctx.shape > 0):
+        out += [Cause("missing_source", g) for g in m.candidates]
+    out += [Cause("contact_conductance", g) for g in m.interfaces]
+    if rec.ambient_C is not None and np.ptp(rec.ambient_C) > 0:
+        out.append(Cause("ambient_lag"))
+    out += [Cause("sensor_drift", c.column) for c in rec.channels]
+    out.append(Cause("warm_start"))
+    return out
+
+
+def _setting(ctx: FitContext, causes, nl: dict) -> Setting:
+    m = ctx.model
+    hs = np.ones(len(m.convections))
+    kap = np.ones(len(m.interfaces))
+    lag = 0.0
+    for c in causes:
+        v = nl.get(c.name)
+        if c.kind == "convection_scale":
+            hs[m.convections.index(c.target)] = v
+        elif c.kind == "contact_conductance":
+            kap[m.interfaces.index(c.target)] = v
+        elif c.kind == "ambient_lag":
+            lag = v * 3600.0
+    return Setting(hs, kap, lag)
+
+
+def _responses(ctx: FitContext, s: Setting, warm: bool):
+    key = (tuple(np.round(s.h_scale, 10)), tuple(np.round(s.kappa, 10)), round(s.lag_s, 6),
+           warm)
+    if key not in ctx.cache:
+        if len(ctx.cache) > 400:
+            ctx.cache.clear()
+        ctx.cache[key] = responses(ctx.model, ctx.rec, s, ctx.shape, warm)
+    return ctx.cache[key]
+
+
+def _design(ctx: FitContext, causes, s: Setting):
+    """(base prediction (N, C), linear columns [(N, C)], their (cause index, name))."""
+    m, rec = ctx.model, ctx.rec
+    warm = any(c.kind == "warm_start" for c in causes)
+    R, Rw = _responses(ctx, s, warm)
+    S, G = len(m.sources), len(m.convections)
+    base = R[:, :, :S + G].sum(axis=2)
+    cols, names = [], []
+    th = rec.time_s / 3600.0
+    for i, c in enumerate(causes):
+        if c.kind == "source_scale":
+            cols.append(R[:, :, m.sources.index(c.target)])
+            names.append((i, "scale"))
+        elif c.kind == "missing_source":
+            cols.append(R[:, :, S + G + m.candidates.index(c.target)])
+            names.append((i, "power_W"))
+        elif c.kind == "warm_start":
+            cols.append(Rw)
+            names.append((i, "initial_offset_K"))
+        elif c.kind == "sensor_drift":
+            j = [ch.column for ch in rec.channels].index(c.target)
+            u = rec.channels[j].unit
+            on = np.zeros((th.size, len(rec.channels)))
+            on[:, j] = 1.0
+            cols.append(on.copy())
+            names.append((i, f"offset_{u}"))
+            on[:, j] = th
+            cols.append(on)
+            names.append((i, f"drift_{u}_per_h"))
+    return base, cols, names
+
+
+def _lstsq(ctx: FitContext, base, cols, rows):
+    """Weighted least squares of the linear columns on ``rows``: (β, weighted SSE)."""
+    y = ctx.rec.data
+    ok = ctx.valid & rows[:, None]
+    w = np.broadcast_to(ctx.weights[None, :], y.shape)[ok]
+    r0 = (y - base)[ok] * w
+    if not cols:
+        return np.zeros(0), float(r0 @ r0)
+    X = np.column_stack([c[ok] for c in cols]) * w[:, None]
+    beta, *_ = np.linalg.lstsq(X, r0, rcond=None)
+    r = r0 - X @ beta
+    return beta, float(r @ r)
+
+
+def _profile(ctx: FitContext, causes, nl: dict, rows):
+    s = _setting(ctx, causes, nl)
+    base, cols, names = _design(ctx, causes, s)
+    beta, sse = _lstsq(ctx, base, cols, rows)
+    return sse, beta, base, cols, names, s
+
+
+def _search_1d(f, lo: float, hi: float) -> float:
+    """Minimise f on [lo, hi] on a log scale: a 7-point grid, then a bounded Brent
+    search between the best point's neighbours."""
+    g = np.linspace(np.log(lo), np.log(hi), 7)
+    v = [f(np.exp(x)) for x in g]
+    k = int(np.argmin(v))
+    a, b = g[max(k - 1, 0)], g[min(k + 1, 6)]
+    res = minimize_scalar(lambda x: f(np.exp(x)), bounds=(a, b), method="bounded",
+                          options={"xatol": 1e-5})
+    return float(np.exp(res.x)) if res.fun <= v[k] else float(np.exp(g[k]))
+
+
+def _optimise(ctx: FitContext, causes, rows, fixed: dict) -> dict:
+    nl = {c.name: NO_EFFECT[c.nonlinear] if c.nonlinear != "lag_h" else 1.0
+          for c in causes if c.nonlinear}
+    nl.update({k: v for k, v in fixed.items() if k in nl})
+    nls = [c for c in causes if c.nonlinear and c.name not in fixed]
+    for _ in range(2 if len(nls) > 1 else 1):
+        for c in nls:
+            lo, hi = BOUNDS[c.nonlinear]
+
+            def f(v, c=c):
+                return _profile(ctx, causes, {**nl, c.name: v}, rows)[0]
+            nl[c.name] = _search_1d(f, lo, hi)
+    return nl
+
+
+def _channel_meat(J: np.ndarray, r: np.ndarray) -> list:
+    """J_cᵀ Σ_c J_c under the fitted AR(1) and random-walk noise models (each a (p, p)
+    array), from :func:`slow_noise_sandwich` (its covariance is A Jᵀ Σ J A with
+    A = (JᵀJ)⁺, so JᵀΣJ = (JᵀJ) cov (JᵀJ) on the columns J reaches)."""
+    JtJ = J.T @ J
+    out = slow_noise_sandwich(J, r)
+    if not out:
+        s2 = float(r @ r) / max(r.size - J.shape[1], 1)
+        return [s2 * JtJ]
+    return [JtJ @ out["ar1"][0] @ JtJ, JtJ @ out["walk"][0] @ JtJ]
+
+
+def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarray:
+    """Standard errors of (nonlinear params in cause order, then β)."""
+    nls = [c for c in causes if c.nonlinear]
+    J_all = []
+    for c in nls:
+        v = nl[c.name]
+        dv = 1e-3 * v
+        lo, hi = BOUNDS[c.nonlinear]
+        up, dn = min(v + dv, hi * 1.001), max(v - dv, lo * 0.999)
+        pu = _predict(ctx, causes, {**nl, c.name: up}, beta)
+        pd = _predict(ctx, causes, {**nl, c.name: dn}, beta)
+        J_all.append((pu - pd) / (up - dn))
+    s = _setting(ctx, causes, nl)
+    _, cols, _ = _design(ctx, causes, s)
+    J_all += cols
+    if not J_all:
+        return np.zeros(0)
+    p = len(J_all)
+    bread = np.zeros((p, p))
+    meats = None
+    y = ctx.rec.data
+    for ch in range(y.shape[1]):
+        ok = ctx.valid[:, ch] & rows
+        if ok.sum() < 10:
+            continue
+        Jc = np.column_stack([J[ok, ch] for J in J_all])
+        rc = (y[ok, ch] - pred[ok, ch])
+        w2 = ctx.weights[ch] ** 2
+        bread += w2 * Jc.T @ Jc
+        if not np.any(Jc):
+            continue
+        m = _channel_meat(Jc, rc)
+        m = [w2 * w2 * x for x in m] if len(m) == 2 else [w2 * w2 * m[0]] * 2
+        meats = m if meats is None else [a + b for a, b in zip(meats, m)]
+    A = np.linalg.pinv(bread)
+    if meats is None:
+        return np.full(p, np.inf)
+    var = np.max([np.diag(A @ M @ A) for M in meats], axis=0)
+    return np.sqrt(np.maximum(var, 0.0))
+
+
+def _predict(ctx: FitContext, causes, nl: dict, beta) -> np.ndarray:
+    s = _setting(ctx, causes, nl)
+    base, cols, _ = _design(ctx, causes, s)
+    out = base.copy()
+    for b, c in zip(beta, cols):
+        out = out + b * c
+    return out
+
+
+def fit_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True,
+               fixed: dict | None = None) -> Fit:
+    """Fit ``causes`` (a tuple, ``()`` for the nominal model) on ``rows`` (N,) bool.
+
+    Returns the :class:`Fit`: parameters in the module table's names (a source scale
+    as the factor itself, 1 + β), their 95 % intervals (if ``intervals``), the
+    prediction on every row and the weighted SSE on ``rows``. ``fixed`` {cause name:
+    value} holds nonlinear parameters (a screening shortcut; not for intervals).
+    """
+    causes = tuple(causes)
+    nl = _optimise(ctx, causes, rows, fixed or {}) if any(c.nonlinear for c in causes) else {}
+    sse, beta, base, cols, names, s = _profile(ctx, causes, nl, rows)
+    pred = base.copy()
+    for b, c in zip(beta, cols):
+        pred = pred + b * c
+    se = _intervals(ctx, causes, nl, beta, rows, pred) if intervals else None
+    params = [dict() for _ in causes]
+    ci = [dict() for _ in causes]
+    k = 0
+    for i, c in enumerate(causes):
+        if c.nonlinear:
+            v = nl[c.name]
+            params[i][c.nonlinear] = v
+            if se is not None:
+                ci[i][c.nonlinear] = (v - _Z95 * se[k], v + _Z95 * se[k])
+            k += 1
+    for j, (i, nm) in enumerate(names):
+        v = float(beta[j]) + (1.0 if nm == "scale" else 0.0)
+        params[i][nm] = v
+        if se is not None:
+            e = se[k + j]
+            ci[i][nm] = (v - _Z95 * e, v + _Z95 * e)
+    return Fit(causes, tuple(params), tuple(ci), pred, sse,
+               len(beta) + sum(1 for c in causes if c.nonlinear), s)

@@ -1,0 +1,160 @@
+"""The human side of a mesh diagnosis (issue 33): ``report.md`` / ``report.html``
+opening with the verdict, the geometry with the named group highlighted, each channel
+measured against the nominal and the extended model, ``series.csv``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from arfem.io import atomic_write_text, write_csv
+from arfem.scenarios.html_report import write_html_report
+
+__all__ = ["write_report", "highlighted_picture", "named_groups"]
+
+
+def named_groups(d, model) -> tuple[list, list]:
+    """(surface groups, volume groups) the named causes sit on."""
+    surf, vol = [], []
+    if d.named is None:
+        return surf, vol
+    for c in d.named.causes:
+        if c.kind == "convection_scale":
+            surf.append(model.convection_groups[model.convections.index(c.target)])
+        elif c.kind == "missing_source":
+            surf.append(c.target)
+        elif c.kind == "contact_conductance":
+            vol.append(c.target)
+    return surf, vol
+
+
+def _source_groups(sc, names) -> list:
+    return [s.spec.group for s in sc.sources if s.spec.name in names]
+
+
+def highlighted_picture(gm, path: Path, surfaces=(), volumes=(), sensors=(),
+                        title: str = "") -> None:
+    """Off-screen PNG of the mesh: every surface translucent grey, the ``surfaces``
+    groups and the boundary of the ``volumes`` groups opaque red, the sensors marked."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    mesh = gm.mesh
+    nv = int(mesh.t.max()) + 1
+    P = mesh.p[:, :nv].T
+    pl = pv.Plotter(off_screen=True, window_size=(1100, 850))
+
+    def poly(fac):
+        f = mesh.facets[:, np.asarray(fac, int)].T
+        return pv.PolyData(P, np.column_stack([np.full(len(f), f.shape[1]), f]).ravel())
+    bnd = mesh.boundary_facets()
+    pl.add_mesh(poly(bnd), color="lightgrey", opacity=0.25)
+    for g in surfaces:
+        pl.add_mesh(poly(gm.surfaces[g]), color="red", label=f"{g} (surface)")
+    for g in volumes:
+        el = gm.volumes[g]
+        f = mesh.t2f[:, el].ravel()
+        u, n = np.unique(f, return_counts=True)
+        pl.add_mesh(poly(u[n == 1]), color="red", label=f"{g} (volume)")
+    for s in sensors:
+        if s.point is not None:
+            pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()), center=s.point),
+                        color="black")
+            pl.add_point_labels(np.array([s.point]), [s.name], font_size=12, point_size=1,
+                                shape_opacity=0.6)
+    if surfaces or volumes:
+        pl.add_legend(bcolor="white", face="rectangle", loc="upper left")
+    pl.add_axes()
+    if title:
+        pl.add_title(title, font_size=10)
+    c = 0.5 * (P.min(axis=0) + P.max(axis=0))
+    r = float(np.linalg.norm(np.ptp(P, axis=0)))
+    pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
+    pl.screenshot(str(path))
+    pl.close()
+
+
+def _channels_figure(rec, d, path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    n = len(rec.channels)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 1.9 * n + 0.6), sharex=True, squeeze=False)
+    th = rec.time_s / 3600.0
+    ext = d.named.prediction if d.named is not None else None
+    for j, (ax, c) in enumerate(zip(axes[:, 0], rec.channels)):
+        ax.plot(th, rec.data[:, j], ".", ms=1.5, color="0.5", label="measured")
+        ax.plot(th, d.baseline.prediction[:, j], color="C0", lw=1.0, label="nominal model")
+        if ext is not None:
+            ax.plot(th, ext[:, j], color="C3", lw=1.0,
+                    label="extended" if d.verdict == "established" else
+                    "best candidate (not established)")
+        ax.axvline(d.holdout_start_s / 3600.0, color="k", ls=":", lw=0.8)
+        ax.set_ylabel(f"{c.column}\n[{'µm' if c.unit == 'um' else 'K above ref.'}]",
+                      fontsize=8)
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time [h]  (dotted: hold-out starts; fits use the data before it)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _markdown(s: dict, d, sc) -> str:
+    lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "",
+             f"**Verdict: {s['verdict']}.** {s['verdict_text']}", "",
+             "![the geometry, the named group in red](geometry_named.png)", ""]
+    if d.named is not None:
+        lines += ["| cause | parameter | value | 95 % interval |", "|---|---|---|---|"]
+        for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
+            for k, v in p.items():
+                lo, hi = ci.get(k, (float("nan"), float("nan")))
+                lines.append(f"| {c.name} | {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
+        lines.append("")
+    lines += [f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
+              f"before it); weighted gain {d.gain_pct:.1f} %.", "",
+              "| channel | nominal RMSE | extended RMSE | MLR (eq. 18) RMSE |",
+              "|---|---|---|---|"]
+    for k, (b, e, m) in d.holdout_rmse.items():
+        ms = "-" if m is None else f"{m:.3g}"
+        lines.append(f"| {k} | {b:.3g} | {e:.3g} | {ms} |")
+    rm = s["reduced_model"]
+    lines += ["", "![channels](channels.png)", "",
+              f"Reduced model: {rm['basis_vectors']} basis vectors ({rm['krylov_blocks']} Krylov "
+              "blocks) from one factorisation; its largest error against the full solve on "
+              "this record's nominal inputs: " + ", ".join(
+                  f"{n} {v:.2g}" for n, v in rm["max_abs_error"].items())
+              + " (µm / K).", "", "## Candidates (best BIC first)", "",
+              "| cause | BIC | F-test p | hold-out weighted RMS |", "|---|---|---|---|"]
+    for r in s["ranking"][:12]:
+        lines.append(f"| {r['cause']} | {r['bic']:.1f} | {r['f_test_p']:.2g} | "
+                     f"{r['holdout_weighted_rms']:.3g} |")
+    lines += ["", "Rules: a cause is named when its F test passes p < 0.01/candidates on the "
+              "fit window and it scores best on the hold-out among the three best by BIC; it "
+              "is established when its 95 % interval excludes no effect, reaches no end of "
+              "the fitted range and the hold-out gain is positive "
+              "(arfem.models.geodiagnosis.engine).", ""]
+    return "\n".join(lines)
+
+
+def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
+    """report.md, report.html, geometry_named.png, channels.png and series.csv."""
+    surf, vol = named_groups(d, model)
+    if d.named is not None:
+        surf += _source_groups(sc, [c.target for c in d.named.causes
+                                    if c.kind == "source_scale"])
+    title = (f"{s['verdict']}: " + (" + ".join(c.name for c in d.named.causes)
+                                    if d.named is not None else "no cause named"))
+    highlighted_picture(plant.body.gmesh, stage / "geometry_named.png", surf, vol,
+                        [x for x in sc.sensors if x.point is not None], title)
+    _channels_figure(rec, d, stage / "channels.png")
+    cols = {"time_s": rec.time_s}
+    for j, c in enumerate(rec.channels):
+        off = sc.reference_C if c.kind == "temperature" else 0.0      # θ back to °C
+        cols[f"{c.column}"] = rec.data[:, j] + off
+        cols[f"{c.column}_nominal"] = d.baseline.prediction[:, j] + off
+        if d.named is not None:
+            cols[f"{c.column}_extended"] = d.named.prediction[:, j] + off
+    write_csv(stage / "series.csv", cols)
+    atomic_write_text(stage / "report.md", _markdown(s, d, sc))
+    write_html_report(stage, title=f"Diagnosis of {s['dataset']}")

@@ -1,0 +1,139 @@
+"""Measured-data contract v3 (issue 33): a record checked against a mesh scenario.
+
+The record's TOML names the scenario (``[model] scenario = "spindle_unit.toml"``,
+relative to the TOML) and its CSV's columns map onto that scenario's sensors and
+sources:
+
+* ``time_s`` (required, strictly increasing);
+* ``d_<sensor>_um``: a displacement sensor of the scenario [µm] (at least one);
+* ``T_<sensor>_C``: a temperature sensor of the scenario (a point) [°C];
+* ``P_<source>_W``: a heat source's input per row (its power [W]; for a flux source
+  its flux [W/m²]), or ``speed_rpm``, from which every source without a ``P`` column
+  takes the power its scenario gives at that speed (linear between the scenario's
+  (speed, power) pairs of its cycle phases) and every speed-dependent h its value;
+* ``ambient_C`` (optional): the ambient air, driving every convection group without an
+  ambient of its own.
+
+Bad input is refused in one line (exit 2), before anything is written: a missing
+scenario; a column naming a sensor or source the scenario lacks; a thermometer column
+whose sensor is not a temperature point; displacements whose spread is under 1/100
+of the nominal model's (mm declared as µm); a ``[diagnosis]`` group the mesh lacks.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from arfem.io import read_toml
+from arfem.params import InputError
+from arfem.strict import check_keys
+
+__all__ = ["RecordFiles", "is_mesh_record", "read_record_files", "record_toml_of",
+           "RecordTable", "read_table", "write_record"]
+
+_TOP = ("dataset", "model", "columns", "sensors")
+
+
+@dataclass(frozen=True)
+class RecordFiles:
+    """The two files of a v3 record and the scenario it names."""
+
+    toml: Path
+    csv: Path
+    scenario: Path
+    name: str
+    renames: dict
+
+
+def record_toml_of(path) -> Path:
+    """The record's TOML: ``path`` itself, or the ``.toml`` beside a ``.csv``."""
+    p = Path(path)
+    return p.with_suffix(".toml") if p.suffix == ".csv" else p
+
+
+def is_mesh_record(path) -> bool:
+    """True when the record's TOML has a ``[model]`` table (cheap text test)."""
+    p = record_toml_of(path)
+    if p.suffix != ".toml" or not p.is_file():
+        return False
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return any(line.strip().startswith("[model]") for line in text.splitlines())
+
+
+def read_record_files(path) -> RecordFiles:
+    """Check the record's TOML (contract v3) and find its CSV and scenario."""
+    p = record_toml_of(path)
+    doc = read_toml(p)
+    check_keys(doc, _TOP, f"{p}")
+    ds = doc.get("dataset", {})
+    if not isinstance(ds, dict):
+        raise InputError("must be a table", f"{p}: dataset")
+    check_keys(ds, ("name", "csv", "initial"), f"{p}: dataset")
+    m = doc.get("model")
+    if not isinstance(m, dict) or "scenario" not in m:
+        raise InputError("needs scenario = \"<mesh scenario>.toml\"", f"{p}: model")
+    check_keys(m, ("scenario",), f"{p}: model")
+    if not isinstance(m["scenario"], str):
+        raise InputError("must be a file name", f"{p}: model.scenario")
+    sc = p.parent / m["scenario"]
+    if not sc.is_file():
+        raise InputError(f"scenario file {sc} not found", f"{p}: model.scenario")
+    csv = p.parent / str(ds.get("csv", p.with_suffix(".csv").name))
+    if not csv.is_file():
+        raise InputError(f"CSV file {csv} not found", f"{p}: dataset.csv")
+    ren = doc.get("columns", {})
+    if not isinstance(ren, dict) or not all(isinstance(v, str) for v in ren.values()):
+        raise InputError("must map contract names to the CSV's column names", f"{p}: columns")
+    return RecordFiles(p, csv, sc, str(ds.get("name", p.stem)), dict(ren))
+
+
+@dataclass(frozen=True)
+class RecordTable:
+    """The CSV's columns by contract name (renames applied), as float arrays."""
+
+    columns: dict
+    source: str
+
+
+def read_table(files: RecordFiles) -> RecordTable:
+    """Read the CSV (header row, ``.`` decimals, empty cells missing)."""
+    import pandas as pd
+    try:
+        df = pd.read_csv(files.csv)
+    except Exception as exc:                       # noqa: BLE001 (any parser error)
+        raise InputError(f"cannot read the CSV ({exc.__class__.__name__}: "
+                         f"{str(exc).splitlines()[0]})", str(files.csv)) from None
+    back = {v: k for k, v in files.renames.items()}
+    cols = {}
+    for c in df.columns:
+        name = back.get(str(c), str(c))
+        v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
+        bad = np.flatnonzero(np.isnan(v) & df[c].notna().to_numpy())
+        if bad.size:
+            raise InputError(f"row {bad[0] + 2}: {df[c].iloc[bad[0]]!r} is not a number",
+                             f"{files.csv}: column {c}")
+        cols[name] = v
+    if "time_s" not in cols:
+        raise InputError("missing column time_s", str(files.csv))
+    t = cols["time_s"]
+    if np.any(~np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
+        i = int(np.flatnonzero(~np.isfinite(t) | np.concatenate([[t[0] < 0], np.diff(t) <= 0]))[0])
+        raise InputError(f"row {i + 2}: time_s must be finite, >= 0 and strictly increasing",
+                         f"{files.csv}: column time_s")
+    return RecordTable(cols, str(files.csv))
+
+
+def write_record(toml_path, scenario: str, columns: dict, name: str | None = None) -> Path:
+    """Write a v3 record: ``<stem>.csv`` with ``columns`` ({contract name: values}) and
+    ``<stem>.toml`` naming ``scenario`` (relative to the TOML). Returns the TOML's path."""
+    from arfem.io import atomic_write_text, write_csv
+    p = Path(toml_path)
+    write_csv(p.with_suffix(".csv"), {k: np.asarray(v, float) for k, v in columns.items()})
+    atomic_write_text(p, f'[dataset]\nname = "{name or p.stem}"\ncsv = "{p.with_suffix(".csv").name}"'
+                         f'\n\n[model]\nscenario = "{scenario}"\n')
+    return p
