@@ -275,10 +275,10 @@ def _channel_meat(J: np.ndarray, r: np.ndarray) -> list:
     A = (JᵀJ)⁺, so JᵀΣJ = (JᵀJ) cov (JᵀJ) on the columns J reaches)."""
     JtJ = J.T @ J
     out = slow_noise_sandwich(J, r)
-    if not out:
+    if out is None:
         s2 = float(r @ r) / max(r.size - J.shape[1], 1)
         return [s2 * JtJ]
-    return [JtJ @ out["ar1"][0] @ JtJ, JtJ @ out["walk"][0] @ JtJ]
+    return [JtJ @ out.ar1_cov @ JtJ, JtJ @ out.walk_cov @ JtJ]
 
 
 def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarray:
