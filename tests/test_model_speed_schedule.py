@@ -21,7 +21,8 @@ What is verified and why:
 * ``arfem run`` writes the schedule (schema-valid, ``speed_rpm`` an input),
   ``arfem compensate`` replays it per axis within 1 % of each axis's RMS (the CSV's 10
   digits), and the JSON-lines live loop answers exactly (==) what the replay computes,
-  flagging an out-of-table speed on that cycle only.
+  flagging an out-of-table speed on that cycle only; the replay counts such cycles
+  (`cycles_outside_schedule`, and says so in summary.md).
 """
 from __future__ import annotations
 
@@ -108,6 +109,19 @@ def test_run_compensate_and_live_with_a_schedule(tmp_path):
     s = json.loads((tmp_path / "free" / "summary.json").read_text("utf-8"))
     for a in s["axes"]:
         assert a["rms_after_um"] < 0.01 * a["rms_before_um"], a
+    assert s["cycles_outside_schedule"] == 0           # the record's speeds are the table's
+    orig = (tmp_path / "run" / "record.csv").read_text()
+    text = orig.splitlines()
+    j = text[0].split(",").index("speed_rpm")
+    text[30] = ",".join("1500" if i == j else c for i, c in enumerate(text[30].split(",")))
+    (tmp_path / "run" / "record.csv").write_text("\n".join(text) + "\n")
+    assert main(["compensate", str(tmp_path / "run" / "model.json"), str(rec), "--out",
+                 str(tmp_path / "beyond")]) == 0
+    s = json.loads((tmp_path / "beyond" / "summary.json").read_text("utf-8"))
+    assert s["cycles_outside_schedule"] == 1 and s["cycles_held"] == 0
+    assert "beyond the model's speed schedule" in (tmp_path / "beyond" /
+                                                   "summary.md").read_text("utf-8")
+    (tmp_path / "run" / "record.csv").write_text(orig)      # back to the run's record
     # live over JSON lines: the same offsets as a replay of the same readings, and an
     # out-of-table speed on one line flagged on that answer only
     model = read_model(tmp_path / "run" / "model.json")
