@@ -946,7 +946,8 @@ class Compensator:
             notes.append(f"outside_schedule:{mdl.schedule.input}")
         if u_run is not None and advance:        # keep the state on time
             self.x = A @ self.x + B @ u_run
-            self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)
+            if mdl.Q or self.P.any():             # P = 0 stays 0 with Q = 0 (exactly):
+                self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)  # skip n³ work
         if not usable:
             if mdl.outputs:
                 return self._axes_cycle(None, alarms)
@@ -1017,7 +1018,8 @@ class Compensator:
         if k <= EXACT_STEPS:
             for _ in range(k):
                 self.x = A @ self.x + bu
-                self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)
+                if mdl.Q or self.P.any():
+                    self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)
             return
         Ak, G, S = propagate(A, k)
         self.x = Ak @ self.x + G @ bu
