@@ -43,6 +43,10 @@ __all__ = ["ExportedModel", "export_state_space", "record_columns", "write_expor
 #: files :func:`write_exports` adds to a geometry run's output
 WRITES = ("model.json", "record.toml", "record.csv")
 _AXES = {(1.0, 0.0, 0.0): "X", (0.0, 1.0, 0.0): "Y", (0.0, 0.0, 1.0): "Z"}
+#: most speeds a schedule tabulates: a cycle with more distinct speeds (a duty CSV) gets
+#: this many evenly over its range instead (each costs a dense n × n A in model.json:
+#: 3.5 MB for the spindle unit's 400 states)
+MAX_SCHEDULE_SPEEDS = 8
 
 
 @dataclass(frozen=True)
@@ -113,13 +117,19 @@ def _base_modes(gmodel, kinds, mode_cache):
 
 def _speed_rows(gmodel) -> tuple:
     """(speeds, h rows): each distinct speed of the cycle [1/min], ascending, and the
-    history's h of each group at it [W/(m²K)] (the very floats the run solved with)."""
+    history's h of each group at it [W/(m²K)] (the very floats the run solved with);
+    more than :data:`MAX_SCHEDULE_SPEEDS` distinct speeds: that many evenly over their
+    range, h = a + b·n^m there."""
     hist, cyc = gmodel.history, gmodel.scenario.cycle
     mid = 0.5 * (hist.edges_s[1:] + hist.edges_s[:-1])
     cseg = np.clip(np.searchsorted(cyc.edges_s, mid) - 1, 0, len(cyc.speed_rpm) - 1)
     sp = np.asarray(cyc.speed_rpm, float)[cseg]
     speeds = np.unique(sp)
-    return speeds, [hist.h_W_m2K[int(np.flatnonzero(sp == v)[0])] for v in speeds]
+    if speeds.size <= MAX_SCHEDULE_SPEEDS:
+        return speeds, [hist.h_W_m2K[int(np.flatnonzero(sp == v)[0])] for v in speeds]
+    grid = np.linspace(speeds[0], speeds[-1], MAX_SCHEDULE_SPEEDS)
+    return grid, [np.array([c.h[0] + c.h[1] * np.power(np.maximum(v, 0.0), c.h[2])
+                            for c in gmodel.scenario.convections]) for v in grid]
 
 
 def _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version):
@@ -140,7 +150,7 @@ def _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version):
     _, inputs, _ = _input_map(gmodel, h_ref)
     desc = (f"reduced modal model of {sc.name} ({base.n_modes} modes), exact zero-order-"
             f"hold discretisation at {sc.output_interval_s:g} s, scheduled over the speed "
-            "(h depends on it): A, B, D at " + ", ".join(f"{v:g}" for v in speeds)
+            "(h depends on it): A, B, D at " + ", ".join(f"{v:.6g}" for v in speeds)
             + " rpm in the modes of h = " + ", ".join(f"{h:.4g}" for h in base.h_W_m2K)
             + " W/m²K (Galerkin), linear in the speed between them, the end's outside; "
             "its own A, B, D at the time-weighted mean h: "
