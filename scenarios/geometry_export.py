@@ -17,7 +17,8 @@
 With speed-independent h the model is linear time-invariant and reproduces the
 reduced solve to round-off (tested). Where a convection group's h depends on the speed
 (h = a + b·n^m) the model is speed-scheduled (issue 32): it reads ``speed_rpm`` too, and
-its A, B, D are tabulated at each distinct speed of the cycle in the coordinates of the
+its A, B, D are tabulated at each distinct speed of the cycle (at most
+:data:`MAX_SCHEDULE_SPEEDS`, else that many evenly over its range) in the coordinates of the
 reduced solve's one basis (the modes of the first phase's h, the others' by Galerkin
 projection, :func:`arfem.models.modal_export.speed_scheduled_state_space`), so at the
 cycle's speeds it is the reduced solve again (tested); a speed between two tabulated
