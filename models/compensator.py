@@ -39,7 +39,7 @@ import numpy as np
 from arfem.params import InputError
 
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
-           "StateSpaceModel", "AxisCycle", "Cycle", "Compensator", "ar1_model",
+           "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
            "fit_speed_ar1_model", "fit_mlr_model",
            "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind"]
 
@@ -67,6 +67,69 @@ class OutputSpec:
     name: str
     unit: str
     axis: str
+
+
+@dataclass(frozen=True)
+class SpeedSchedule:
+    """A version-2 model's matrices tabulated over the spindle speed (issue 32).
+
+    Where a convection coefficient depends on the speed (h = a + b·n^m) the model is
+    not time-invariant: ``A``, ``B`` and ``D`` are tabulated at the speeds ``speeds_rpm``
+    in ONE set of state coordinates (C is shared), so the state carries over when the
+    speed changes. Between two tabulated speeds each matrix is interpolated linearly in
+    the speed (each tabulated A of an exported modal model is symmetric with eigenvalues
+    in (0, 1), and so is every convex combination of them: the interpolated model
+    settles); outside them the end's matrices are used and :meth:`at` says so (the
+    compensator's ``outside_schedule:<input>`` alarm): never extrapolated.
+
+    Attributes
+    ----------
+    input : str
+        The model input whose raw reading selects the matrices (``speed_rpm`` [1/min]).
+    speeds_rpm : ndarray, shape (K,)
+        Tabulated speeds [1/min], strictly increasing, K >= 2.
+    A : ndarray, shape (K, n, n)
+    B : ndarray, shape (K, n, m)
+    D : ndarray, shape (K, p, m)
+        The matrices at each speed (as the model's A, B, D).
+    """
+
+    input: str
+    speeds_rpm: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    D: np.ndarray
+
+    def at(self, speed_rpm: float) -> tuple:
+        """(A, B, D, outside): the matrices at ``speed_rpm``, linear in the speed
+        between two tabulated speeds, the end's beyond them (``outside`` True).
+
+        Examples
+        --------
+        >>> s = SpeedSchedule("speed_rpm", np.array([0.0, 1000.0]),
+        ...                   np.array([[[0.5]], [[0.9]]]), np.ones((2, 1, 1)),
+        ...                   np.zeros((2, 1, 1)))
+        >>> float(s.at(250.0)[0][0, 0]), s.at(250.0)[3]
+        (0.6, False)
+        >>> float(s.at(2000.0)[0][0, 0]), s.at(2000.0)[3]
+        (0.9, True)
+        """
+        x = self.speeds_rpm
+        v = float(speed_rpm)
+        if v <= x[0] or v >= x[-1]:
+            i = 0 if v <= x[0] else x.size - 1
+            return self.A[i], self.B[i], self.D[i], bool(v < x[0] or v > x[-1])
+        i = int(np.searchsorted(x, v, side="right")) - 1
+        w = (v - x[i]) / (x[i + 1] - x[i])
+        if w == 0.0:                                 # a tabulated speed: its own matrices
+            return self.A[i], self.B[i], self.D[i], False
+        return tuple((1.0 - w) * M[i] + w * M[i + 1] for M in (self.A, self.B, self.D)) + (
+            False,)
+
+    def to_dict(self) -> dict:
+        """The ``speed_schedule`` object of ``model.json``."""
+        return {"input": self.input, "speeds_rpm": [float(v) for v in self.speeds_rpm],
+                "A": self.A.tolist(), "B": self.B.tolist(), "D": self.D.tolist()}
 
 
 @dataclass(frozen=True)
@@ -105,6 +168,11 @@ class StateSpaceModel:
     outputs : tuple of OutputSpec
         Version 2: the p outputs, in the order of the rows of C and D, each with its
         axis; empty for version 1 (the one output ``growth_um``).
+    schedule : SpeedSchedule, optional
+        Version 2: A, B, D tabulated over the speed (:class:`SpeedSchedule`); the
+        compensator then steps the matrices of each interval's speed, and A, B, D above
+        are the nominal ones (for the plausible ranges; the export's: at the
+        time-weighted mean h). None: time-invariant.
     """
 
     kind: str
@@ -124,6 +192,15 @@ class StateSpaceModel:
     input_offsets: dict = field(default_factory=dict)
     fit_window_s: tuple | None = None
     outputs: tuple = ()
+    schedule: SpeedSchedule | None = None
+
+    def matrices(self, speed_rpm: float | None = None) -> tuple:
+        """(A, B, D, outside): the matrices of an interval at ``speed_rpm`` (the raw
+        reading of the schedule's input); the model's own where it has no schedule or
+        no speed is known."""
+        if self.schedule is None or speed_rpm is None:
+            return self.A, self.B, self.D, False
+        return self.schedule.at(speed_rpm)
 
     @property
     def n_states(self) -> int:
@@ -193,7 +270,9 @@ class StateSpaceModel:
                 "description": self.description, "arfem_version": self.arfem_version,
                 **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {}),
                 **({"fit_window_s": [float(v) for v in self.fit_window_s]}
-                   if self.fit_window_s is not None else {})}
+                   if self.fit_window_s is not None else {}),
+                **({"speed_schedule": self.schedule.to_dict()}
+                   if self.schedule is not None else {})}
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
@@ -232,6 +311,8 @@ MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B
                   "D", "d0_um", "x0")
 MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
                   "arfem_version")
+#: version 2 may also hold ``speed_schedule`` (:class:`SpeedSchedule`)
+MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule",)
 #: version 2: ``outputs`` (several, each with its axis) in place of ``output``
 MODEL_REQUIRED_V2 = tuple("outputs" if k == "output" else k for k in MODEL_REQUIRED)
 #: input names of the measured-data contract (the schema's ``pattern``)
@@ -330,7 +411,7 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
     k = lambda name: f"{where}: {name}"              # noqa: E731 - the key's label
     version = d.get("model_version")
     if version not in MODEL_VERSIONS or isinstance(version, bool):
-        extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL)
+        extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL_V2)
                        - {"outputs"}, key=str)
         if extra:
             raise InputError(f"unknown key {extra[0]!r}", where)
@@ -342,9 +423,12 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
         raise InputError(f"is {version}, whose layout has {'output' if version == 1 else 'outputs'}"
                          f", not {other} (version 1: one output, growth_um; version 2: one "
                          "output per axis)", k("model_version"))
-    extra = sorted(set(d) - set(required) - set(MODEL_OPTIONAL), key=str)
+    optional = MODEL_OPTIONAL if version == 1 else MODEL_OPTIONAL_V2
+    extra = sorted(set(d) - set(required) - set(optional), key=str)
     if extra:
-        raise InputError(f"unknown key {extra[0]!r}", where)
+        raise InputError(f"unknown key {extra[0]!r}" + (
+            " (a speed schedule is read in version 2 only)" if extra[0] == "speed_schedule"
+            else ""), where)
     for name in required:
         if name not in d:
             raise InputError("missing", k(name))
@@ -373,10 +457,13 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
     fw = _read_window(d, k)
     description = _string(d.get("description", ""), k("description"))
     arfem_version = _string(d.get("arfem_version", ""), k("arfem_version"))
+    schedule = (_read_schedule(d["speed_schedule"], k, names, A.shape, B.shape, D.shape,
+                               maps) if "speed_schedule" in d else None)
     return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
                inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
                d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
-               input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs)
+               input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
+               schedule=schedule)
 
 
 def _read_inputs(ins, k, pattern: str) -> list:
@@ -451,6 +538,39 @@ def _read_matrices(d, k, m: int, p: int) -> tuple:
         raise InputError("has an eigenvalue on or outside the unit circle: the model "
                          "would not settle", k("A"))
     return A, B, C, D, x0
+
+
+def _read_schedule(v, k, names, a_shape, b_shape, d_shape, maps) -> SpeedSchedule:
+    """``speed_schedule`` (version 2): ``input`` an input the model reads (unmapped),
+    ``speeds_rpm`` strictly increasing (at least two, >= 0), and per speed an A, B, D of
+    the model's shapes, finite, each A settling."""
+    key = k("speed_schedule")
+    _object(v, key, ("input", "speeds_rpm", "A", "B", "D"),
+            ("input", "speeds_rpm", "A", "B", "D"))
+    name = _string(v["input"], f"{key}.input")
+    if name not in names:
+        raise InputError(f"{name!r} is not an input the model reads", f"{key}.input")
+    if name in maps:
+        raise InputError(f"{name!r} has an input map; a schedule reads the raw speed",
+                         f"{key}.input")
+    x = _numbers(v["speeds_rpm"], f"{key}.speeds_rpm", 1, 2)
+    if np.any(np.diff(x) <= 0) or x[0] < 0:
+        raise InputError("must be speeds >= 0 [1/min], strictly increasing, got "
+                         + _short_repr(x.tolist()), f"{key}.speeds_rpm")
+    mats = []
+    for nm, shape in (("A", a_shape), ("B", b_shape), ("D", d_shape)):
+        at = f"{key}.{nm}"
+        lst = v[nm]
+        if not isinstance(lst, list) or len(lst) != x.size:
+            raise InputError(f"must be a list of {x.size} matrices, one per speed, got "
+                             + _short_repr(lst), at)
+        mats.append(np.array([_shaped(_numbers(m, f"{at}[{i}]", 2), shape, f"{at}[{i}]")
+                              for i, m in enumerate(lst)]).reshape((x.size,) + shape))
+    for i, Ai in enumerate(mats[0]):
+        if Ai.size and np.max(np.abs(np.linalg.eigvals(Ai))) >= 1.0:
+            raise InputError("has an eigenvalue on or outside the unit circle: the model "
+                             "would not settle", f"{key}.A[{i}]")
+    return SpeedSchedule(name, x, *mats)
 
 
 def _read_maps(d, k, names) -> dict:
@@ -533,7 +653,7 @@ def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "p
 
 #: alarm kinds that do not hold the offset (the part before ``:``); every other alarm is
 #: a fault the operator must see
-INFORMATIVE = frozenset({"clamped", "rate_limited", "extrapolated"})
+INFORMATIVE = frozenset({"clamped", "rate_limited", "extrapolated", "outside_schedule"})
 
 #: no spindle's thermal growth reaches 1 mm: an input whose steady-state share of the
 #: predicted growth would exceed this is not a reading [µm]
@@ -586,7 +706,8 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     state never sees it; issue 28). Defaults, by the input's name and unit:
 
     * a heat input (``q_*`` or a unit in W): >= 0;
-    * a speed (``*_rpm``): 0 to twice the fastest speed of its map (or 100 000 /min);
+    * a speed (``*_rpm``): 0 to twice the fastest speed of its map or speed schedule (or
+      100 000 /min);
     * an ambient temperature (``ambient*``): -10 to 50 °C; any other ``*_C``: -10 to
       150 °C;
     * every input whose share of the steady-state growth, C (I − A)⁻¹ B + D per unit,
@@ -616,6 +737,8 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
             lo = 0.0
         if nm.endswith("_rpm"):
             m = model.input_maps.get(nm)
+            if m is None and model.schedule is not None and model.schedule.input == nm:
+                m = (model.schedule.speeds_rpm,)        # its tabulated speeds
             lo, hi = 0.0, (2.0 * max(float(m[0][-1]), 1.0) if m is not None else 1e5)
         elif nm.endswith("_C") or unit in ("°C", "degC", "C"):
             lo, hi = (-10.0, 50.0) if "ambient" in nm else (-10.0, 150.0)
@@ -747,6 +870,7 @@ class Compensator:
     offset_um: float = field(init=False, default=0.0)
     offsets_um: np.ndarray = field(init=False)
     _u_last: np.ndarray | None = field(init=False, default=None)
+    _speed_last: float | None = field(init=False, default=None)
 
     def __post_init__(self):
         p = len(self.model.outputs)
@@ -806,6 +930,8 @@ class Compensator:
         usable = not alarms and advance
         notes = []
         if usable:
+            if mdl.schedule is not None:             # the raw speed selects the matrices
+                self._speed_last = float(u[self._schedule_column()])
             for j, spec in enumerate(mdl.inputs):
                 u[j], extrapolated = mdl.mapped(spec.name, u[j])
                 if extrapolated:
@@ -813,16 +939,22 @@ class Compensator:
         if usable:
             self._u_last = u
         u_run = u if usable else self._u_last
+        # a speed schedule: the matrices of this interval's speed (the last good one
+        # where the inputs are not usable), the end's beyond the tabulated speeds
+        A, B, D, outside = mdl.matrices(self._speed_last)
+        if outside and usable:
+            notes.append(f"outside_schedule:{mdl.schedule.input}")
         if u_run is not None and advance:        # keep the state on time
-            self.x = mdl.A @ self.x + mdl.B @ u_run
-            self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
+            self.x = A @ self.x + B @ u_run
+            if mdl.Q or self.P.any():             # P = 0 stays 0 with Q = 0 (exactly):
+                self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)  # skip n³ work
         if not usable:
             if mdl.outputs:
                 return self._axes_cycle(None, alarms)
             return Cycle(self.offset_um, float("nan"), tuple(alarms), True)
         alarms += notes                           # informative: the offset is not held
         if mdl.outputs:
-            return self._axes_cycle(u, alarms)
+            return self._axes_cycle(u, alarms, D)
         y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
         want = -y
         if abs(want) > self.max_offset_um:
@@ -834,16 +966,21 @@ class Compensator:
         self.offset_um = float(want)
         return Cycle(self.offset_um, y, tuple(alarms), False)
 
-    def _axes_cycle(self, u, alarms: list) -> Cycle:
+    def _schedule_column(self) -> int:
+        """The column of the speed schedule's input among the model's inputs."""
+        return [i.name for i in self.model.inputs].index(self.model.schedule.input)
+
+    def _axes_cycle(self, u, alarms: list, D=None) -> Cycle:
         """A version-2 cycle: each axis's offset from its output, clamped and
         rate-limited by its own limits, counted from what that axis holds; ``u`` None:
-        every axis held."""
+        every axis held. ``D``: the interval's (a speed schedule's), else the model's."""
         mdl = self.model
+        D = mdl.D if D is None else D
         if u is None:
             axes = tuple(AxisCycle(o.axis, o.name, float(self.offsets_um[j]), float("nan"))
                          for j, o in enumerate(mdl.outputs))
             return Cycle(float("nan"), float("nan"), tuple(alarms), True, axes)
-        y = mdl.C @ self.x + mdl.D @ u + mdl.d0_vector()
+        y = mdl.C @ self.x + D @ u + mdl.d0_vector()
         axes = []
         for j, o in enumerate(mdl.outputs):
             lim, step = self.limits(j)
@@ -876,13 +1013,15 @@ class Compensator:
         k = int(k)
         if k <= 0 or self._u_last is None or mdl.n_states == 0:
             return
-        bu = mdl.B @ self._u_last
+        A, B, _, _ = mdl.matrices(self._speed_last)    # the last good speed's
+        bu = B @ self._u_last
         if k <= EXACT_STEPS:
             for _ in range(k):
-                self.x = mdl.A @ self.x + bu
-                self.P = mdl.A @ self.P @ mdl.A.T + mdl.Q * np.eye(mdl.n_states)
+                self.x = A @ self.x + bu
+                if mdl.Q or self.P.any():
+                    self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)
             return
-        Ak, G, S = propagate(mdl.A, k)
+        Ak, G, S = propagate(A, k)
         self.x = Ak @ self.x + G @ bu
         self.P = Ak @ self.P @ Ak.T + mdl.Q * S
 
@@ -892,6 +1031,7 @@ class Compensator:
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
         self._u_last = None
+        self._speed_last = None
 
     def resume(self, offset_um: float) -> None:
         """Count the rate limit from ``offset_um`` [µm], the value the controller holds
@@ -906,9 +1046,12 @@ class Compensator:
 
     def state(self) -> dict:
         """The state to log (a warm start restores it): ``x`` [µm], ``P`` [µm²] and the
-        last good inputs ``u`` (as the matrices take them), JSON-ready."""
+        last good inputs ``u`` (as the matrices take them), and with a speed schedule the
+        last good speed ``speed_rpm`` (its matrices), JSON-ready."""
         return {"x": self.x.tolist(), "P": self.P.tolist(),
-                "u": None if self._u_last is None else self._u_last.tolist()}
+                "u": None if self._u_last is None else self._u_last.tolist(),
+                **({"speed_rpm": self._speed_last} if self.model.schedule is not None
+                   else {})}
 
     def restore(self, state: Mapping) -> None:
         """Set the state from :meth:`state`'s document; :class:`ValueError` if it does not
@@ -922,7 +1065,13 @@ class Compensator:
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))
                 and (u is None or np.all(np.isfinite(u)))):
             raise ValueError("state is not finite")
+        speed = state.get("speed_rpm")
+        if speed is not None and not (isinstance(speed, (int, float))
+                                      and math.isfinite(speed)):
+            raise ValueError("state's speed is not finite")
         self.x, self.P, self._u_last = x, P, u
+        self._speed_last = (None if self.model.schedule is None or speed is None
+                            else float(speed))
 
     def probe(self, measured_growth_um: float) -> float:
         """Kalman update of the state with a measured growth [µm]; returns the gain.

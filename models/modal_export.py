@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from arfem.models.compensator import InputSpec, OutputSpec, StateSpaceModel
+from arfem.models.compensator import InputSpec, OutputSpec, SpeedSchedule, StateSpaceModel
 
-__all__ = ["modal_state_space"]
+__all__ = ["modal_state_space", "galerkin_modes", "speed_scheduled_state_space"]
 
 
 def modal_state_space(mu, Fk, Gk, D_static, *, dtau_s: float, input_map, inputs,
@@ -92,3 +92,99 @@ def modal_state_space(mu, Fk, Gk, D_static, *, dtau_s: float, input_map, inputs,
         d0_um=tuple(0.0 for _ in outputs), description=description,
         arfem_version=arfem_version, input_offsets=dict(input_offsets or {}),
         outputs=tuple(OutputSpec(n, "µm", a) for n, a in outputs))
+
+
+def galerkin_modes(V, A_h) -> tuple:
+    """(μ, Y): the eigenpairs of the Galerkin projection Vᵀ A(h) V, ascending.
+
+    Parameters
+    ----------
+    V : ndarray, shape (ndofs, k)
+        M-orthonormal basis (the modes of another h) [-].
+    A_h : sparse or ndarray, shape (ndofs, ndofs)
+        Conductance operator at the new h [W/K per unit of the M-normalisation].
+
+    Returns
+    -------
+    mu : ndarray (k,), decay rates [1/s]; Y : ndarray (k, k), orthonormal, the new modes
+    are V Y. The same operations as :func:`arfem.fem.thermal3d.projected_modes`, so the
+    same floats.
+    """
+    Ar = V.T @ (A_h @ V)
+    return np.linalg.eigh(0.5 * (Ar + Ar.T))
+
+
+def _discretised(mu, Y, Fr, D_static, T, dtau_s: float, scale: float) -> tuple:
+    """(A, B, D) of one h in the shared coordinates z (see the module's docstring);
+    Y None: the basis's own modes (A diagonal, exactly as :func:`modal_state_space`)."""
+    mu = np.asarray(mu, float)
+    e = np.exp(-mu * dtau_s)
+    gain = -np.expm1(-mu * dtau_s) / mu
+    T = np.asarray(T, float)
+    if Y is None:
+        A = np.diag(e)
+        B = (gain[:, None] * Fr) @ T
+    else:
+        A = (Y * e) @ Y.T
+        B = (Y @ (gain[:, None] * (Y.T @ Fr))) @ T
+    return A, B, scale * np.asarray(D_static, float) @ T
+
+
+def speed_scheduled_state_space(speeds_rpm, tables, nominal, Fr, Gr, *, dtau_s: float,
+                                inputs, outputs, speed_input: str = "speed_rpm",
+                                output_scale: float = 1e6, input_offsets=None,
+                                kind: str = "fem_modal_speed", description: str = "",
+                                arfem_version: str = "") -> StateSpaceModel:
+    """A version-2 model whose A, B, D are tabulated over the spindle speed.
+
+    Parameters
+    ----------
+    speeds_rpm : array_like, shape (K,)
+        The tabulated speeds [1/min], strictly increasing.
+    tables : sequence of (mu, Y, D_static, input_map), one per speed
+        mu (k,) decay rates [1/s] and Y (k, k) the Galerkin eigenvectors in the shared
+        basis (:func:`galerkin_modes`; Y None for the basis's own h), D_static (r,
+        p_body) the static correction [output unit per input unit] and input_map
+        (p_body, m) at that speed's h.
+    nominal : (mu, Y, D_static, input_map)
+        The same at the h the model's own A, B, D are given for (the plausible ranges'
+        model, e.g. the time-weighted mean h).
+    Fr : array_like, shape (k, p_body)
+        Vᵀ F: the basis's loads per unit body input.
+    Gr : array_like, shape (k, r)
+        Vᵀ G: the outputs per unit amplitude of the basis.
+    dtau_s, inputs, outputs, output_scale, input_offsets
+        As :func:`modal_state_space`; ``inputs`` includes ``speed_input``, whose
+        column of every input_map is zero (the speed acts through the matrices).
+
+    Returns
+    -------
+    StateSpaceModel
+        With :class:`SpeedSchedule` ``schedule``; x0 = 0.
+
+    Examples
+    --------
+    One mode whose rate doubles from 0 to 1000 rpm; a speed between gets the matrices
+    interpolated linearly in the speed.
+
+    >>> one = lambda mu: ([mu], None, [[0.0]], [[1.0, 0.0]])
+    >>> m = speed_scheduled_state_space([0.0, 1000.0], [one(1e-3), one(2e-3)], one(1e-3),
+    ...         [[1e-3]], [[2.0]], dtau_s=60.0, inputs=[("P_a_W", "W"),
+    ...         ("speed_rpm", "1/min")], outputs=[("d_tcp_z_um", "Z")], output_scale=1.0)
+    >>> [round(float(a[0, 0]), 6) for a in m.schedule.A]
+    [0.941765, 0.88692]
+    >>> round(float(m.matrices(500.0)[0][0, 0]), 6)
+    0.914342
+    """
+    Fr = np.asarray(Fr, float)
+    dt = float(dtau_s)
+    mats = [_discretised(mu, Y, Fr, Ds, T, dt, output_scale) for mu, Y, Ds, T in tables]
+    A0, B0, D0 = _discretised(*nominal[:2], Fr, *nominal[2:], dt, output_scale)
+    schedule = SpeedSchedule(speed_input, np.asarray(speeds_rpm, float),
+                             *(np.array([m[i] for m in mats]) for i in range(3)))
+    return StateSpaceModel(
+        kind=kind, dtau_s=dt, A=A0, B=B0, C=output_scale * np.asarray(Gr, float).T, D=D0,
+        inputs=tuple(InputSpec(n, u) for n, u in inputs), x0=np.zeros(Fr.shape[0]),
+        d0_um=tuple(0.0 for _ in outputs), description=description,
+        arfem_version=arfem_version, input_offsets=dict(input_offsets or {}),
+        outputs=tuple(OutputSpec(n, "µm", a) for n, a in outputs), schedule=schedule)

@@ -14,10 +14,17 @@
   source's input, each displacement sensor ``d_<sensor>_um``), for
   ``arfem compensate model.json record.toml`` to replay.
 
-The model is linear time-invariant, the FEM is not where h depends on the speed
-(h = a + b·n^m): the model takes each convection group's h at its time-weighted mean
-over the cycle (stated in the model's ``description`` and in ``summary.json``); with
-speed-independent h it reproduces the reduced solve to round-off (tested).
+With speed-independent h the model is linear time-invariant and reproduces the
+reduced solve to round-off (tested). Where a convection group's h depends on the speed
+(h = a + b·n^m) the model is speed-scheduled (issue 32): it reads ``speed_rpm`` too, and
+its A, B, D are tabulated at each distinct speed of the cycle (at most
+:data:`MAX_SCHEDULE_SPEEDS`, else that many evenly over its range) in the coordinates of the
+reduced solve's one basis (the modes of the first phase's h, the others' by Galerkin
+projection, :func:`arfem.models.modal_export.speed_scheduled_state_space`), so at the
+cycle's speeds it is the reduced solve again (tested); a speed between two tabulated
+ones gets the matrices interpolated linearly in the speed, one outside them the end's
+(the compensator's ``outside_schedule:speed_rpm`` alarm). Its own A, B, D are those at
+each group's time-weighted mean h (the plausible ranges' model).
 """
 from __future__ import annotations
 
@@ -27,7 +34,8 @@ import numpy as np
 
 from arfem.io import atomic_write_text, write_csv
 from arfem.models.compensator import StateSpaceModel
-from arfem.models.modal_export import modal_state_space
+from arfem.models.modal_export import (galerkin_modes, modal_state_space,
+                                       speed_scheduled_state_space)
 from arfem.scenarios.model_file import write_model
 
 __all__ = ["ExportedModel", "export_state_space", "record_columns", "write_exports",
@@ -36,6 +44,10 @@ __all__ = ["ExportedModel", "export_state_space", "record_columns", "write_expor
 #: files :func:`write_exports` adds to a geometry run's output
 WRITES = ("model.json", "record.toml", "record.csv")
 _AXES = {(1.0, 0.0, 0.0): "X", (0.0, 1.0, 0.0): "Y", (0.0, 0.0, 1.0): "Z"}
+#: most speeds a schedule tabulates: a cycle with more distinct speeds (a duty CSV) gets
+#: this many evenly over its range instead (each costs a dense n × n A in model.json:
+#: 3.5 MB for the spindle unit's 400 states)
+MAX_SCHEDULE_SPEEDS = 8
 
 
 @dataclass(frozen=True)
@@ -46,7 +58,8 @@ class ExportedModel:
     ----------
     model : StateSpaceModel or None
     h_W_m2K : tuple
-        The convection coefficient of each group the model is linearised at [W/(m²K)].
+        The convection coefficient of each group at its time-weighted mean [W/(m²K)]:
+        the model's (speed-independent h), or its nominal A, B, D's (a schedule).
     note : str
         Why no model was exported ('' when one was).
     """
@@ -91,13 +104,80 @@ def _input_map(gmodel, h_ref: np.ndarray):
     return T, inputs + [("ambient_C", "°C")], ""
 
 
-def export_state_space(gmodel, arfem_version: str = "") -> ExportedModel:
+def _base_modes(gmodel, kinds, mode_cache):
+    """The reduced solve's basis: the modes it grew (the entry of ``mode_cache`` that
+    was grown, not projected), else grown here as it does, at the first segment's h."""
+    from arfem.fem.thermal3d import body_modes
+    grown = [md for md in (mode_cache or {}).values() if md.n_blocks > 0]
+    if grown:
+        return grown[0]
+    rows = [tuple(float(v) for v in r) for r in gmodel.history.h_W_m2K]
+    h0 = rows[0] if rows else ()
+    others = [np.array(h) for h in dict.fromkeys(rows) if h != h0]
+    return body_modes(gmodel.thermal, np.array(h0), gmodel.G, kinds=kinds,
+                      t_min_s=gmodel.scenario.output_interval_s, other_h=others)
+
+
+def _speed_rows(gmodel) -> tuple:
+    """(speeds, h rows): each distinct speed of the cycle [1/min], ascending, and the
+    history's h of each group at it [W/(m²K)] (the very floats the run solved with);
+    more than :data:`MAX_SCHEDULE_SPEEDS` distinct speeds: that many evenly over their
+    range, h = a + b·n^m there."""
+    hist, cyc = gmodel.history, gmodel.scenario.cycle
+    mid = 0.5 * (hist.edges_s[1:] + hist.edges_s[:-1])
+    cseg = np.clip(np.searchsorted(cyc.edges_s, mid) - 1, 0, len(cyc.speed_rpm) - 1)
+    sp = np.asarray(cyc.speed_rpm, float)[cseg]
+    speeds = np.unique(sp)
+    if speeds.size <= MAX_SCHEDULE_SPEEDS:
+        return speeds, [hist.h_W_m2K[int(np.flatnonzero(sp == v)[0])] for v in speeds]
+    grid = np.linspace(speeds[0], speeds[-1], MAX_SCHEDULE_SPEEDS)
+    return grid, [np.array([c.h[0] + c.h[1] * np.power(np.maximum(v, 0.0), c.h[2])
+                            for c in gmodel.scenario.convections]) for v in grid]
+
+
+def _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version):
+    """The speed-scheduled model (h depends on the speed): A, B, D at each distinct
+    speed of the cycle in the coordinates of the reduced solve's basis."""
+    sc = gmodel.scenario
+    base = _base_modes(gmodel, kinds, mode_cache)
+    V = base.phi
+    speeds, rows = _speed_rows(gmodel)
+
+    def table(h):
+        T, _, _ = _input_map(gmodel, h)
+        T = np.column_stack([T, np.zeros(T.shape[0])])       # speed: through the matrices
+        if tuple(float(v) for v in h) == base.h_W_m2K:       # the basis's own h
+            return base.mu, None, base.D[cols], T
+        mu, Y = galerkin_modes(V, gmodel.thermal.operator(np.asarray(h, float)))
+        return mu, Y, np.zeros((len(cols), T.shape[0])), T
+    _, inputs, _ = _input_map(gmodel, h_ref)
+    desc = (f"reduced modal model of {sc.name} ({base.n_modes} modes), exact zero-order-"
+            f"hold discretisation at {sc.output_interval_s:g} s, scheduled over the speed "
+            "(h depends on it): A, B, D at " + ", ".join(f"{v:.6g}" for v in speeds)
+            + " rpm in the modes of h = " + ", ".join(f"{h:.4g}" for h in base.h_W_m2K)
+            + " W/m²K (Galerkin), linear in the speed between them, the end's outside; "
+            "its own A, B, D at the time-weighted mean h: "
+            + ", ".join(f"{c.spec.group} {h:.4g}" for c, h in zip(sc.convections, h_ref))
+            + " W/m²K")
+    return speed_scheduled_state_space(
+        speeds, [table(h) for h in rows], table(h_ref), base.Fk, base.Gk[:, cols],
+        dtau_s=sc.output_interval_s, inputs=inputs + [("speed_rpm", "1/min")],
+        outputs=[(f"d_{s.name}_um", ax) for s, ax in axes],
+        input_offsets={"ambient_C": sc.reference_C}, description=desc,
+        arfem_version=arfem_version)
+
+
+def export_state_space(gmodel, arfem_version: str = "",
+                       mode_cache: dict | None = None) -> ExportedModel:
     """The scenario's reduced modal model as a version-2 :class:`StateSpaceModel`.
 
     Parameters
     ----------
     gmodel : GeometryModel
         The assembled scenario (:func:`arfem.scenarios.geometry_scenario.build_geometry_model`).
+    mode_cache : dict, optional
+        The run's reduced-solve cache (``{h tuple: BodyModes}``): its grown basis is
+        reused instead of grown again (the same modes, at the cost of none).
 
     Returns
     -------
@@ -121,15 +201,18 @@ def export_state_space(gmodel, arfem_version: str = "") -> ExportedModel:
     # responses compared from the model's interval on: a discrete model at Δτ never samples
     # sooner after a step), so that at the same h the model and the run agree to round-off
     kinds = [int(s.quantity == "displacement") for s in sc.sensors]
-    md = body_modes(gmodel.thermal, h_ref, gmodel.G, kinds=kinds,
-                    t_min_s=sc.output_interval_s)
-    speed_dep = any(c.h[1] != 0.0 for c in sc.convections)
+    if len(_speed_rows(gmodel)[0]) > 1 and any(c.h[1] != 0.0 for c in sc.convections):
+        return ExportedModel(_scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache,
+                                        arfem_version), tuple(float(h) for h in h_ref))
+    key = tuple(float(h) for h in h_ref)
+    md = (mode_cache[key] if mode_cache and key in mode_cache
+          and mode_cache[key].n_blocks > 0
+          else body_modes(gmodel.thermal, h_ref, gmodel.G, kinds=kinds,
+                           t_min_s=sc.output_interval_s))
     desc = (f"reduced modal model of {sc.name} ({md.n_modes} modes), exact zero-order-hold "
-            f"discretisation at {sc.output_interval_s:g} s; convection h at "
-            + ("its time-weighted mean over the cycle (h depends on the speed: the model "
-               "is linearised there)" if speed_dep else "its constant value")
-            + ": " + ", ".join(f"{c.spec.group} {h:.4g}" for c, h in zip(sc.convections,
-                                                                        h_ref))
+            f"discretisation at {sc.output_interval_s:g} s; convection h at its constant "
+            "value: " + ", ".join(f"{c.spec.group} {h:.4g}" for c, h in zip(sc.convections,
+                                                                          h_ref))
             + " W/m²K")
     model = modal_state_space(
         md.mu, md.Fk, md.Gk[:, cols], md.D[cols], dtau_s=sc.output_interval_s, input_map=T,
@@ -158,7 +241,7 @@ def record_columns(run, model: StateSpaceModel) -> dict:
     cols["growth_um"] = ser[z]
     cols["speed_rpm"] = np.asarray(cyc.speed_rpm, float)[cseg]
     cols["ambient_C"] = np.asarray(cyc.ambient_C, float)[cseg]
-    for j, spec in enumerate(model.inputs[:-1]):            # the sources, in order
+    for j, spec in enumerate(model.inputs[:len(sc.sources)]):   # the sources, in order
         cols[spec.name] = hist.u[seg, j]
     for o in model.outputs:
         cols[o.name] = ser[o.name]
@@ -172,11 +255,12 @@ def _record_toml(name: str) -> str:
             f'name = "{name}"\ncsv = "record.csv"\n')
 
 
-def write_exports(run, out_dir, arfem_version: str = "") -> ExportedModel:
+def write_exports(run, out_dir, arfem_version: str = "",
+                  mode_cache: dict | None = None) -> ExportedModel:
     """Write ``model.json``, ``record.toml`` and ``record.csv`` into ``out_dir`` (a
     staging directory); nothing where the scenario has no model (see
-    :class:`ExportedModel`)."""
-    ex = export_state_space(run.model, arfem_version)
+    :class:`ExportedModel`). ``mode_cache``: the run's (:func:`export_state_space`)."""
+    ex = export_state_space(run.model, arfem_version, mode_cache)
     if ex.model is None:
         return ex
     write_model(out_dir / "model.json", ex.model)
@@ -187,8 +271,8 @@ def write_exports(run, out_dir, arfem_version: str = "") -> ExportedModel:
 
 def axes_twin(path, noise_um: float = 0.0, seed: int = 0, progress=None):
     """An :class:`arfem.models.twin.AxesTwin` of the ``[geometry]`` scenario at ``path``:
-    its FEM solved once (with the speed-dependent convection the exported model only
-    approximates), then served interval by interval (``arfem twin --scenario``).
+    its FEM solved once (where h depends on the speed, the exported model is scheduled
+    over it), then served interval by interval (``arfem twin --scenario``).
 
     Returns
     -------

@@ -944,8 +944,10 @@ def _summary_md(s: dict, run: GeometryRun) -> str:
     return "\n".join(lines)
 
 
-def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> None:
-    """sensors.csv, sensors.json, summary.json/.md, geometry.png, sensors.png, fields."""
+def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
+                           mode_cache: dict | None = None) -> None:
+    """sensors.csv, sensors.json, summary.json/.md, geometry.png, sensors.png, fields;
+    ``mode_cache``: the run's reduced-solve modes, reused by the model's export."""
     progress = progress or (lambda s: None)
     sc = run.model.scenario
     ser = run.sensor_series()
@@ -980,7 +982,7 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None) -> No
     progress("model.json")                      # issue 32 item 5: the MIMO model
     from arfem import __version__
     from arfem.scenarios.geometry_export import write_exports
-    write_exports(run, out_dir, __version__)
+    write_exports(run, out_dir, __version__, mode_cache)
 
 
 def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
@@ -991,9 +993,11 @@ def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
     sc = load_geometry_scenario(path)
     prepare_out_dir(out, force, writes=WRITES)
     model = build_geometry_model(sc, progress)
-    run = solve_geometry(model, progress)
+    modes = {}                                  # the reduced solve's, for the export
+    run = solve_geometry(model, progress, mode_cache=modes)
+    modes = {h: md for h, md in modes.items() if md.n_blocks > 0}   # the grown basis
     with staged_out_dir(out, force) as stage:
-        write_geometry_outputs(run, stage, progress)
+        write_geometry_outputs(run, stage, progress, modes)
         progress("report.html")
         write_html_report(stage)
     return run

@@ -64,6 +64,8 @@ class AxesSummary:
     n_scored: int
     cycles_held: int
     axes: tuple
+    #: cycles whose speed lay beyond a speed schedule's table (the end's matrices used)
+    cycles_outside_schedule: int = 0
 
     def to_dict(self) -> dict:
         return {"model_version": 2, **dataclasses.asdict(self),
@@ -157,12 +159,13 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
     comp = Compensator(model, max_offset_um=max_offset_um, max_step_um=max_step_um)
     n, p = t.size, len(model.outputs)
     pred, off = np.full((n, p), np.nan), np.zeros((n, p))
-    held = 0
+    held = outside = 0
     clamped, limited = np.zeros(p, int), np.zeros(p, int)
     first = 1 if t[0] <= 0.0 else 0
     for k in range(first, n):
         cyc = comp.step({nm: col[k] for nm, col in inputs.items()})
         held += cyc.held
+        outside += any(x.startswith("outside_schedule") for x in cyc.alarms)
         for j, a in enumerate(cyc.axes):
             pred[k, j], off[k, j] = a.predicted_um, a.offset_um
             clamped[j] += "clamped" in a.alarms
@@ -178,7 +181,7 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
                                int(clamped[j]), int(limited[j])) for j in range(p))
     summary = AxesSummary(model.kind, model.description, ds.name, model.dtau_s,
                           int(n - first), start, float(t[ok][-1]), basis, int(ok.sum()),
-                          int(held), axes)
+                          int(held), axes, int(outside))
     series = AxesSeries(t, inputs, model.axes, meas, pred, off, resid)
     return AxesReplay(summary, series)
 

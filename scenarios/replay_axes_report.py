@@ -51,7 +51,10 @@ def axes_markdown(res: AxesReplay) -> str:
          f"{m.n_cycles} cycles at Δτ = {m.dtau_s:g} s; scored on "
          f"{m.score_from_s / 3600:.2f}–{m.score_to_s / 3600:.2f} h ({m.score_basis}). "
          + (f"The offsets were held in {m.cycles_held} cycles (an input was not usable)."
-            if m.cycles_held else ""), "",
+            if m.cycles_held else "")
+         + (f" In {m.cycles_outside_schedule} cycles the speed lay beyond the model's "
+            "speed schedule (its end's matrices were used)." if m.cycles_outside_schedule
+            else ""), "",
          "![each axis with and without compensation, inputs below](figure.png)", "",
          "| axis | output | RMS without [µm] | RMS with [µm] | rate [%] | peak to peak "
          "without → with [µm] | largest step [µm] | limits [µm] | clamped | rate-limited |",

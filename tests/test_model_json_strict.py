@@ -62,7 +62,29 @@ def _axes_model() -> dict:
 
 
 AXES = _axes_model()
-SEEDS = [AR1, SPEED, AXES]
+
+
+def _scheduled_model() -> dict:
+    """A version-2 model scheduled over the speed (issue 32): two states in one basis,
+    A, B, D at 0 and 6000 rpm, inputs a power, the ambient and the speed."""
+    import numpy as np
+
+    from arfem.models.modal_export import speed_scheduled_state_space
+    T = [[1.0, 0.0, 0.0], [0.0, 5.0, 0.0]]
+    Y = np.array([[0.8, -0.6], [0.6, 0.8]])
+    m = speed_scheduled_state_space(
+        [0.0, 6000.0], [([1e-3, 4e-3], None, [[0.0, 0.0]] * 2, T),
+                        ([2e-3, 6e-3], Y, [[0.0, 0.0]] * 2, T)],
+        ([1.5e-3, 5e-3], Y.T, [[0.0, 0.0]] * 2, T), [[1e-3, 5e-4], [2e-3, 1e-4]],
+        [[2e-6, 1e-6], [-1e-6, 3e-6]], dtau_s=60.0,
+        inputs=[("P_front_W", "W"), ("ambient_C", "°C"), ("speed_rpm", "1/min")],
+        outputs=[("d_tcp_y_um", "Y"), ("d_tcp_z_um", "Z")],
+        input_offsets={"ambient_C": 20.0})
+    return json.loads(json.dumps(m.to_dict()))
+
+
+SCHED = _scheduled_model()
+SEEDS = [AR1, SPEED, AXES, SCHED]
 
 
 # -- the cases of the issue ----------------------------------------------------------------
@@ -166,6 +188,9 @@ def mutated(draw, malformed_only: bool = True):
         # stability, the order of map points and of the fit window, a whole matrix or
         # input list replaced (its shape against the others)
         maybe = (path[0] in ("A", "input_maps", "fit_window_s")
+                 # a schedule: its speeds' order, its matrices' shapes and stability, the
+                 # input it names are the reader's
+                 or (path[0] == "speed_schedule" and len(path) > 1)
                  or (path[0] in ("B", "C", "D", "inputs", "outputs") and len(path) < 3)
                  or (path[0] == "x0" and len(path) < 2)
                  or (path[0] == "d0_um" and len(path) < 2 and isinstance(seed["d0_um"], list)))
@@ -173,7 +198,8 @@ def mutated(draw, malformed_only: bool = True):
     if kind == "delete":
         required = [p for p in paths if len(p) == 1 and p[0] in SCHEMA["required"]] + \
             [p for p in paths if len(p) == 2 and p[0] == "output"] + \
-            [p for p in paths if len(p) == 3 and p[0] == "inputs"]
+            [p for p in paths if len(p) == 3 and p[0] == "inputs"] + \
+            [p for p in paths if len(p) == 2 and p[0] == "speed_schedule"]
         return _delete(seed, draw(st.sampled_from(required))), "layout"
     if kind == "extra":
         where = draw(st.sampled_from([(), ("noise",), ("output",)]))
@@ -304,6 +330,69 @@ V2_CASES = [
     ("output", {"name": "growth_um", "unit": "µm"}),
     ("inputs", [{"name": "P_front", "unit": "W"}, {"name": "P_rear_W", "unit": "W"}]),
 ]
+
+
+def _sched(**change) -> dict:
+    doc = copy.deepcopy(SCHED)
+    doc["speed_schedule"].update(change)
+    return doc
+
+
+_S = SCHED["speed_schedule"]
+SCHEDULE_CASES = [
+    ("not increasing", _sched(speeds_rpm=[6000.0, 0.0]), "speeds_rpm"),
+    ("equal speeds", _sched(speeds_rpm=[0.0, 0.0]), "speeds_rpm"),
+    ("negative speed", _sched(speeds_rpm=[-1.0, 6000.0]), "speeds_rpm"),
+    ("one speed", _sched(speeds_rpm=[0.0], A=_S["A"][:1], B=_S["B"][:1], D=_S["D"][:1]),
+     "speeds_rpm"),
+    ("A per speed missing", _sched(A=_S["A"][:1]), "speed_schedule.A"),
+    ("B of another shape", _sched(B=[[r + [0.0] for r in b] for b in _S["B"]]),
+     "speed_schedule.B[0]"),
+    ("D of another shape", _sched(D=[d[:1] for d in _S["D"]]), "speed_schedule.D[0]"),
+    ("A not finite (beyond the bound)", _sched(A=[_S["A"][0], [[1e300, 0.0], [0.0, 0.5]]]),
+     "speed_schedule.A[1][0][0]"),
+    ("A that would not settle", _sched(A=[_S["A"][0], [[1.2, 0.0], [0.0, 0.5]]]),
+     "speed_schedule.A[1]"),
+    ("an input the model does not read", _sched(input="feed_rpm"), "speed_schedule.input"),
+    ("a key missing", {**SCHED, "speed_schedule": {k: v for k, v in _S.items()
+                                                   if k != "D"}}, "speed_schedule.D"),
+    ("an unknown key", _sched(h=1), "speed_schedule"),
+    ("in version 1", {**copy.deepcopy(AR1), "speed_schedule": _S}, "speed_schedule"),
+]
+
+
+@pytest.mark.parametrize("what,doc,key", SCHEDULE_CASES, ids=[c[0] for c in SCHEDULE_CASES])
+def test_bad_speed_schedules_are_one_error_naming_the_key(what, doc, key, tmp_path, capsys):
+    """A speed schedule whose speeds do not increase strictly (or are fewer than two, or
+    negative), whose matrices are not one per speed in the model's shapes, finite and
+    settling, that names no input of the model, lacks a key or has an unknown one, or
+    sits in a version-1 model: one InputError naming the key, and ``arfem compensate``
+    exits 2 with one line, writing nothing."""
+    from arfem.scenarios.cli import main
+    with pytest.raises(InputError) as e:
+        StateSpaceModel.from_dict(doc, "m.json")
+    msg = str(e.value)
+    assert "\n" not in msg and key in msg, msg
+    (tmp_path / "model.json").write_text(json.dumps(doc), "utf-8")
+    rec = tmp_path / "r.csv"
+    rec.write_text("time_s,P_front_W,ambient_C,speed_rpm,d_tcp_y_um,d_tcp_z_um\n"
+                   + "".join(f"{60 * i},1.0,20.0,0.0,0.0,0.0\n" for i in range(5)))
+    (tmp_path / "r.toml").write_text('[dataset]\nname = "r"\ncsv = "r.csv"\n')
+    capsys.readouterr()
+    rc = main(["compensate", str(tmp_path / "model.json"), str(tmp_path / "r.toml"),
+               "--out", str(tmp_path / "o")])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2 and len(err) == 1 and "speed_schedule" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_scheduled_model_reads_back_and_the_schema_takes_it():
+    """The speed schedule round-trips exactly and is schema-valid; a model without one
+    writes no ``speed_schedule`` key (version 2 as before)."""
+    m = StateSpaceModel.from_dict(SCHED)
+    assert m.schedule is not None and m.schedule.speeds_rpm.tolist() == [0.0, 6000.0]
+    assert json.loads(json.dumps(m.to_dict())) == SCHED and _schema_accepts(SCHED)
+    assert "speed_schedule" not in AXES and StateSpaceModel.from_dict(AXES).schedule is None
 
 
 @pytest.mark.parametrize("key,value", V2_CASES, ids=[f"{k}={v!r}" for k, v in V2_CASES])

@@ -3,8 +3,9 @@ and ``arfem compensate --live`` with the scenario's model.json (version 2) compe
 it over OPC UA (issue 32 item 5).
 
 The scenario is the small box of tests/test_model_v2_export.py with speed-dependent
-convection (h = 10 + 0.01 n), so the twin (the FEM) and the model (linearised at the
-mean h) differ, as a machine and its model do. Twin and compensator are separate
+convection (h = 10 + 0.01 n): the model is speed-scheduled (model.json's
+``speed_schedule``), so the live compensator reads ``speed_rpm`` from the twin's node
+too, and the twin (the FEM, with noise) and the model differ only by the noise. Twin and compensator are separate
 processes, the twin in lockstep (one interval per request that writes an offset), so
 nothing depends on timing.
 
@@ -17,8 +18,8 @@ What is verified and why:
   record with the same per-axis limits; the twin's error per axis is its true
   displacement + that offset to 1e-12 µm (the same floats added);
 * the per-axis limits hold on the wire (X: 15 µm, 0.3 µm/cycle; the others 50, 1), and
-  the model reduces every axis's RMS error (the linearisation costs 2.2 % of a range at
-  most on this box: tests/test_model_v2_export.py).
+  the model reduces every axis's RMS error (the schedule is the reduced solve to
+  round-off at the box's speeds: tests/test_model_speed_schedule.py).
 """
 from __future__ import annotations
 
