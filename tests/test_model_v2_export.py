@@ -176,6 +176,18 @@ def test_axis_limits_refusals(tmp_path, capsys):
         assert not (tmp_path / "o").exists()
 
 
+def test_axis_limits_refuses_an_axis_given_twice():
+    """Two --axis-limits for one axis are refused (one line), not resolved silently by the
+    last one winning: the limits guard the machine, so an ambiguous one is not guessed."""
+    from types import SimpleNamespace as N
+    from arfem.params import InputError
+    from arfem.scenarios.compensate import axis_limits
+    m = N(outputs=(N(axis="X"), N(axis="Z")))
+    with pytest.raises(InputError, match="axis X is given more than once"):
+        axis_limits(m, ["X=20:0.5", "X=10:1"], 50.0, 1.0)
+    assert axis_limits(m, ["X=20:0.5", "Z=10:1"], 50.0, 1.0) == ((20.0, 10.0), (0.5, 1.0))
+
+
 def test_a_record_without_an_axis_or_with_a_bad_cell_is_one_line(tmp_path, capsys):
     """The replay of a version-2 model refuses a record that lacks an output's column or
     holds a cell that is not a number in one, naming the column (and the CSV's line)."""
