@@ -213,6 +213,17 @@ def _main_axes(args, model, ds, probe) -> int:
 
 
 def main(args) -> int:
+    """``arfem compensate``: the replay or the live loop on one BLAS thread. A version-2
+    model's step is a few 400 x 400 products; with OpenBLAS's threads contending on a
+    busy 2-core machine the spindle unit's replay took 51 s of CPU instead of 10 s
+    (2026-11-25, load ~3), and live and replay then run the same single-thread
+    arithmetic."""
+    from arfem.scenarios.deterministic import blas_threads
+    with blas_threads(1):
+        return _main(args)
+
+
+def _main(args) -> int:
     from arfem.scenarios.dataset import load_dataset
     if args.live is not None:
         if args.record is not None or args.out is not None:
