@@ -117,10 +117,12 @@ def export_state_space(gmodel, arfem_version: str = "") -> ExportedModel:
     if T is None:
         return ExportedModel(None, tuple(h_ref), note)
     cols = [j for j, s in enumerate(sc.sensors) if s.quantity == "displacement"]
-    # the space the run's reduced solve grows (every sensor, the same tolerance), so that
-    # at the same h the model and the run agree to round-off
+    # the space the run's reduced solve grows (every sensor, the same tolerance, the step
+    # responses compared from Δτ on, as the run compares them from its shortest interval
+    # between breakpoints), so that at the same h the model and the run agree to round-off
     kinds = [int(s.quantity == "displacement") for s in sc.sensors]
-    md = body_modes(gmodel.thermal, h_ref, gmodel.G, kinds=kinds)
+    md = body_modes(gmodel.thermal, h_ref, gmodel.G, kinds=kinds,
+                    t_min_s=float(sc.output_interval_s))
     speed_dep = any(c.h[1] != 0.0 for c in sc.convections)
     desc = (f"reduced modal model of {sc.name} ({md.n_modes} modes), exact zero-order-hold "
             f"discretisation at {sc.output_interval_s:g} s; convection h at "
