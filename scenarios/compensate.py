@@ -171,6 +171,7 @@ def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple
     """
     axes = [o.axis for o in model.outputs]
     off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
+    seen = set()
     for item in items or ():
         m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
         if not axes:
@@ -185,6 +186,10 @@ def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple
             vals = (math.nan, math.nan)
         if not all(math.isfinite(v) and v > 0 for v in vals):
             raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
+        if m.group(1) in seen:             # two limits for one axis: which one is meant?
+            raise InputError(f"axis {m.group(1)} is given more than once, got {item!r}",
+                             "--axis-limits")
+        seen.add(m.group(1))
         j = axes.index(m.group(1))
         off[j], step[j] = vals
     return tuple(off), tuple(step)
@@ -208,6 +213,17 @@ def _main_axes(args, model, ds, probe) -> int:
 
 
 def main(args) -> int:
+    """``arfem compensate``: the replay or the live loop on one BLAS thread. A version-2
+    model's step is a few 400 x 400 products; with OpenBLAS's threads contending on a
+    busy 2-core machine the spindle unit's replay took 51 s of CPU instead of 10 s
+    (2026-11-25, load ~3), and live and replay then run the same single-thread
+    arithmetic."""
+    from arfem.scenarios.deterministic import blas_threads
+    with blas_threads(1):
+        return _main(args)
+
+
+def _main(args) -> int:
     from arfem.scenarios.dataset import load_dataset
     if args.live is not None:
         if args.record is not None or args.out is not None:

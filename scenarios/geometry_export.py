@@ -251,7 +251,9 @@ def record_columns(run, model: StateSpaceModel) -> dict:
 def _record_toml(name: str) -> str:
     return (f'# {name} as a measured-data record (docs/measured-data.md), written by '
             'arfem run: replay\n# it with arfem compensate model.json record.toml '
-            '--out DIR\n[dataset]\n'
+            '--out DIR. To diagnose it against the mesh\n# (arfem diagnose), add to a copy of it '
+            '[model] scenario = "<path to the scenario>" (docs/measured-data.md)\n'
+            '[dataset]\n'
             f'name = "{name}"\ncsv = "record.csv"\n')
 
 

@@ -83,6 +83,11 @@ def read_record_files(path) -> RecordFiles:
     sc = p.parent / m["scenario"]
     if not sc.is_file():
         raise InputError(f"scenario file {sc} not found", f"{p}: model.scenario")
+    from arfem.scenarios.geometry_scenario import is_geometry_scenario
+    if not is_geometry_scenario(sc):        # a rod scenario: say so, not "rod: unknown key"
+        raise InputError(f"{sc} has no [geometry] table: a record with [model] is checked "
+                         "against a mesh scenario (a rod record has no [model] table)",
+                         f"{p}: model.scenario")
     csv = p.parent / str(ds.get("csv", p.with_suffix(".csv").name))
     if not csv.is_file():
         raise InputError(f"CSV file {csv} not found", f"{p}: dataset.csv")

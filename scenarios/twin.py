@@ -36,6 +36,7 @@ import logging
 import math
 import signal
 import sys
+from pathlib import Path
 
 from arfem.params import InputError
 from arfem.scenarios.twin_record import AxesTwinCycle, TwinCycle, free_port, write_record
@@ -317,6 +318,8 @@ def _scenario_twin(args):
         if getattr(args, name) != default:
             raise InputError("is for the rod; a --scenario brings its own program and "
                              "interval", flag)
+    if not Path(args.scenario).is_file():     # a typo is not "not a [geometry] scenario"
+        raise InputError(f"{args.scenario}: file not found", "--scenario")
     if not is_geometry_scenario(args.scenario):
         raise InputError("must be a scenario TOML with a [geometry] table", "--scenario")
     import contextlib

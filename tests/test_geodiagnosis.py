@@ -156,6 +156,21 @@ def test_contract_v3_refusals(setup, tmp_path, case, says):
     assert not out.exists()
 
 
+def test_record_naming_a_rod_scenario_is_one_line(tmp_path):
+    """A v3 record whose [model] names a rod scenario is refused naming model.scenario and
+    the missing [geometry] table (the rod scenario's own [rod] table was reported as an
+    unknown key of a mesh scenario), exit 2, --out not created."""
+    shutil.copy(Path(__file__).parents[1] / "scenarios" / "paper_fig2.toml",
+                tmp_path / "rod.toml")
+    toml = write_record(tmp_path / "rec.toml", "rod.toml",
+                        {"time_s": np.arange(3.0), "d_tcp_z_um": np.zeros(3)})
+    out = tmp_path / "out"
+    r = _cli(str(toml), "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert "model.scenario" in r.stderr and "no [geometry] table" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not out.exists(), r.stderr
+
+
 def test_candidate_group_the_mesh_lacks_is_refused(setup, tmp_path):
     """A [diagnosis] group the mesh lacks: one line naming the key, exit 2."""
     sc, spec, plant, model = setup

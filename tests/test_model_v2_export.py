@@ -167,6 +167,22 @@ def test_axis_limits_refusals(tmp_path, capsys):
         assert not (tmp_path / "o").exists()
 
 
+def test_axis_limits_refuses_an_axis_given_twice(tmp_path, capsys):
+    """Two --axis-limits for one axis are refused (one line, exit 2, nothing written), not
+    resolved silently by the last one winning: the limits guard the machine, so an
+    ambiguous one is not guessed."""
+    from arfem.scenarios.cli import main
+    toml = box_scenario(tmp_path, 0.0)
+    assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
+    capsys.readouterr()
+    rc = main(["compensate", str(tmp_path / "run" / "model.json"),
+               str(tmp_path / "run" / "record.toml"), "--out", str(tmp_path / "o"),
+               "--axis-limits", "X=20:0.5", "--axis-limits", "X=10:1"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2 and len(err) == 1 and "axis X is given more than once" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_record_without_an_axis_or_with_a_bad_cell_is_one_line(tmp_path, capsys):
     """The replay of a version-2 model refuses a record that lacks an output's column or
     holds a cell that is not a number in one, naming the column (and the CSV's line)."""

@@ -107,3 +107,17 @@ def test_twin_serves_a_geometry_scenario_per_axis(tmp_path):
         rms = float(np.sqrt(np.mean(rec[f"true_{ax}_um"] ** 2)))
         assert float(np.sqrt(np.mean(err ** 2))) < rms, ax
     assert np.max(np.abs(rec["offset_X_um"])) == 15.0      # X's clamp binds
+
+
+def test_twin_scenario_missing_or_rod_is_one_line(tmp_path, capsys):
+    """A --scenario path that does not exist is named as not found (a typo), and a rod
+    scenario as not a [geometry] one: one line each, exit 2, before any solve."""
+    from arfem.scenarios.cli import main
+    rod = tmp_path / "rod.toml"
+    rod.write_text('[scenario]\nname = "r"\n')
+    for path, says in ((tmp_path / "nosuch.toml", "file not found"),
+                       (rod, "[geometry] table")):
+        capsys.readouterr()
+        rc = main(["twin", "--scenario", str(path), "--port", "0"])
+        err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+        assert rc == 2 and len(err) == 1 and says in err[0], err
