@@ -29,19 +29,31 @@ def axes_figure(res: AxesReplay, path) -> None:
         ax.set_title(f"axis {a.axis} ({a.output}): RMS {a.rms_before_um:.3g} → "
                      f"{a.rms_after_um:.3g} µm", fontsize=9)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
-    drives = [k for k in s.inputs if not k.endswith("_C")]
-    temps = [k for k in s.inputs if k.endswith("_C")]
-    for ax, names, unit in ((axs[p], drives, "input [W or W/m²]"),
-                            (axs[p + 1], temps, "[°C]")):
-        for nm in names:
-            ax.plot(th, s.inputs[nm], lw=1.0, label=nm)
-        ax.set_ylabel(unit)
-        if names:
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
-                      frameon=False)
+    _input_panels(axs[p], axs[p + 1], th, s.inputs)
     axs[-1].set_xlabel("time [h]")
     fig.suptitle(f"{m.dataset}: {m.model_kind}, replayed causally per axis", fontsize=10)
     fig.savefig(path)
+
+
+def _input_panels(ax_drive, ax_temp, th, inputs: dict) -> None:
+    """The powers (or fluxes) on the left axis, the speed [1/min] on its own right-hand
+    axis (thousands of rpm beside tens of W hid the powers), the temperatures below."""
+    drives = [k for k in inputs if not k.endswith("_C") and k != "speed_rpm"]
+    temps = [k for k in inputs if k.endswith("_C")]
+    lines = [ax_drive.plot(th, inputs[nm], lw=1.0, label=nm)[0] for nm in drives]
+    ax_drive.set_ylabel("input [W or W/m²]")
+    if "speed_rpm" in inputs:
+        ax_speed = ax_drive.twinx()
+        lines += ax_speed.plot(th, inputs["speed_rpm"], lw=1.0, color="0.35", ls="--",
+                               label="speed_rpm (right)")
+        ax_speed.set_ylabel("speed [1/min]")
+    for nm in temps:
+        ax_temp.plot(th, inputs[nm], lw=1.0, label=nm)
+    ax_temp.set_ylabel("[°C]")
+    for ax, hs in ((ax_drive, lines), (ax_temp, ax_temp.get_lines())):
+        if hs:
+            ax.legend(handles=list(hs), loc="upper left", bbox_to_anchor=(1.12, 1.0),
+                      fontsize=7, frameon=False)
 
 
 def axes_markdown(res: AxesReplay) -> str:
