@@ -11,8 +11,8 @@
   on an axis, is its own axis named after it);
 * ``record.toml`` + ``record.csv``: the run as a measured-data record (``time_s``,
   ``growth_um`` = the Z sensor's displacement, ``speed_rpm``, ``ambient_C``, each
-  source's input, each displacement sensor ``d_<sensor>_um``), for
-  ``arfem compensate model.json record.toml`` to replay.
+  source's input, each displacement sensor ``d_<sensor>_um``, each thermometer
+  ``T_<sensor>_C``), for ``arfem compensate model.json record.toml`` to replay.
 
 With speed-independent h the model is linear time-invariant and reproduces the
 reduced solve to round-off (tested). Where a convection group's h depends on the speed
@@ -224,7 +224,9 @@ def export_state_space(gmodel, arfem_version: str = "",
 
 def record_columns(run, model: StateSpaceModel) -> dict:
     """The run as a record's columns: each row's inputs over the interval that ends at
-    it (the contract's zero-order hold), and the sensors' displacements [µm]."""
+    it (the contract's zero-order hold), the sensors' displacements [µm] and the
+    thermometers ``T_<sensor>_C`` [°C] (a diagnosis against the mesh reads them as
+    evidence)."""
     sc = run.model.scenario
     hist = run.model.history
     t = run.result.times_s
@@ -245,6 +247,9 @@ def record_columns(run, model: StateSpaceModel) -> dict:
         cols[spec.name] = hist.u[seg, j]
     for o in model.outputs:
         cols[o.name] = ser[o.name]
+    for name, v in ser.items():          # the thermometers: evidence for arfem diagnose
+        if name.startswith("T_"):
+            cols[name] = v
     return cols
 
 

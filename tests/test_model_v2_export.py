@@ -131,6 +131,15 @@ def test_run_writes_model_and_record_and_compensate_replays_each_axis(tmp_path, 
     jsonschema.validate(doc, schema)
     assert doc["model_version"] == 2 and len(doc["C"]) == 3
     rec = tmp_path / "run" / "record.toml"
+    # the record carries the thermometer as the run computed it (evidence for a diagnosis
+    # against the mesh), and compensate below still replays it (extra columns ignored)
+    with open(tmp_path / "run" / "record.csv", newline="") as f:
+        rec_rows = list(csv.DictReader(f))
+    with open(tmp_path / "run" / "sensors.csv", newline="") as f:
+        sen_rows = list(csv.DictReader(f))
+    assert len(rec_rows) == len(sen_rows) and "T_mid_C" in rec_rows[0]
+    assert [float(r["T_mid_C"]) for r in rec_rows] == pytest.approx(
+        [float(r["T_mid_C"]) for r in sen_rows], rel=1e-9, abs=1e-9)
     assert main(["compensate", str(tmp_path / "run" / "model.json"), str(rec), "--out",
                  str(tmp_path / "free")]) == 0
     s = json.loads((tmp_path / "free" / "summary.json").read_text("utf-8"))
