@@ -103,7 +103,10 @@ def _channels_figure(rec, d, path: Path) -> None:
 def _markdown(s: dict, d, sc) -> str:
     lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "",
              f"**Verdict: {s['verdict']}.** {s['verdict_text']}", "",
-             "![the geometry, the named group in red](geometry_named.png)", ""]
+             ("![the geometry, the named group in red](geometry_named.png)"
+              if s["verdict"] == "established" else
+              "![the geometry: no cause established, no group highlighted]"
+              "(geometry_named.png)"), ""]
     if d.named is not None:
         lines += ["| cause | parameter | value | 95 % interval |", "|---|---|---|---|"]
         for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
@@ -139,12 +142,18 @@ def _markdown(s: dict, d, sc) -> str:
 
 def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
     """report.md, report.html, geometry_named.png, channels.png and series.csv."""
-    surf, vol = named_groups(d, model)
-    if d.named is not None:
+    # red only for an established cause: a best candidate that failed a check of
+    # "established" is not painted as if it were named (the verdict never claims more)
+    est = d.verdict == "established" and d.named is not None
+    surf, vol = named_groups(d, model) if est else ([], [])
+    if est:
         surf += _source_groups(sc, [c.target for c in d.named.causes
                                     if c.kind == "source_scale"])
-    title = (f"{s['verdict']}: " + (" + ".join(c.name for c in d.named.causes)
-                                    if d.named is not None else "no cause named"))
+    title = f"{s['verdict']}: " + (
+        " + ".join(c.name for c in d.named.causes) if est
+        else "no cause named" + (f" (best candidate {' + '.join(c.name for c in d.named.causes)}"
+                                 ", not established: not highlighted)"
+                                 if d.named is not None else ""))
     highlighted_picture(plant.body.gmesh, stage / "geometry_named.png", surf, vol,
                         [x for x in sc.sensors if x.point is not None], title)
     _channels_figure(rec, d, stage / "channels.png")
