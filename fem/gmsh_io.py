@@ -20,6 +20,8 @@ bounding box is checked for the other unit's tell-tale size. Every refusal is on
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
 import os
 from dataclasses import dataclass, field, replace
@@ -138,8 +140,10 @@ def read_grouped_mesh(path, unit: str, where: str | None = None) -> GroupedMesh:
     log = logging.getLogger("meshio")
     level = log.level
     log.setLevel(logging.ERROR)
+    chatter = io.StringIO()      # meshio's Gmsh reader prints a bare newline to stdout
     try:
-        m = meshio.read(str(p))
+        with contextlib.redirect_stdout(chatter):
+            m = meshio.read(str(p))
     except Exception as exc:      # meshio raises many kinds (ReadError, KeyError, ...)
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise InputError(f"cannot be read as a mesh ({msg})", where) from None

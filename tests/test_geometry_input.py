@@ -116,6 +116,7 @@ def test_cli_exit_2_one_line_nothing_written(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "nope" in r.stderr
+    assert r.stdout == ""        # meshio's Gmsh reader printed a bare newline before it
     assert not out.exists()
 
 

@@ -78,7 +78,7 @@ def test_default_hands_the_rest_to_workers_after_the_budget(small, monkeypatch):
     rep = run_sweep(sweep, d / "split", progress=False)
     assert rep.n_computed == len(ref)
     if runner.usable_cores() > 1:
-        assert rep.executor.startswith("local, in-process for 1 points, then local, 2 worker")
+        assert rep.executor.startswith("local, in-process for 1 point, then local, 2 worker")
     assert _rows(d / "split") == ref
 
 

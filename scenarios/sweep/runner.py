@@ -307,7 +307,7 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress,
             if not points:
                 rep.executor = "local, in-process (done before workers were worth starting)"
                 return
-            rep.executor = f"local, in-process for {done} points, then {executor.label}"
+            rep.executor = f"local, in-process for {done} point{'' if done == 1 else 's'}, then {executor.label}"
         with executor:
             futs = {executor.submit(point_fn, p.data, f"{sweep.source} point {p.index}"): p
                     for p in points}
