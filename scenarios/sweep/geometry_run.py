@@ -5,15 +5,11 @@ executors (in-process, local workers, Dask) and run log; and what it writes: the
 ``summary.json``, ``README.md``, ``report.html`` and ``sensor_peaks.png``."""
 from __future__ import annotations
 
-import functools
 import json
 import math
-import time
-import uuid
 from pathlib import Path
 
 from arfem.io import atomic_write_text, write_json
-from arfem.params import InputError
 from arfem.scenarios.sweep.geometry import (GeometrySweep, evaluate_geometry_point,
                                             metric_columns)
 from arfem.scenarios.sweep.spec import STORE_VERSION, canonical
@@ -99,69 +95,38 @@ def _order(points) -> list:
     return sorted(points, key=share)
 
 
+def _unique_in_order(todo) -> list:
+    """Each point to compute once (identical inputs: one key), in :func:`_order`."""
+    return _order({p.key: p for p in todo}.values())
+
+
 def run_geometry_sweep(sweep: GeometrySweep, out, *, workers=None, scheduler=None,
                        force: bool = False, progress: bool = True, timeout_s: float = 5.0,
                        worker_wait_s: float = 60.0, point_fn=evaluate_geometry_point,
                        warn=None, limits=None):
     """:func:`arfem.scenarios.sweep.runner.run_sweep` for a mesh sweep: the same store,
     resume, lock, executors and run log; its own record check and outputs."""
-    from arfem.limits import resolve
+    from arfem.scenarios.sweep.runner import note, run_in_store
+    return run_in_store(sweep, out, ready_store=_ready_store, order=_unique_in_order,
+                        write=write_geometry_sweep_outputs, workers=workers,
+                        scheduler=scheduler, force=force, progress=progress,
+                        timeout_s=timeout_s, worker_wait_s=worker_wait_s, point_fn=point_fn,
+                        warn=warn or note, limits=limits)
+
+
+def _ready_store(out: Path, sweep: GeometrySweep, mode: str) -> "GeometryPointStore":
+    """The mesh sweep's point store in ``out``, ready as the rod's is
+    (:func:`arfem.scenarios.sweep.runner._ready_store`): folder made, temporaries removed,
+    manifest written (kept on a resume), the folder adopted as arfem's."""
     from arfem.scenarios.outdir import adopt_outputs
-    from arfem.scenarios.sweep.executors import DaskExecutor, LocalExecutor
-    from arfem.scenarios.sweep.runner import (_DISK_ERRNOS, IN_PROCESS_FIRST_S, MAX_CONNECT_S,
-                                              RunReport, _compute, bad_points_line,
-                                              check_wait, check_workers, n_local_workers, note,
-                                              stored_or_todo)
-    from arfem.scenarios.sweep.store import (STORE_MANIFEST, DirLock, append_run_log,
-                                             open_store)
-    warn = warn or note
-    out = Path(out)
-    mode = open_store(out, sweep, force)
-    timeout_s = check_wait(timeout_s, "--connect-timeout", warn, MAX_CONNECT_S)
-    worker_wait_s = check_wait(worker_wait_s, "--worker-wait", warn)
-    workers = check_workers(workers)
-    executor = (DaskExecutor(scheduler, timeout_s, worker_wait_s).connect()
-                if scheduler is not None else None)
-    t0 = time.perf_counter()
-    run_id = time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:8]
-    try:
-        with DirLock(out):
-            store = GeometryPointStore(out, sweep.sensors)
-            store.dir.mkdir(parents=True, exist_ok=True)
-            store.remove_temporaries()
-            if mode != "resume" or not (out / STORE_MANIFEST).is_file():
-                write_json(out / STORE_MANIFEST, sweep.manifest())
-            adopt_outputs(out, [STORE_MANIFEST])
-            todo, bad = stored_or_todo(sweep, store)
-            if bad:
-                warn(bad_points_line(bad))
-            unique = _order({p.key: p for p in todo}.values())
-            rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
-            if unique:
-                if executor is None:
-                    n = n_local_workers(workers, len(unique), warn)
-                    executor = LocalExecutor(n) if n > 1 else None
-                rep.executor = executor.label if executor else "local, in-process"
-                fn = functools.partial(point_fn, limits=resolve(limits))
-                first_s = IN_PROCESS_FIRST_S if workers is None and scheduler is None else 0.0
-                _compute(sweep, unique, store, executor, fn, rep, run_id, progress, first_s)
-            else:
-                rep.executor = "nothing to compute"
-                if executor is not None:
-                    executor.close()
-            rep.wall_s = time.perf_counter() - t0
-            runs = append_run_log(out, rep)
-            write_geometry_sweep_outputs(sweep, out, store, rep, runs)
-    except OSError as exc:
-        if exc.errno in _DISK_ERRNOS:
-            raise InputError(f"cannot be written ({exc.strerror}); every point stored so far "
-                             "is kept, and the same command resumes once there is room",
-                             str(out)) from None
-        raise
-    finally:
-        if isinstance(executor, DaskExecutor):
-            executor.close()
-    return rep
+    from arfem.scenarios.sweep.store import STORE_MANIFEST
+    store = GeometryPointStore(out, sweep.sensors)
+    store.dir.mkdir(parents=True, exist_ok=True)
+    store.remove_temporaries()
+    if mode != "resume" or not (out / STORE_MANIFEST).is_file():
+        write_json(out / STORE_MANIFEST, sweep.manifest())
+    adopt_outputs(out, [STORE_MANIFEST])
+    return store
 
 
 # -- outputs ------------------------------------------------------------------------------

@@ -143,6 +143,25 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
         What the user allows past the size limits; passed to every point (each worker
         validates its point again). Default: :meth:`Limits.from_environment`.
     """
+    return run_in_store(sweep, out, ready_store=_ready_store, order=_in_cache_order,
+                        write=write_outputs, workers=workers, scheduler=scheduler,
+                        force=force, progress=progress, timeout_s=timeout_s,
+                        worker_wait_s=worker_wait_s, point_fn=point_fn, warn=warn,
+                        limits=limits)
+
+
+def run_in_store(sweep, out, *, ready_store: Callable, order: Callable, write: Callable,
+                 workers: int | None, scheduler: str | None, force: bool, progress: bool,
+                 timeout_s: float, worker_wait_s: float, point_fn: Callable,
+                 warn: Callable, limits: Limits | None) -> RunReport:
+    """The one loop of a sweep over its store, shared by the rod's and the mesh's sweep:
+    open (or resume) the store under its lock, compute the points it lacks (in process,
+    on local workers or on Dask), log the run and write the outputs.
+
+    ``ready_store(out, sweep, mode)`` gives the store ready to take points,
+    ``order(todo)`` the points to compute in the order that shares the most work, and
+    ``write(sweep, out, store, report, runs)`` the outputs (see :func:`run_sweep` for
+    the other parameters)."""
     out = Path(out)
     mode = open_store(out, sweep, force)
     timeout_s = check_wait(timeout_s, "--connect-timeout", warn, MAX_CONNECT_S)
@@ -155,11 +174,11 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
     run_id = time.strftime("%Y%m%dT%H%M%S") + "-" + uuid.uuid4().hex[:8]
     try:
         with DirLock(out):
-            store = _ready_store(out, sweep, mode)
+            store = ready_store(out, sweep, mode)
             todo, bad = stored_or_todo(sweep, store)
             if bad:
                 warn(bad_points_line(bad))
-            unique = _in_cache_order(todo)
+            unique = order(todo)
             rep = RunReport(run_id, len(sweep.points), len(sweep.points) - len(todo), mode=mode)
             if unique:
                 if executor is None:
@@ -177,7 +196,7 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
                     executor.close()
             rep.wall_s = time.perf_counter() - t0
             runs = append_run_log(out, rep)
-            write_outputs(sweep, out, store, rep, runs)
+            write(sweep, out, store, rep, runs)
     except OSError as exc:
         if exc.errno in _DISK_ERRNOS:
             raise InputError(f"cannot be written ({exc.strerror}); every point stored so far "
