@@ -24,7 +24,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["sha256_file", "read_text_utf8", "read_toml", "json_text", "atomic_write_text",
+__all__ = ["sha256_file", "toml_has_table", "read_text_utf8", "read_toml", "json_text", "atomic_write_text",
            "atomic_write_bytes", "atomic_path", "write_json", "write_csv", "files_read",
            "MAX_TEXT_BYTES"]
 
@@ -111,6 +111,19 @@ def read_toml(path: str | os.PathLike, limits: Limits | None = None) -> dict:
         raise InputError("malformed TOML: nested too deeply", str(path)) from None
     except ValueError as e:             # e.g. an integer of more than 4300 digits
         raise InputError(f"malformed TOML: {str(e).splitlines()[0]}", str(path)) from None
+
+
+def toml_has_table(path: str | os.PathLike, table: str) -> bool:
+    """True when ``path`` is a ``.toml`` file with a line opening ``[table]`` (a cheap
+    text test that decides which reader a file goes to, before the strict one runs)."""
+    p = Path(path)
+    if p.suffix != ".toml" or not p.is_file():
+        return False
+    try:
+        text = p.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return any(line.strip().startswith(f"[{table}]") for line in text.splitlines())
 
 
 def sha256_file(path: str | os.PathLike) -> str:

@@ -168,14 +168,8 @@ class GeometryScenario:
 
 def is_geometry_scenario(path) -> bool:
     """True when ``path`` is a TOML file with a ``[geometry]`` table (cheap text test)."""
-    p = Path(path)
-    if p.suffix != ".toml" or not p.is_file():
-        return False
-    try:
-        text = p.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return False
-    return any(line.strip().startswith("[geometry]") for line in text.splitlines())
+    from arfem.io import toml_has_table
+    return toml_has_table(path, "geometry")
 
 
 def load_geometry_scenario(path) -> GeometryScenario:

@@ -55,14 +55,8 @@ def record_toml_of(path) -> Path:
 
 def is_mesh_record(path) -> bool:
     """True when the record's TOML has a ``[model]`` table (cheap text test)."""
-    p = record_toml_of(path)
-    if p.suffix != ".toml" or not p.is_file():
-        return False
-    try:
-        text = p.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return False
-    return any(line.strip().startswith("[model]") for line in text.splitlines())
+    from arfem.io import toml_has_table
+    return toml_has_table(record_toml_of(path), "model")
 
 
 def read_record_files(path) -> RecordFiles:

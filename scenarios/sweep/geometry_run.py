@@ -12,8 +12,8 @@ from pathlib import Path
 from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.sweep.geometry import (GeometrySweep, evaluate_geometry_point,
                                             metric_columns)
-from arfem.scenarios.sweep.spec import STORE_VERSION, canonical
-from arfem.scenarios.sweep.store import PointStore
+from arfem.scenarios.sweep.spec import canonical
+from arfem.scenarios.sweep.store import PointStore, record_header_problem
 
 __all__ = ["GeometryPointStore", "geometry_record_problem", "run_geometry_sweep",
            "geometry_rows", "write_geometry_sweep_outputs", "FIGURE"]
@@ -33,17 +33,10 @@ def geometry_record_problem(rec, key: str, inputs: dict | None, sensors) -> str 
     >>> geometry_record_problem({"key": "k"}, "k", None, ())
     'store_version is None, not 2'
     """
-    if not isinstance(rec, dict):
-        return "not a JSON object"
-    if rec.get("key") != key:
-        return f"key is {rec.get('key')!r}, not the file's name"
-    if rec.get("store_version") != STORE_VERSION or isinstance(rec.get("store_version"), bool):
-        return f"store_version is {rec.get('store_version')!r}, not {STORE_VERSION}"
-    if inputs is not None and rec.get("inputs") != inputs:
-        return "inputs are not this point's"
-    m = rec.get("metrics")
-    if not isinstance(m, dict):
-        return "metrics is not a JSON object"
+    why = record_header_problem(rec, key, inputs)
+    if why:
+        return why
+    m = rec["metrics"]
     for c in metric_columns(sensors) + list(_EXTRA) + ["reference_C", "total_h"]:
         v = m.get(c)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):

@@ -15,7 +15,7 @@ from arfem.scenarios.outdir import check_out_path, check_replaceable, lock_out_d
 #: runs.jsonl, is checked above by its manifest)
 SWEEP_WRITES = ("README.md", "results.csv", "summary.json", "report.html")
 
-__all__ = ["PointStore", "open_store", "DirLock", "append_run_log", "read_runs",
+__all__ = ["PointStore", "record_header_problem", "open_store", "DirLock", "append_run_log", "read_runs",
            "record_problem", "PEAK_RANGE_UM"]
 
 STORE_MANIFEST = "sweep.json"
@@ -49,6 +49,24 @@ def _num(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+def record_header_problem(rec, key: str, inputs=None) -> str | None:
+    """What is wrong with a stored point's envelope (object, key, store version,
+    inputs, a ``metrics`` object), or None: the checks every sweep's store makes
+    before its own metrics' (:func:`record_problem`, the mesh sweep's)."""
+    from arfem.scenarios.sweep.spec import STORE_VERSION
+    if not isinstance(rec, dict):
+        return "not a JSON object"
+    if rec.get("key") != key:
+        return f"key is {rec.get('key')!r}, not the file's name"
+    if rec.get("store_version") != STORE_VERSION or isinstance(rec.get("store_version"), bool):
+        return f"store_version is {rec.get('store_version')!r}, not {STORE_VERSION}"
+    if inputs is not None and rec.get("inputs") != inputs:
+        return "inputs are not this point's"
+    if not isinstance(rec.get("metrics"), dict):
+        return "metrics is not a JSON object"
+    return None
+
+
 def record_problem(rec, key: str, inputs: dict | None = None) -> str | None:
     """Why a stored point record cannot be trusted, or None if it can.
 
@@ -66,18 +84,10 @@ def record_problem(rec, key: str, inputs: dict | None = None) -> str | None:
     >>> record_problem({"key": "k"}, "k")
     'store_version is None, not 2'
     """
-    from arfem.scenarios.sweep.spec import STORE_VERSION
-    if not isinstance(rec, dict):
-        return "not a JSON object"
-    if rec.get("key") != key:
-        return f"key is {rec.get('key')!r}, not the file's name"
-    if rec.get("store_version") != STORE_VERSION or isinstance(rec.get("store_version"), bool):
-        return f"store_version is {rec.get('store_version')!r}, not {STORE_VERSION}"
-    if inputs is not None and rec.get("inputs") != inputs:
-        return "inputs are not this point's"
-    m = rec.get("metrics")
-    if not isinstance(m, dict):
-        return "metrics is not a JSON object"
+    why = record_header_problem(rec, key, inputs)
+    if why:
+        return why
+    m = rec["metrics"]
     for name, low, closed in _REQUIRED:
         v = m.get(name)
         if not _num(v) or v < low or (v == low and not closed):
