@@ -537,11 +537,8 @@ class _Loop:
             if n.alarm is not None:
                 nodes.append(n.alarm)
                 vals.append(ua.DataValue(_alarm_value(ua, n.alarm_type, cyc, a.axis)))
-        try:
-            res = await asyncio.wait_for(self.client.uaclient.write_attributes(
-                nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
-        except Exception as exc:               # unknown whether it landed: read it back
-            await self._lose(exc, asyncio.get_running_loop().time())
+        res = await self._send(ua, nodes, vals)
+        if res is None:
             return
         for j, (a, i) in enumerate(where):
             if res[i].is_good():
@@ -557,6 +554,17 @@ class _Loop:
                 self._log({"event": "alarm_write_refused", "cycle": k, "axis": a.axis,
                            "status": res[i + 1].name})
 
+    async def _send(self, ua, nodes, vals):
+        """Write ``vals`` to ``nodes`` in one request: each one's status, or None when the
+        request failed, the connection is then treated as lost (whether it landed is
+        unknown, so it is read back on reconnect)."""
+        try:
+            return await asyncio.wait_for(self.client.uaclient.write_attributes(
+                nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
+        except Exception as exc:
+            await self._lose(exc, asyncio.get_running_loop().time())
+            return None
+
     async def _write(self, ua, k, cyc):
         """Send the offset (and alarm) and check the answer."""
         if self.model.axes:
@@ -566,11 +574,8 @@ class _Loop:
         if self.nodes.alarm is not None:
             nodes.append(self.nodes.alarm)
             vals.append(ua.DataValue(_alarm_value(ua, self.nodes.alarm_type, cyc)))
-        try:
-            res = await asyncio.wait_for(self.client.uaclient.write_attributes(
-                nodes, vals, ua.AttributeIds.Value), self.o.timeout_s)
-        except Exception as exc:               # unknown whether it landed: read it back
-            await self._lose(exc, asyncio.get_running_loop().time())
+        res = await self._send(ua, nodes, vals)
+        if res is None:
             return
         if res[0].is_good():
             self.accepted, self.write_fault = cyc.offset_um, None

@@ -224,7 +224,7 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     ``base_path``): every key resolved on the base, every value and every point
     validated as a whole scenario before anything is computed."""
     from arfem.scenarios.geometry_scenario import geometry_scenario_from_dict
-    from arfem.scenarios.sweep.spec import _flatten
+    from arfem.scenarios.sweep.spec import _flatten, distinct_values
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")
@@ -242,13 +242,7 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
         where = f"sweep.grid.{key}"
         if not isinstance(values, list) or not values:
             raise InputError("must be a non-empty list of values", where)
-        try:
-            norm = [_normalise(v) for v in values]
-        except InputError as e:
-            raise e.at(where) from None
-        dup = [v for i, v in enumerate(norm) if v in norm[:i]]
-        if dup:
-            raise InputError(f"lists the value {dup[0]!r} twice", where)
+        distinct_values(values, where)
         try:
             geometry_override(data0, key, values[0])
         except InputError as exc:                    # unknown key or group

@@ -62,21 +62,10 @@ class GeometryPointStore(PointStore):
         super().__init__(out)
         self.sensors = tuple(sensors)
 
-    def check(self, key: str, inputs: dict | None = None):
-        """(record, None) for a valid stored point; (None, why) for a file that cannot
-        be trusted (:func:`geometry_record_problem`); (None, None) when there is none."""
-        try:
-            text = self.path(key).read_text("utf-8")
-        except FileNotFoundError:
-            return None, None
-        except (OSError, UnicodeDecodeError) as exc:
-            return None, f"cannot be read ({getattr(exc, 'strerror', None) or exc})"
-        try:
-            rec = json.loads(text, parse_constant=lambda t: float(t))
-        except (ValueError, RecursionError):
-            return None, "is not JSON"
-        why = geometry_record_problem(rec, key, inputs, self.sensors)
-        return (None, why) if why else (rec, None)
+    def problem(self, rec, key: str, inputs: dict | None = None) -> str | None:
+        """:func:`geometry_record_problem` for this store's sensors (the reading and the
+        JSON parsing are :meth:`PointStore.check`'s)."""
+        return geometry_record_problem(rec, key, inputs, self.sensors)
 
 
 def _order(points) -> list:

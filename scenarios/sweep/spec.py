@@ -256,13 +256,7 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
         col = _COLUMN.get(path, key)
         if col in grid:
             raise InputError(f"sets the same input as sweep.grid.{paths[col]}", where)
-        try:
-            norm = [_normalise(v) for v in values]
-        except InputError as e:
-            raise e.at(where) from None
-        dup = [v for i, v in enumerate(norm) if v in norm[:i]]
-        if dup:
-            raise InputError(f"lists the value {dup[0]!r} twice", where)
+        distinct_values(values, where)
         try:
             apply_override(base_data, key, values[0])
         except InputError as exc:            # unknown key
@@ -337,6 +331,19 @@ def check_size(grid: dict, base, max_points: int | None = None) -> tuple[int, fl
                          f"more than the limit of {limit} points; split the grid, or pass "
                          f"--max-points {n} to run it anyway", "sweep.grid")
     return n, steps
+
+
+def distinct_values(values: list, where: str) -> list:
+    """The grid values of one key, normalised (:func:`_normalise`); one line naming
+    ``where`` for a value that is not a number or string, or one given twice."""
+    try:
+        norm = [_normalise(v) for v in values]
+    except InputError as e:
+        raise e.at(where) from None
+    dup = [v for i, v in enumerate(norm) if v in norm[:i]]
+    if dup:
+        raise InputError(f"lists the value {dup[0]!r} twice", where)
+    return norm
 
 
 def _flatten(d: dict, prefix: str = "") -> dict:

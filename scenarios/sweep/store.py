@@ -153,8 +153,13 @@ class PointStore:
             rec = json.loads(text, parse_constant=lambda t: float(t))
         except (ValueError, RecursionError):
             return None, "is not JSON"
-        why = record_problem(rec, key, inputs)
+        why = self.problem(rec, key, inputs)
         return (None, why) if why else (rec, None)
+
+    def problem(self, rec, key: str, inputs: dict | None = None) -> str | None:
+        """What makes a parsed stored point untrustworthy, or None (:func:`record_problem`;
+        a store of another kind of point overrides this, not :meth:`check`)."""
+        return record_problem(rec, key, inputs)
 
     def put(self, record: dict) -> None:
         write_json(self.path(record["key"]), record)
