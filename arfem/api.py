@@ -678,7 +678,10 @@ def read_record(path: str | Path) -> Record:
     """
     from arfem.io import read_toml
     from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
+    refuse_mesh_record(path)             # contract v3: the mesh's diagnosis, not this
     ds = load_dataset(path)
+    refuse_mesh_channels(ds)
     frame = _record_frame(ds)
     mapping = read_toml(Path(path)).get("columns", {})
     columns = {c: mapping.get(c, c) for c in frame.columns}
@@ -778,7 +781,13 @@ def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
     if isinstance(data, (str, Path, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
-        ds = data._dataset if isinstance(data, Record) else load_dataset(data)
+        if isinstance(data, Record):
+            ds = data._dataset
+        else:
+            from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
+            refuse_mesh_record(data)
+            ds = load_dataset(data)
+            refuse_mesh_channels(ds)
         recorded = "equilibrium" if ds.initial_known else "unknown"
         _initial_of(initial, recorded, str(ds.source))
         return ds, []

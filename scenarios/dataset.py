@@ -48,7 +48,10 @@ MAX_ROWS = 100_000
 #: characters; checked from the file's size before it is read.
 MAX_CSV_BYTES = 64 * 1024 ** 2
 
-_TOP_TABLES = ("dataset", "rod", "columns", "sensors")
+#: ``model``: a contract-v3 record's (the mesh scenario it belongs to); read here only
+#: so that ``arfem compensate`` can replay a mesh run's record on its ``growth_um``; the
+#: rod's diagnosis refuses such a record (:func:`arfem.scenarios.georecord.refuse_mesh_record`)
+_TOP_TABLES = ("dataset", "rod", "columns", "sensors", "model")
 _DATASET_KEYS = ("name", "csv", "initial")
 _INITIAL_VALUES = ("equilibrium", "unknown")
 _SENSOR_KEYS = ("description",)
@@ -82,6 +85,7 @@ def _parse_meta(path: Path, doc: dict, limits: Limits):
         if not isinstance(doc[key], dict):
             _fail(f"must be a table, got {type(doc[key]).__name__}", f"{where}: {key}")
 
+    check_keys(doc.get("model", {}), ("scenario",), f"{where}: model")
     ds = doc.get("dataset", {})
     check_keys(ds, _DATASET_KEYS, f"{where}: dataset")
     name = ds.get("name", path.stem)

@@ -10,6 +10,7 @@ from __future__ import annotations
 from arfem.models.diagnosis.engine import Diagnosis, diagnose
 from arfem.params import InputError
 from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
@@ -102,6 +103,15 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     return out
 
 
+def _rod_dataset(toml_path, limits):
+    """The record read for the rod's diagnosis; a mesh model's record (contract v3, or
+    its displacement channels without the ``[model]`` table) is refused in one line."""
+    refuse_mesh_record(toml_path)
+    ds = load_dataset(toml_path, limits)
+    refuse_mesh_channels(ds)
+    return ds
+
+
 def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
                   progress=None, drift_last: bool = False, limits=None,
                   stability: int = 0) -> Diagnosis:
@@ -111,7 +121,7 @@ def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
     ``stability`` as in :func:`add_stability`."""
     if progress is not None:
         progress("reading the dataset")
-    ds = load_dataset(toml_path, limits)
+    ds = _rod_dataset(toml_path, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     add_stability(diag, ds, stability, frame_search, drift_last, progress)
     return diag
@@ -153,10 +163,11 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
     from arfem.scenarios.model_file import write_model
+    refuse_mesh_record(case)         # a v3 record goes to the mesh diagnosis, not here
     prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
     if progress is not None:
         progress("reading the dataset")
-    ds = load_dataset(case, limits)
+    ds = _rod_dataset(case, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     add_stability(diag, ds, stability, frame_search, drift_last, progress)
     if progress is not None:

@@ -9,10 +9,13 @@
   ambient, counted from ``reference_C``); outputs each displacement sensor along x, y or
   z (``d_<sensor>_um``, axis X, Y, Z; a sensor along another direction, or a second one
   on an axis, is its own axis named after it);
-* ``record.toml`` + ``record.csv``: the run as a measured-data record (``time_s``,
-  ``growth_um`` = the Z sensor's displacement, ``speed_rpm``, ``ambient_C``, each
-  source's input, each displacement sensor ``d_<sensor>_um``, each thermometer
-  ``T_<sensor>_C``), for ``arfem compensate model.json record.toml`` to replay.
+* ``record.toml`` + ``record.csv``: the run as a measured-data record of contract v3
+  (``[model] scenario = "scenario.toml"``, the run's copy of its scenario beside it;
+  columns ``time_s``, ``speed_rpm``, ``ambient_C``, each source's input
+  ``P_<source>_W``, each displacement sensor ``d_<sensor>_um``, each thermometer
+  ``T_<sensor>_C``, and ``growth_um`` = the Z sensor's displacement for a one-output
+  compensator), for ``arfem compensate model.json record.toml`` to replay and ``arfem
+  diagnose record.toml`` to check against the mesh.
 
 With speed-independent h the model is linear time-invariant and reproduces the
 reduced solve to round-off (tested). Where a convection group's h depends on the speed
@@ -245,6 +248,8 @@ def record_columns(run, model: StateSpaceModel) -> dict:
     cols["ambient_C"] = np.asarray(cyc.ambient_C, float)[cseg]
     for j, spec in enumerate(model.inputs[:len(sc.sources)]):   # the sources, in order
         cols[spec.name] = hist.u[seg, j]
+        if not spec.name.startswith("P_"):       # a flux: contract v3 reads P_<source>_W
+            cols[f"P_{sc.sources[j].spec.name}_W"] = hist.u[seg, j]
     for o in model.outputs:
         cols[o.name] = ser[o.name]
     for name, v in ser.items():          # the thermometers: evidence for arfem diagnose
@@ -253,26 +258,36 @@ def record_columns(run, model: StateSpaceModel) -> dict:
     return cols
 
 
-def _record_toml(name: str) -> str:
-    return (f'# {name} as a measured-data record (docs/measured-data.md), written by '
-            'arfem run: replay\n# it with arfem compensate model.json record.toml '
-            '--out DIR. To diagnose it against the mesh\n# (arfem diagnose), add to a copy of it '
-            '[model] scenario = "<path to the scenario>" (docs/measured-data.md)\n'
-            '[dataset]\n'
-            f'name = "{name}"\ncsv = "record.csv"\n')
+def _record_toml(name: str, scenario: str | None) -> str:
+    """The record's TOML: contract v3 (``[model] scenario``, the run's copy of its
+    scenario beside it) where there is a copy, else without ``[model]`` (and then
+    ``arfem diagnose`` refuses it, since it cannot tell the model)."""
+    import json
+    head = (f'# {name} as a measured-data record (docs/measured-data.md, contract v3), '
+            'written by arfem run.\n# Replay it with arfem compensate model.json '
+            'record.toml --out DIR; diagnose it against\n# the mesh with arfem diagnose '
+            'record.toml --out DIR. growth_um is the Z sensor\'s d_..._um.\n')
+    body = f'[dataset]\nname = {json.dumps(name)}\ncsv = "record.csv"\n'
+    if scenario is None:
+        return head + body
+    return head + body + f'\n[model]\nscenario = {json.dumps(scenario)}\n'
 
 
 def write_exports(run, out_dir, arfem_version: str = "",
-                  mode_cache: dict | None = None) -> ExportedModel:
+                  mode_cache: dict | None = None,
+                  scenario_copy: str | None = None) -> ExportedModel:
     """Write ``model.json``, ``record.toml`` and ``record.csv`` into ``out_dir`` (a
     staging directory); nothing where the scenario has no model (see
-    :class:`ExportedModel`). ``mode_cache``: the run's (:func:`export_state_space`)."""
+    :class:`ExportedModel`). ``mode_cache``: the run's (:func:`export_state_space`);
+    ``scenario_copy``: the name of the scenario's copy in ``out_dir``, which the
+    record's ``[model]`` table names (contract v3), or None (no ``[model]``)."""
     ex = export_state_space(run.model, arfem_version, mode_cache)
     if ex.model is None:
         return ex
     write_model(out_dir / "model.json", ex.model)
     write_csv(out_dir / "record.csv", record_columns(run, ex.model))
-    atomic_write_text(out_dir / "record.toml", _record_toml(run.model.scenario.name))
+    atomic_write_text(out_dir / "record.toml", _record_toml(run.model.scenario.name,
+                                                          scenario_copy))
     return ex
 
 

@@ -970,13 +970,15 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
     if sc.fields and run.result.fields is not None:
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")
-    src = Path(sc.source)
-    if src.is_file():
-        atomic_write_text(out_dir / "scenario.toml", read_text_utf8(src))
+    from arfem.scenarios.geometry_copy import plan_scenario_copy, write_copy
+    copy, text = plan_scenario_copy(sc.source, WRITES)     # re-runnable from anywhere
+    if copy is not None:
+        write_copy(copy, text, out_dir)
     progress("model.json")                      # issue 32 item 5: the MIMO model
     from arfem import __version__
     from arfem.scenarios.geometry_export import write_exports
-    write_exports(run, out_dir, __version__, mode_cache)
+    write_exports(run, out_dir, __version__, mode_cache,
+                  scenario_copy=None if copy is None else copy.names[0])
 
 
 def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
@@ -984,8 +986,11 @@ def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
     from arfem.scenarios.html_report import write_html_report
     from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
     progress = progress or (lambda s: None)
+    from arfem.scenarios.geometry_copy import plan_scenario_copy
     sc = load_geometry_scenario(path)
-    prepare_out_dir(out, force, writes=WRITES)
+    copy, _ = plan_scenario_copy(sc.source, WRITES)
+    prepare_out_dir(out, force, writes=WRITES + (copy.names if copy else ()),
+                    inputs=[p for p, _ in copy.files] if copy else ())
     model = build_geometry_model(sc, progress)
     modes = {}                                  # the reduced solve's, for the export
     run = solve_geometry(model, progress, mode_cache=modes)

@@ -30,7 +30,8 @@ from arfem.io import read_toml
 from arfem.params import InputError
 from arfem.strict import check_keys
 
-__all__ = ["RecordFiles", "is_mesh_record", "read_record_files", "record_toml_of",
+__all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
+           "read_record_files", "record_toml_of",
            "RecordTable", "read_table", "write_record"]
 
 _TOP = ("dataset", "model", "columns", "sensors")
@@ -54,9 +55,45 @@ def record_toml_of(path) -> Path:
 
 
 def is_mesh_record(path) -> bool:
-    """True when the record's TOML has a ``[model]`` table (cheap text test)."""
+    """True when the record's TOML has a ``[model]`` table: a cheap text test, then
+    (for a ``model = {...}`` inline table or a dotted key) the parsed document."""
+    import tomllib
+
     from arfem.io import toml_has_table
-    return toml_has_table(record_toml_of(path), "model")
+    p = record_toml_of(path)
+    if toml_has_table(p, "model"):
+        return True
+    if p.suffix != ".toml" or not p.is_file():
+        return False
+    try:
+        doc = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):          # unreadable or malformed: the reader says why
+        return False
+    return isinstance(doc.get("model"), dict)
+
+
+def refuse_mesh_record(path) -> None:
+    """Refuse (one line) to read ``path`` as a record on the rod where its TOML names a
+    mesh scenario (``[model]``, contract v3): such a record is diagnosed against that
+    mesh (``arfem diagnose`` routes it; :func:`arfem.scenarios.geodiagnose.run_geodiagnosis`),
+    never silently against the paper's rod."""
+    if is_mesh_record(path):
+        raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
+                         "diagnosed against that mesh (arfem diagnose RECORD.toml routes it "
+                         "there), not by the rod's diagnosis", f"{record_toml_of(path)}: model")
+
+
+def refuse_mesh_channels(ds) -> None:
+    """Refuse (one line) a record read for the rod's diagnosis whose columns are a
+    mesh model's displacement channels (``d_<sensor>_um``) while its TOML names no
+    scenario: the rod's diagnosis would read only ``growth_um`` and cannot tell which
+    model the channels belong to."""
+    chans = sorted(c for c in ds.extra_columns if c.startswith("d_") and c.endswith("_um"))
+    if chans:
+        raise InputError(f"has displacement channels ({', '.join(chans)}) but no [model] "
+                         "table naming the mesh scenario they belong to: add [model] "
+                         "scenario = \"<scenario>.toml\" (contract v3, docs/measured-data.md)"
+                         "; a record on the rod has growth_um only", f"{ds.source}")
 
 
 def read_record_files(path) -> RecordFiles:
