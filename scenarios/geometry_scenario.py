@@ -88,7 +88,8 @@ from arfem.strict import table as _table
 
 __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
            "geometry_scenario_from_dict", "GeometryModel", "build_geometry_model",
-           "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES"]
+           "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES",
+           "check_geometry_scenario"]
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
         "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
@@ -595,15 +596,12 @@ def _history(sc: GeometryScenario) -> InputHistory:
     return InputHistory(edges, u, H)
 
 
-def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
-    """Read the mesh, check memory, assemble heat and elasticity, form the sensors' rows."""
-    progress = progress or (lambda s: None)
-    tm = {}
-    t0 = time.perf_counter()
-    progress("reading the mesh")
+def _read_checked(sc: GeometryScenario) -> tuple:
+    """(grouped mesh, memory estimate [bytes], support): the mesh read and every check
+    that needs no assembly (cells, orientation, unit, memory, material and support
+    point groups)."""
     gm = read_grouped_mesh(sc.mesh_path, sc.unit, where=f"{sc.source}: geometry.mesh "
                                                        f"({sc.mesh_path})")
-    tm["read_s"] = time.perf_counter() - t0
     mesh = gm.mesh
     nv = int(mesh.t.max()) + 1
     n_heat = nv + (mesh.edges.shape[1] if sc.order == 2 else 0)
@@ -625,6 +623,41 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
                 raise InputError(f"the mesh has no point group {nm!r} (it has "
                                  f"{gm.describe_groups()})", f"{sc.source}: support.points[{j}]")
         support = Support("3-2-1", points=tuple(pts))
+    return gm, need, support
+
+
+def check_geometry_scenario(sc: GeometryScenario) -> None:
+    """Refuse (one line) what :func:`build_geometry_model` would refuse, at the cost of
+    the mesh read and the heat assembly, without the elastic one: every group, the
+    cells, the unit, the memory estimate, each sensor point inside the mesh. ``arfem
+    sweep`` calls it once on its base before the first point (every point shares the
+    mesh), so a bad mesh is exit 2 with nothing written, not a failed point each."""
+    from arfem.fem.body import locate
+    gm, _, support = _read_checked(sc)
+    try:
+        th = ThermalBody.build(gm, sc.materials, [s.spec for s in sc.sources],
+                               [c.spec for c in sc.convections], order=sc.order)
+        for s in sc.sensors:
+            if s.group is not None:
+                gm.surface_group(s.group, f"sensor {s.name!r}.group")
+            else:
+                locate(th.basis, s.point, f"sensor {s.name!r}.point", gm.source)
+        if support.kind == "clamped":
+            gm.surface_group(support.group, "support.group")
+    except InputError as exc:
+        if exc.where and exc.where.startswith(sc.source):
+            raise
+        raise exc.at(sc.source) from None
+
+
+def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
+    """Read the mesh, check memory, assemble heat and elasticity, form the sensors' rows."""
+    progress = progress or (lambda s: None)
+    tm = {}
+    t0 = time.perf_counter()
+    progress("reading the mesh")
+    gm, need, support = _read_checked(sc)
+    tm["read_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     progress("assembling heat")
     try:

@@ -170,3 +170,30 @@ def test_scenario_copy_rewrites_only_the_paths():
     assert got["cycle"] == {"csv": "input_record.csv", "total_h": 2.0}
     assert rewrite_values('geometry = {mesh = "a.msh", unit = "mm"}\n',
                           {("geometry", "mesh"): "b.msh"}) is None
+
+
+@pytest.mark.parametrize("case, says", [
+    ("group", "no surface group 'rigth'"), ("outside", "outside the mesh"),
+    ("wedge", "has wedge cells")])
+def test_sweep_refuses_a_bad_mesh_before_any_point(tmp_path, case, says):
+    """arfem sweep on a mesh scenario whose mesh the run would refuse: one line naming
+    the scenario and key, exit 2, --out not created (each point had failed on its own,
+    exit 1, with the store written)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from geometry_meshes import BOX_TOML, box_meshio, write_msh
+    toml, mesh = BOX_TOML, box_meshio()
+    if case == "group":
+        toml = toml.replace('group = "right"', 'group = "rigth"')
+    elif case == "outside":
+        toml = toml.replace("point = [0.3, 0.1, 0.1]", "point = [0.31, 0.1, 0.1]")
+    else:
+        mesh = box_meshio(extra_cells=("wedge", np.array([[0, 1, 2, 3, 4, 5]])))
+    write_msh(mesh, tmp_path / "box.msh")
+    (tmp_path / "s.toml").write_text(toml)
+    (tmp_path / "sw.toml").write_text('[sweep]\nname = "sw"\nbase = "s.toml"\n[sweep.grid]\n'
+                                      '"fem.output_interval_s" = [60.0, 120.0]\n')
+    r = _cli("sweep", "sw.toml", "--out", "o", "--workers", "1", "--no-progress",
+             cwd=tmp_path)
+    assert r.returncode == 2 and says in r.stderr and "s.toml" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and r.stdout == ""
+    assert not (tmp_path / "o").exists()

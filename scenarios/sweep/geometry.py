@@ -236,6 +236,8 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     if not base_sc.mesh_path.is_file():
         raise InputError(f"no mesh file {str(base_sc.mesh_path)!r}",
                          f"{base_source}: geometry.mesh")
+    from arfem.scenarios.geometry_scenario import check_geometry_scenario
+    check_geometry_scenario(base_sc)     # a bad mesh: one line before any point (issue 32)
     _check_size(grid_flat, max_points)
     grid = {}
     for key, values in grid_flat.items():
