@@ -179,7 +179,6 @@ def test_sweep_refuses_a_bad_mesh_before_any_point(tmp_path, case, says):
     """arfem sweep on a mesh scenario whose mesh the run would refuse: one line naming
     the scenario and key, exit 2, --out not created (each point had failed on its own,
     exit 1, with the store written)."""
-    sys.path.insert(0, str(Path(__file__).parent))
     from geometry_meshes import BOX_TOML, box_meshio, write_msh
     toml, mesh = BOX_TOML, box_meshio()
     if case == "group":
