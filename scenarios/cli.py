@@ -59,9 +59,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     every subcommand is registered (``arfem --help``, an unknown command)."""
     p = _Parser(
         prog="arfem",
-        description="FEM thermo-elastic simulation of a spindle rod against the AR(1) "
-                    "thermal-growth model (Du et al. 2021), with sweeps and diagnosis of "
-                    "measured data.")
+        description="FEM thermo-elastic simulation of a spindle (the paper's rod, or your "
+                    "own unit from a Gmsh mesh) against the AR(1) thermal-growth model (Du "
+                    "et al. 2021), with sweeps, diagnosis of measured data and "
+                    "compensation.")
     p.add_argument("--version", action="version", version=f"arfem {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
     seen = set()

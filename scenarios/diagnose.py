@@ -19,8 +19,13 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "diagnose", help="diagnose a measured record (contract TOML + CSV)",
         description="Compare a measured record with the nominal simulation, name the cause "
-                    "of the difference, and score the extended model on a hold-out.")
-    p.add_argument("case", help="dataset TOML (measured-data contract)")
+                    "of the difference, and score the extended model on a hold-out. A "
+                    "record whose TOML has a [model] table (contract v3, e.g. the "
+                    "record.toml of a mesh run) is checked against that mesh scenario, "
+                    "with causes on its own groups; --frame-search, --drift-last and "
+                    "--stability apply to records on the rod only.")
+    p.add_argument("case", help="dataset TOML (measured-data contract; a contract-v3 "
+                                "record also by its CSV)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--holdout-start", type=float, default=None, metavar="SECONDS",
                    help="start of the hold-out [s]; default: the last third of the record "
@@ -50,7 +55,16 @@ def add_parser(subparsers):
 def main(args) -> int:
     from arfem.scenarios.geodiagnose import is_mesh_record, main_geodiagnose
     if is_mesh_record(args.case):        # contract v3: the record names a mesh scenario
-        return main_geodiagnose(args)
+        rc = main_geodiagnose(args)
+        rod_only = [f for f, on in (("--frame-search", args.frame_search != "narrow"),
+                                    ("--drift-last", args.drift_last),
+                                    ("--stability", args.stability)) if on]
+        if rod_only:
+            one = len(rod_only) == 1
+            print(f"note: {' and '.join(rod_only)} appl{'ies' if one else 'y'} to records on "
+                  f"the rod only; this mesh record (contract v3) was diagnosed without "
+                  f"{'it' if one else 'them'}")
+        return rc
     with Progress(12 + max(args.stability, 0), "arfem diagnose",
                   enabled=not args.no_progress) as progress:
         s = diagnosis_run.run_diagnosis(args.case, args.out, args.holdout_start, args.force,

@@ -65,7 +65,13 @@ def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run one scenario: FEM vs AR(1), all outputs",
                        description="Run one scenario file: FEM against the paper's AR(1) and "
                                    "the corrected AR(1); writes timeseries.csv, summary.json, "
-                                   "figure.png, summary.md and FEM fields into --out.")
+                                   "figure.png, summary.md and FEM fields into --out. A mesh "
+                                   "scenario ([geometry], e.g. scenarios/spindle_unit.toml) "
+                                   "writes each sensor's history (sensors.csv), geometry.png, "
+                                   "the fields, model.json (version 2), the run as a "
+                                   "contract-v3 record (record.toml + record.csv, for arfem "
+                                   "compensate and arfem diagnose) and scenario.toml with its "
+                                   "mesh beside it (re-runnable from any directory).")
     p.add_argument("scenario", help="scenario TOML file (or a built-in name: paper_fig2, paper_fig3)")
     p.add_argument("--out", required=True, help="output directory (must be new or empty)")
     p.add_argument("--force", action="store_true", help="replace files in a non-empty --out")

@@ -140,11 +140,12 @@ def test_diagnose_routes_the_runs_record_to_the_mesh_and_names_no_cause(run_dir,
     """arfem diagnose OUT/record.toml: the mesh diagnosis (contract_version 3 in
     diagnosis.json, the scenario the copy beside the record), and on the FEM's own
     record no cause is named (cause none, causes empty): the nominal model is the
-    record."""
+    record. --stability, a rod-only flag, is said to be ignored, not dropped silently."""
     import json
     r = _cli("diagnose", str(run_dir / "out" / "record.toml"), "--out", str(tmp_path / "d"),
-             "--no-progress")
+             "--no-progress", "--stability", "3")
     assert r.returncode == 0, r.stderr
+    assert "note: --stability applies to records on the rod only" in r.stdout, r.stdout
     s = json.loads((tmp_path / "d" / "diagnosis.json").read_text())
     assert s["contract_version"] == 3
     assert s["cause"] == "none" and s["causes"] == [], s["verdict_text"]
