@@ -377,6 +377,6 @@ def main(args) -> int:
         raise InputError(f"cannot listen on 127.0.0.1:{port}: {exc.strerror or exc}",
                          "--port") from None
     if args.record is not None:
-        write_record(args.record, history)
+        write_record(args.record, history, scenario=getattr(args, "scenario", None))
     print(f"arfem twin: stopped after {len(history)} intervals", file=sys.stderr)
     return 0

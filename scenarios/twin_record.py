@@ -60,10 +60,13 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def write_record(directory, rows: list, name: str = "twin") -> None:
+def write_record(directory, rows: list, name: str = "twin", scenario=None) -> None:
     """The twin's history (:class:`TwinCycle`, or bare :class:`TwinReading` with no
     offset) as a measured-data record (contract TOML + CSV), atomically; a NaN or absent
-    reading is an empty cell, every number is written exactly (repr)."""
+    reading is an empty cell, every number is written exactly (repr). ``scenario``: the
+    ``[geometry]`` scenario served (``--scenario``), named by the record's ``[model]``
+    table (contract v3, relative to the record where it can be) so that ``arfem
+    diagnose`` checks the record against that mesh."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
 
@@ -81,5 +84,16 @@ def write_record(directory, rows: list, name: str = "twin") -> None:
             if axes else
             "# arfem twin: FEM rod (Q2 axisymmetric, Crank-Nicolson) under a speed program with\n"
             "# a daily ambient swing; growth_um = true growth + sensor noise\n")
+    model = ""
+    if scenario is not None:
+        import json
+        import os
+        sc, here = Path(scenario).resolve(), d.resolve()
+        try:                                # relative where the two share a folder
+            shared = os.path.commonpath([sc, here]) != sc.anchor
+        except ValueError:                  # another drive (Windows)
+            shared = False
+        ref = os.path.relpath(sc, here) if shared else str(sc)
+        model = f"\n[model]\nscenario = {json.dumps(Path(ref).as_posix())}\n"
     atomic_write_text(d / f"{name}.toml",
-                      what + f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n')
+                      what + f'[dataset]\nname = "{name}"\ncsv = "{name}.csv"\n' + model)

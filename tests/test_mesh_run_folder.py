@@ -197,3 +197,19 @@ def test_sweep_refuses_a_bad_mesh_before_any_point(tmp_path, case, says):
     assert r.returncode == 2 and says in r.stderr and "s.toml" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and r.stdout == ""
     assert not (tmp_path / "o").exists()
+
+
+def test_twin_record_of_a_scenario_names_it(tmp_path):
+    """arfem twin --scenario --record writes a contract-v3 record: its [model] names the
+    served scenario relative to the record, so arfem diagnose checks it against that
+    mesh (without [model] its d_ channels are refused by the rod's diagnosis)."""
+    from arfem.scenarios.georecord import is_mesh_record, read_record_files
+    from arfem.scenarios.twin_record import write_record
+    shutil.copy(DATA / "spindle_coarse.toml", tmp_path / "unit.toml")
+    write_record(tmp_path / "rec", [], scenario=tmp_path / "unit.toml")
+    rec = tmp_path / "rec" / "twin.toml"
+    assert 'scenario = "../unit.toml"' in rec.read_text()
+    assert is_mesh_record(rec)
+    assert read_record_files(rec).scenario.resolve() == (tmp_path / "unit.toml").resolve()
+    write_record(tmp_path / "rod", [])
+    assert not is_mesh_record(tmp_path / "rod" / "twin.toml")
