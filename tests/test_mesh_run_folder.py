@@ -213,3 +213,31 @@ def test_twin_record_of_a_scenario_names_it(tmp_path):
     assert read_record_files(rec).scenario.resolve() == (tmp_path / "unit.toml").resolve()
     write_record(tmp_path / "rod", [])
     assert not is_mesh_record(tmp_path / "rod" / "twin.toml")
+
+
+def test_cycle_csv_is_copied_too_and_a_clashing_name_is_prefixed(tmp_path):
+    """A scenario whose cycle is a CSV in a subfolder, named like one of the run's own
+    outputs (sensors.csv): the copy is input_sensors.csv, the rerun from another
+    directory writes the same sensors to 1e-9 of each column's largest value."""
+    from geometry_meshes import BOX_TOML, box_meshio, write_msh
+    (tmp_path / "u" / "m").mkdir(parents=True)
+    (tmp_path / "u" / "duty").mkdir()
+    write_msh(box_meshio(), tmp_path / "u" / "m" / "box.msh")
+    toml = BOX_TOML.replace('mesh = "box.msh"', 'mesh = "m/box.msh"').replace(
+        'phases = [ { duration_h = 1.0, speed_rpm = 1000.0 }, { duration_h = 1.0 } ]',
+        'csv = "duty/sensors.csv"\ntotal_h = 2.0').replace('power_W = [50.0, 0.0]',
+                                                          'power_W = "heater_W"')
+    (tmp_path / "u" / "s.toml").write_text(toml)
+    (tmp_path / "u" / "duty" / "sensors.csv").write_text(
+        "time_s,speed_rpm,heater_W\n0,1000,50\n3600,0,0\n")
+    assert _cli("run", "u/s.toml", "--out", "o", "--no-progress", cwd=tmp_path).returncode == 0
+    text = (tmp_path / "o" / "scenario.toml").read_text()
+    assert 'csv = "input_sensors.csv"' in text and 'mesh = "box.msh"' in text
+    (tmp_path / "x").mkdir()
+    r = _cli("run", str(tmp_path / "o" / "scenario.toml"), "--out", "o2", "--no-progress",
+             cwd=tmp_path / "x")
+    assert r.returncode == 0, r.stderr
+    a = np.genfromtxt(tmp_path / "o" / "sensors.csv", delimiter=",", names=True)
+    b = np.genfromtxt(tmp_path / "x" / "o2" / "sensors.csv", delimiter=",", names=True)
+    for name in a.dtype.names:       # 1e-9 of the column's range: BLAS round-off only
+        assert np.max(np.abs(a[name] - b[name])) <= 1e-9 * max(np.max(np.abs(a[name])), 1.0)
