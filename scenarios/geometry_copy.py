@@ -7,7 +7,8 @@ possibly a cycle CSV, relative to itself; a verbatim copy would name files that 
 beside it. So the files it names are copied beside it too, and the copy's keys
 ``geometry.mesh`` and ``cycle.csv`` are rewritten to the copies' names: ``arfem run
 DIR/scenario.toml --out DIR2`` then works from any working directory, and the folder can
-be moved or archived whole.
+be moved or archived whole. An XDMF mesh, whose data live in companion files, is not
+copied: the copy names it by absolute path (re-runnable from anywhere on this machine).
 
 The rewrite edits only the value of those keys in the text (comments and layout kept),
 and is checked by parsing the result: it must equal the original document with those
@@ -30,6 +31,9 @@ __all__ = ["ScenarioCopy", "plan_copy", "plan_scenario_copy", "write_copy",
 COPY_NAME = "scenario.toml"
 #: (table, key) of every file a geometry scenario names relative to itself
 _FILE_KEYS = (("geometry", "mesh"), ("cycle", "csv"))
+#: mesh formats whose data live in companion files (XDMF: heavy data in .h5): named by
+#: absolute path instead of copied
+_LINKED = (".xdmf", ".xmf", ".xdmf3")
 _HEADER = re.compile(r"^\s*\[\[?\s*([A-Za-z0-9_.\-\"' ]+?)\s*\]\]?\s*(#.*)?$")
 _VALUE = r"""("(?:[^"\\]|\\.)*"|'[^']*')"""
 
@@ -44,11 +48,14 @@ class ScenarioCopy:
         Each input file the scenario names (resolved) and its name in the folder.
     values : dict
         ``{(table, key): name in the folder}``: the copy's new values.
+    originals : dict
+        ``{(table, key): Path}``: the file each key names, resolved.
     """
 
     source: Path
     files: tuple
     values: dict
+    originals: dict
 
     @property
     def names(self) -> tuple:
@@ -68,19 +75,23 @@ def plan_copy(source, doc: dict, taken=()) -> ScenarioCopy:
     """
     source = Path(source)
     used = {COPY_NAME, *taken}
-    files, values = [], {}
+    files, values, originals = [], {}, {}
     for table, key in _FILE_KEYS:
         v = doc.get(table, {}).get(key) if isinstance(doc.get(table), dict) else None
         if not isinstance(v, str):
             continue
         path = (source.parent / v).resolve()
+        originals[(table, key)] = path
+        if path.suffix.lower() in _LINKED:      # its data sit in other files: not copied,
+            values[(table, key)] = path.as_posix()     # named by its absolute path
+            continue
         name = path.name
         while name in used:
             name = f"input_{name}"
         used.add(name)
         files.append((path, name))
         values[(table, key)] = name
-    return ScenarioCopy(source, tuple(files), values)
+    return ScenarioCopy(source, tuple(files), values, originals)
 
 
 def plan_scenario_copy(source, taken=()) -> tuple:
@@ -150,8 +161,7 @@ def write_copy(copy: ScenarioCopy, text: str, out_dir: Path) -> bool:
     head = f"# copied by arfem run from {copy.source.resolve()}"
     contained = new is not None
     if not contained:
-        where = ", ".join(f"{t}.{k} = {str(p)!r}" for (t, k), (p, _) in
-                          zip(copy.values, copy.files))
+        where = ", ".join(f"{t}.{k} = {str(p)!r}" for (t, k), p in copy.originals.items())
         new = (f"{head}; its files are beside that original, not here (the copy could "
                f"not rewrite its paths): {where}\n{text}")
     else:

@@ -173,6 +173,26 @@ def test_scenario_copy_rewrites_only_the_paths():
                           {("geometry", "mesh"): "b.msh"}) is None
 
 
+def test_scenario_copy_xdmf_and_the_verbatim_fallback(tmp_path):
+    """An XDMF mesh (its data in a companion .h5) is named by absolute path, not copied;
+    a scenario the line edit cannot rewrite is copied verbatim, no file beside it, with
+    a comment naming the original mesh (write_copy returns False)."""
+    import tomllib
+
+    from arfem.scenarios.geometry_copy import plan_copy, write_copy
+    plan = plan_copy(tmp_path / "u" / "s.toml", {"geometry": {"mesh": "../m.xdmf"}})
+    assert plan.files == ()
+    assert plan.values == {("geometry", "mesh"): (tmp_path / "m.xdmf").as_posix()}
+    (tmp_path / "a.msh").write_text("mesh")
+    text = 'geometry = {mesh = "a.msh", unit = "mm"}\n'
+    plan = plan_copy(tmp_path / "s.toml", tomllib.loads(text))
+    (tmp_path / "out").mkdir()
+    assert write_copy(plan, text, tmp_path / "out") is False
+    copied = (tmp_path / "out" / "scenario.toml").read_text()
+    assert copied.endswith(text) and str(tmp_path / "a.msh") in copied.splitlines()[0]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["scenario.toml"]
+
+
 @pytest.mark.parametrize("case, says", [
     ("group", "no surface group 'rigth'"), ("outside", "outside the mesh"),
     ("wedge", "has wedge cells")])
