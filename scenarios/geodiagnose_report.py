@@ -100,6 +100,37 @@ def _channels_figure(rec, d, path: Path) -> None:
     plt.close(fig)
 
 
+def _compensator_lines(em: dict | None) -> list:
+    """The compensators' section: what was written, how each cause enters, and each
+    model's replay residual per axis on the hold-out (arfem compensate's replay)."""
+    if not em:
+        return []
+    lines = ["", "## The extended model as a compensator", ""]
+    if em["written"]:
+        lines.append(f"`{em['file']}` (model_version 2, kind `{em['kind']}`) is the reduced "
+                     "model with the established cause(s) built in; `model_nominal.json` is "
+                     "the same reduced model without them. Replay either with `arfem "
+                     "compensate MODEL.json RECORD.toml --out DIR`.")
+        lines += ["", "| cause | enters the model as |", "|---|---|"]
+        lines += [f"| {c['cause']} | {c['enters_as']} |" for c in em["causes"]]
+    else:
+        lines.append(f"No `model_extended.json`: {em['why_not']}.")
+    rep = em.get("replay") or {}
+    if "not_replayed" in rep:
+        lines += ["", f"Not replayed: {rep['not_replayed']}."]
+    elif rep:
+        lines += ["", "Replayed causally on this record, scored on the hold-out (RMS [µm] "
+                  "of what is left on each axis after the offset):", "",
+                  "| axis | output | uncompensated | nominal model | extended model |",
+                  "|---|---|---|---|---|"]
+        for ax, r in rep.items():
+            e = r["extended_rms_after_um"]
+            lines.append(f"| {ax} | {r['output']} | {r['rms_before_um']:.3g} | "
+                         f"{r['nominal_rms_after_um']:.3g} | "
+                         f"{'-' if e is None else f'{e:.3g}'} |")
+    return lines
+
+
 def _markdown(s: dict, d, sc) -> str:
     lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "",
              f"**Verdict: {s['verdict']}.** {s['verdict_text']}", "",
@@ -121,6 +152,7 @@ def _markdown(s: dict, d, sc) -> str:
     for k, (b, e, m) in d.holdout_rmse.items():
         ms = "-" if m is None else f"{m:.3g}"
         lines.append(f"| {k} | {b:.3g} | {e:.3g} | {ms} |")
+    lines += _compensator_lines(s.get("extended_model"))
     rm = s["reduced_model"]
     lines += ["", "![channels](channels.png)", "",
               f"Reduced model: {rm['basis_vectors']} basis vectors ({rm['krylov_blocks']} Krylov "
