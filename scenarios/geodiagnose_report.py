@@ -62,7 +62,7 @@ def highlighted_picture(gm, path: Path, surfaces=(), volumes=(), sensors=(),
             pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()), center=s.point),
                         color="black")
             pl.add_point_labels(np.array([s.point]), [s.name], font_size=12, point_size=1,
-                                shape_opacity=0.6)
+                                shape_opacity=0.6, always_visible=True)
     if surfaces or volumes:
         pl.add_legend(bcolor="white", face="rectangle", loc="upper left")
     pl.add_axes()
@@ -131,8 +131,25 @@ def _compensator_lines(em: dict | None) -> list:
     return lines
 
 
+def _compensator_gist(em: dict | None) -> list:
+    """One sentence for the verdict: the extended model's replay residual against the
+    nominal's on the hold-out, per axis, or why there is no extended model."""
+    if not em:
+        return []
+    rep = em.get("replay") or {}
+    if em["written"] and rep and "not_replayed" not in rep:
+        per = "; ".join(f"{ax} {r['nominal_rms_after_um']:.3g} → "
+                        f"{r['extended_rms_after_um']:.3g} µm" for ax, r in rep.items())
+        return [f"As a compensator (`{em['file']}`, replayed causally on the hold-out), "
+                f"the RMS left after the offset, nominal → extended model: {per}.", ""]
+    if not em["written"]:
+        return [f"No extended model is written: {em['why_not']}.", ""]
+    return []
+
+
 def _markdown(s: dict, d, sc) -> str:
-    lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "",
+    # "## Verdict": the HTML page shows this section first, its picture embedded
+    lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "", "## Verdict", "",
              f"**Verdict: {s['verdict']}.** {s['verdict_text']}", "",
              ("![the geometry, the named group in red](geometry_named.png)"
               if s["verdict"] == "established" else
@@ -145,7 +162,9 @@ def _markdown(s: dict, d, sc) -> str:
                 lo, hi = ci.get(k, (float("nan"), float("nan")))
                 lines.append(f"| {c.name} | {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
         lines.append("")
-    lines += [f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
+    lines += _compensator_gist(s.get("extended_model"))
+    lines += ["## Hold-out", "",
+              f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
               f"before it); weighted gain {d.gain_pct:.1f} %.", "",
               "| channel | nominal RMSE | extended RMSE | MLR (eq. 18) RMSE |",
               "|---|---|---|---|"]
@@ -172,6 +191,21 @@ def _markdown(s: dict, d, sc) -> str:
     return "\n".join(lines)
 
 
+def _cause_words(c, p: dict, ci: dict) -> str:
+    """A named cause with its first parameter and 95 % interval, for the picture's
+    title.
+
+    >>> from types import SimpleNamespace as N
+    >>> _cause_words(N(name="source_scale:motor"), {"scale": 1.5}, {"scale": (1.4, 1.6)})
+    'source_scale:motor (scale 1.5 [1.4, 1.6])'
+    """
+    if not p:
+        return c.name
+    k, v = next(iter(p.items()))
+    lo, hi = ci.get(k, (float("nan"), float("nan")))
+    return f"{c.name} ({k} {v:.3g} [{lo:.3g}, {hi:.3g}])"
+
+
 def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
     """report.md, report.html, geometry_named.png, channels.png and series.csv."""
     # red only for an established cause: a best candidate that failed a check of
@@ -182,7 +216,8 @@ def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
         surf += _source_groups(sc, [c.target for c in d.named.causes
                                     if c.kind == "source_scale"])
     title = f"{s['verdict']}: " + (
-        " + ".join(c.name for c in d.named.causes) if est
+        " + ".join(_cause_words(c, p, ci) for c, p, ci in
+                   zip(d.named.causes, d.named.params, d.named.ci95)) if est
         else "no cause named" + (f" (best candidate {' + '.join(c.name for c in d.named.causes)}"
                                  ", not established: not highlighted)"
                                  if d.named is not None else ""))
