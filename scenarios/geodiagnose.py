@@ -274,7 +274,7 @@ def main_geodiagnose(args) -> int:
     """The ``arfem diagnose`` command for a mesh record (parsed ``args`` of
     :mod:`arfem.scenarios.diagnose`)."""
     from arfem.scenarios.progress import Progress
-    with Progress(8, "arfem diagnose", enabled=not args.no_progress) as progress:
+    with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
         s = run_geodiagnosis(args.case, args.out, args.holdout_start, args.force, progress)
     print(terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")

@@ -159,3 +159,70 @@ def test_version_1_model_still_reads_and_replays(tmp_path):
     assert r.returncode == 0, r.stderr
     s = json.loads((tmp_path / "o" / "summary.json").read_text("utf-8"))
     assert s["rms_before_um"] > 1.0
+
+
+CAUSES = {
+    "convection_scale": ([("convection_scale", "housing_outer")], {"h_scale": 2.0}),
+    "contact_conductance": ([("contact_conductance", "front_bearing")],
+                            {"conductivity_scale": 0.3}),
+    "source_scale": ([("source_scale", "motor")], {"scale": 1.5}),
+    "missing_source": ([("missing_source", "spindle_bore")], {"power_W": 15.0}),
+    "ambient_lag": ([("ambient_lag", "")], {"lag_h": 3.0}),
+    "warm_start": ([("warm_start", "")], {"initial_offset_K": 2.0}),
+}
+
+
+@pytest.mark.parametrize("which", list(CAUSES) + ["pair"])
+def test_exported_model_is_the_reduced_model_with_the_cause(plant, which):
+    """For every cause that can be built in (and a pair: the housing's h with an
+    ambient lag), the exported model stepped by the compensator gives the parametric
+    reduced model's own prediction of the fit (:func:`arfem.models.geodiagnosis.fit`'s
+    ``_predict``, the curve the diagnosis scores) at every displacement channel to 1e-8
+    of its range: both are the exact zero-order-hold solution of the same reduced
+    model at the record's four speeds, so only round-off separates them; a cause built
+    in on the wrong column, with the wrong tie or lag, or a state started wrong misses
+    by 1e-3 or more."""
+    from arfem.models.compensator import Compensator
+    from arfem.models.geodiagnosis.extended import export_reduced, reads_speed
+    from arfem.models.geodiagnosis.fit import Cause, Fit, _predict, _setting, make_context
+    from arfem.models.geodiagnosis.problem import make_record
+    from arfem.scenarios.geodiagnose_model import reduced_model
+    sc, spec = load_diagnosis_scenario(DATA / "spindle_coarse.toml")
+    model, _ = reduced_model(plant, sc, spec, 8000.0)
+    rng = np.random.default_rng(1012)
+    t, speed, power, amb = duty_cycle(rng, 12.0, 120.0, plant.sources)
+    cols = [("d_%s_um" if k == "displacement" else "T_%s_C") % n
+            for n, k in zip(plant.names, plant.kinds)]
+    rec = make_record("r", t, np.zeros((t.size, len(cols))), cols, plant.names, plant.kinds,
+                      power, speed, amb, plant.reference_C)
+    if which == "pair":
+        pairs = CAUSES["convection_scale"][0] + CAUSES["ambient_lag"][0]
+        params = [CAUSES["convection_scale"][1], CAUSES["ambient_lag"][1]]
+    else:
+        pairs, params = CAUSES[which][0], [CAUSES[which][1]]
+    causes = tuple(Cause(k, g) for k, g in pairs)
+    nl = {c.name: p[c.nonlinear] for c, p in zip(causes, params) if c.nonlinear}
+    beta = [v - (1.0 if k == "scale" else 0.0) for c, p in zip(causes, params)
+            for k, v in p.items() if k != c.nonlinear]
+    ctx = make_context(model, rec)
+    ref = _predict(ctx, causes, nl, beta)
+    fit = Fit(causes, tuple(params), tuple({} for _ in causes), ref, 0.0, 0,
+              _setting(ctx, causes, nl))
+    disp = [(c.output, c.column, c.sensor) for c in rec.channels if c.kind == "displacement"]
+    ins = [(f"P_{s}_W", "W") for s in plant.sources] + [("ambient_C", "°C")]
+    ins += [("speed_rpm", "1/min")] if reads_speed(model, rec, fit) else []
+    ex = export_reduced(model, rec, fit, dtau_s=120.0, outputs=disp, inputs=ins,
+                        kind="extended:test", description="test")
+    assert ex.model is not None, ex.note
+    assert all(built for _, _, built in ex.entered)
+    comp = Compensator(ex.model)
+    feed = {f"P_{s}_W": power[:, j] for j, s in enumerate(plant.sources)}
+    feed.update(ambient_C=amb, speed_rpm=speed)
+    out = np.zeros((t.size, len(disp)))
+    for k in range(1, t.size):
+        cyc = comp.step({i.name: float(feed[i.name][k]) for i in ex.model.inputs})
+        out[k] = [a.predicted_um for a in cyc.axes]
+    for j, (_, col, _) in enumerate(disp):
+        y = ref[:, [c.column for c in rec.channels].index(col)]
+        err = np.max(np.abs(out[1:, j] - y[1:])) / max(np.ptp(y), 1e-9)
+        assert err < 1e-8, (col, err)
