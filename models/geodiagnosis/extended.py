@@ -102,12 +102,19 @@ def how_entered(cause, params: dict) -> tuple[str, bool]:
     return "not built in: unknown cause", False
 
 
-def _missing_row(cause, params, rec, S: int, m_src: list, amb: int | None, spd: int | None,
-                 m: int) -> np.ndarray:
+def _missing_row(power_W: float, rec, m_src: list, spd: int | None, m: int) -> np.ndarray:
     """The row of T for a missing source's load column: what the fit's schedule
-    (:func:`arfem.models.geodiagnosis.fit.make_context`) is linear in."""
+    (:func:`arfem.models.geodiagnosis.fit.make_context`) is linear in.
+
+    Parameters
+    ----------
+    power_W : float, the fitted power at the record's largest input [W]
+    m_src : list of int, the model inputs of the sources (``P_<source>_W``)
+    spd : int or None, the model input ``speed_rpm``
+    m : int, number of model inputs
+    """
     row = np.zeros(m)
-    p = params["power_W"]
+    p = power_W
     if np.any(rec.speed_rpm > 0):
         row[spd] = p / float(np.max(rec.speed_rpm))
     else:
@@ -155,7 +162,7 @@ class _Plan:
     amb0: float
 
 
-def _plan(model, rec, fit, dtau_s, out_idx, inputs_m: list, scheduled: bool):
+def _plan(model, rec, fit, dtau_s, out_idx, inputs_m: list):
     """(_Plan, entered) from the fitted causes; raises ValueError with the reason a
     cause cannot be expressed."""
     S, G = len(model.sources), len(model.convections)
@@ -180,7 +187,7 @@ def _plan(model, rec, fit, dtau_s, out_idx, inputs_m: list, scheduled: bool):
                 raise ValueError("the missing source follows speed_rpm, which the model "
                                  "does not read")
             T[S + G + model.candidates.index(c.target)] = _missing_row(
-                c, p, rec, S, list(range(S)), amb, spd, m)
+                p["power_W"], rec, list(range(S)), spd, m)
         elif c.kind == "ambient_lag":
             lag_e = float(np.exp(-dtau_s / (p["lag_h"] * 3600.0)))
         elif c.kind == "warm_start":
@@ -259,7 +266,7 @@ def export_reduced(model, rec, fit, *, dtau_s: float, outputs, inputs, kind: str
                                                           np.ones(len(model.interfaces)))
     scheduled = is_scheduled(model, rec)
     try:
-        plan, entered = _plan(model, rec, fit, dtau_s, out_idx, list(inputs), scheduled)
+        plan, entered = _plan(model, rec, fit, dtau_s, out_idx, list(inputs))
     except ValueError as exc:
         return ExtendedExport(None, (), str(exc))
     C = 1e6 * np.asarray(model.rb.G, float)[:, out_idx].T
