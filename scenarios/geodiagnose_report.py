@@ -64,10 +64,11 @@ def highlighted_picture(gm, path: Path, surfaces=(), volumes=(), sensors=(),
             pl.add_point_labels(np.array([s.point]), [s.name], font_size=12, point_size=1,
                                 shape_opacity=0.6, always_visible=True)
     if surfaces or volumes:
-        pl.add_legend(bcolor="white", face="rectangle", loc="upper left")
+        pl.add_legend(bcolor="white", face="rectangle", loc="lower right")   # clear of the title
     pl.add_axes()
-    if title:
-        pl.add_title(title, font_size=10)
+    if title:                      # wrapped: a long verdict ran off both sides
+        import textwrap
+        pl.add_title(textwrap.fill(title, 64), font_size=10)
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
@@ -193,17 +194,17 @@ def _markdown(s: dict, d, sc) -> str:
 
 def _cause_words(c, p: dict, ci: dict) -> str:
     """A named cause with its first parameter and 95 % interval, for the picture's
-    title.
+    title (in words: VTK's font draws square brackets like parentheses).
 
     >>> from types import SimpleNamespace as N
     >>> _cause_words(N(name="source_scale:motor"), {"scale": 1.5}, {"scale": (1.4, 1.6)})
-    'source_scale:motor (scale 1.5 [1.4, 1.6])'
+    'source_scale:motor, scale = 1.5 (95 % interval 1.4 to 1.6)'
     """
     if not p:
         return c.name
     k, v = next(iter(p.items()))
     lo, hi = ci.get(k, (float("nan"), float("nan")))
-    return f"{c.name} ({k} {v:.3g} [{lo:.3g}, {hi:.3g}])"
+    return f"{c.name}, {k} = {v:.3g} (95 % interval {lo:.3g} to {hi:.3g})"
 
 
 def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
