@@ -204,7 +204,7 @@ def _cause_words(c, p: dict, ci: dict) -> str:
         return c.name
     k, v = next(iter(p.items()))
     lo, hi = ci.get(k, (float("nan"), float("nan")))
-    return f"{c.name}, {k} = {v:.3g} (95 % interval {lo:.3g} to {hi:.3g})"
+    return f"{c.name}, {k} = {v:.4g} (95 % interval {lo:.4g} to {hi:.4g})"
 
 
 def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
