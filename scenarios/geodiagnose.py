@@ -241,7 +241,9 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
     rom = _rom_statement(model, plant, rec)
     s = summary_of(d, model, rom)
     progress("exporting the compensators")
+    t2 = time.perf_counter()
     models = _export_models(case, d, model, rec, sc, progress)
+    tm["export_and_replay_s"] = time.perf_counter() - t2
     s["extended_model"] = models.statement
     tm["total_s"] = time.perf_counter() - t0
     s["timings_s"] = tm
