@@ -24,7 +24,9 @@ What is verified and why:
   nominal's (h re-assembled), the input columns are unchanged in name;
 * a clean record (no hidden cause) writes no model_extended.json and says why;
   model_nominal.json is flagged NOMINAL;
-* a version-1 model.json is still read and replayed on a contract-v2 record.
+* a version-1 model.json is still read and replayed on a contract-v2 record;
+* report.html opens with the verdict section: the verdict, the highlighted geometry
+  embedded, the compensator's residuals, before the table of contents.
 """
 from __future__ import annotations
 
@@ -226,3 +228,20 @@ def test_exported_model_is_the_reduced_model_with_the_cause(plant, which):
         y = ref[:, [c.column for c in rec.channels].index(col)]
         err = np.max(np.abs(out[1:, j] - y[1:])) / max(np.ptp(y), 1e-9)
         assert err < 1e-8, (col, err)
+
+
+def test_report_opens_with_the_verdict_on_the_highlighted_geometry(hidden_h):
+    """report.html shows the verdict first (before its table of contents), with the
+    geometry picture embedded in that section and the compensator's residuals in the
+    same place: a reader meets the answer, the named group and the gain first."""
+    d, _ = hidden_h
+    html = (d / "diag" / "report.html").read_text("utf-8")
+    i = html.index('<section class="verdict"')
+    j = html.index("</section>", i)
+    verdict = html[i:j]
+    assert i < html.index("<ul")                       # before the table of contents
+    assert "Verdict: established" in verdict and "convection_scale:housing_outer" in verdict
+    assert 'src="data:image/png;base64,' in verdict    # the picture, embedded
+    assert "nominal → extended model" in verdict
+    md = (d / "diag" / "report.md").read_text("utf-8")
+    assert "## The extended model as a compensator" in md
