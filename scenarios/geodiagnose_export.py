@@ -6,8 +6,9 @@ version 2 (one output per displacement channel), and their causal replay on the 
 (:func:`arfem.scenarios.replay_axes.replay_axes`, the replay ``arfem compensate`` runs),
 scored from the hold-out's start.
 
-With no established cause no ``model_extended.json`` is written (the verdict never
-claims more than the data show): ``diagnosis.json``'s ``extended_model`` says why, and
+With no established cause, or none that can be built into the machine's model (a
+sensor's drift alone), no ``model_extended.json`` is written (the verdict never claims
+more than the data show): ``diagnosis.json``'s ``extended_model`` says why, and
 ``model_nominal.json`` is still written, flagged as the nominal model in its ``kind``
 (``fem_reduced_nominal``) and description.
 """
@@ -139,6 +140,13 @@ def diagnosis_models(d, model, rec, sc, files, columns, arfem_version: str = "",
         e["enters_as"], e["built_in"] = how, built
     if ext.model is None:
         st["why_not"] = ext.note
+        return DiagnosisModels(nom.model, None, st)
+    if not any(built for _, _, built in ext.entered):
+        # e.g. a sensor's drift alone: the machine's model is the nominal one, and a file
+        # named "extended" that is the nominal would claim a correction it does not make
+        st["why_not"] = ("no established cause can be built into the machine's model ("
+                         + "; ".join(f"{nm}: {how}" for nm, how, _ in ext.entered)
+                         + "), so the machine's model is model_nominal.json")
         return DiagnosisModels(nom.model, None, st)
     st.update(written=True, file="model_extended.json", kind=kind)
     return DiagnosisModels(nom.model, ext.model, st)

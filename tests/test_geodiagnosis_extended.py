@@ -22,7 +22,8 @@ What is verified and why:
   replay, not two procedures);
 * the built-in cause is the fitted one: the extended model's A differs from the
   nominal's (h re-assembled), the input columns are unchanged in name;
-* a clean record (no hidden cause) writes no model_extended.json and says why;
+* a clean record (no hidden cause) writes no model_extended.json and says why, nor
+  does an established cause that cannot be built in (a sensor drift alone);
   model_nominal.json is flagged NOMINAL;
 * a version-1 model.json is still read and replayed on a contract-v2 record;
 * report.html opens with the verdict section: the verdict, the highlighted geometry
@@ -245,3 +246,43 @@ def test_report_opens_with_the_verdict_on_the_highlighted_geometry(hidden_h):
     assert "nominal → extended model" in verdict
     md = (d / "diag" / "report.md").read_text("utf-8")
     assert "## The extended model as a compensator" in md
+
+
+def test_a_cause_that_cannot_be_built_in_writes_no_extended_model(plant):
+    """An established sensor drift is an error of the measurement: nothing enters the
+    machine's model, so no model_extended.json (it would be the nominal under another
+    name) and the statement says why; a pair with one buildable cause is written and
+    marks the other as not built in."""
+    from types import SimpleNamespace as N
+
+    from arfem.models.geodiagnosis.fit import Cause, Fit, make_context, _setting
+    from arfem.models.geodiagnosis.problem import make_record
+    from arfem.scenarios.geodiagnose_export import diagnosis_models
+    from arfem.scenarios.geodiagnose_model import reduced_model
+    sc, spec = load_diagnosis_scenario(DATA / "spindle_coarse.toml")
+    model, _ = reduced_model(plant, sc, spec, 8000.0)
+    rng = np.random.default_rng(1013)
+    t, speed, power, amb = duty_cycle(rng, 6.0, 120.0, plant.sources)
+    cols = [("d_%s_um" if k == "displacement" else "T_%s_C") % n
+            for n, k in zip(plant.names, plant.kinds)]
+    rec = make_record("r", t, np.zeros((t.size, len(cols))), cols, plant.names, plant.kinds,
+                      power, speed, amb, plant.reference_C)
+    ctx = make_context(model, rec)
+    files = N(toml=Path("r.toml"), scenario=Path("spindle_coarse.toml"))
+    have = {f"P_{s}_W" for s in plant.sources}
+    drift = Cause("sensor_drift", "d_tcp_z_um")
+    for causes, params, written in (
+            ((drift,), ({"offset_um": 1.0, "drift_um_per_h": 0.1},), False),
+            ((Cause("source_scale", "motor"), drift),
+             ({"scale": 1.5}, {"offset_um": 1.0, "drift_um_per_h": 0.1}), True)):
+        fit = Fit(causes, params, tuple({k: (v, v) for k, v in p.items()} for p in params),
+                  np.zeros((t.size, len(cols))), 0.0, 0, _setting(ctx, causes, {}))
+        d = N(verdict="established", named=fit, holdout_start_s=float(t[-100]))
+        m = diagnosis_models(d, model, rec, sc, files, have)
+        st = m.statement
+        assert m.nominal is not None and (m.extended is not None) == written, st
+        assert st["written"] == written
+        by = {c["cause"]: c for c in st["causes"]}
+        assert not by[drift.name]["built_in"] and "measurement" in by[drift.name]["enters_as"]
+        if not written:
+            assert "model_nominal.json" in st["why_not"] and "sensor_drift" in st["why_not"]
