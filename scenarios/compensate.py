@@ -223,8 +223,21 @@ def main(args) -> int:
         return _main(args)
 
 
-def _main(args) -> int:
+def _load_record(args, model):
+    """The record: contract v3 (a ``[model]`` table, ``d_<sensor>_um`` channels, read by
+    :mod:`arfem.scenarios.axes_record`, for a version-2 model only) or the contract's
+    version 1/2 (``growth_um``)."""
+    from arfem.scenarios.georecord import is_mesh_record
+    if is_mesh_record(args.record):
+        from arfem.scenarios.axes_record import load_axes_record, require_axes_model
+        ds = load_axes_record(args.record)
+        require_axes_model(model, ds, str(args.record))
+        return ds
     from arfem.scenarios.dataset import load_dataset
+    return load_dataset(args.record, args.limits)
+
+
+def _main(args) -> int:
     if args.live is not None:
         if args.record is not None or args.out is not None:
             raise InputError("takes no RECORD and no --out (it reads stdin, writes stdout "
@@ -241,7 +254,7 @@ def _main(args) -> int:
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model, args.limits)
-    ds = load_dataset(args.record, args.limits)
+    ds = _load_record(args, model)
     if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")

@@ -30,7 +30,7 @@ __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
-          "channels.png")
+          "channels.png", "model_extended.json", "model_nominal.json")
 
 #: A displacement channel whose spread is under this fraction of the nominal model's is
 #: taken for mm declared as µm (a factor of 1000; a real misfit is rarely 100x).
@@ -240,20 +240,43 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
     progress("stating the reduced model's error")
     rom = _rom_statement(model, plant, rec)
     s = summary_of(d, model, rom)
+    progress("exporting the compensators")
+    t2 = time.perf_counter()
+    models = _export_models(case, d, model, rec, sc, progress)
+    tm["export_and_replay_s"] = time.perf_counter() - t2
+    s["extended_model"] = models.statement
     tm["total_s"] = time.perf_counter() - t0
     s["timings_s"] = tm
     progress("writing outputs")
     with staged_out_dir(out, force) as stage:
         write_json(stage / "diagnosis.json", s)
         write_report(stage, s, d, rec, model, plant, sc)
+        from arfem.scenarios.model_file import write_model
+        if models.nominal is not None:
+            write_model(stage / "model_nominal.json", models.nominal)
+        if models.extended is not None:
+            write_model(stage / "model_extended.json", models.extended)
     return s
+
+
+def _export_models(case, d, model, rec, sc, progress):
+    """model_extended.json / model_nominal.json and their replay on the record
+    (:mod:`arfem.scenarios.geodiagnose_export`)."""
+    from arfem import __version__
+    from arfem.scenarios.axes_record import load_axes_record
+    from arfem.scenarios.geodiagnose_export import diagnosis_models, replay_table
+    files = read_record_files(case)
+    cols = set(load_axes_record(case).extra_columns)
+    models = diagnosis_models(d, model, rec, sc, files, cols, __version__, progress)
+    models.statement["replay"] = replay_table(models, case, d.holdout_start_s)
+    return models
 
 
 def main_geodiagnose(args) -> int:
     """The ``arfem diagnose`` command for a mesh record (parsed ``args`` of
     :mod:`arfem.scenarios.diagnose`)."""
     from arfem.scenarios.progress import Progress
-    with Progress(8, "arfem diagnose", enabled=not args.no_progress) as progress:
+    with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
         s = run_geodiagnosis(args.case, args.out, args.holdout_start, args.force, progress)
     print(terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")

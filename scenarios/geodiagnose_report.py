@@ -62,12 +62,13 @@ def highlighted_picture(gm, path: Path, surfaces=(), volumes=(), sensors=(),
             pl.add_mesh(pv.Sphere(radius=0.01 * float(np.ptp(P, axis=0).max()), center=s.point),
                         color="black")
             pl.add_point_labels(np.array([s.point]), [s.name], font_size=12, point_size=1,
-                                shape_opacity=0.6)
+                                shape_opacity=0.6, always_visible=True)
     if surfaces or volumes:
-        pl.add_legend(bcolor="white", face="rectangle", loc="upper left")
+        pl.add_legend(bcolor="white", face="rectangle", loc="lower right")   # clear of the title
     pl.add_axes()
-    if title:
-        pl.add_title(title, font_size=10)
+    if title:                      # wrapped: a long verdict ran off both sides
+        import textwrap
+        pl.add_title(textwrap.fill(title, 64), font_size=10)
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
@@ -100,8 +101,56 @@ def _channels_figure(rec, d, path: Path) -> None:
     plt.close(fig)
 
 
+def _compensator_lines(em: dict | None) -> list:
+    """The compensators' section: what was written, how each cause enters, and each
+    model's replay residual per axis on the hold-out (arfem compensate's replay)."""
+    if not em:
+        return []
+    lines = ["", "## The extended model as a compensator", ""]
+    if em["written"]:
+        lines.append(f"`{em['file']}` (model_version 2, kind `{em['kind']}`) is the reduced "
+                     "model with the established cause(s) built in; `model_nominal.json` is "
+                     "the same reduced model without them. Replay either with `arfem "
+                     "compensate MODEL.json RECORD.toml --out DIR`.")
+        lines += ["", "| cause | enters the model as |", "|---|---|"]
+        lines += [f"| {c['cause']} | {c['enters_as']} |" for c in em["causes"]]
+    else:
+        lines.append(f"No `model_extended.json`: {em['why_not']}.")
+    rep = em.get("replay") or {}
+    if "not_replayed" in rep:
+        lines += ["", f"Not replayed: {rep['not_replayed']}."]
+    elif rep:
+        lines += ["", "Replayed causally on this record, scored on the hold-out (RMS [µm] "
+                  "of what is left on each axis after the offset):", "",
+                  "| axis | output | uncompensated | nominal model | extended model |",
+                  "|---|---|---|---|---|"]
+        for ax, r in rep.items():
+            e = r["extended_rms_after_um"]
+            lines.append(f"| {ax} | {r['output']} | {r['rms_before_um']:.3g} | "
+                         f"{r['nominal_rms_after_um']:.3g} | "
+                         f"{'-' if e is None else f'{e:.3g}'} |")
+    return lines
+
+
+def _compensator_gist(em: dict | None) -> list:
+    """One sentence for the verdict: the extended model's replay residual against the
+    nominal's on the hold-out, per axis, or why there is no extended model."""
+    if not em:
+        return []
+    rep = em.get("replay") or {}
+    if em["written"] and rep and "not_replayed" not in rep:
+        per = "; ".join(f"{ax} {r['nominal_rms_after_um']:.3g} → "
+                        f"{r['extended_rms_after_um']:.3g} µm" for ax, r in rep.items())
+        return [f"As a compensator (`{em['file']}`, replayed causally on the hold-out), "
+                f"the RMS left after the offset, nominal → extended model: {per}.", ""]
+    if not em["written"]:
+        return [f"No extended model is written: {em['why_not']}.", ""]
+    return []
+
+
 def _markdown(s: dict, d, sc) -> str:
-    lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "",
+    # "## Verdict": the HTML page shows this section first, its picture embedded
+    lines = [f"# Diagnosis of {s['dataset']} on {Path(sc.source).name}", "", "## Verdict", "",
              f"**Verdict: {s['verdict']}.** {s['verdict_text']}", "",
              ("![the geometry, the named group in red](geometry_named.png)"
               if s["verdict"] == "established" else
@@ -114,13 +163,16 @@ def _markdown(s: dict, d, sc) -> str:
                 lo, hi = ci.get(k, (float("nan"), float("nan")))
                 lines.append(f"| {c.name} | {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
         lines.append("")
-    lines += [f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
+    lines += _compensator_gist(s.get("extended_model"))
+    lines += ["## Hold-out", "",
+              f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
               f"before it); weighted gain {d.gain_pct:.1f} %.", "",
               "| channel | nominal RMSE | extended RMSE | MLR (eq. 18) RMSE |",
               "|---|---|---|---|"]
     for k, (b, e, m) in d.holdout_rmse.items():
         ms = "-" if m is None else f"{m:.3g}"
         lines.append(f"| {k} | {b:.3g} | {e:.3g} | {ms} |")
+    lines += _compensator_lines(s.get("extended_model"))
     rm = s["reduced_model"]
     lines += ["", "![channels](channels.png)", "",
               f"Reduced model: {rm['basis_vectors']} basis vectors ({rm['krylov_blocks']} Krylov "
@@ -140,6 +192,21 @@ def _markdown(s: dict, d, sc) -> str:
     return "\n".join(lines)
 
 
+def _cause_words(c, p: dict, ci: dict) -> str:
+    """A named cause with its first parameter and 95 % interval, for the picture's
+    title (in words: VTK's font draws square brackets like parentheses).
+
+    >>> from types import SimpleNamespace as N
+    >>> _cause_words(N(name="source_scale:motor"), {"scale": 1.5}, {"scale": (1.4, 1.6)})
+    'source_scale:motor, scale = 1.5 (95 % interval 1.4 to 1.6)'
+    """
+    if not p:
+        return c.name
+    k, v = next(iter(p.items()))
+    lo, hi = ci.get(k, (float("nan"), float("nan")))
+    return f"{c.name}, {k} = {v:.4g} (95 % interval {lo:.4g} to {hi:.4g})"
+
+
 def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
     """report.md, report.html, geometry_named.png, channels.png and series.csv."""
     # red only for an established cause: a best candidate that failed a check of
@@ -150,7 +217,8 @@ def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
         surf += _source_groups(sc, [c.target for c in d.named.causes
                                     if c.kind == "source_scale"])
     title = f"{s['verdict']}: " + (
-        " + ".join(c.name for c in d.named.causes) if est
+        " + ".join(_cause_words(c, p, ci) for c, p, ci in
+                   zip(d.named.causes, d.named.params, d.named.ci95)) if est
         else "no cause named" + (f" (best candidate {' + '.join(c.name for c in d.named.causes)}"
                                  ", not established: not highlighted)"
                                  if d.named is not None else ""))

@@ -196,8 +196,8 @@ def test_command_writes_the_report_opening_with_the_verdict(setup, tmp_path):
         "established", "explained", "unconfirmed", "not_explained")
     assert s["cause"] == "none" or s["verdict"] == "established"
     md = (out / "report.md").read_text().splitlines()
-    assert md[2].startswith(f"**Verdict: {s['verdict']}.**")
+    assert md[2] == "## Verdict" and md[4].startswith(f"**Verdict: {s['verdict']}.**")
     # the picture's caption claims a named group only for an established cause
-    assert ("named group in red" in md[4]) == (s["verdict"] == "established"), md[4]
+    assert ("named group in red" in md[6]) == (s["verdict"] == "established"), md[6]
     for f in ("report.html", "geometry_named.png", "channels.png", "series.csv"):
         assert (out / f).stat().st_size > 0

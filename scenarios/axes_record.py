@@ -1,0 +1,92 @@
+"""A contract-v3 record (``docs/measured-data.md``, version 3) as the record a
+several-axes replay steps through (``arfem compensate MODEL.json RECORD.toml``).
+
+A v3 record names the mesh scenario it belongs to (``[model] scenario = ...``) and has
+one column per displacement channel (``d_<sensor>_um``), no ``growth_um``; a version-2
+model (one output per axis) predicts exactly those columns. :func:`load_axes_record`
+reads it through the v3 reader (:mod:`arfem.scenarios.georecord`: the TOML's keys, the
+scenario file, the CSV's numbers and ``time_s``) and hands
+:func:`arfem.scenarios.replay_axes.replay_axes` what it reads of a record: the time,
+the inputs (``speed_rpm``, ``ambient_C``, ``T_<sensor>_C``) and every other column
+(``P_<source>_W``, ``d_<sensor>_um``, …) as cells, an empty cell missing.
+
+The record's sensors are not checked against the scenario's mesh here (that needs the
+mesh assembled; ``arfem diagnose`` does it): the replay needs only that each of the
+model's inputs and outputs has its column, and refuses in one line, naming what the
+record has, when one is missing.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from arfem.params import InputError
+
+__all__ = ["AxesRecord", "load_axes_record", "require_axes_model"]
+
+
+@dataclass(frozen=True)
+class AxesRecord:
+    """What a several-axes replay reads of a record (the attributes of
+    :class:`arfem.scenarios.dataset.Dataset` it uses).
+
+    Attributes
+    ----------
+    name : str
+    time_s : ndarray (n,), sample times [s]
+    speed_rpm, ambient_C : ndarray (n,) or None, [1/min], [°C]
+    temperatures : dict, ``T_<sensor>_C`` → ndarray (n,) [°C]
+    extra_columns : dict, every other column → its cells (str; '' missing)
+    line_numbers : tuple of int, the CSV line of each row
+    csv_path : Path
+    scenario : Path, the mesh scenario the record names
+    """
+
+    name: str
+    time_s: np.ndarray
+    speed_rpm: np.ndarray | None
+    ambient_C: np.ndarray | None
+    temperatures: dict
+    extra_columns: dict
+    line_numbers: tuple
+    csv_path: Path
+    scenario: Path
+    q_W_m2: None = field(default=None)
+
+
+def _cells(v: np.ndarray) -> np.ndarray:
+    """Floats as the text cells the replay's column reader takes (NaN → '')."""
+    return np.array(["" if np.isnan(x) else repr(float(x)) for x in v], dtype=object)
+
+
+def load_axes_record(path) -> AxesRecord:
+    """Read a contract-v3 record (its TOML, or the CSV beside it) for a replay.
+
+    Raises
+    ------
+    InputError
+        One line naming the file and key or column (the v3 reader's refusals).
+    """
+    from arfem.scenarios.georecord import read_record_files, read_table
+    files = read_record_files(path)
+    cols = dict(read_table(files).columns)
+    t = cols.pop("time_s")
+    temps = {k: cols.pop(k) for k in list(cols) if k.startswith("T_") and k.endswith("_C")}
+    speed = cols.pop("speed_rpm", None)
+    amb = cols.pop("ambient_C", None)
+    return AxesRecord(files.name, t, speed, amb, temps, {k: _cells(v) for k, v in cols.items()},
+                      tuple(range(2, t.size + 2)), files.csv, files.scenario)
+
+
+def require_axes_model(model, record: AxesRecord, where: str) -> None:
+    """Refuse a version-1 model (one ``growth_um`` output) on a v3 record, whose
+    displacement is one column per channel (one line naming the record's channels)."""
+    if model.outputs:
+        return
+    chans = sorted(k for k in record.extra_columns if k.startswith("d_") and k.endswith("_um"))
+    raise InputError("is a contract-v3 record (displacement channels "
+                     f"{', '.join(chans) or 'none'}, no growth_um): replay it with a "
+                     "version-2 model (one output per axis, e.g. the model.json of arfem run "
+                     "on its scenario)", where)
