@@ -438,7 +438,11 @@ def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp
     out = tmp_path / "out"
     store = PointStore(out)
     (tmp_path / "gated_point.py").write_text(_GATED_POINT)
+    # SIGINT handled as in a terminal even where the test runs in the background (a
+    # shell starts background jobs with SIGINT ignored, and Python then never raises
+    # KeyboardInterrupt)
     cmd = [sys.executable, "-c",
+           "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
            "import sys; sys.path.insert(0, sys.argv[1]); import gated_point; "
            "from arfem.scenarios.sweep import runner; "
            "run = runner.run_in_store; runner.run_in_store = lambda *a, **k: "

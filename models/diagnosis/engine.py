@@ -82,6 +82,7 @@ from arfem.models.diagnosis.rules import (
     ALPHA, EFFECT_FACTOR, MIN_GAIN, MISFIT_CUT, MISFIT_FACTOR, PAIR_MIN_GAIN,
     PAIR_MISFIT, PARSIMONY_P, _FEM_RULE, _SPEED_RULE, _effect_and_slow_noise,
     _implausible, _parsimony, _second_cause, _select, _select_cv, _unconfirmed,
+    naming_test_text,
     _units_warning)
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
@@ -485,10 +486,11 @@ def _second_cause_effect(cause, pair, fits, t, y, rows, warnings):
     if pair is not None and fits.get(causes[0]) is not None:
         inc, slow = _effect_and_slow_noise(t, y, rows, pair, fits[causes[0]])
         if inc < EFFECT_FACTOR * slow:
-            warnings.append(f"{causes[1]} beside {causes[0]} changes the fit window by "
-                            f"{inc:.3g} µm RMS, within {EFFECT_FACTOR:g} x the slow part "
-                            f"of the noise ({slow:.3g} µm): unconfirmed as a second cause "
-                            "(post hoc rule, after the fresh batch 9000)")
+            warnings.append(f"a second cause is listed only if it changes the fit window "
+                            f"by at least {EFFECT_FACTOR:g} x the slow part of the noise "
+                            f"({slow:.3g} µm) beyond the first; {causes[1]} beside "
+                            f"{causes[0]} changes it by {inc:.3g} µm RMS: unconfirmed as a "
+                            "second cause (post hoc rule, after the fresh batch 9000)")
             pair, causes, cause = None, [causes[0]], causes[0]
     return cause, causes, pair
 
@@ -506,10 +508,10 @@ def _effect_rule(cause, causes, ext, base, tests, t, y, rows):
     unconfirmed = {"cause": named, "parameters": ext.parameters,
                    "named_by": tests.get(cause, {}).get("named_by"),
                    "effect_rms_um": effect, "slow_noise_um": slow,
-                   "why": (f"{named} changes the fit window by {effect:.3g} µm RMS, "
-                           f"within {EFFECT_FACTOR:g} x the slow part of the noise "
-                           f"({slow:.3g} µm, the residual's 30-min means): "
-                           "unconfirmed, so no cause is named")}
+                   "why": (f"a cause is named only if it changes the fit window by at "
+                           f"least {EFFECT_FACTOR:g} x the slow part of the noise "
+                           f"({slow:.3g} µm, the residual's 30-min means); {named} changes "
+                           f"it by {effect:.3g} µm RMS: unconfirmed, so no cause is named")}
     return "none", [], base, unconfirmed
 
 
@@ -675,18 +677,25 @@ def _holdout_scores(y, base_pred, ext_pred, hold):
 
 
 def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
-    """The best cause not named and why it lost, or None."""
+    """The best cause not named and why it lost -- the rule and its outcome -- or None."""
     if runner is None or fits.get(runner) is None:
         return None
+    score, other = scores[runner], scores.get(cause, float("nan"))
+    test = tests.get(runner)
     if input_kind == "q_W_m2":
-        why = (f"BIC {scores[runner]:.1f} vs {scores.get(cause, float('nan')):.1f}"
-               + (f"; F-test p = {tests[runner]['p_value']:.3g}, fit-RMSE cut "
-                  f"{tests[runner]['rmse_cut_pct']:.1f} %" if runner in tests else ""))
+        score_text = f"BIC {score:.1f}, {cause} {other:.1f}"
+        least = "the least BIC on N_eff"
     else:
-        why = (f"validation RMSE {scores[runner]:.3g} vs {scores.get(cause, float('nan')):.3g} µm"
-               + (f"; cut {tests[runner]['rmse_cut_pct']:.1f} % of the baseline's, "
-                  f"{tests[runner]['blocks_won']}/{len(tests[runner]['cv_per_block_um'])} "
-                  f"blocks won" if runner in tests else ""))
+        score_text = f"validation RMSE {score:.3g} µm, {cause} {other:.3g} µm"
+        least = "the least validation RMSE"
+    if test is not None and not test.get("significant", False):
+        why = f"{naming_test_text(test)} ({score_text})"
+    elif cause == "none":          # passed its test, set behind by the post hoc drift rule
+        why = (f"{runner} is named only if no cause driven by the recorded inputs passes "
+               f"the naming test (--drift-last) ({score_text})")
+    else:
+        why = (f"of the candidates that pass the naming test, the one with {least} is "
+               f"named ({score_text})")
     return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
             "parameters": fits[runner].parameters, "why_lost": why}
 
