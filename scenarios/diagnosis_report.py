@@ -415,6 +415,22 @@ def write_all(diag, out) -> None:
     _figures(diag, out)
 
 
+def _unseen_note(h: dict) -> str:
+    """What the hold-out's speeds not seen before it do to the paper AR(1) baseline, and
+    why ``arfem compensate`` scores ``model.json`` differently there ('' if none)."""
+    unseen = h.get("speeds_not_seen_before_rpm")
+    if not unseen:
+        return ""
+    share = h["n_samples_at_speeds_not_seen"] / max(h["n_samples"], 1)
+    return (f" {h['n_samples_at_speeds_not_seen']} of them ({100 * share:.0f} %) run at "
+            f"speeds not seen before it ({', '.join(f'{v:g}' for v in unseen)} rpm), whose C2 "
+            "the baseline (paper AR(1)) takes from the early-rise mapping of eqs. 20-21; "
+            "`model.json` is the same eq. 17 fit on every row before the hold-out with C2 "
+            "interpolated between the fitted speeds, so `arfem compensate` scores it "
+            "differently on this hold-out (docs/measured-data.md, \"Two paper AR(1) "
+            "numbers\").")
+
+
 def _holdout_section(j: dict) -> list[str]:
     """The "Extended model on the hold-out" section: every model's hold-out RMSE, an
     unestablished candidate called so, and no "extended" row where the extended model
@@ -422,7 +438,8 @@ def _holdout_section(j: dict) -> list[str]:
     b, e, h = j["baseline"], j["extended"], j["holdout"]
     L = ["", "## Extended model on the hold-out", "",
          f"Hold-out from t = {h['start_s']:g} s ({h['start_s'] / 3600:.2f} h); {h['how_chosen']}. "
-         f"All fits use only the data before it.", "",
+         f"All fits use only the data before it. Scored on its {h['n_samples']} rows with a "
+         "growth reading (outliers left out)." + _unseen_note(h), "",
          "| model | hold-out RMSE [µm] |", "|---|---|",
          f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |"]
     ext = ("extended" if j.get("verdict", "established") == "established"

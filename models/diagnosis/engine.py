@@ -515,6 +515,17 @@ def _effect_rule(cause, causes, ext, base, tests, t, y, rows):
     return "none", [], base, unconfirmed
 
 
+#: what the baseline of a speed_rpm record is, fitted and run (diagnosis.json's
+#: ``ar_form_description``): ``model.json`` is the same eq. 17 fit on every row before
+#: the hold-out with C2 interpolated between the fitted speeds
+#: (:func:`arfem.models.compensator.fit_speed_ar1_model`), so where the hold-out runs at
+#: speeds not seen before it, ``arfem compensate`` scores it differently
+SPEED_AR_LABEL = ("paper AR(1): C1 and one C2 per speed by eq. 17 (least squares on the "
+                  "one-step pairs before the hold-out, outliers left out), run free from "
+                  "the first row; a speed not seen before the hold-out gets its C2 by the "
+                  "early-rise mapping of eqs. 20-21")
+
+
 def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnings,
                     progress, intervals=True, drift_last=False, on_fit=None) -> BranchResult:
     """speed_rpm records: the paper AR(1) calibrated by eq. 17 (the baseline), every
@@ -572,7 +583,7 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         # output-error AR: the reference the candidates are tested against
         ar_forms={"ar_output_error": ArForm(fits["none"], ext)},
         baseline_model="ar", score_kind="validation_rmse_um", rule=_SPEED_RULE,
-        ar_label="paper AR(1) calibrated by eq. 17 before the hold-out",
+        ar_label=SPEED_AR_LABEL,
         ci95=ci, speed_inputs=speed_inputs)
 
 
@@ -667,6 +678,16 @@ def _signals(input_kind, cols, temps):
         signals["ambient_C"] = cols["ambient_C"]
     signals.update(temps)
     return signals
+
+
+def _unseen_speeds(r) -> dict:
+    """The speeds [1/min] the hold-out runs at that no fit row holds, and on how many of
+    its scored rows: where the paper AR(1) baseline (eqs. 20-21) and ``model.json``
+    (C2 interpolated) differ."""
+    u = np.asarray(r.u, float)
+    unseen = sorted(set(np.unique(u[r.hold]).tolist()) - set(np.unique(u[r.rows]).tolist()))
+    return {"speeds_not_seen_before_rpm": [float(v) for v in unseen],
+            "n_samples_at_speeds_not_seen": int(np.isin(u[r.hold], unseen).sum())}
 
 
 def _holdout_scores(y, base_pred, ext_pred, hold):
@@ -902,6 +923,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
                              warnings, step, intervals, drift_last, on_fit)
     step("residuals and hold-out")
     branch, holdout = _score_holdout(branch, r, warnings)
+    if ds.input_kind == "speed_rpm":
+        holdout.update(_unseen_speeds(r))
     t, y, good, base, ext = r.t, r.y, r.good, branch.baseline, branch.extended
     running = r.u > 0
     bres = _residual_analysis(t, y, base.prediction, good, r.signals, running,
