@@ -396,7 +396,10 @@ def _launch_and_interrupt(cmd, store: PointStore, stored: int, sig, whole_group:
     workers)."""
     gate_dir.mkdir()
     new = stored - len(store.keys())                   # points this run may compute
-    env = {**os.environ, "ARFEM_TEST_GATE_DIR": str(gate_dir),
+    # the gated point's module (beside the sweep, written by the test) is found by the
+    # sweep and by its spawned workers through PYTHONPATH
+    path = os.pathsep.join(filter(None, [str(gate_dir.parent), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "PYTHONPATH": path, "ARFEM_TEST_GATE_DIR": str(gate_dir),
            "ARFEM_TEST_GATE_OPEN": str(new)}
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             start_new_session=True, env=env)
@@ -443,12 +446,12 @@ def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp
     # KeyboardInterrupt)
     cmd = [sys.executable, "-c",
            "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
-           "import sys; sys.path.insert(0, sys.argv[1]); import gated_point; "
+           "import sys, gated_point; "
            "from arfem.scenarios.sweep import runner; "
            "run = runner.run_in_store; runner.run_in_store = lambda *a, **k: "
            "run(*a, **{**k, 'point_fn': gated_point.point}); "
-           "from arfem.scenarios.cli import main; sys.exit(main(sys.argv[2:]))",
-           str(tmp_path), "sweep", str(sw), "--out", str(out), "--workers", "2",
+           "from arfem.scenarios.cli import main; sys.exit(main(sys.argv[1:]))",
+           "sweep", str(sw), "--out", str(out), "--workers", "2",
            "--no-progress"]
 
     rc, err, _ = _launch_and_interrupt(cmd, store, 4, signal.SIGINT, True, tmp_path / "g1")
