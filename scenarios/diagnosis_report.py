@@ -426,7 +426,8 @@ def _unseen_note(h: dict) -> str:
             f"speeds not seen before it ({', '.join(f'{v:g}' for v in unseen)} rpm), whose C2 "
             "the baseline (paper AR(1)) takes from the early-rise mapping of eqs. 20-21; "
             "`model.json` is the same eq. 17 fit on every row before the hold-out with C2 "
-            "interpolated between the fitted speeds, so `arfem compensate` scores it "
+            "interpolated linearly between the fitted speeds (extrapolated beyond them), "
+            "so `arfem compensate` scores it "
             "differently on this hold-out (docs/measured-data.md, \"Two paper AR(1) "
             "numbers\").")
 

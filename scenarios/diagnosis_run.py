@@ -59,9 +59,9 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
                 ds.growth_um[fit], ds.speed_rpm[fit][1:], dtau_s=dt,
                 arfem_version=__version__,
                 description=f"paper AR(1) calibrated by eq. 17 on every row, {span}; "
-                            f"C2 of a speed between the fitted ones interpolated "
-                            f"linearly (arfem diagnose's baseline maps a speed not seen "
-                            f"before the hold-out by eqs. 20-21 instead)")
+                            f"C2 of a speed off the fitted ones interpolated linearly "
+                            f"(extrapolated beyond them; arfem diagnose's baseline maps "
+                            f"a speed not seen before the hold-out by eqs. 20-21 instead)")
         except InputError as exc:          # e.g. C1 >= 1: no compensator to export
             why.append(f"model.json: {exc}")
     # the extended model of the cause the selection rules named, established or not
@@ -203,6 +203,6 @@ def terminal_line(s: dict) -> str:
     if h.get("speeds_not_seen_before_rpm"):
         line += (f"; the baseline maps speeds not seen before the hold-out "
                  f"({', '.join(f'{v:g}' for v in h['speeds_not_seen_before_rpm'])} rpm) by "
-                 "eqs. 20-21, model.json interpolates their C2, so arfem compensate scores "
-                 "it differently")
+                 "eqs. 20-21, model.json inter- or extrapolates their C2 linearly, so "
+                 "arfem compensate scores it differently")
     return line

@@ -272,8 +272,8 @@ def test_a_lost_speed_candidate_reads_the_naming_rule_and_its_outcome():
     r = _runner_up("speed_rpm", "sensor_drift", "frame_expansion", {"frame_expansion": fit},
                    {"frame_expansion": 2.38, "sensor_drift": 2.1},
                    {"frame_expansion": test}, "validation_rmse_um")
-    assert r["why_lost"].startswith("of the candidates that pass the naming test, the one "
-                                    "with the least validation RMSE is named")
+    assert r["why_lost"].startswith("the one with the least validation RMSE among the "
+                                    "candidates that pass the naming test is named")
 
 
 def test_the_verdict_states_each_failed_check_as_rule_and_outcome():

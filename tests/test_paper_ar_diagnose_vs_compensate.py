@@ -104,11 +104,11 @@ def test_outputs_say_where_the_two_numbers_part():
                           "holdout": h})
     assert "hold-out (from 30.87 h, 3701 rows) RMSE 5.36 -> 5.36 µm" in line
     assert ("maps speeds not seen before the hold-out (500, 1500, 3500, 4500 rpm) by "
-            "eqs. 20-21, model.json interpolates their C2") in line
+            "eqs. 20-21, model.json inter- or extrapolates their C2 linearly") in line
     note = _unseen_note(h)
     assert "2157 of them (58 %) run at speeds not seen before it" in note
     assert "`arfem compensate` scores it differently" in note
     assert _unseen_note(dict(h, speeds_not_seen_before_rpm=[])) == ""
-    assert "interpolates" not in terminal_line({"dataset": "d", "verdict": "explained",
+    assert "extrapolates" not in terminal_line({"dataset": "d", "verdict": "explained",
                                                 "cause": "none",
                                                 "holdout": dict(h, speeds_not_seen_before_rpm=[])})

@@ -715,7 +715,7 @@ def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
         why = (f"{runner} is named only if no cause driven by the recorded inputs passes "
                f"the naming test (--drift-last) ({score_text})")
     else:
-        why = (f"of the candidates that pass the naming test, the one with {least} is "
+        why = (f"the one with {least} among the candidates that pass the naming test is "
                f"named ({score_text})")
     return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
             "parameters": fits[runner].parameters, "why_lost": why}
