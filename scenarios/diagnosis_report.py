@@ -382,7 +382,8 @@ def _naming_lines(j: dict) -> list[str]:
               f"from second differences), so `none` cannot hold; `{j['cause']}` removes "
               f"{named['rmse_cut_pct']:.0f} % of it, but what it leaves is so correlated "
               f"(N_eff = {sel['n_eff']:.1f}) that the F test is not significant "
-              f"({st.p_text(named['p_value'])}). More than one cause, or one outside the vocabulary, "
+              f"({st.p_text(named['p_value'])}). More than one cause, or one outside the "
+              "vocabulary, "
               "is likely; treat the named one as the largest part."]
     if j.get("runner_up"):
         r = j["runner_up"]

@@ -180,8 +180,8 @@ def naming_test_text(test: dict, n_blocks: int | None = None) -> str:
     'a cause is named only if its nested F test against the baseline gives p < 0.0002 and it cuts the fit-window RMSE by at least 5 %; p < 1e-16, cut 3.0 %'
     """
     if "median_block_ratio" in test:          # post hoc rule of --frame-search average
-        return (f"a cause is named only if its median per-block validation RMSE over the baseline's "
-                f"is at most {1 - MIN_GAIN:g}; it is {test['median_block_ratio']:.3g}")
+        return (f"a cause is named only if its median per-block validation RMSE over "
+                f"the baseline's is at most {1 - MIN_GAIN:g}; it is {test['median_block_ratio']:.3g}")
     if "blocks_won" in test:
         n = len(test["cv_per_block_um"]) if n_blocks is None else n_blocks
         return (f"a cause is named only if it cuts the validation RMSE of the baseline by at least "
