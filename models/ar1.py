@@ -29,7 +29,8 @@ from scipy.special import j0, j1, jn_zeros
 from arfem.params import InputError, Rod, Schedule
 
 __all__ = ["c1_paper", "c2_paper", "steady_growth_m", "radial_eigenvalue",
-           "corrected_coefficients", "ar1_simulate", "ar1_on_schedule", "fit_ar1", "AR1Fit"]
+           "corrected_coefficients", "ar1_simulate", "ar1_on_schedule", "fit_ar1", "AR1Fit",
+           "eq17_least_squares"]
 
 
 def _dtau(dtau_s) -> float:
@@ -335,6 +336,43 @@ class AR1Fit:
     residual_rms: float
 
 
+def eq17_least_squares(previous, following, level, level_values) -> AR1Fit:
+    """The least squares of paper eq. 17 on given one-step pairs, with no check: the one
+    implementation behind :func:`fit_ar1` (the model ``arfem compensate`` runs) and
+    :func:`arfem.models.diagnosis.speed.paper_ar` (the baseline of ``arfem diagnose``).
+
+    Parameters
+    ----------
+    previous, following : array_like
+        ΔL_{n−1} and ΔL_n of each pair (any unit; C2 comes back in it).
+    level : array_like
+        The input level on step n of each pair.
+    level_values : array_like
+        The levels that get a C2, in this order (a level with no pair gets 0, the
+        least-norm solution).
+
+    Returns
+    -------
+    AR1Fit
+        C1 unclipped; ``residual_rms`` of the one-step residuals.
+
+    Examples
+    --------
+    >>> g = ar1_simulate(0.9, [1.0] * 20 + [0.0] * 20)
+    >>> f = eq17_least_squares(g[:-1], g[1:], [1.0] * 20 + [0.0] * 20, [0.0, 1.0])
+    >>> round(f.c1, 6), round(f.c2[1.0], 6)
+    (0.9, 1.0)
+    """
+    prev = np.asarray(previous, float)
+    lv = np.asarray(level, float)
+    X = np.column_stack([prev] + [(lv == u).astype(float) for u in level_values])
+    y = np.asarray(following, float)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    res = y - X @ coef
+    return AR1Fit(float(coef[0]), {float(u): float(c) for u, c in zip(level_values, coef[1:])},
+                  float(np.sqrt(np.mean(res ** 2))) if res.size else 0.0)
+
+
 def fit_ar1(growth, levels) -> AR1Fit:
     """Fit ΔL_n = C1 ΔL_{n−1} + C2(level_n) by linear least squares (paper eq. 17).
 
@@ -386,7 +424,4 @@ def fit_ar1(growth, levels) -> AR1Fit:
     if X.shape[0] < X.shape[1] or np.linalg.matrix_rank(X) < X.shape[1]:
         raise InputError(f"cannot identify C1 and {uniq.size} C2 values from {g.size} samples "
                          "(too few, or the series never changes within a level)", "growth")
-    coef, *_ = np.linalg.lstsq(X, g[1:], rcond=None)
-    res = g[1:] - X @ coef
-    return AR1Fit(float(coef[0]), {float(u): float(c) for u, c in zip(uniq, coef[1:])},
-                  float(np.sqrt(np.mean(res ** 2))))
+    return eq17_least_squares(g[:-1], g[1:], lv, uniq)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
+from arfem.models.diagnosis.rules import MIN_GAIN, blocks_needed
 from arfem.models.diagnosis.speed_intervals import at_search_edge
 from arfem.io import atomic_write_text, write_csv, write_json
 
@@ -265,7 +266,8 @@ def _residual_lines(j: dict) -> list[str]:
          "", "| measure | baseline | extended |", "|---|---|---|"]
     for k, lab in (("rmse_um", "RMSE [µm]"), ("max_abs_um", r"max \|error\| [µm]"),
                    ("fit_pct", "fit [%]"), ("ljung_box_p", "Ljung–Box p (eq. 19)")):
-        L.append(f"| {lab} | {_fmt(b.get(k))} | {_fmt(e.get(k))} |")
+        f = st.format_p if k == "ljung_box_p" else _fmt
+        L.append(f"| {lab} | {f(b.get(k))} | {f(e.get(k))} |")
     for p in ("heating", "cooling", "standing"):
         bp, ep = b["per_phase"].get(p), e["per_phase"].get(p)
         L.append(f"| RMSE {p} [µm] | {_fmt(bp and bp['rmse_um'])} | {_fmt(ep and ep['rmse_um'])} |")
@@ -293,7 +295,7 @@ def _heat_flux_candidates(j: dict) -> list[str]:
             L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
                 f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
             continue
-        L.append(f"| {c['cause']} | {c['score']:.1f} | {_fmt(c.get('p_value'))} | "
+        L.append(f"| {c['cause']} | {c['score']:.1f} | {st.format_p(c.get('p_value'))} | "
                  f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
                      f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
     return L
@@ -322,7 +324,13 @@ def _speed_candidates(j: dict, sel: dict) -> list[str]:
               "(`benchmarks/bench_speed_intervals.py --kinds frame_average`).", ""]
     if "drift_rule" in sel:                # --drift-last (post hoc option)
         L += [f"Naming: {sel['drift_rule']}.", ""]
-    L += ["| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won | parameters |",
+    nb = len(sel["validation_blocks_s"])
+    if "naming" not in sel:                # the rule of the default search (not average)
+        L += [f"Naming test: a cause is named only if it cuts the baseline's validation "
+              f"RMSE by at least {100 * MIN_GAIN:g} % and wins on at least "
+              f"{blocks_needed(nb)} of the {nb} blocks.", ""]
+    L += [f"| candidate | validation RMSE [µm] | per block [µm] | cut [%] | blocks won (of "
+          f"{nb}) | parameters |",
           "|---|---|---|---|---|---|"]
     for c in j["candidates"]:
         per = ", ".join(_fmt(v) for v in c.get("cv_per_block_um", []))
@@ -344,7 +352,7 @@ def _second_cause_lines(j: dict) -> list[str]:
               "| pair | F-test p | fit-RMSE cut [%] | N_eff | significant | parameters |",
               "|---|---|---|---|---|---|"]
         for t in pairs:
-            L.append(f"| {' + '.join(t['causes'])} | {_fmt(t['p_value'])} | "
+            L.append(f"| {' + '.join(t['causes'])} | {st.format_p(t['p_value'])} | "
                      f"{_fmt(t['rmse_cut_pct'])} | {t['n_eff']:.1f} | "
                      f"{'yes' if t['significant'] else 'no' + (' (refused)' if 'refused' in t else '')} | "
                      + ", ".join(f"{k}={_fmt(v, 4)}" for k, v in t["parameters"].items()) + " |")
@@ -373,8 +381,9 @@ def _naming_lines(j: dict) -> list[str]:
               f"{sel['baseline_rmse_over_noise']:.0f} noise σ (σ ≈ {sel['noise_sigma_um']:.3g} µm "
               f"from second differences), so `none` cannot hold; `{j['cause']}` removes "
               f"{named['rmse_cut_pct']:.0f} % of it, but what it leaves is so correlated "
-              f"(N_eff = {sel['n_eff']:.1f}) that the F test is not significant (p = "
-              f"{named['p_value']:.3g}). More than one cause, or one outside the vocabulary, "
+              f"(N_eff = {sel['n_eff']:.1f}) that the F test is not significant "
+              f"({st.p_text(named['p_value'])}). More than one cause, or one outside the "
+              "vocabulary, "
               "is likely; treat the named one as the largest part."]
     if j.get("runner_up"):
         r = j["runner_up"]
@@ -407,6 +416,23 @@ def write_all(diag, out) -> None:
     _figures(diag, out)
 
 
+def _unseen_note(h: dict) -> str:
+    """What the hold-out's speeds not seen before it do to the paper AR(1) baseline, and
+    why ``arfem compensate`` scores ``model.json`` differently there ('' if none)."""
+    unseen = h.get("speeds_not_seen_before_rpm")
+    if not unseen:
+        return ""
+    share = h["n_samples_at_speeds_not_seen"] / max(h["n_samples"], 1)
+    return (f" {h['n_samples_at_speeds_not_seen']} of them ({100 * share:.0f} %) run at "
+            f"speeds not seen before it ({', '.join(f'{v:g}' for v in unseen)} rpm), whose C2 "
+            "the baseline (paper AR(1)) takes from the early-rise mapping of eqs. 20-21; "
+            "`model.json` is the same eq. 17 fit on every row before the hold-out with C2 "
+            "interpolated linearly between the fitted speeds (extrapolated beyond them), "
+            "so `arfem compensate` scores it "
+            "differently on this hold-out (docs/measured-data.md, \"Two paper AR(1) "
+            "numbers\").")
+
+
 def _holdout_section(j: dict) -> list[str]:
     """The "Extended model on the hold-out" section: every model's hold-out RMSE, an
     unestablished candidate called so, and no "extended" row where the extended model
@@ -414,7 +440,8 @@ def _holdout_section(j: dict) -> list[str]:
     b, e, h = j["baseline"], j["extended"], j["holdout"]
     L = ["", "## Extended model on the hold-out", "",
          f"Hold-out from t = {h['start_s']:g} s ({h['start_s'] / 3600:.2f} h); {h['how_chosen']}. "
-         f"All fits use only the data before it.", "",
+         f"All fits use only the data before it. Scored on its {h['n_samples']} rows with a "
+         "growth reading (outliers left out)." + _unseen_note(h), "",
          "| model | hold-out RMSE [µm] |", "|---|---|",
          f"| baseline ({b['model']}) | {_fmt(h['baseline_rmse_um'])} |"]
     ext = ("extended" if j.get("verdict", "established") == "established"

@@ -59,7 +59,10 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
             out["model.json"] = fit_speed_ar1_model(
                 ds.growth_um[fit], ds.speed_rpm[fit][1:], dtau_s=dt,
                 arfem_version=__version__,
-                description=f"paper AR(1) calibrated by eq. 17, {span}")
+                description=f"paper AR(1) calibrated by eq. 17 on every row, {span}; "
+                            f"C2 of a speed off the fitted ones interpolated linearly "
+                            f"(extrapolated beyond them; arfem diagnose's baseline maps "
+                            f"a speed not seen before the hold-out by eqs. 20-21 instead)")
         except InputError as exc:          # e.g. C1 >= 1: no compensator to export
             why.append(f"model.json: {exc}")
     # the extended model of the cause the selection rules named, established or not
@@ -204,5 +207,13 @@ def terminal_line(s: dict) -> str:
         line += f" (best candidate {bc['cause']}, not established)"
     ext = ("extended model" if est else "best candidate's extended model"
            if bc and bc.get("causes") else "no extended model: the baseline")
-    return (line + f"; hold-out RMSE {h['baseline_rmse_um']:.3g} -> "
-            f"{h['extended_rmse_um']:.3g} µm ({ext}, gain {h['gain_pct']:.1f} %)")
+    where = (f" (from {h['start_s'] / 3600:.2f} h, {h['n_samples']} rows)"
+             if "n_samples" in h else "")
+    line += (f"; hold-out{where} RMSE {h['baseline_rmse_um']:.3g} -> "
+             f"{h['extended_rmse_um']:.3g} µm ({ext}, gain {h['gain_pct']:.1f} %)")
+    if h.get("speeds_not_seen_before_rpm"):
+        line += (f"; the baseline maps speeds not seen before the hold-out "
+                 f"({', '.join(f'{v:g}' for v in h['speeds_not_seen_before_rpm'])} rpm) by "
+                 "eqs. 20-21, model.json inter- or extrapolates their C2 linearly, so "
+                 "arfem compensate scores it differently")
+    return line

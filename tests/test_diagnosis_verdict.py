@@ -63,9 +63,9 @@ def test_established_needs_all_three_checks_and_keeps_cause_and_advice():
 
 
 @pytest.mark.parametrize("change, failed", [
-    (dict(ci=(-0.1, 0.6)), "holds 0"),                           # interval holds no effect
-    (dict(tau_ci=(0.1, 200.0)), "end of the range"),             # pinned at the search edge
-    (dict(gain=-5.0), "hold-out does not confirm"),              # hold-out contradicts it
+    (dict(ci=(-0.1, 0.6)), "excludes 0 (no effect); it is -0.1 to 0.6"),   # holds no effect
+    (dict(tau_ci=(0.1, 200.0)), "stays off the ends of the range"),  # at the search edge
+    (dict(gain=-5.0), "established only if the hold-out confirms it"),   # contradicts it
 ])
 def test_one_failed_check_makes_it_unconfirmed_without_cause_or_advice(change, failed):
     """Each check alone demotes the named cause to ``best_candidate``: ``cause`` reads
@@ -196,7 +196,8 @@ def test_cause_whose_interval_holds_zero_is_unconfirmed(tmp_path):
     assert bc["cause"] == "frame_expansion"
     lo, hi = bc["parameters_ci95"]["frame_gain"]
     assert lo <= 0.0 <= hi
-    assert any("frame_gain" in w and "holds 0" in w for w in bc["not_established_because"])
+    assert any("frame_gain" in w and "excludes 0 (no effect); it is" in w
+               for w in bc["not_established_because"])
     assert "What to do" not in md and "**Verdict: unconfirmed.**" in md
 
 
@@ -245,3 +246,77 @@ def test_a_residual_too_slow_to_test_is_not_called_white():
     s = _verdict(_summary(cause="none", mlr=6.1), slow)
     assert s["verdict"] == "not_explained"
     assert "cannot be tested" in s["verdict_detail"]["text"]
+
+
+# -- every reason a cause is not accepted states the rule and the outcome ----------------
+
+def test_a_lost_speed_candidate_reads_the_naming_rule_and_its_outcome():
+    """A speed-only candidate with the least validation RMSE but 2 blocks won of 4: its
+    reason must say that 3 of 4 were needed and that it won 2 (it read "2/4 blocks won",
+    which did not say the rule), with the scores beside it; and a candidate that passes
+    its test but is beaten on score says why it lost instead."""
+    from arfem.models.diagnosis.engine import _runner_up
+    from arfem.models.diagnosis.candidates import CandidateFit
+    fit = CandidateFit("frame_expansion", "ar+frame_expansion", {"frame_gain": 1.0},
+                       np.zeros(3), 2)
+    test = {"cv_rmse_um": 2.38, "cv_per_block_um": [1.0, 2.0, 3.0, 4.0], "blocks_won": 2,
+            "rmse_cut_pct": 34.1, "significant": False}
+    r = _runner_up("speed_rpm", "none", "frame_expansion", {"frame_expansion": fit},
+                   {"frame_expansion": 2.38, "none": 3.62}, {"frame_expansion": test},
+                   "validation_rmse_um")
+    assert r["why_lost"] == (
+        "a cause is named only if it cuts the validation RMSE of the baseline by at least "
+        "5 % and wins on at least 3 of the 4 validation blocks; it cut 34.1 % and won 2 "
+        "(validation RMSE 2.38 µm, none 3.62 µm)")
+    test = dict(test, blocks_won=3, significant=True)
+    r = _runner_up("speed_rpm", "sensor_drift", "frame_expansion", {"frame_expansion": fit},
+                   {"frame_expansion": 2.38, "sensor_drift": 2.1},
+                   {"frame_expansion": test}, "validation_rmse_um")
+    assert r["why_lost"].startswith("the one with the least validation RMSE among the "
+                                    "candidates that pass the naming test is named")
+
+
+def test_the_verdict_states_each_failed_check_as_rule_and_outcome():
+    """Each reason in ``not_established_because`` reads 'established only if ...; it
+    is ...' (the rule, then what the data gave), and a candidate the selection rules did
+    not name carries its naming rule: a user reads both without the docs."""
+    s = _verdict(_summary(ci=(-0.1, 0.6), tau_ci=(0.1, 200.0), gain=-5.0), MISFIT)
+    why = s["best_candidate"]["not_established_because"]
+    assert why == [
+        "frame_expansion: established only if the 95 % interval of frame_gain excludes 0 "
+        "(no effect); it is -0.1 to 0.6",
+        "frame_expansion: established only if the 95 % interval of frame_time_constant_h "
+        "stays off the ends of the range the fit can return (0.1 to 200); it is 0.1 to 200",
+        "established only if the hold-out confirms it (the extended model beats the "
+        "baseline there: gain > 0); its gain is -5.0 %"]
+    e = [{"cause": "speed_dependent_convection",
+          "parameters": {"h_running_W_m2K": 90.0, "h_stopped_W_m2K": 55.0},
+          "ci95": {"h_running_W_m2K": [80.0, 100.0], "h_stopped_W_m2K": [50.0, 85.0]}}]
+    assert vd.establishment_failures(e, 10.0)[0].endswith(
+        "do not overlap (else one h for both is not excluded); they are 80 to 100 and 50 "
+        "to 85")
+
+
+def test_p_values_that_underflow_are_shown_as_below_the_floor_everywhere():
+    """A Ljung-Box p below 1e-16 (or underflowed to 0, as on the real record) is shown as
+    "p < 1e-16" in the verdict text (terminal line, report.md) and as "< 1e-16" in the
+    report's table, never as "p = 0" beside "p = 0.0135"; diagnosis.json keeps the
+    float."""
+    from arfem.models.diagnosis import stats as st
+    assert [st.format_p(p) for p in (0.0, 1e-300, 0.013512, 2.2e-5, None)] == [
+        "< 1e-16", "< 1e-16", "0.0135", "2.2e-05", "–"]
+    s = _summary(cause="none")
+    s["baseline"].update(ljung_box_p=0.0, fit_pct=50.0, per_phase={},
+                         cross_correlation_bound_white=0.1)
+    s["extended"] = dict(s["baseline"], model="ar")
+    s["ar_form_description"] = "paper AR(1)"
+    r = np.sin(np.arange(3000) / 3.0) + 0.01 * RNG.normal(size=3000)
+    p = vd.ljung_box_p_neff(r)
+    assert p < 1e-16                      # far below the floor (the real record's is 0.0)
+    s = _verdict(s, r)
+    text = s["verdict_detail"]["text"]
+    assert "p < 1e-16" in text and "p = 0)" not in text
+    assert s["verdict_detail"]["residual_within_noise"]["ljung_box_p_neff"] == p
+    from arfem.scenarios.diagnosis_report import _residual_lines
+    row = next(x for x in _residual_lines(s) if x.startswith("| Ljung–Box p"))
+    assert row == "| Ljung–Box p (eq. 19) | < 1e-16 | < 1e-16 |"

@@ -346,23 +346,74 @@ def _alive(pid: int) -> bool:
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
-def _launch_and_interrupt(cmd, store: PointStore, at_least: int, sig, whole_group: bool):
-    """Start the sweep in its own session, send ``sig`` once ``at_least`` points are
-    stored; return (exit status, stderr, pids of the workers seen)."""
+#: a point function for the interrupt test: each call takes a unique ticket (an O_EXCL
+#: file, atomic across processes); tickets below GATE_OPEN compute the point as the sweep
+#: does, the others wait for a file that never appears until the sweep is stopped. So an
+#: interrupted run has stored exactly GATE_OPEN points, whatever the load and whichever
+#: worker runs first -- no sleep decides what the test sees.
+_GATED_POINT = """\
+import os, time
+from pathlib import Path
+from arfem.scenarios.sweep.executors import evaluate_point
+
+def point(data, source="<sweep point>", limits=None):
+    d = Path(os.environ["ARFEM_TEST_GATE_DIR"])
+    i = 0
+    while True:
+        try:
+            os.close(os.open(d / f"ticket_{i}", os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            break
+        except FileExistsError:
+            i += 1
+    if i >= int(os.environ["ARFEM_TEST_GATE_OPEN"]):
+        while not (d / "never").exists():    # held until the sweep is stopped
+            time.sleep(0.05)
+    return evaluate_point(data, source, limits)
+"""
+
+#: a generous bound on waiting for an event, only so that a broken sweep fails the test
+#: instead of hanging it; no assertion depends on how long anything took
+_SAFETY_S = 600.0
+
+
+def _wait_for(what: str, condition, proc=None) -> None:
+    """Poll ``condition`` (an observable event: files in the store, /proc entries) until
+    it holds; fail naming ``what`` if ``proc`` exits first or after :data:`_SAFETY_S`."""
+    end = time.monotonic() + _SAFETY_S
+    while not condition():
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f"sweep exited ({proc.returncode}) before {what}: "
+                                 f"{proc.stderr.read().decode()}")
+        assert time.monotonic() < end, f"no {what} after {_SAFETY_S:g} s"
+        time.sleep(0.02)
+
+
+def _launch_and_interrupt(cmd, store: PointStore, stored: int, sig, whole_group: bool,
+                          gate_dir: Path):
+    """Start the sweep in its own session with its points gated (:data:`_GATED_POINT`:
+    it computes just enough points to make ``stored`` in the store, the rest wait), send
+    ``sig`` once the store holds them; return (exit status, stderr, pids of the
+    workers)."""
+    gate_dir.mkdir()
+    new = stored - len(store.keys())                   # points this run may compute
+    # the gated point's module (beside the sweep, written by the test) is found by the
+    # sweep and by its spawned workers through PYTHONPATH
+    path = os.pathsep.join(filter(None, [str(gate_dir.parent), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "PYTHONPATH": path, "ARFEM_TEST_GATE_DIR": str(gate_dir),
+           "ARFEM_TEST_GATE_OPEN": str(new)}
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            start_new_session=True)
-    workers = set()
+                            start_new_session=True, env=env)
     try:
-        deadline = time.time() + 60
-        while len(store.keys()) < at_least and time.time() < deadline and proc.poll() is None:
-            workers.update(_children(proc.pid))
-            time.sleep(0.02)
-        workers.update(_children(proc.pid))
+        _wait_for(f"{stored} stored points", lambda: len(store.keys()) >= stored, proc)
+        # a worker holds a ticket past the gate: the sweep is held there, not finishing
+        _wait_for("a waiting worker", lambda: len(list(gate_dir.glob("ticket_*"))) > new,
+                  proc)
+        workers = set(_children(proc.pid))
         if whole_group:
             os.killpg(proc.pid, sig)                   # Ctrl-C in a terminal hits the group
         else:
             os.kill(proc.pid, sig)                     # kill -9 <pid of the sweep>
-        _, err = proc.communicate(timeout=30)
+        _, err = proc.communicate(timeout=_SAFETY_S)
     finally:
         try:
             os.killpg(proc.pid, signal.SIGKILL)        # our own session, in case of failure
@@ -376,7 +427,12 @@ def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp
     again and kill -9 it, run it a third time: every point is in results.csv exactly once,
     the points stored by the interrupted runs are kept byte for byte, and the last run
     computed exactly the missing ones (its summary and runs.jsonl say so). Ctrl-C exits
-    130 with one line; the workers orphaned by kill -9 exit by themselves."""
+    130 with one line; the workers orphaned by kill -9 exit by themselves.
+
+    Deterministic at any load: the interrupted runs compute exactly 4 points each and
+    their other points wait on a file (:data:`_GATED_POINT`), so the signal always finds
+    the same store and two busy workers; every wait is for an observable event (points
+    in the store, tickets, /proc), never a fixed sleep."""
     write_base(tmp_path, mesh="[fem.mesh]\nnr = 3\nnz = 10\n")      # Q2, 147 dofs
     sw = write_sweep(tmp_path, "dtau_s = [60, 120, 300]\n"
                                "h_W_m2K = [5, 10, 20, 35, 55, 100, 150, 250]\n"
@@ -384,24 +440,32 @@ def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp
     n = 48
     out = tmp_path / "out"
     store = PointStore(out)
-    cmd = [sys.executable, "-c", "import sys; from scenarios.cli import main; "
-           "sys.exit(main(sys.argv[1:]))", "sweep", str(sw), "--out", str(out),
-           "--workers", "2", "--no-progress"]
+    (tmp_path / "gated_point.py").write_text(_GATED_POINT)
+    # SIGINT handled as in a terminal even where the test runs in the background (a
+    # shell starts background jobs with SIGINT ignored, and Python then never raises
+    # KeyboardInterrupt)
+    cmd = [sys.executable, "-c",
+           "import signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+           "import sys, gated_point; "
+           "from arfem.scenarios.sweep import runner; "
+           "run = runner.run_in_store; runner.run_in_store = lambda *a, **k: "
+           "run(*a, **{**k, 'point_fn': gated_point.point}); "
+           "from arfem.scenarios.cli import main; sys.exit(main(sys.argv[1:]))",
+           "sweep", str(sw), "--out", str(out), "--workers", "2",
+           "--no-progress"]
 
-    rc, err, _ = _launch_and_interrupt(cmd, store, 4, signal.SIGINT, whole_group=True)
+    rc, err, _ = _launch_and_interrupt(cmd, store, 4, signal.SIGINT, True, tmp_path / "g1")
     assert rc == 130 and err.strip().splitlines()[-1] == "arfem: interrupted", err
-    k1 = len(store.keys())
-    assert 4 <= k1 < n, k1
+    assert len(store.keys()) == 4            # exactly the points let through, none lost
 
-    rc, _, workers = _launch_and_interrupt(cmd, store, k1 + 4, signal.SIGKILL,
-                                           whole_group=False)
+    rc, _, workers = _launch_and_interrupt(cmd, store, 8, signal.SIGKILL, False,
+                                           tmp_path / "g2")
     assert rc == -signal.SIGKILL
-    t_end = time.time() + 10
-    while any(_alive(w) for w in workers) and time.time() < t_end:
-        time.sleep(0.1)
-    assert workers and not [w for w in workers if _alive(w)], "workers outlived kill -9"
+    assert workers
+    _wait_for("exit of the workers orphaned by kill -9",     # each watches its parent
+              lambda: not [w for w in workers if _alive(w)])
     stored = {k: store.path(k).read_bytes() for k in store.keys()}
-    assert k1 + 4 <= len(stored) < n, len(stored)
+    assert len(stored) == 8, len(stored)
 
     assert cli(sw, "--out", out, "--workers", 1) == 0
     s = json.loads((out / "summary.json").read_text())

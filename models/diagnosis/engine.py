@@ -82,6 +82,7 @@ from arfem.models.diagnosis.rules import (
     ALPHA, EFFECT_FACTOR, MIN_GAIN, MISFIT_CUT, MISFIT_FACTOR, PAIR_MIN_GAIN,
     PAIR_MISFIT, PARSIMONY_P, _FEM_RULE, _SPEED_RULE, _effect_and_slow_noise,
     _implausible, _parsimony, _second_cause, _select, _select_cv, _unconfirmed,
+    naming_test_text,
     _units_warning)
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
@@ -485,10 +486,11 @@ def _second_cause_effect(cause, pair, fits, t, y, rows, warnings):
     if pair is not None and fits.get(causes[0]) is not None:
         inc, slow = _effect_and_slow_noise(t, y, rows, pair, fits[causes[0]])
         if inc < EFFECT_FACTOR * slow:
-            warnings.append(f"{causes[1]} beside {causes[0]} changes the fit window by "
-                            f"{inc:.3g} µm RMS, within {EFFECT_FACTOR:g} x the slow part "
-                            f"of the noise ({slow:.3g} µm): unconfirmed as a second cause "
-                            "(post hoc rule, after the fresh batch 9000)")
+            warnings.append(f"a second cause is listed only if it changes the fit window "
+                            f"by at least {EFFECT_FACTOR:g} x the slow part of the noise "
+                            f"({slow:.3g} µm) beyond the first; {causes[1]} beside "
+                            f"{causes[0]} changes it by {inc:.3g} µm RMS: unconfirmed as a "
+                            "second cause (post hoc rule, after the fresh batch 9000)")
             pair, causes, cause = None, [causes[0]], causes[0]
     return cause, causes, pair
 
@@ -506,11 +508,22 @@ def _effect_rule(cause, causes, ext, base, tests, t, y, rows):
     unconfirmed = {"cause": named, "parameters": ext.parameters,
                    "named_by": tests.get(cause, {}).get("named_by"),
                    "effect_rms_um": effect, "slow_noise_um": slow,
-                   "why": (f"{named} changes the fit window by {effect:.3g} µm RMS, "
-                           f"within {EFFECT_FACTOR:g} x the slow part of the noise "
-                           f"({slow:.3g} µm, the residual's 30-min means): "
-                           "unconfirmed, so no cause is named")}
+                   "why": (f"a cause is named only if it changes the fit window by at "
+                           f"least {EFFECT_FACTOR:g} x the slow part of the noise "
+                           f"({slow:.3g} µm, the residual's 30-min means); {named} changes "
+                           f"it by {effect:.3g} µm RMS: unconfirmed, so no cause is named")}
     return "none", [], base, unconfirmed
+
+
+#: what the baseline of a speed_rpm record is, fitted and run (diagnosis.json's
+#: ``ar_form_description``): ``model.json`` is the same eq. 17 fit on every row before
+#: the hold-out with C2 interpolated between the fitted speeds
+#: (:func:`arfem.models.compensator.fit_speed_ar1_model`), so where the hold-out runs at
+#: speeds not seen before it, ``arfem compensate`` scores it differently
+SPEED_AR_LABEL = ("paper AR(1): C1 and one C2 per speed by eq. 17 (least squares on the "
+                  "one-step pairs before the hold-out, outliers left out), run free from "
+                  "the first row; a speed not seen before the hold-out gets its C2 by the "
+                  "early-rise mapping of eqs. 20-21")
 
 
 def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnings,
@@ -570,7 +583,7 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         # output-error AR: the reference the candidates are tested against
         ar_forms={"ar_output_error": ArForm(fits["none"], ext)},
         baseline_model="ar", score_kind="validation_rmse_um", rule=_SPEED_RULE,
-        ar_label="paper AR(1) calibrated by eq. 17 before the hold-out",
+        ar_label=SPEED_AR_LABEL,
         ci95=ci, speed_inputs=speed_inputs)
 
 
@@ -667,6 +680,16 @@ def _signals(input_kind, cols, temps):
     return signals
 
 
+def _unseen_speeds(r) -> dict:
+    """The speeds [1/min] the hold-out runs at that no fit row holds, and on how many of
+    its scored rows: where the paper AR(1) baseline (eqs. 20-21) and ``model.json``
+    (C2 interpolated) differ."""
+    u = np.asarray(r.u, float)
+    unseen = sorted(set(np.unique(u[r.hold]).tolist()) - set(np.unique(u[r.rows]).tolist()))
+    return {"speeds_not_seen_before_rpm": [float(v) for v in unseen],
+            "n_samples_at_speeds_not_seen": int(np.isin(u[r.hold], unseen).sum())}
+
+
 def _holdout_scores(y, base_pred, ext_pred, hold):
     """Hold-out RMSE of the baseline and the extended model [µm], and the gain [%]."""
     b_hold = st.rmse((y - base_pred)[hold])
@@ -675,18 +698,25 @@ def _holdout_scores(y, base_pred, ext_pred, hold):
 
 
 def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
-    """The best cause not named and why it lost, or None."""
+    """The best cause not named and why it lost -- the rule and its outcome -- or None."""
     if runner is None or fits.get(runner) is None:
         return None
+    score, other = scores[runner], scores.get(cause, float("nan"))
+    test = tests.get(runner)
     if input_kind == "q_W_m2":
-        why = (f"BIC {scores[runner]:.1f} vs {scores.get(cause, float('nan')):.1f}"
-               + (f"; F-test p = {tests[runner]['p_value']:.3g}, fit-RMSE cut "
-                  f"{tests[runner]['rmse_cut_pct']:.1f} %" if runner in tests else ""))
+        score_text = f"BIC {score:.1f}, {cause} {other:.1f}"
+        least = "the least BIC on N_eff"
     else:
-        why = (f"validation RMSE {scores[runner]:.3g} vs {scores.get(cause, float('nan')):.3g} µm"
-               + (f"; cut {tests[runner]['rmse_cut_pct']:.1f} % of the baseline's, "
-                  f"{tests[runner]['blocks_won']}/{len(tests[runner]['cv_per_block_um'])} "
-                  f"blocks won" if runner in tests else ""))
+        score_text = f"validation RMSE {score:.3g} µm, {cause} {other:.3g} µm"
+        least = "the least validation RMSE"
+    if test is not None and not test.get("significant", False):
+        why = f"{naming_test_text(test)} ({score_text})"
+    elif cause == "none":          # passed its test, set behind by the post hoc drift rule
+        why = (f"{runner} is named only if no cause driven by the recorded inputs passes "
+               f"the naming test (--drift-last) ({score_text})")
+    else:
+        why = (f"the one with {least} among the candidates that pass the naming test is "
+               f"named ({score_text})")
     return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
             "parameters": fits[runner].parameters, "why_lost": why}
 
@@ -893,6 +923,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
                              warnings, step, intervals, drift_last, on_fit)
     step("residuals and hold-out")
     branch, holdout = _score_holdout(branch, r, warnings)
+    if ds.input_kind == "speed_rpm":
+        holdout.update(_unseen_speeds(r))
     t, y, good, base, ext = r.t, r.y, r.good, branch.baseline, branch.extended
     running = r.u > 0
     bres = _residual_analysis(t, y, base.prediction, good, r.signals, running,

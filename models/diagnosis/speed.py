@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from arfem.models.ar1 import eq17_least_squares
 from arfem.models.diagnosis.candidates import CandidateFit, project
 from arfem.models.diagnosis.forward import (ar_columns_rates, ar_first_order, first_order_lag,
                                             intervals)
@@ -200,10 +201,10 @@ def paper_ar(t, y, speed, rows, W, seen):
     dtau = float(np.median(d[1:])) if t.size > 1 else 1.0
     pair = np.zeros(t.size, bool)
     pair[1:] = rows[1:] & rows[:-1] & np.isclose(d[1:], dtau)
-    X = np.column_stack([y[:-1]] + [(speed[1:] == s).astype(float) for s in seen])
-    coef, *_ = np.linalg.lstsq(X[pair[1:]], y[1:][pair[1:]], rcond=None)
-    c1 = float(np.clip(coef[0], 1e-6, 1 - 1e-9))
-    c2 = {float(s): float(c) for s, c in zip(seen, coef[1:])}
+    p = pair[1:]
+    fit = eq17_least_squares(y[:-1][p], y[1:][p], speed[1:][p], seen)
+    c1 = float(np.clip(fit.c1, 1e-6, 1 - 1e-9))
+    c2 = fit.c2
     b = -np.log(c1) / dtau
     K = {s: c / (1 - c1) for s, c in c2.items()}
     for lv, w in W.items():

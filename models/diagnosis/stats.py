@@ -16,7 +16,7 @@ from scipy import stats as _st
 __all__ = ["rmse", "fit_percent", "lag1", "effective_n", "ljung_box_p", "xcorr", "noise_sigma",
            "resolution",
            "bic", "f_test_p", "corr_bound", "ccf", "acf", "contiguous_blocks",
-           "slow_noise_sandwich", "SlowNoiseCovariances"]
+           "slow_noise_sandwich", "SlowNoiseCovariances", "P_FLOOR", "format_p", "p_text"]
 
 
 def rmse(r) -> float:
@@ -311,6 +311,44 @@ def f_test_p(rss0: float, rss1: float, k: int, n_eff: float) -> float:
     dof = max(n_eff - k, 1.0)
     F = max(rss0 - rss1, 0.0) / k / (rss1 / dof)
     return float(_st.f.sf(F, k, dof))
+
+
+#: the smallest p-value shown as a number: below it (and where the tail probability
+#: underflows to 0 in double precision) a p-value is shown as "< 1e-16". Below about
+#: machine epsilon the value rests on the far tail of a χ² or F approximation and says
+#: no more than "far below any significance level"; R's format.pval uses the same floor.
+P_FLOOR = 1e-16
+
+
+def format_p(p) -> str:
+    """A p-value [-] as shown in every text of the diagnosis (Markdown, HTML, terminal):
+    three significant digits, ``"< 1e-16"`` below :data:`P_FLOOR` (a value that
+    underflowed to 0 is not "p = 0"), ``"–"`` where none was computed. ``diagnosis.json``
+    keeps the float.
+
+    Examples
+    --------
+    >>> format_p(0.013512), format_p(2.2e-5), format_p(0.0), format_p(3e-300), format_p(None)
+    ('0.0135', '2.2e-05', '< 1e-16', '< 1e-16', '–')
+    >>> format_p(1.0), format_p(float("nan"))
+    ('1', '–')
+    """
+    if p is None or not np.isfinite(p):
+        return "–"
+    return f"< {P_FLOOR:g}" if p < P_FLOOR else f"{p:.3g}"
+
+
+def p_text(p) -> str:
+    """``"p = 0.0135"``, ``"p < 1e-16"`` or ``"p not computed"``: :func:`format_p` in a
+    sentence.
+
+    Examples
+    --------
+    >>> p_text(0.00221), p_text(0.0), p_text(None)
+    ('p = 0.00221', 'p < 1e-16', 'p not computed')
+    """
+    v = format_p(p)
+    return "p not computed" if v == "–" else ("p " + v if v.startswith("<") else "p = " + v)
 
 
 def corr_bound(n_eff: float, level: float = 0.95) -> float:

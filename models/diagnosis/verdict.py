@@ -174,6 +174,12 @@ def _edge(name, ci) -> bool:
     return any(e is not None and abs(v - e) <= EDGE_TOL * e for e, v in ((lo, ci[0]), (hi, ci[1])))
 
 
+def _range(name) -> str:
+    """`` (0.1 to 200)``: the range the fit can return for ``name``, where it is known."""
+    lo, hi = SEARCH_RANGES.get(name, (None, None))
+    return f" ({lo:g} to {hi:g})" if lo is not None and hi is not None else ""
+
+
 def establishment_failures(entries, gain_pct, nominal_h=None) -> list[str]:
     """Why the named causes ``entries`` (diagnosis.json's ``causes``) are not established,
     in words; empty if they are (rules 1a-1c of the module docstring).
@@ -185,7 +191,7 @@ def establishment_failures(entries, gain_pct, nominal_h=None) -> list[str]:
     >>> establishment_failures(e, 30.0)
     []
     >>> establishment_failures(e, -3.0)
-    ['the hold-out does not confirm it (gain -3.0 %)']
+    ['established only if the hold-out confirms it (the extended model beats the baseline there: gain > 0); its gain is -3.0 %']
     """
     out = []
     for e in entries:
@@ -193,31 +199,37 @@ def establishment_failures(entries, gain_pct, nominal_h=None) -> list[str]:
         if c == "speed_dependent_convection":
             a, b = ci.get("h_running_W_m2K"), ci.get("h_stopped_W_m2K")
             if a is None or b is None:
-                out.append(f"{c}: no 95 % interval was computed for its h values")
+                out.append(f"{c}: established only with 95 % intervals of its h values; "
+                           "none was computed")
             elif a[0] <= b[1] and b[0] <= a[1]:
-                out.append(f"{c}: the 95 % intervals of h_running_W_m2K ({a[0]:.3g} to "
-                           f"{a[1]:.3g}) and h_stopped_W_m2K ({b[0]:.3g} to {b[1]:.3g}) "
-                           "overlap, so one h for both is not excluded")
+                out.append(f"{c}: established only if the 95 % intervals of h_running_W_m2K "
+                           "and h_stopped_W_m2K do not overlap (else one h for both is not "
+                           f"excluded); they are {a[0]:.3g} to {a[1]:.3g} and {b[0]:.3g} to "
+                           f"{b[1]:.3g}")
         else:
             keys = [k for k in e.get("parameters", {}) if k in NO_EFFECT]
             if not keys:
-                out.append(f"{c}: no effect parameter to test")
+                out.append(f"{c}: established only with an effect parameter to test; it "
+                           "has none")
             for k in keys:
                 zero = NO_EFFECT[k]
                 if zero == "nominal_h":
                     zero = nominal_h
                 iv = ci.get(k)
                 if iv is None:
-                    out.append(f"{c}: no 95 % interval of {k} was computed")
+                    out.append(f"{c}: established only with a 95 % interval of {k}; none "
+                               "was computed")
                 elif zero is not None and iv[0] <= zero <= iv[1]:
-                    out.append(f"{c}: the 95 % interval of {k} ({iv[0]:.3g} to {iv[1]:.3g}) "
-                               f"holds {zero:g}, no effect")
+                    out.append(f"{c}: established only if the 95 % interval of {k} excludes "
+                               f"{zero:g} (no effect); it is {iv[0]:.3g} to {iv[1]:.3g}")
         for k, iv in ci.items():
             if iv is not None and _edge(k, iv):
-                out.append(f"{c}: the 95 % interval of {k} ({iv[0]:.3g} to {iv[1]:.3g}) "
-                           "reaches the end of the range the fit can return")
+                out.append(f"{c}: established only if the 95 % interval of {k} stays off "
+                           f"the ends of the range the fit can return{_range(k)}; it is "
+                           f"{iv[0]:.3g} to {iv[1]:.3g}")
     if not (gain_pct is not None and np.isfinite(gain_pct) and gain_pct > 0):
-        out.append(f"the hold-out does not confirm it (gain {gain_pct:.1f} %)")
+        out.append(f"established only if the hold-out confirms it (the extended model beats "
+                   f"the baseline there: gain > 0); its gain is {gain_pct:.1f} %")
     return out
 
 
@@ -329,7 +341,7 @@ def _what_is_left(summary) -> str:
                    "10 independent samples), so it is not shown to be within the noise")
     elif not wn["white"]:
         why.append(f"its residual is not white (Ljung-Box on N_eff = {wn['n_eff']:.0f}: "
-                   f"p = {_f(wn['ljung_box_p_neff'])})")
+                   f"{st.p_text(wn['ljung_box_p_neff'])})")
     if wn["thermometers_beyond_bound"]:
         n = len(wn["thermometers_beyond_bound"])
         why.append(f"{n} thermometer{'s' if n > 1 else ''} correlate{'' if n > 1 else 's'} "
@@ -383,7 +395,7 @@ def text(summary) -> str:
         wn = d["residual_within_noise"]
         s = (f"The simulation as configured explains this record to within the "
              f"noise: its residual is white by Ljung-Box on N_eff = {wn['n_eff']:.0f} "
-             f"(p = {_f(wn['ljung_box_p_neff'])}), no thermometer correlates with it beyond "
+             f"({st.p_text(wn['ljung_box_p_neff'])}), no thermometer correlates with it beyond "
              f"its bound, and no baseline model does better on the hold-out "
              f"({_f(h['baseline_rmse_um'])} µm RMSE"
              + (f"; MLR of eq. 18 {_f(mlr)} µm" if mlr is not None else "") + ").")

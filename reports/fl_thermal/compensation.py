@@ -121,7 +121,12 @@ def _markdown(out) -> str:
          "replayed causally over the whole record, scored on t ≥ 28 h (the "
          "pre-registered split). Cells: RMS / peak to peak of the error left [µm]. The "
          "extended model is the diagnosis's (hold-out at 28 h) exported as "
-         "`model_extended.json`: the speed AR(1) plus the frame from thermometers.", "",
+         "`model_extended.json`: the speed AR(1) plus the frame from thermometers. The "
+         "paper AR(1) is `model.json`, whose C2 of the speeds the fit never saw (500, "
+         "1500, 3500 and 4500 rpm after 28 h) is interpolated between the fitted ones; "
+         "the paper AR(1) of preregistered.md is the diagnosis's baseline, which maps them "
+         "by eqs. 20-21, so the two columns differ (docs/measured-data.md, \"Two paper "
+         "AR(1) numbers\").", "",
          "| channel | cause named | uncompensated | paper AR(1) | extended | MLR (eq. 18) |",
          "|---|---|---|---|---|---|"]
 
@@ -143,9 +148,9 @@ def _markdown(out) -> str:
         for why in e.get("not_exported", []):
             L += ["", f"{e['channel']}: {why}."]
             if why.startswith("model.json"):
-                L[-1] += (" (The diagnosis's baseline for the same channel is calibrated "
-                          "differently and scores 119.22 µm on the same hold-out, "
-                          "preregistered.md.)")
+                L[-1] += (" (The diagnosis's baseline for the same channel is the same "
+                          "eq. 17 fit with C1 clipped to just below 1, a near-integrator, "
+                          "and scores 119.22 µm on the same hold-out, preregistered.md.)")
     L += ["", "![error left after compensation, every channel](compensation.png)", ""]
     return "\n".join(L) + "\n"
 
