@@ -45,7 +45,7 @@ except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uni
 #: fast (the FEM, the diagnosis engine and matplotlib load only when a function runs).
 _API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult", "ar1",
         "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep", "diagnose",
-        "DiagnosisResult", "read_record", "Record", "Compensator", "StateSpaceModel",
+        "DiagnosisResult", "diagnose_mesh", "read_record", "Record", "Compensator", "StateSpaceModel",
         "ar1_model", "read_model", "InputError")
 
 __all__ = ["__version__", *_API]

@@ -42,6 +42,7 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
     from numpy.typing import ArrayLike
 
     from arfem.models.diagnosis.dataset import Dataset
+    from arfem.models.geodiagnosis.engine import GeoDiagnosis
     from arfem.scenarios.checking import Criterion
     from arfem.scenarios.config import Scenario
     from arfem.scenarios.sweep.runner import RunReport
@@ -772,6 +773,65 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     return DiagnosisResult(str(summary.get("cause", "")), summary, d.series)
 
 
+def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
+                  progress: bool | Callable[[str], None] = False) -> GeoDiagnosis:
+    """Which part of a mesh model is wrong, from a contract-v3 record.
+
+    The record's TOML names the mesh scenario it is checked against (``[model] scenario
+    = "spindle_unit.toml"``, ``docs/measured-data.md``, version 3); its displacement
+    channels ``d_<sensor>_um`` and thermometers ``T_<sensor>_C`` are fitted together on a
+    parametric reduced model of that scenario, and up to two causes on the scenario's
+    own groups are named when established on the hold-out (``arfem diagnose`` on such a
+    record, without its files; see ``docs/geometry.md``).
+
+    Parameters
+    ----------
+    record : str or path-like
+        The record's TOML file (``[model]``, ``[dataset]``, ``[columns]``) or its CSV.
+    holdout_start_s : float, optional
+        Start of the hold-out [s] (default: the last third of the record, moved back to
+        the last change of the input before it).
+    progress : bool or callable
+        True: show the step under way on stderr; a callable is called with each step's
+        name instead.
+
+    Returns
+    -------
+    GeoDiagnosis
+        ``verdict``, ``established`` (the causes, each with its parameters and 95 %
+        interval), ``holdout_rmse`` per channel [µm, K], ``text`` (the verdict in words).
+
+    Raises
+    ------
+    InputError
+        The record or its scenario is malformed, names a sensor or group the scenario
+        lacks, or its hold-out start lies outside it; the message names the file and key.
+
+    Examples
+    --------
+    Not run as a doctest (the shipped unit's run and diagnosis take about a minute of
+    CPU); ``tests/test_mesh_run_folder.py`` runs the same on a coarse unit.
+
+    >>> import subprocess
+    >>> _ = subprocess.run(["arfem", "run", "scenarios/spindle_unit.toml",
+    ...                     "--out", "run"])                     # doctest: +SKIP
+    >>> d = diagnose_mesh("run/record.toml")                     # doctest: +SKIP
+    >>> d.established                  # the FEM's own record  # doctest: +SKIP
+    ()
+    """
+    from arfem.models.geodiagnosis.engine import diagnose_geometry
+    from arfem.scenarios.geodiagnose import load_mesh_record
+    if not callable(progress):
+        from arfem.scenarios.progress import Progress
+        with Progress(8, "arfem.diagnose_mesh", enabled=bool(progress), tty=True) as bar:
+            return diagnose_mesh(record, holdout_start_s=holdout_start_s, progress=bar)
+    rec, model, _plant, _sc, _tm = load_mesh_record(record, progress)
+    if holdout_start_s is not None and not rec.time_s[0] < holdout_start_s < rec.time_s[-1]:
+        raise InputError(f"{holdout_start_s:g} s is outside the record "
+                         f"({rec.time_s[0]:g}-{rec.time_s[-1]:g} s)", "holdout_start_s")
+    return diagnose_geometry(model, rec, holdout_start_s, progress)
+
+
 def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
     """The loaded dataset of :func:`diagnose`'s ``data`` and the warnings of what was
     assumed: a :class:`Record` or TOML path keeps its own ``initial`` (a contradicting
@@ -784,7 +844,13 @@ def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
         if isinstance(data, Record):
             ds = data._dataset
         else:
-            from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
+            from arfem.scenarios.georecord import (
+                is_mesh_record, refuse_mesh_channels, refuse_mesh_record)
+            if is_mesh_record(data):
+                raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
+                                 "diagnosed by arfem.diagnose_mesh(path), not by the rod's "
+                                 "diagnosis",
+                                 str(data))
             refuse_mesh_record(data)
             ds = load_dataset(data)
             refuse_mesh_channels(ds)

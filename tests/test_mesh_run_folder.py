@@ -151,6 +151,22 @@ def test_diagnose_routes_the_runs_record_to_the_mesh_and_names_no_cause(run_dir,
     assert s["cause"] == "none" and s["causes"] == [], s["verdict_text"]
 
 
+def test_python_api_diagnoses_the_runs_record_on_its_mesh(run_dir):
+    """arfem.diagnose_mesh(record.toml), the Python door to the mesh diagnosis, on the
+    FEM's own record: no cause established (the nominal model is the record), the verdict
+    one of the four words; arfem.diagnose on it points to diagnose_mesh."""
+    import arfem
+    rec = run_dir / "out" / "record.toml"
+    d = arfem.diagnose_mesh(rec)
+    assert d.verdict in ("established", "explained", "unconfirmed", "not_explained")
+    assert d.established == (), d.text
+    assert set(d.holdout_rmse) >= {"d_tcp_x_um", "d_tcp_y_um", "d_tcp_z_um"}
+    with pytest.raises(InputError, match=r"arfem\.diagnose_mesh"):
+        arfem.diagnose(rec)
+    with pytest.raises(InputError, match="holdout_start_s"):
+        arfem.diagnose_mesh(rec, holdout_start_s=-5.0)
+
+
 def test_scenario_copy_rewrites_only_the_paths():
     """The copy's text keeps comments and layout, changes mesh and cycle.csv only, and
     a name that is one of the folder's outputs gets the input_ prefix; a layout the
