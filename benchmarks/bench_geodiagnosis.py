@@ -112,6 +112,12 @@ statement's reference solve ~12.5 s, writing ~2.4 s. The process's peak RSS is 4
 (the benchmark also generates the 48 h record with the full-order model). The error
 statement's full reference solve was left as it is (scenarios/geodiagnose.py); the
 reduced model's largest error against it is 0.0019 µm (TCP), 0.003 K.
+
+THIRD PRE-REGISTRATION (committed 2026-11-26 ~00:21 UTC, before any record of it was
+generated): a replication of the second scoring's procedure, unchanged (engine fea7cce
+plus only the speed change e5dafa5, equal to round-off): fresh seeds 80000 + i,
+i = 0..29, never used before; same composition and scores; command ``nice -n 10
+python benchmarks/bench_geodiagnosis.py --batch --seed0 80000``, run once.
 """
 from __future__ import annotations
 
