@@ -56,7 +56,7 @@ made on dev seed 2 before any fresh record was scored; nothing changed since):
   reduced model 2.3 s, the diagnosis itself 27.8 s, the rest (~30 s) the error
   statement's full reference solve, the pictures and writing.
 
-SECOND PRE-REGISTRATION (committed 2026-11-25 ~23:55 UTC, before any record of it was
+SECOND PRE-REGISTRATION (committed 2026-11-25 23:49:36 UTC, before any record of it was
 generated or scored): after the first scoring the engine's procedure was changed on
 development data only (seeds 1000-1099 and the spent 50000-50029): a noise model of
 white noise plus a random walk fitted by REML and GLS on it, a practical-size floor on
