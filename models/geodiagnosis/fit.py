@@ -26,14 +26,19 @@ A missing source follows the record's speed (n / n_max) where the record has one
 the sum of the recorded source inputs (1 at its largest), and is spread evenly over
 its candidate surface group.
 
-Every fit is joint over all channels, displacements and thermometers, each weighted by
-1/σ_c (its measurement noise, from second differences, floored by its quantum/√12):
-a cause must explain the temperatures it predicts as well as the displacements.
-Nonlinear parameters (h_scale, conductivity_scale, lag_h) are profiled (bounded search
-on a log scale, the linear ones by least squares at each trial); the 95 % intervals come
-from the Gauss–Newton sandwich A (Σ_c w_c⁴ J_cᵀ Σ_c J_c) A with each channel's noise
-covariance Σ_c fitted through the fit as a slow AR(1) or a random walk plus white noise
-(:func:`arfem.models.diagnosis.stats.slow_noise_sandwich`), the wider of the two.
+Every fit is joint over all channels, displacements and thermometers: a cause must
+explain the temperatures it predicts as well as the displacements. Each channel's noise
+is white noise plus a random walk (:mod:`.noise`; fitted by :func:`with_noise`, REML
+on the largest model, one walk-to-white ratio per sensor kind); the fits are
+generalised least squares on it (each channel's rows whitened by the Kalman filter's
+innovations; without a fitted noise, weighted by 1/σ_c, σ_c from second differences
+floored by its quantum/√12). Nonlinear parameters (h_scale, conductivity_scale, lag_h)
+are profiled (bounded search on a log scale, the linear ones by least squares at each
+trial); the 95 % intervals are the GLS covariance s² (J̃ᵀJ̃)⁻¹ of the whitened
+Jacobian J̃ (Gauss–Newton), s² the whitened residual's variance (1 when the noise
+model is right; estimated, not assumed). Without a fitted noise (a bare
+:func:`make_context`) they are the earlier sandwich A (Σ_c w_c⁴ J_cᵀ Σ_c J_c) A under a
+slow AR(1) or random walk (:func:`arfem.models.diagnosis.stats.slow_noise_sandwich`).
 """
 from __future__ import annotations
 
@@ -46,7 +51,8 @@ from scipy.stats import norm
 from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
 
-__all__ = ["Cause", "Fit", "FitContext", "make_context", "candidate_causes", "fit_causes",
+__all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
+           "candidate_causes", "fit_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
@@ -101,6 +107,9 @@ class FitContext:
     shape: np.ndarray             # (N,) the missing source's schedule
     valid: np.ndarray             # (N, C) finite readings
     cache: dict = field(default_factory=dict, repr=False)
+    quantum: np.ndarray | None = None   # (C,) resolution [µm or K], 0: not quantised
+    noise: tuple | None = None          # per channel LevelNoise; None: white, σ_c
+    wcache: dict = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -138,13 +147,75 @@ def _sigma(y: np.ndarray, unit: str) -> float:
 
 def make_context(model: GeoModel, rec: GeoRecord) -> FitContext:
     """Weights, the missing-source schedule and the validity mask of a record."""
+    from arfem.models.diagnosis.stats import resolution
     sig = np.array([_sigma(rec.data[:, j], c.unit) for j, c in enumerate(rec.channels)])
+    q = np.array([resolution(y[np.isfinite(y)]) if np.isfinite(y).sum() > 20 else 0.0
+                  for y in rec.data.T])
     if np.any(rec.speed_rpm > 0):
         shape = rec.speed_rpm / float(np.max(rec.speed_rpm))
     else:
         tot = rec.power_W.sum(axis=1)
         shape = tot / float(np.max(tot)) if np.max(tot) > 0 else np.zeros_like(tot)
-    return FitContext(model, rec, 1.0 / sig, sig, shape, np.isfinite(rec.data))
+    return FitContext(model, rec, 1.0 / sig, sig, shape, np.isfinite(rec.data), quantum=q)
+
+
+def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
+    """``ctx`` with each channel's noise fitted as white noise plus a random walk
+    (:mod:`.noise`) by REML (:func:`.noise.reml_joint`: one walk-to-white ratio per
+    sensor kind, σ_e per channel in proportion to its second-difference σ_c) on the
+    largest model on ``rows``: every candidate cause at once, its nonlinear parameters
+    linearised by a secant (h × 1.5, κ × 0.5, a lag of 1 h), one coefficient per cause
+    shared by all channels as in the fits themselves. Every later fit,
+    test and interval on ``ctx`` is then generalised least squares on that noise."""
+    from dataclasses import replace as with_fields
+    from arfem.models.geodiagnosis.noise import reml_joint
+    allc = candidate_causes(ctx)
+    lin = tuple(c for c in allc if not c.nonlinear)
+    nom = _setting(ctx, (), {})
+    base, cols, _ = _design(ctx, lin, nom)
+    cols = list(cols)
+    for c in allc:
+        if c.nonlinear:
+            v = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0}[c.nonlinear]
+            cols.append(_design(ctx, (c,), _setting(ctx, (c,), {c.name: v}))[0] - base)
+    C3 = np.stack(cols, axis=2) if cols else np.zeros(base.shape + (0,))
+    js, Y, Xs, idxs, floors = [], [], [], [], []
+    for j, ch in enumerate(ctx.rec.channels):
+        idx = np.flatnonzero(ctx.valid[:, j] & rows)
+        if idx.size <= 20:
+            continue
+        js.append(j)
+        Y.append(ctx.rec.data[idx, j] - base[idx, j])
+        Xs.append(C3[idx, j])
+        idxs.append(idx)
+        floors.append(max(float(ctx.quantum[j]) / np.sqrt(12.0)
+                          if ctx.quantum is not None else 0.0, 1e-3))
+    out = [None] * len(ctx.rec.channels)
+    if js:
+        fitted = reml_joint(Y, Xs, idxs, ctx.sigma[js],
+                            [ctx.rec.channels[j].kind for j in js], floors)
+        for j, z in zip(js, fitted):
+            out[j] = z
+    return with_fields(ctx, noise=tuple(out), wcache={})
+
+
+def _whiten(ctx: FitContext, ch: int, rows: np.ndarray):
+    """(row indices of channel ``ch`` in ``rows``, their Whitener or None)."""
+    key = (ch, hash(rows.tobytes()))
+    if key not in ctx.wcache:
+        from arfem.models.geodiagnosis.noise import whitener
+        idx = np.flatnonzero(ctx.valid[:, ch] & rows)
+        z = ctx.noise[ch] if ctx.noise is not None else None
+        ctx.wcache[key] = (idx, whitener(z, idx) if z is not None else None)
+    return ctx.wcache[key]
+
+
+def whitened(ctx: FitContext, X: np.ndarray, ch: int, rows: np.ndarray) -> np.ndarray:
+    """Channel ``ch`` of X (N, C) or (N, C, m) on ``rows``, whitened by its noise
+    (divided by σ_c where no noise was fitted)."""
+    idx, W = _whiten(ctx, ch, rows)
+    x = X[idx, ch]
+    return W.apply(x) if W is not None else x * ctx.weights[ch]
 
 
 def candidate_causes(ctx: FitContext) -> list:
@@ -224,6 +295,15 @@ def _design(ctx: FitContext, causes, s: Setting):
 def _lstsq(ctx: FitContext, base, cols, rows):
     """Weighted least squares of the linear columns on ``rows``: (β, weighted SSE)."""
     y = ctx.rec.data
+    if ctx.noise is not None:
+        r0 = np.concatenate([whitened(ctx, y - base, c, rows) for c in range(y.shape[1])])
+        if not cols:
+            return np.zeros(0), float(r0 @ r0)
+        C3 = np.stack(cols, axis=2)
+        X = np.concatenate([whitened(ctx, C3, c, rows) for c in range(y.shape[1])])
+        beta, *_ = np.linalg.lstsq(X, r0, rcond=None)
+        r = r0 - X @ beta
+        return beta, float(r @ r)
     ok = ctx.valid & rows[:, None]
     w = np.broadcast_to(ctx.weights[None, :], y.shape)[ok]
     r0 = (y - base)[ok] * w
@@ -298,6 +378,8 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
     J_all += cols
     if not J_all:
         return np.zeros(0)
+    if ctx.noise is not None:
+        return _gls_se(ctx, J_all, rows, pred)
     p = len(J_all)
     bread = np.zeros((p, p))
     meats = None
@@ -320,6 +402,20 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
         return np.full(p, np.inf)
     var = np.max([np.diag(A @ M @ A) for M in meats], axis=0)
     return np.sqrt(np.maximum(var, 0.0))
+
+
+def _gls_se(ctx: FitContext, J_all, rows, pred) -> np.ndarray:
+    """Standard errors of generalised least squares on the fitted noise:
+    s² (Σ_c J̃_cᵀ J̃_c)⁻¹ with J̃ the whitened Jacobian and s² the whitened residual's
+    variance (1 when the noise model is right; estimated, not assumed)."""
+    J3 = np.stack(J_all, axis=2)
+    y = ctx.rec.data
+    Jw = np.concatenate([whitened(ctx, J3, c, rows) for c in range(y.shape[1])])
+    rw = np.concatenate([whitened(ctx, y - pred, c, rows) for c in range(y.shape[1])])
+    p = Jw.shape[1]
+    s2 = float(rw @ rw) / max(rw.size - p, 1)
+    A = np.linalg.pinv(Jw.T @ Jw)
+    return np.sqrt(np.maximum(np.diag(A) * s2, 0.0))
 
 
 def _predict(ctx: FitContext, causes, nl: dict, beta) -> np.ndarray:

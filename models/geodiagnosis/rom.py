@@ -250,21 +250,28 @@ def simulate(rb: ReducedBody, trial: Trial, columns: bool = True, z0=None) -> np
 
 def _advance(c, E, P, Lm, U) -> np.ndarray:
     """Modal amplitudes (n, k, q) after each of n steps of c ← e c + p (Lm · u), exact
-    for piecewise-constant inputs; one first-order filter per mode (scipy's lfilter)
-    when the steps are of one length, else step by step."""
-    from scipy.signal import lfilter
+    for piecewise-constant inputs: one vectorised update over every mode and load
+    column per step (the per-mode first-order filters this replaces cost ~40 µs of
+    call overhead each, 755 040 calls in a 48 h diagnosis).
+
+    >>> rng = np.random.default_rng(0)
+    >>> n, k, q = 150, 4, 2
+    >>> e = rng.uniform(0.1, 0.99, k); p = rng.uniform(0.1, 1, k)
+    >>> Lm, U, c0 = rng.normal(size=(k, q)), rng.normal(size=(n, q)), rng.normal(size=(k, q))
+    >>> E, P = np.tile(e, (n, 1)), np.tile(p, (n, 1))
+    >>> ref, c = [], c0
+    >>> for s in range(n):
+    ...     c = e[:, None] * c + p[:, None] * (Lm * U[s][None, :]); ref.append(c)
+    >>> bool(np.allclose(_advance(c0, E, P, Lm, U), np.array(ref), rtol=1e-12, atol=1e-12))
+    True
+    """
     n = E.shape[0]
-    if n > 8 and np.all(E == E[0]):
-        e, p = E[0], P[0]
-        C = np.empty((n, c.shape[0], c.shape[1]))
-        for k in range(c.shape[0]):
-            x = Lm[k][None, :] * U                             # (n, q)
-            C[:, k, :] = lfilter([p[k]], [1.0, -e[k]], x, axis=0,
-                                 zi=(e[k] * c[k])[None, :])[0]
-        return C
-    C = np.empty((n, c.shape[0], c.shape[1]))
+    X = (P[:, :, None] * Lm[None, :, :]) * U[:, None, :]                  # (n, k, q)
+    C = np.empty_like(X)
+    same = n > 1 and np.all(E == E[0])
+    e = E[0][:, None]
     for s in range(n):
-        c = E[s][:, None] * c + P[s][:, None] * (Lm * U[s][None, :])
+        c = (e if same else E[s][:, None]) * c + X[s]
         C[s] = c
     return C
 
