@@ -43,7 +43,8 @@ from arfem.params import InputError
 __all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
            "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
-           "LumpedGeometry", "group_volumes_m3", "lumped_geometry"]
+           "LumpedGeometry", "group_volumes_m3", "lumped_geometry", "assemble_elastic_stiffness",
+           "assemble_thermal_coupling"]
 
 
 # -- weak forms -------------------------------------------------------------------------------
@@ -92,6 +93,116 @@ def thermal_coupling(theta, v, w):
     """∫ (3λ_L + 2μ) α θ tr ε(v) dV [N/K]; ``w.beta`` = (3λ_L + 2μ)α [Pa/K] per element."""
     g = v.grad
     return w.beta * theta * (g[0][0] + g[1][1] + g[2][2])
+
+
+# -- vectorised element kernels (the same forms, without skfem's per-basis-pair loop) -----------
+
+#: Elements per block of the vectorised kernels: bounds their temporaries (a block of
+#: 8192 P2 tetrahedra holds 8192 × 30 × 30 doubles = 59 MB of element matrices).
+KERNEL_BLOCK_ELEMENTS = 8192
+
+
+def _scalar_pattern(sb: Basis):
+    """The sparsity pattern of the scalar matrices on ``sb`` and where each element's
+    (a, b) entry goes in it: (indptr, indices, pos) with ``pos`` of shape (nel, nloc, nloc)
+    indexing the CSR entries (rows and columns sorted)."""
+    edofs = np.asarray(sb.element_dofs, np.int64)
+    N = int(sb.N)
+    keys = (edofs.T[:, :, None] * N + edofs.T[:, None, :])          # (nel, nloc, nloc)
+    uniq, pos = np.unique(keys.ravel(), return_inverse=True)
+    rows = uniq // N
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=N))])
+    return indptr, (uniq % N).astype(np.int32), pos.reshape(keys.shape)
+
+
+def _scalar_gradients_block(sb: Basis, e: slice) -> np.ndarray:
+    """∇N_a of the elements ``e``: shape (ne, nloc, 3, nqp) [1/m]."""
+    return np.stack([np.asarray(b[0].grad)[:, e] for b in sb.basis], axis=0).transpose(
+        2, 0, 1, 3)
+
+
+def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray) -> sp.csr_matrix:
+    """The stiffness of :func:`elastic_stiffness` on the vector basis of ``sb``, vectorised.
+
+    K[(a,i),(b,j)] = Σ_q dx_q [λ_L ∂_iN_a ∂_jN_b + μ (δ_ij ∇N_a·∇N_b + ∂_jN_a ∂_iN_b)]
+    (σ(u):ε(v) with u = N_b e_j, v = N_a e_i), computed for all elements at once as a
+    batched product of the scalar basis gradients, and summed into the 3 × 3 blocks of
+    the scalar matrices' pattern, instead of skfem's loop over the 30 × 30 basis pairs of
+    ``ElementVector(ElementTetP2)``; equal to ``elastic_stiffness.assemble`` to round-off
+    (tests/test_geometry_verification.py).
+
+    Parameters
+    ----------
+    sb : skfem.Basis
+        Scalar basis (its element and quadrature are used); the displacement dof of
+        scalar dof s and component c is 3s + c, as skfem's ``ElementVector`` numbers them.
+    lam_el, mu_el : ndarray, shape (nel,)
+        Lamé's λ_L and the shear modulus μ [Pa] per element.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (3 N, 3 N)
+        K [N/m].
+    """
+    indptr, indices, pos = _scalar_pattern(sb)
+    nnz, nel = indices.size, pos.shape[0]
+    data = np.zeros((nnz, 3, 3))
+    lam_el, mu_el = np.asarray(lam_el, float), np.asarray(mu_el, float)
+    for s in range(0, nel, KERNEL_BLOCK_ELEMENTS):
+        e = slice(s, min(s + KERNEL_BLOCK_ELEMENTS, nel))
+        G = _scalar_gradients_block(sb, e)                                 # (ne, nloc, 3, q)
+        ne, nloc, q = G.shape[0], G.shape[1], G.shape[-1]
+        Gf = G.reshape(ne, 3 * nloc, q)
+        P = np.matmul(Gf * np.asarray(sb.dx)[e][:, None, :], Gf.transpose(0, 2, 1))
+        P = P.reshape(ne, nloc, 3, nloc, 3)                                # Σ dx ∂iNa ∂jNb
+        lap = mu_el[e][:, None, None] * np.einsum("eakbk->eab", P)
+        lam, mu = lam_el[e][:, None, None], mu_el[e][:, None, None]
+        p = pos[e].ravel()
+        for i in range(3):
+            for j in range(3):
+                blk = lam * P[:, :, i, :, j] + mu * P[:, :, j, :, i]
+                if i == j:
+                    blk = blk + lap
+                data[:, i, j] += np.bincount(p, weights=blk.ravel(), minlength=nnz)
+    N = int(sb.N)
+    return sp.bsr_matrix((data, indices, indptr), shape=(3 * N, 3 * N)).tocsr()
+
+
+def assemble_thermal_coupling(sb: Basis, beta_el: np.ndarray) -> sp.csr_matrix:
+    """The coupling of :func:`thermal_coupling` (temperature → displacement), vectorised.
+
+    T[(a,i), b] = Σ_q dx_q β ∂_iN_a N_b with β = (3λ_L + 2μ)α [Pa/K] per element; equal
+    to ``thermal_coupling.assemble(sb, ElementVector basis)`` to round-off.
+
+    Parameters
+    ----------
+    sb : skfem.Basis
+        Scalar basis (temperature; also the scalar factor of the displacement basis).
+    beta_el : ndarray, shape (nel,)
+        (3λ_L + 2μ)α [Pa/K] per element.
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (3 N, N)
+        T [N/K]: ``T @ θ`` is the thermal load [N] of θ [K].
+    """
+    indptr, indices, pos = _scalar_pattern(sb)
+    nnz, nel = indices.size, pos.shape[0]
+    data = np.zeros((nnz, 3, 1))
+    beta_el = np.asarray(beta_el, float)
+    for s in range(0, nel, KERNEL_BLOCK_ELEMENTS):
+        e = slice(s, min(s + KERNEL_BLOCK_ELEMENTS, nel))
+        G = _scalar_gradients_block(sb, e)                                  # (ne, nloc, 3, q)
+        ne, nloc = G.shape[0], G.shape[1]
+        Nv = np.stack([np.asarray(b[0].value)[e] for b in sb.basis], axis=1)  # (ne, nloc, q)
+        w = np.asarray(sb.dx)[e] * beta_el[e][:, None]
+        Te = np.matmul(G.reshape(ne, 3 * nloc, -1) * w[:, None, :], Nv.transpose(0, 2, 1))
+        Te = Te.reshape(ne, nloc, 3, nloc)
+        p = pos[e].ravel()
+        for i in range(3):
+            data[:, i, 0] += np.bincount(p, weights=Te[:, :, i, :].ravel(), minlength=nnz)
+    N = int(sb.N)
+    return sp.bsr_matrix((data, indices, indptr), shape=(3 * N, N)).tocsr()
 
 
 # -- specifications -----------------------------------------------------------------------------
@@ -496,9 +607,8 @@ class ElasticBody:
         sb = thermal.basis
         vb = sb.with_element(ElementVector(sb.elem))
         pr = thermal.props
-        K = elastic_stiffness.assemble(vb, lam=_per_element(vb, pr["lam"]),
-                                       mu=_per_element(vb, pr["mu"])).tocsr()
-        T = thermal_coupling.assemble(sb, vb, beta=_per_element(sb, pr["beta"])).tocsr()
+        K = assemble_elastic_stiffness(sb, pr["lam"], pr["mu"])
+        T = assemble_thermal_coupling(sb, pr["beta"])
         if support.kind == "clamped":
             fac = gm.surface_group(support.group, "support.group")
             D = vb.get_dofs(facets=fac).flatten()
