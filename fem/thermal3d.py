@@ -264,12 +264,12 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
     V = _m_orthonormal(M, None, start)
     W = V
     Ar = V.T @ (A @ V)
-    t = prev = change = None
+    VF, VG = V.T @ F, V.T @ G       # grown with V: the Ritz vectors V Y (n × k each
+    t = prev = change = None        # time) are formed once, after the loop
     blocks = 1
     while True:
         mu, Y = np.linalg.eigh(0.5 * (Ar + Ar.T))
-        phi = V @ Y
-        Fk, Gk = phi.T @ F, phi.T @ G
+        Fk, Gk = Y.T @ VF, Y.T @ VG
         if t is None:
             # from the first instant any output is sampled after a step (``t_min_s``): a
             # thermometer beside a heated face has millisecond dynamics that a Krylov
@@ -291,6 +291,7 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
         AW = A @ W                          # the projection grows by one block, not anew
         Ar = np.block([[Ar, V.T @ AW], [AW.T @ V, W.T @ AW]])
         V = np.hstack([V, W])
+        VF, VG = np.vstack([VF, W.T @ F]), np.vstack([VG, W.T @ G])
         blocks += 1
     if change is None:
         change = scale
@@ -301,8 +302,8 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
             Ar = np.block([[Ar, V.T @ AW], [AW.T @ V, W.T @ AW]])
             V = np.hstack([V, W])
             mu, Y = np.linalg.eigh(0.5 * (Ar + Ar.T))
-            phi = V @ Y
-            Fk, Gk = phi.T @ F, phi.T @ G
+    phi = V @ Y
+    Fk, Gk = phi.T @ F, phi.T @ G
     Fk_mu = Fk / mu[:, None]
     return BodyModes(tuple(float(h) for h in np.atleast_1d(h_W_m2K)), mu, phi, Fk, Gk,
                      G.T @ AF - Gk.T @ Fk_mu, AF - phi @ Fk_mu, change, blocks)
