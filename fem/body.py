@@ -121,7 +121,8 @@ def _scalar_gradients_block(sb: Basis, e: slice) -> np.ndarray:
         2, 0, 1, 3)
 
 
-def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray) -> sp.csr_matrix:
+def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray,
+                               pattern=None) -> sp.csr_matrix:
     """The stiffness of :func:`elastic_stiffness` on the vector basis of ``sb``, vectorised.
 
     K[(a,i),(b,j)] = Σ_q dx_q [λ_L ∂_iN_a ∂_jN_b + μ (δ_ij ∇N_a·∇N_b + ∂_jN_a ∂_iN_b)]
@@ -138,13 +139,15 @@ def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray)
         scalar dof s and component c is 3s + c, as skfem's ``ElementVector`` numbers them.
     lam_el, mu_el : ndarray, shape (nel,)
         Lamé's λ_L and the shear modulus μ [Pa] per element.
+    pattern : tuple, optional
+        ``_scalar_pattern(sb)``, when the caller has it already (computed otherwise).
 
     Returns
     -------
     scipy.sparse.csr_matrix, shape (3 N, 3 N)
         K [N/m].
     """
-    indptr, indices, pos = _scalar_pattern(sb)
+    indptr, indices, pos = _scalar_pattern(sb) if pattern is None else pattern
     nnz, nel = indices.size, pos.shape[0]
     data = np.zeros((nnz, 3, 3))
     lam_el, mu_el = np.asarray(lam_el, float), np.asarray(mu_el, float)
@@ -168,7 +171,7 @@ def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray)
     return sp.bsr_matrix((data, indices, indptr), shape=(3 * N, 3 * N)).tocsr()
 
 
-def assemble_thermal_coupling(sb: Basis, beta_el: np.ndarray) -> sp.csr_matrix:
+def assemble_thermal_coupling(sb: Basis, beta_el: np.ndarray, pattern=None) -> sp.csr_matrix:
     """The coupling of :func:`thermal_coupling` (temperature → displacement), vectorised.
 
     T[(a,i), b] = Σ_q dx_q β ∂_iN_a N_b with β = (3λ_L + 2μ)α [Pa/K] per element; equal
@@ -180,13 +183,15 @@ def assemble_thermal_coupling(sb: Basis, beta_el: np.ndarray) -> sp.csr_matrix:
         Scalar basis (temperature; also the scalar factor of the displacement basis).
     beta_el : ndarray, shape (nel,)
         (3λ_L + 2μ)α [Pa/K] per element.
+    pattern : tuple, optional
+        ``_scalar_pattern(sb)``, when the caller has it already (computed otherwise).
 
     Returns
     -------
     scipy.sparse.csr_matrix, shape (3 N, N)
         T [N/K]: ``T @ θ`` is the thermal load [N] of θ [K].
     """
-    indptr, indices, pos = _scalar_pattern(sb)
+    indptr, indices, pos = _scalar_pattern(sb) if pattern is None else pattern
     nnz, nel = indices.size, pos.shape[0]
     data = np.zeros((nnz, 3, 1))
     beta_el = np.asarray(beta_el, float)
@@ -693,8 +698,9 @@ class ElasticBody:
         sb = thermal.basis
         vb = sb.with_element(ElementVector(sb.elem))
         pr = thermal.props
-        K = assemble_elastic_stiffness(sb, pr["lam"], pr["mu"])
-        T = assemble_thermal_coupling(sb, pr["beta"])
+        pattern = _scalar_pattern(sb)
+        K = assemble_elastic_stiffness(sb, pr["lam"], pr["mu"], pattern)
+        T = assemble_thermal_coupling(sb, pr["beta"], pattern)
         if support.kind == "clamped":
             fac = gm.surface_group(support.group, "support.group")
             D = vb.get_dofs(facets=fac).flatten()
