@@ -726,7 +726,9 @@ class ElasticBody:
             raise InputError(f"must be 'clamped' or '3-2-1', got {support.kind!r}",
                              "support.type")
         free = np.setdiff1d(np.arange(vb.N), D)
-        Kf = K[free][:, free].tocsr()
+        K = K[free]                      # rows, then columns: two copies at a time, not
+        Kf = K[:, free].tocsr()          # three (the 100k unit's stiffness is 0.4 GB each)
+        del K
         many = n_solves >= FIELDS_FACTOR_MIN_SOLVES and free.size <= FIELDS_DIRECT_MAX_DOFS
         if factor_method is None and free.size > DIRECT_MAX_DOFS and not many:
             lu = (_PMGSolver(Kf, sb, free) if has_vertex_edge_dofs(sb.elem)
