@@ -4,8 +4,9 @@ For each mesh size, one after the other in this run, each case in its own child 
 (so that its peak resident memory, ru_maxrss, is its own):
 
 * ``arfem``   ``arfem run``'s default path without the files: mesh read (meshio),
-              assembly (scikit-fem), elastic adjoints of the TCP sensors (AMG-CG or
-              SuperLU), the 24 h reduced-modal solve of all six sensors;
+              assembly (scikit-fem; the elastic one vectorised), elastic adjoints of the
+              TCP sensors (CG with the P2/P1 p-multigrid, or SuperLU), the 24 h
+              reduced-modal solve of all six sensors;
 * ``ngsolve`` the same scenario in NGSolve: the same ``.msh`` read by meshio into a
               Netgen mesh with the same nodes, tetrahedra and named groups
               (``netgen.read_gmsh`` reads only ASCII Gmsh 2 files; the shipped mesh is

@@ -1,6 +1,7 @@
 """The elastic solves of the geometry path (issue 32, performance): the preconditioned CG
 (P2/P1 p-multigrid, or AMG for first-order elements) that replaces the factorisation above
-``DIRECT_MAX_DOFS`` gives the factor's sensor rows and displacements, and the memory estimate grows as the path it estimates."""
+``DIRECT_MAX_DOFS`` gives the factor's sensor rows and displacements, and the memory
+estimate grows as the path it estimates."""
 from __future__ import annotations
 
 from pathlib import Path
