@@ -506,12 +506,13 @@ def _nearest_vertex(mesh, point, where: str) -> int:
 
 
 #: Above this many free displacement unknowns the elastic solves use conjugate gradients
-#: preconditioned by smoothed-aggregation AMG (pyamg) instead of a sparse factorisation:
-#: the factor of P2-tetrahedron elasticity fills in badly (nnz(L+U) = 75.2 M for 73 k
-#: free unknowns of the 25k-dof spindle unit: 13.5 s CPU in SuperLU and 1.8 GB), while
-#: the geometry path needs only a handful of solves (one per displacement sensor, one
-#: per field snapshot); the tuned AMG-CG (:class:`_AMGSolver`) took 2.9 s to set up and
-#: 2 s CPU per solve there, in a tenth of the memory.
+#: (preconditioned by the P2/P1 p-multigrid :class:`_PMGSolver` for second-order
+#: elements, by smoothed-aggregation AMG :class:`_AMGSolver` for first-order ones)
+#: instead of a sparse factorisation: the factor of P2-tetrahedron elasticity fills in
+#: badly (nnz(L+U) = 75.2 M for 73 k free unknowns of the 25k-dof spindle unit: 13.5 s
+#: CPU in SuperLU and 1.8 GB), while the geometry path needs only a handful of solves (one
+#: per displacement sensor); the p-multigrid CG took 0.4 s to set up and about 1 s CPU
+#: per solve there, in a tenth of the memory.
 DIRECT_MAX_DOFS = ELASTIC_DIRECT_MAX_DOFS
 
 #: Fields (many displacement solves) factor the stiffness after all, up to this many
