@@ -81,7 +81,8 @@ def case_arfem(mesh: Path, dt_s: float) -> dict:
                                                    load_geometry_scenario, solve_geometry)
     clock = _Clock()
     names = {"reading the mesh": "read", "assembling heat": "assembly",
-             "assembling and factoring elasticity": "elastic (assembly, AMG/factor, adjoints)",
+             "assembling and factoring elasticity":
+                 "elastic (assembly, CG set-up/factor, adjoints)",
              "transient heat": "solve (reduced-modal)"}
     sc = load_geometry_scenario(_scenario(mesh))
     sc = type(sc)(**{**sc.__dict__, "fields": False})
@@ -96,7 +97,8 @@ def case_arfem(mesh: Path, dt_s: float) -> dict:
             "outputs": np.asarray(run.result.outputs).T.tolist(),
             "names": [s.name for s in sc.sensors],
             "note": f"{run.result.n_modes} modes; elastic "
-                    + (f"AMG-CG {getattr(el.factor, 'iterations', [])} iterations"
+                    + (f"{type(el.factor).__name__} CG "
+                       f"{getattr(el.factor, 'iterations', [])} iterations"
                        if hasattr(el.factor, "iterations") else f"factor nnz {el.nnz_factor}")}
 
 
