@@ -40,8 +40,11 @@ def main() -> None:
     c0, w0 = time.process_time(), time.perf_counter()
     cpu_at = [("load scenario", c0)]
 
+    rss_at = []
+
     def mark(stage):                    # CPU time per stage, from the progress messages
         cpu_at.append((stage, time.process_time()))
+        rss_at.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
     sc = load_geometry_scenario(args.scenario)
     sc = type(sc)(**{**sc.__dict__, "fields": False})
     model = build_geometry_model(sc, progress=mark)
@@ -54,12 +57,13 @@ def main() -> None:
           f", elastic factor nnz {model.elastic.nnz_factor}")
     for k, v in t.items():
         print(f"  {k:<18} {v:8.2f} s wall")
-    print("CPU by stage:")
-    for (k, a), (_, b) in zip(cpu_at[:-1], cpu_at[1:]):
-        print(f"  {k:<38} {b - a:8.2f} s CPU")
+    rss_at.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6)
+    print("CPU by stage (and the peak RSS at its end):")
+    for (k, a), (_, b), r in zip(cpu_at[:-1], cpu_at[1:], rss_at):
+        print(f"  {k:<38} {b - a:8.2f} s CPU  {r:5.2f} GB")
     its = getattr(model.elastic.factor, "iterations", None) if model.elastic else None
     if its:
-        print(f"elastic adjoints by AMG-CG: {its} iterations")
+        print(f"elastic adjoints by CG ({type(model.elastic.factor).__name__}): {its} iterations")
     print(f"total: {wall:.2f} s wall, {cpu:.2f} s CPU (this process, all threads); "
           f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6:.2f} GB; "
           f"memory estimate {model.memory_estimate_bytes / 1e9:.2f} GB")

@@ -4,8 +4,9 @@ For each mesh size, one after the other in this run, each case in its own child 
 (so that its peak resident memory, ru_maxrss, is its own):
 
 * ``arfem``   ``arfem run``'s default path without the files: mesh read (meshio),
-              assembly (scikit-fem), elastic adjoints of the TCP sensors (AMG-CG or
-              SuperLU), the 24 h reduced-modal solve of all six sensors;
+              assembly (scikit-fem; the elastic one vectorised), elastic adjoints of the
+              TCP sensors (CG with the P2/P1 p-multigrid, or SuperLU), the 24 h
+              reduced-modal solve of all six sensors;
 * ``ngsolve`` the same scenario in NGSolve: the same ``.msh`` read by meshio into a
               Netgen mesh with the same nodes, tetrahedra and named groups
               (``netgen.read_gmsh`` reads only ASCII Gmsh 2 files; the shipped mesh is
@@ -80,7 +81,8 @@ def case_arfem(mesh: Path, dt_s: float) -> dict:
                                                    load_geometry_scenario, solve_geometry)
     clock = _Clock()
     names = {"reading the mesh": "read", "assembling heat": "assembly",
-             "assembling and factoring elasticity": "elastic (assembly, AMG/factor, adjoints)",
+             "assembling and factoring elasticity":
+                 "elastic (assembly, CG set-up/factor, adjoints)",
              "transient heat": "solve (reduced-modal)"}
     sc = load_geometry_scenario(_scenario(mesh))
     sc = type(sc)(**{**sc.__dict__, "fields": False})
@@ -95,7 +97,8 @@ def case_arfem(mesh: Path, dt_s: float) -> dict:
             "outputs": np.asarray(run.result.outputs).T.tolist(),
             "names": [s.name for s in sc.sensors],
             "note": f"{run.result.n_modes} modes; elastic "
-                    + (f"AMG-CG {getattr(el.factor, 'iterations', [])} iterations"
+                    + (f"{type(el.factor).__name__} CG "
+                       f"{getattr(el.factor, 'iterations', [])} iterations"
                        if hasattr(el.factor, "iterations") else f"factor nnz {el.nnz_factor}")}
 
 

@@ -43,7 +43,8 @@ from arfem.params import InputError
 __all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
            "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
-           "LumpedGeometry", "group_volumes_m3", "lumped_geometry"]
+           "LumpedGeometry", "group_volumes_m3", "lumped_geometry", "assemble_elastic_stiffness",
+           "assemble_thermal_coupling"]
 
 
 # -- weak forms -------------------------------------------------------------------------------
@@ -92,6 +93,121 @@ def thermal_coupling(theta, v, w):
     """∫ (3λ_L + 2μ) α θ tr ε(v) dV [N/K]; ``w.beta`` = (3λ_L + 2μ)α [Pa/K] per element."""
     g = v.grad
     return w.beta * theta * (g[0][0] + g[1][1] + g[2][2])
+
+
+# -- vectorised element kernels (the same forms, without skfem's per-basis-pair loop) -----------
+
+#: Elements per block of the vectorised kernels: bounds their temporaries (a block of
+#: 8192 P2 tetrahedra holds 8192 × 30 × 30 doubles = 59 MB of element matrices).
+KERNEL_BLOCK_ELEMENTS = 8192
+
+
+def _scalar_pattern(sb: Basis):
+    """The sparsity pattern of the scalar matrices on ``sb`` and where each element's
+    (a, b) entry goes in it: (indptr, indices, pos) with ``pos`` of shape (nel, nloc, nloc)
+    indexing the CSR entries (rows and columns sorted)."""
+    edofs = np.asarray(sb.element_dofs, np.int64)
+    N = int(sb.N)
+    keys = (edofs.T[:, :, None] * N + edofs.T[:, None, :])          # (nel, nloc, nloc)
+    uniq, pos = np.unique(keys.ravel(), return_inverse=True)
+    rows = uniq // N
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=N))])
+    return indptr, (uniq % N).astype(np.int32), pos.reshape(keys.shape)
+
+
+def _scalar_gradients_block(sb: Basis, e: slice) -> np.ndarray:
+    """∇N_a of the elements ``e``: shape (ne, nloc, 3, nqp) [1/m]."""
+    return np.stack([np.asarray(b[0].grad)[:, e] for b in sb.basis], axis=0).transpose(
+        2, 0, 1, 3)
+
+
+def assemble_elastic_stiffness(sb: Basis, lam_el: np.ndarray, mu_el: np.ndarray,
+                               pattern=None) -> sp.csr_matrix:
+    """The stiffness of :func:`elastic_stiffness` on the vector basis of ``sb``, vectorised.
+
+    K[(a,i),(b,j)] = Σ_q dx_q [λ_L ∂_iN_a ∂_jN_b + μ (δ_ij ∇N_a·∇N_b + ∂_jN_a ∂_iN_b)]
+    (σ(u):ε(v) with u = N_b e_j, v = N_a e_i), computed for all elements at once as a
+    batched product of the scalar basis gradients, and summed into the 3 × 3 blocks of
+    the scalar matrices' pattern, instead of skfem's loop over the 30 × 30 basis pairs of
+    ``ElementVector(ElementTetP2)``; equal to ``elastic_stiffness.assemble`` to round-off
+    (tests/test_geometry_verification.py).
+
+    Parameters
+    ----------
+    sb : skfem.Basis
+        Scalar basis (its element and quadrature are used); the displacement dof of
+        scalar dof s and component c is 3s + c, as skfem's ``ElementVector`` numbers them.
+    lam_el, mu_el : ndarray, shape (nel,)
+        Lamé's λ_L and the shear modulus μ [Pa] per element.
+    pattern : tuple, optional
+        ``_scalar_pattern(sb)``, when the caller has it already (computed otherwise).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (3 N, 3 N)
+        K [N/m].
+    """
+    indptr, indices, pos = _scalar_pattern(sb) if pattern is None else pattern
+    nnz, nel = indices.size, pos.shape[0]
+    data = np.zeros((nnz, 3, 3))
+    lam_el, mu_el = np.asarray(lam_el, float), np.asarray(mu_el, float)
+    for s in range(0, nel, KERNEL_BLOCK_ELEMENTS):
+        e = slice(s, min(s + KERNEL_BLOCK_ELEMENTS, nel))
+        G = _scalar_gradients_block(sb, e)                                 # (ne, nloc, 3, q)
+        ne, nloc, q = G.shape[0], G.shape[1], G.shape[-1]
+        Gf = G.reshape(ne, 3 * nloc, q)
+        P = np.matmul(Gf * np.asarray(sb.dx)[e][:, None, :], Gf.transpose(0, 2, 1))
+        P = P.reshape(ne, nloc, 3, nloc, 3)                                # Σ dx ∂iNa ∂jNb
+        lap = mu_el[e][:, None, None] * np.einsum("eakbk->eab", P)
+        lam, mu = lam_el[e][:, None, None], mu_el[e][:, None, None]
+        p = pos[e].ravel()
+        for i in range(3):
+            for j in range(3):
+                blk = lam * P[:, :, i, :, j] + mu * P[:, :, j, :, i]
+                if i == j:
+                    blk = blk + lap
+                data[:, i, j] += np.bincount(p, weights=blk.ravel(), minlength=nnz)
+    N = int(sb.N)
+    return sp.bsr_matrix((data, indices, indptr), shape=(3 * N, 3 * N)).tocsr()
+
+
+def assemble_thermal_coupling(sb: Basis, beta_el: np.ndarray, pattern=None) -> sp.csr_matrix:
+    """The coupling of :func:`thermal_coupling` (temperature → displacement), vectorised.
+
+    T[(a,i), b] = Σ_q dx_q β ∂_iN_a N_b with β = (3λ_L + 2μ)α [Pa/K] per element; equal
+    to ``thermal_coupling.assemble(sb, ElementVector basis)`` to round-off.
+
+    Parameters
+    ----------
+    sb : skfem.Basis
+        Scalar basis (temperature; also the scalar factor of the displacement basis).
+    beta_el : ndarray, shape (nel,)
+        (3λ_L + 2μ)α [Pa/K] per element.
+    pattern : tuple, optional
+        ``_scalar_pattern(sb)``, when the caller has it already (computed otherwise).
+
+    Returns
+    -------
+    scipy.sparse.csr_matrix, shape (3 N, N)
+        T [N/K]: ``T @ θ`` is the thermal load [N] of θ [K].
+    """
+    indptr, indices, pos = _scalar_pattern(sb) if pattern is None else pattern
+    nnz, nel = indices.size, pos.shape[0]
+    data = np.zeros((nnz, 3, 1))
+    beta_el = np.asarray(beta_el, float)
+    for s in range(0, nel, KERNEL_BLOCK_ELEMENTS):
+        e = slice(s, min(s + KERNEL_BLOCK_ELEMENTS, nel))
+        G = _scalar_gradients_block(sb, e)                                  # (ne, nloc, 3, q)
+        ne, nloc = G.shape[0], G.shape[1]
+        Nv = np.stack([np.asarray(b[0].value)[e] for b in sb.basis], axis=1)  # (ne, nloc, q)
+        w = np.asarray(sb.dx)[e] * beta_el[e][:, None]
+        Te = np.matmul(G.reshape(ne, 3 * nloc, -1) * w[:, None, :], Nv.transpose(0, 2, 1))
+        Te = Te.reshape(ne, nloc, 3, nloc)
+        p = pos[e].ravel()
+        for i in range(3):
+            data[:, i, 0] += np.bincount(p, weights=Te[:, :, i, :].ravel(), minlength=nnz)
+    N = int(sb.N)
+    return sp.bsr_matrix((data, indices, indptr), shape=(3 * N, N)).tocsr()
 
 
 # -- specifications -----------------------------------------------------------------------------
@@ -390,12 +506,13 @@ def _nearest_vertex(mesh, point, where: str) -> int:
 
 
 #: Above this many free displacement unknowns the elastic solves use conjugate gradients
-#: preconditioned by smoothed-aggregation AMG (pyamg) instead of a sparse factorisation:
-#: the factor of P2-tetrahedron elasticity fills in badly (nnz(L+U) = 75.2 M for 73 k
-#: free unknowns of the 25k-dof spindle unit: 13.5 s CPU in SuperLU and 1.8 GB), while
-#: the geometry path needs only a handful of solves (one per displacement sensor, one
-#: per field snapshot); the tuned AMG-CG (:class:`_AMGSolver`) took 2.9 s to set up and
-#: 2 s CPU per solve there, in a tenth of the memory.
+#: (preconditioned by the P2/P1 p-multigrid :class:`_PMGSolver` for second-order
+#: elements, by smoothed-aggregation AMG :class:`_AMGSolver` for first-order ones)
+#: instead of a sparse factorisation: the factor of P2-tetrahedron elasticity fills in
+#: badly (nnz(L+U) = 75.2 M for 73 k free unknowns of the 25k-dof spindle unit: 13.5 s
+#: CPU in SuperLU and 1.8 GB), while the geometry path needs only a handful of solves (one
+#: per displacement sensor); the p-multigrid CG took 0.4 s to set up and about 1 s CPU
+#: per solve there, in a tenth of the memory.
 DIRECT_MAX_DOFS = ELASTIC_DIRECT_MAX_DOFS
 
 #: Fields (many displacement solves) factor the stiffness after all, up to this many
@@ -417,27 +534,15 @@ AMG_OPTIONS = dict(strength=("symmetric", {"theta": 0.0}), smooth=("energy", {"d
                    max_coarse=3000, coarse_solver="splu")
 
 
-class _AMGSolver:
-    """CG with a smoothed-aggregation AMG preconditioner built on the rigid-body modes
-    (pyamg, :data:`AMG_OPTIONS`), exposing ``solve(b)`` like
-    :class:`arfem.fem.linsolve.SPDFactor`."""
+class _IterativeSolver:
+    """Conjugate gradients on the free stiffness ``K`` with a preconditioner ``M`` (set by
+    the subclass), to the relative residual :data:`CG_RTOL`; ``solve(b)`` like
+    :class:`arfem.fem.linsolve.SPDFactor`, the iterations of every solve in
+    ``iterations``."""
 
-    def __init__(self, K, coords: np.ndarray, comp: np.ndarray):
-        import pyamg
-        n = K.shape[0]
-        x, y, z = coords
-        B = np.zeros((n, 6))
-        for c in range(3):
-            B[comp == c, c] = 1.0
-        # rotations: (−y, x, 0), (0, −z, y), (z, 0, −x)
-        B[comp == 0, 3], B[comp == 1, 3] = -y[comp == 0], x[comp == 1]
-        B[comp == 1, 4], B[comp == 2, 4] = -z[comp == 1], y[comp == 2]
-        B[comp == 2, 5], B[comp == 0, 5] = -x[comp == 2], z[comp == 0]
-        self.K = K
-        self.ml = pyamg.smoothed_aggregation_solver(K, B=B, **AMG_OPTIONS)
-        self.M = self.ml.aspreconditioner(cycle="V")
-        self.nnz = 0
-        self.iterations: list = []
+    K: sp.csr_matrix
+    M: object
+    nnz = 0
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         from scipy.sparse.linalg import cg
@@ -459,6 +564,104 @@ class _AMGSolver:
             self.iterations.append(it[0])
             out[:, j] = xj
         return out.reshape(b.shape)
+
+
+class _AMGSolver(_IterativeSolver):
+    """CG with a smoothed-aggregation AMG preconditioner built on the rigid-body modes
+    (pyamg, :data:`AMG_OPTIONS`): the elastic solves of first-order elements."""
+
+    def __init__(self, K, coords: np.ndarray, comp: np.ndarray):
+        import pyamg
+        n = K.shape[0]
+        x, y, z = coords
+        B = np.zeros((n, 6))
+        for c in range(3):
+            B[comp == c, c] = 1.0
+        # rotations: (−y, x, 0), (0, −z, y), (z, 0, −x)
+        B[comp == 0, 3], B[comp == 1, 3] = -y[comp == 0], x[comp == 1]
+        B[comp == 1, 4], B[comp == 2, 4] = -z[comp == 1], y[comp == 2]
+        B[comp == 2, 5], B[comp == 0, 5] = -x[comp == 2], z[comp == 0]
+        self.K = K
+        self.ml = pyamg.smoothed_aggregation_solver(K, B=B, **AMG_OPTIONS)
+        self.M = self.ml.aspreconditioner(cycle="V")
+        self.iterations: list = []
+
+
+def has_vertex_edge_dofs(elem) -> bool:
+    """True for the second-order elements whose dofs are the values at the vertices and
+    at one node per edge (10-node tetrahedron, 20-node serendipity brick): their space
+    holds the first-order one, whose values at an edge node are the mean of the edge's
+    two vertex values (the edge node sits at the reference edge's midpoint)."""
+    return (getattr(elem, "nodal_dofs", 0) == 1 and getattr(elem, "edge_dofs", 0) == 1
+            and getattr(elem, "facet_dofs", 0) == 0 and getattr(elem, "interior_dofs", 0) == 0)
+
+
+def p1_prolongation(sb: Basis, free: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The interpolation of first-order displacements into ``sb``'s second-order ones.
+
+    Vertex dofs are copied, an edge node gets the mean of its edge's two vertices (exact:
+    the first-order space is a subspace of the second-order one), per component.
+    Restricted to the ``free`` displacement dofs and to the vertex dofs that are free,
+    so that a coarse function vanishes wherever the fine one is held.
+
+    Parameters
+    ----------
+    sb : skfem.Basis
+        Scalar second-order basis with :func:`has_vertex_edge_dofs`.
+    free : ndarray of int
+        Free displacement dofs (3 s + c numbering).
+
+    Returns
+    -------
+    P : scipy.sparse.csr_matrix, shape (free.size, n_coarse)
+    coarse_free : ndarray of int
+        The free vertex displacement dofs (3 k + c, k the mesh vertex) P's columns are.
+    """
+    nod, edg = np.asarray(sb.nodal_dofs[0]), np.asarray(sb.edge_dofs[0])
+    edges = np.asarray(sb.mesh.edges)
+    nv = nod.size
+    rows = np.concatenate([nod, edg, edg])
+    cols = np.concatenate([np.arange(nv), edges[0], edges[1]])
+    vals = np.concatenate([np.ones(nv), np.full(2 * edg.size, 0.5)])
+    Ps = sp.csr_matrix((vals, (rows, cols)), shape=(int(sb.N), nv))
+    P = sp.kron(Ps, sp.identity(3), format="csr")
+    is_free = np.zeros(3 * int(sb.N), bool)
+    is_free[free] = True
+    coarse_free = np.flatnonzero(is_free[(3 * nod[:, None] + np.arange(3)).ravel()])
+    return P[free][:, coarse_free].tocsr(), coarse_free
+
+
+class _PMGSolver(_IterativeSolver):
+    """CG preconditioned by a two-level p-multigrid: one symmetric Gauss–Seidel sweep
+    on the second-order stiffness, an exact correction in the first-order (vertex) space
+    (Galerkin Pᵀ K P by :func:`p1_prolongation`, factored once), one symmetric sweep back;
+    a symmetric preconditioner, so CG applies.
+
+    On the 25k-dof spindle unit (72 942 free unknowns, 2026-11-25, one BLAS thread) it
+    set up in 0.4 s CPU (coarse order 10 365, factor 4.1 M entries) and solved the three
+    adjoints in 17–18 iterations, 3.1 s CPU, where pyamg's energy-minimising smoothed
+    aggregation (:class:`_AMGSolver`) took 3.5 s to set up and 7.6 s for 38–40
+    iterations; the two solutions agree to 5e-12 of their largest entry.
+    """
+
+    def __init__(self, K, sb: Basis, free: np.ndarray):
+        self.K = K
+        self.P, _ = p1_prolongation(sb, free)
+        self.coarse = factorize_spd((self.P.T @ K @ self.P).tocsr())
+        self.nnz = 0                    # the coarse factor is small; not the stiffness's
+        self.nnz_coarse = self.coarse.nnz
+        self.iterations: list = []
+        from scipy.sparse.linalg import LinearOperator
+        self.M = LinearOperator(K.shape, matvec=self._cycle, dtype=float)
+
+    def _cycle(self, b: np.ndarray) -> np.ndarray:
+        from pyamg.relaxation.relaxation import gauss_seidel
+        b = np.asarray(b, float).ravel()
+        x = np.zeros_like(b)
+        gauss_seidel(self.K, x, b, iterations=1, sweep="symmetric")
+        x += self.P @ self.coarse.solve(self.P.T @ (b - self.K @ x))
+        gauss_seidel(self.K, x, b, iterations=1, sweep="symmetric")
+        return x
 
 
 @dataclass(frozen=True)
@@ -496,9 +699,9 @@ class ElasticBody:
         sb = thermal.basis
         vb = sb.with_element(ElementVector(sb.elem))
         pr = thermal.props
-        K = elastic_stiffness.assemble(vb, lam=_per_element(vb, pr["lam"]),
-                                       mu=_per_element(vb, pr["mu"])).tocsr()
-        T = thermal_coupling.assemble(sb, vb, beta=_per_element(sb, pr["beta"])).tocsr()
+        pattern = _scalar_pattern(sb)
+        K = assemble_elastic_stiffness(sb, pr["lam"], pr["mu"], pattern)
+        T = assemble_thermal_coupling(sb, pr["beta"], pattern)
         if support.kind == "clamped":
             fac = gm.surface_group(support.group, "support.group")
             D = vb.get_dofs(facets=fac).flatten()
@@ -524,11 +727,13 @@ class ElasticBody:
             raise InputError(f"must be 'clamped' or '3-2-1', got {support.kind!r}",
                              "support.type")
         free = np.setdiff1d(np.arange(vb.N), D)
-        Kf = K[free][:, free].tocsr()
+        K = K[free]                      # rows, then columns: two copies at a time, not
+        Kf = K[:, free].tocsr()          # three (the 100k unit's stiffness is 0.4 GB each)
+        del K
         many = n_solves >= FIELDS_FACTOR_MIN_SOLVES and free.size <= FIELDS_DIRECT_MAX_DOFS
         if factor_method is None and free.size > DIRECT_MAX_DOFS and not many:
-            pv = vb.doflocs[:, free]
-            lu = _AMGSolver(Kf, pv, free % 3)
+            lu = (_PMGSolver(Kf, sb, free) if has_vertex_edge_dofs(sb.elem)
+                  else _AMGSolver(Kf, vb.doflocs[:, free], free % 3))
         else:
             try:
                 lu = factorize_spd(Kf, factor_method)
@@ -555,7 +760,7 @@ class ElasticBody:
         of the stiffness, made once, while it fits (:data:`FIELDS_DIRECT_MAX_DOFS`):
         on the 25k-dof spindle unit 25 hourly snapshots took 25 CG solves of about
         2 s CPU each against one factorisation of 15 s and solves of 0.1 s."""
-        if (n_solves < FIELDS_FACTOR_MIN_SOLVES or not isinstance(self.factor, _AMGSolver)
+        if (n_solves < FIELDS_FACTOR_MIN_SOLVES or not isinstance(self.factor, _IterativeSolver)
                 or self.free.size > FIELDS_DIRECT_MAX_DOFS):
             return self.factor
         if "factor" not in self._many:

@@ -7,11 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from skfem import (Basis, ElementTetP1, ElementTetP2, ElementVector, Functional, LinearForm,
-                   MeshTet1, condense, solve)
+from skfem import (Basis, ElementHex1, ElementTetP1, ElementTetP2, ElementVector, Functional,
+                   LinearForm, MeshHex1, MeshTet1, condense, solve)
 
 from arfem.fem.body import (ConvectionSpec, ElasticBody, Material, SensorSpec, SourceSpec,
-                            Support, ThermalBody, conduction, elastic_stiffness,
+                            Support, ThermalBody, assemble_elastic_stiffness,
+                            assemble_thermal_coupling, conduction, elastic_stiffness,
                             thermal_coupling)
 from arfem.fem.gmsh_io import GroupedMesh, read_grouped_mesh
 from arfem.fem.thermal3d import InputHistory, solve_reduced, solve_theta
@@ -107,6 +108,27 @@ def test_reduced_steady_state_is_exact_at_every_speed(rod):
     assert np.all(np.abs(red - exact) <= 1e-8 * np.abs(exact)), (red, exact)
 
 
+def test_projected_modes_equal_the_full_galerkin_projection(rod):
+    """projected_modes (another speed's modes from the first speed's space) updates the
+    first speed's diagonal projection by the convection matrices on their surface rows
+    only; it equals the full projection eigh(Vᵀ A(h) V) of the same space: decay rates
+    to 1e-10 relative, modal outputs and loads (up to each mode's sign) to 1e-8 of their
+    largest (round-off of two orderings of the same sums, amplified by the conditioning
+    of close eigenvalues)."""
+    from arfem.fem.thermal3d import body_modes, projected_modes
+    _, tb, _ = rod
+    G = np.column_stack([tb.volume, tb.F[:, 0]])
+    base = body_modes(tb, np.array([55.0]), G, other_h=[np.array([15.0])])
+    new = projected_modes(tb, base, np.array([15.0]), G)
+    V = base.phi
+    Ar = V.T @ (tb.operator([15.0]) @ V)
+    mu, Y = np.linalg.eigh(0.5 * (Ar + Ar.T))
+    Gk = (V @ Y).T @ G
+    assert np.max(np.abs(new.mu - mu)) <= 1e-10 * mu.max()
+    sign = np.sign(np.sum(new.Gk * Gk, axis=1))[:, None]
+    assert np.max(np.abs(new.Gk * sign - Gk)) <= 1e-8 * np.abs(Gk).max()
+
+
 # -- manufactured solutions on tetrahedra -------------------------------------------------------
 
 def _cube(n):
@@ -135,6 +157,36 @@ def _heat_error(n, elem):
     def err(w):
         return (w.u - _sines(w.x)) ** 2
     return np.sqrt(err.assemble(b, u=b.interpolate(u)))
+
+
+@pytest.mark.parametrize("case", ["tet10 rod (curved P2)", "P1 cube", "hex8 cube"])
+def test_vectorised_elastic_kernels_equal_skfem_forms(case):
+    """The vectorised stiffness and coupling (assemble_elastic_stiffness,
+    assemble_thermal_coupling: the geometry path's elastic assembly) equal skfem's
+    assembly of the reference forms elastic_stiffness / thermal_coupling, entry by entry,
+    with different Lamé parameters and β in every element. Tolerance 1e-13 of the
+    largest entry: the two sum the same products in a different order (round-off)."""
+    if case.startswith("tet10"):
+        m = read_grouped_mesh(DATA / "rod_tet10.msh", "m").mesh
+        sb = Basis(m, ElementTetP2(), intorder=5)
+    elif case.startswith("P1"):
+        sb = Basis(_cube(3), ElementTetP1(), intorder=2)
+    else:
+        sb = Basis(MeshHex1.init_tensor(*(np.linspace(0, 1, 4),) * 3), ElementHex1())
+    m = sb.mesh
+    rng = np.random.default_rng(7)
+    lam, mu, beta = (rng.uniform(0.5, 2.0, m.nelements) * s for s in (1e11, 8e10, 3e6))
+    vb = sb.with_element(ElementVector(sb.elem))
+    nq = vb.X.shape[1]
+    ref_K = elastic_stiffness.assemble(vb, lam=np.repeat(lam[:, None], nq, 1),
+                                       mu=np.repeat(mu[:, None], nq, 1)).tocsr()
+    ref_T = thermal_coupling.assemble(sb, vb, beta=np.repeat(beta[:, None], nq, 1)).tocsr()
+    K = assemble_elastic_stiffness(sb, lam, mu)
+    T = assemble_thermal_coupling(sb, beta)
+    assert K.shape == ref_K.shape and T.shape == ref_T.shape
+    assert abs(K - ref_K).max() <= 1e-13 * abs(ref_K).max()
+    assert abs(T - ref_T).max() <= 1e-13 * abs(ref_T).max()
+    assert abs(K - K.T).max() <= 1e-13 * abs(K).max()
 
 
 def _elastic_error(n, elem):
