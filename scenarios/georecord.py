@@ -152,8 +152,8 @@ def read_table(files: RecordFiles) -> RecordTable:
         v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
         bad = np.flatnonzero(np.isnan(v) & df[c].notna().to_numpy())
         if bad.size:
-            raise InputError(f"row {bad[0] + 2}: {df[c].iloc[bad[0]]!r} is not a number",
-                             f"{files.csv}: column {c}")
+            raise InputError(f"{df[c].iloc[bad[0]]!r} is not a number",   # header = line 1
+                             f"{files.csv}: line {bad[0] + 2}, column {c}")
         cols[name] = v
     if "time_s" not in cols:
         raise InputError("missing column time_s", str(files.csv))
