@@ -171,8 +171,8 @@ def below_floor(ctx: FitContext, pred, ref, rows) -> bool:
     return True
 
 
-def walk_explains(ctx: FitContext, fit: Fit, ref, rows, level: float) -> bool:
-    """True when a sensor drift among ``fit``'s causes is no evidence: on its channel,
+def walk_explains(ctx: FitContext, cause, ref, rows, level: float) -> bool:
+    """True when ``cause`` is a sensor drift that is no evidence: on its channel,
     the residual of ``ref`` (N, C) on ``rows`` is explained as well by that channel's
     own random walk as by an offset and a drift (:func:`.noise.drift_vs_walk_p`,
     λ profiled under each hypothesis, p ≥ ``level``).
@@ -182,17 +182,14 @@ def walk_explains(ctx: FitContext, fit: Fit, ref, rows, level: float) -> bool:
     on a clean random-walk record, seed 70019); the drift's F test then took the walk's
     excursion for a drift. The test here asks the channel itself."""
     from arfem.models.geodiagnosis.noise import drift_vs_walk_p
-    for c in fit.causes:
-        if c.kind != "sensor_drift":
-            continue
-        j = [ch.column for ch in ctx.rec.channels].index(c.target)
-        idx = np.flatnonzero(ctx.valid[:, j] & rows)
-        if idx.size <= 20:
-            return True
-        y = ctx.rec.data[idx, j] - ref[idx, j]
-        if drift_vs_walk_p(y, idx, ctx.rec.time_s[idx] / 3600.0) >= level:
-            return True
-    return False
+    if cause.kind != "sensor_drift":
+        return False
+    j = [ch.column for ch in ctx.rec.channels].index(cause.target)
+    idx = np.flatnonzero(ctx.valid[:, j] & rows)
+    if idx.size <= 20:
+        return True
+    y = ctx.rec.data[idx, j] - ref[idx, j]
+    return drift_vs_walk_p(y, idx, ctx.rec.time_s[idx] / 3600.0) >= level
 
 
 def within_noise_p(r: np.ndarray) -> float:
@@ -247,7 +244,7 @@ def _screen(ctx, singles, train, hold, base, n_tests):
     ranking = tuple((r[0].name, r[2], r[3], r[4]) for r in rows)
     passing = [r for r in rows if r[3] < ALPHA / n_tests and implausible(r[1]) is None
                and not below_floor(ctx, r[1].prediction, base.prediction, train)
-               and not walk_explains(ctx, r[1], base.prediction, train, ALPHA / n_tests)][:3]
+               and not walk_explains(ctx, r[0], base.prediction, train, ALPHA / n_tests)][:3]
     if not passing:
         return ranking, None
     # the hold-out decides only between causes the fit window cannot tell apart
@@ -273,7 +270,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
         b = bic(f.sse_w, N, ne, f.n_params)
         if p < ALPHA / n_tests and implausible(f) is None and (best is None or b < best[0]) \
                 and not below_floor(ctx, f.prediction, first.prediction, train) \
-                and not walk_explains(ctx, f, first.prediction, train, ALPHA / n_tests):
+                and not walk_explains(ctx, c, first.prediction, train, ALPHA / n_tests):
             best = (b, f)
     if best is None:
         return None
