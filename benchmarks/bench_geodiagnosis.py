@@ -150,7 +150,7 @@ development data, reproduced through this file's own generation):
   sensor_drift:T_housing_C gave p = 1e-27 for 0.0018 K/h, i.e. 0.028 K over 16 h, less
   than the walk's own excursion. On the channel alone, with the walk's strength
   profiled under each hypothesis, offset + drift against the walk alone gives p = 0.011
-  (χ² on 2 df) -- no evidence at the naming level 0.01/17. Flaw: a drift was tested
+  (χ² on 2 df) -- no evidence at the naming level 0.01/19 = 5.3e-4. Flaw: a drift was tested
   against a walk strength fitted elsewhere, never against what the channel's own walk
   produces. Fix: ``engine.walk_explains`` (noise.drift_vs_walk_p) as a further
   condition on a sensor drift in the single and the pair screen, at the same level.

@@ -273,7 +273,7 @@ def test_clean_walk_record_names_no_drift_on_a_thermometer(setup):
     on the largest model). A drift is now evidence only when the channel's own walk,
     its strength profiled, does not explain it as well (likelihood ratio, the naming
     level): nothing is established, no drift is even named, and the walk-vs-drift test
-    on T_housing_C is far from the naming level (p ≥ 1e-3 against ~6e-4)."""
+    on T_housing_C is far from the naming level (p ≥ 1e-3 against 0.01/19 = 5.3e-4)."""
     from arfem.models.geodiagnosis.noise import drift_vs_walk_p
     sc, spec, plant, model = setup
     rec, _ = _record(plant, [], 70019, "walk")       # the benchmark's recipe
@@ -292,7 +292,7 @@ def test_drift_vs_walk_keeps_a_real_drift_under_a_walk(setup):
     benchmark draws (0.1 µm/h on d_tcp_z_um, 1.6 µm over the 16 h fit window) under
     white noise plus a walk of 0.05 σ per sample gives p below the naming level
     (the power the drift check leaves) and the drift is established. Near the edge:
-    here p ~ 1e-4 against the level 0.01/(number of candidates) ~ 6e-4; a smaller drift
+    here p ~ 1e-4 against the level 0.01/(number of candidates) = 0.01/19 = 5.3e-4; a smaller drift
     under this walk is, rightly, not told from the walk."""
     from arfem.models.geodiagnosis.engine import ALPHA
     from arfem.models.geodiagnosis.fit import candidate_causes
