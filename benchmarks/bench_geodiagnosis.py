@@ -171,9 +171,10 @@ development data, reproduced through this file's own generation):
   three misses 70015, 70016, 70027 as in the second scoring; 70017 still right), clean
   with a cause 0/6 (was 1/6), coverage 22/24; 80000-: 24/24 right (was 23/24), clean
   0/6, coverage 27/27 (was 25/26); 192 s and 177 s CPU (was 298 s under more load and
-  157 s). The spent 50000- batch was rerun alongside (below, after the scoring). A bug of the first version (the drift
-  check also applied to the lead drift against its own fit, so 70017's contact
-  was never added) was found on 70017 and fixed before this check.
+  157 s). The spent 50000- batch was rerun alongside (below, after the scoring). A
+  bug of the first version (the drift check also applied to the lead drift against
+  its own fit, so 70017's contact was never added) was found on 70017 and fixed
+  before this check.
 
 FOURTH PRE-REGISTRATION (committed before any record of it was generated): the engine
 at commit 75dd6b9 (the two fixes above, on development data only); fresh seeds
