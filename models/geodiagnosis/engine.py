@@ -35,8 +35,9 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    nonlinear parameter held, fitted jointly for the best, and added when its F test
    against the first passes the same level, it is above the floor and it lowers the
    whitened hold-out error; since the fifth pre-registration (development seed 90027)
-   the same screen runs beside each passing single of step 3 (:func:`_best_pair`, at
-   most three leads) and the pair of lowest BIC is kept. Then the first cause is revisited (:func:`_swap`, added
+   when the first gets a partner, the same screen runs beside each other passing
+   single of step 3 (:func:`_best_pair`, at most three leads) and the pair of lowest
+   BIC is kept. Then the first cause is revisited (:func:`_swap`, added
    after the third scoring on development seed 80017): the second kept, every other
    cause is screened as its partner by the same rules (its nonlinear parameter not
    held), and the best partner's pair replaces the named one when its BIC is lower
@@ -317,7 +318,9 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
     """Step 4's pair: a second cause screened beside each passing single of step 3
     (the named first and the others, at most three), the pair of lowest BIC kept (the
-    hold-out deciding within ``DELTA_BIC``); None when no lead gets a partner.
+    hold-out deciding within ``DELTA_BIC``); None when the named first gets no partner
+    (then one cause is all the record shows: a first version that also paired the
+    weaker leads turned single convection records into "unconfirmed" pairs).
 
     A forward search from the named first cause alone misses the pair whose members
     are neither of the two best single stand-ins (development seed 90027: a missing
@@ -326,15 +329,19 @@ def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
     BIC 28 against the named pair's 615). A beam of step 3's passing singles (Miller,
     "Subset selection in regression", sec. 3.4) keeps the second-best lead in reach."""
     N = int((ctx.valid & train[:, None]).sum())
-    pairs = []
-    for lead in (first,) + tuple(f for f in leads if f.causes != first.causes):
-        if lead is not first:
-            lead = fit_causes(ctx, lead.causes, train, intervals=False)
-        p = _second(ctx, lead, singles, train, hold, n_tests)
+    own = _second(ctx, first, singles, train, hold, n_tests)
+    if own is None:
+        # no second cause beside the named one: the record shows one cause, and a pair
+        # built on a weaker lead is no evidence against it
+        return None
+    pairs = [(bic(own.sse_w, N, _n_eff(ctx, own.prediction, train), own.n_params), own)]
+    for lead in leads:
+        if lead.causes == first.causes:
+            continue
+        p = _second(ctx, fit_causes(ctx, lead.causes, train, intervals=False), singles,
+                    train, hold, n_tests)
         if p is not None:
             pairs.append((bic(p.sse_w, N, _n_eff(ctx, p.prediction, train), p.n_params), p))
-    if not pairs:
-        return None
     pairs.sort(key=lambda r: r[0])
     near = [r[1] for r in pairs if r[0] - pairs[0][0] <= DELTA_BIC]
     return min(near, key=lambda f: _holdout_score(ctx, f.prediction, hold))
