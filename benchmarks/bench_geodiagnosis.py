@@ -241,6 +241,21 @@ plan, ``duty_cycle``, ``generate``; both quantised at q = 1.2 µm / 0.12 K):
   ``test_quantiser_bias_bounds_the_mean_reading_error``,
   ``test_quantised_contact_at_its_true_size_is_named``,
   ``test_pair_out_of_reach_of_the_best_single_is_found``.
+* Checked on development data (engine 86999fd, 00:56-01:07 UTC, the four batches at
+  once, load 4.5-5.3; ``nice -n 10 /usr/bin/time -v python
+  benchmarks/bench_geodiagnosis.py --batch --seed0 S``): 90000-: 24/24 right (was
+  22/24), clean 0/6, coverage 26/27, 208.8 s CPU; 70000-: 22/24 (was 21/24: 70027, a
+  quantised contact + warm start, now right; 70015 and 70016, both walk, still
+  missed), clean 0/6, coverage 24/26, 256.4 s CPU; 80000-: 24/24, clean 0/6,
+  coverage 27/27, 210.5 s CPU; 50000-: 23/24 (50017 still missed), clean 0/6,
+  coverage 26/26, 197.2 s CPU. No record right before is wrong now.
+
+FIFTH PRE-REGISTRATION (committed 2026-11-26 ~01:08 UTC, before any record of it was
+generated): the engine at commit 86999fd (the two fixes above, on development data
+only); fresh seeds 100000 + i, i = 0..29, never used before by any test, benchmark or
+development run; the same composition, drawing, plant and scores as the first four;
+command ``nice -n 10 /usr/bin/time -v python benchmarks/bench_geodiagnosis.py --batch
+--seed0 100000``, run ONCE. Anything changed after it is post hoc.
 """
 from __future__ import annotations
 
