@@ -19,10 +19,10 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    has p < 0.01 / (number of candidates) (Bonferroni), its fit is physical
    (:func:`.fit.implausible`: no missing "source" of negative power, no parameter at
    an end of its range; such a fit is a sign of another cause or of wrong units) and
-   its effect is above the practical-size floor (:func:`below_floor`: more than the quantiser's
-   slow bias, :func:`quantiser_bias`, on some quantised channel, or seen on an
-   unquantised one; half a quantum whatever the noise until the fifth pre-registration). A sensor drift
-   passes only when its channel's own random walk does not explain the channel as well
+   its effect is above the practical-size floor (:func:`below_floor`: more than the
+   quantiser's slow bias, :func:`quantiser_bias`, on some quantised channel, or seen
+   on an unquantised one; half a quantum whatever the noise until the fifth
+   pre-registration). A sensor drift passes only when its channel's own random walk does not explain the channel as well
    (:func:`walk_explains`: likelihood ratio of offset + drift against the walk alone,
    the walk's strength profiled under each, p < the same level); added after the
    third scoring on development seed 70019.
