@@ -23,9 +23,9 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    quantiser's slow bias, :func:`quantiser_bias`, on some quantised channel, or seen
    on an unquantised one; half a quantum whatever the noise until the fifth
    pre-registration). A sensor drift passes only when its channel's own random walk
-   does not explain the channel as well (:func:`walk_explains`: likelihood ratio of offset + drift against the walk alone,
-   the walk's strength profiled under each, p < the same level); added after the
-   third scoring on development seed 70019.
+   does not explain the channel as well (:func:`walk_explains`: likelihood ratio of
+   offset + drift against the walk alone, the walk's strength profiled under each,
+   p < the same level); added after the third scoring on development seed 70019.
 3. Among the passing causes, those within ``DELTA_BIC`` of the best BIC on N_eff (at
    most three) are compared on the hold-out; the lowest whitened hold-out error is
    named (selection on a time hold-out: near-equivalent causes on the fit window are
