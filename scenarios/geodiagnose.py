@@ -266,9 +266,10 @@ def _export_models(case, d, model, rec, sc, progress):
     from arfem.scenarios.axes_record import load_axes_record
     from arfem.scenarios.geodiagnose_export import diagnosis_models, replay_table
     files = read_record_files(case)
-    cols = set(load_axes_record(case).extra_columns)
-    models = diagnosis_models(d, model, rec, sc, files, cols, __version__, progress)
-    models.statement["replay"] = replay_table(models, case, d.holdout_start_s)
+    ds = load_axes_record(case)             # read once: its columns and the replay
+    models = diagnosis_models(d, model, rec, sc, files, set(ds.extra_columns), __version__,
+                              progress)
+    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s, str(case))
     return models
 
 

@@ -152,18 +152,18 @@ def diagnosis_models(d, model, rec, sc, files, columns, arfem_version: str = "",
     return DiagnosisModels(nom.model, ext.model, st)
 
 
-def replay_table(models: DiagnosisModels, record_path, score_from_s: float) -> dict:
-    """Each model replayed causally on the record, scored from ``score_from_s``:
+def replay_table(models: DiagnosisModels, ds, score_from_s: float, where: str) -> dict:
+    """Each model replayed causally on the record ``ds`` (an
+    :class:`arfem.scenarios.axes_record.AxesRecord`, read once by the caller), scored
+    from ``score_from_s``:
     {axis: {output, rms_before_um, nominal_rms_after_um, extended_rms_after_um}}."""
-    from arfem.scenarios.axes_record import load_axes_record
     from arfem.scenarios.replay_axes import replay_axes
     if models.nominal is None:
         return {}
-    ds = load_axes_record(record_path)
     try:
-        rn = replay_axes(models.nominal, ds, score_from_s=score_from_s, where=str(record_path))
-        re_ = (replay_axes(models.extended, ds, score_from_s=score_from_s,
-                           where=str(record_path)) if models.extended is not None else None)
+        rn = replay_axes(models.nominal, ds, score_from_s=score_from_s, where=where)
+        re_ = (replay_axes(models.extended, ds, score_from_s=score_from_s, where=where)
+               if models.extended is not None else None)
     except InputError as exc:           # e.g. a record not sampled at one interval
         return {"not_replayed": str(exc)}
     out = {}
