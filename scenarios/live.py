@@ -214,6 +214,15 @@ def load_config(path, model=None) -> LiveConfig:
                       fsync, ints["status_every"], ranges, axes)
 
 
+def refuse_unknown_axes(table: dict, names: list, where: str) -> None:
+    """One line for a per-axis table ``[<where>.<AXIS>]`` naming an axis the model lacks
+    (shared by ``[live.axes]`` and ``[opcua.axes]``)."""
+    for ax in table:
+        if ax not in names:
+            raise InputError(f"the model has no axis {ax!r} (it has {', '.join(names)})",
+                             f"{where}.{ax}")
+
+
 def _axes(table, where: str, model, max_offset_um: float, max_step_um: float) -> tuple:
     """``[live.axes]``: per axis of a version-2 model its ``max_offset_um`` and
     ``max_step_um`` [µm] (default the common ones): ((axis, offset, step), ...)."""
@@ -222,10 +231,7 @@ def _axes(table, where: str, model, max_offset_um: float, max_step_um: float) ->
     names = list(model.axes) if model is not None else list(table)
     if table and not names:
         raise InputError("is for a model with several axes (model_version 2)", where)
-    for ax in table:
-        if ax not in names:
-            raise InputError(f"the model has no axis {ax!r} (it has {', '.join(names)})",
-                             f"{where}.{ax}")
+    refuse_unknown_axes(table, names, where)
     out = []
     for ax in names:
         t = table.get(ax, {})

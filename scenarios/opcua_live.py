@@ -82,7 +82,7 @@ from dataclasses import dataclass, replace
 
 from arfem.params import InputError, one_line
 from arfem.scenarios.live import (Clock, CycleLog, Status, answer, clocked_step, faults,
-                                  model_sha, warm_start)
+                                  model_sha, refuse_unknown_axes, warm_start)
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
@@ -227,10 +227,7 @@ def _axis_nodes(table, where: str, model, ua) -> tuple:
     if not isinstance(axes, dict):
         raise InputError(f"needs an [opcua.axes.<AXIS>] table per axis ({', '.join(names)})",
                          f"{where}.axes")
-    for ax in axes:
-        if ax not in names:
-            raise InputError(f"the model has no axis {ax!r} (it has {', '.join(names)})",
-                             f"{where}.axes.{ax}")
+    refuse_unknown_axes(axes, names, f"{where}.axes")
     out = []
     for ax in names:
         key = f"{where}.axes.{ax}"
