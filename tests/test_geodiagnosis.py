@@ -409,6 +409,54 @@ def test_pair_out_of_reach_of_the_best_single_is_found(setup):
     assert lo <= hidden[1].value <= hi
 
 
+@pytest.mark.slow
+def test_warm_start_under_a_walk_is_judged_on_the_whitened_hold_out(setup):
+    """The fifth scoring's miss 100016 (now development data): a warm start of 2.11 K
+    under white noise + a random walk, named at 2.11 K [2.10, 2.12], was left
+    "unconfirmed" because the raw hold-out RMS rose by 10.8 % (a thermometer's walk
+    sets its level there) while the whitened one-step error fell. Judged on the
+    whitened hold-out, step 3's own score, it is established; the raw gain is still
+    reported as it is, negative."""
+    sc, spec, plant, model = setup
+    rng = np.random.default_rng(100016)          # the benchmark's draw of its cause
+    hidden = [Hidden("warm_start", "", float(rng.uniform(1.0, 3.0)))]
+    assert round(hidden[0].value, 3) == 2.110
+    rec = _rng_record(plant, hidden, rng, "s100016", "walk")
+    d = diagnose_geometry(model, rec)
+    assert [c.name for c in d.established] == ["warm_start"], d.text
+    lo, hi = d.named.ci95[0]["initial_offset_K"]
+    assert lo <= hidden[0].value <= hi
+    assert d.gain_whitened_pct > 0 > d.gain_pct
+    assert "one-step hold-out error" in d.text
+
+
+@pytest.mark.slow
+def test_partner_failing_the_hold_out_does_not_end_the_pair_search(setup):
+    """The fifth scoring's miss 100027 (now development data): a missing source of
+    10.2 W in the spindle bore + a warm start of 1.69 K, quantised at 4 σ, was named a
+    housing source alone: beside it the lowest-BIC partner (a spindle-bore convection)
+    failed the hold-out and the search stopped, the warm start (next by BIC, hold-out
+    error 1.35 against 4.88) untried. With the passing partners tried in BIC order the
+    right pair is established, both intervals holding the truth."""
+    sc, spec, plant, model = setup
+    rng = np.random.default_rng(100027)          # the benchmark's draw of its pair
+    rng.choice(7, 2, replace=False)
+    hidden = [Hidden("missing_source", str(rng.choice(model.candidates)),
+                     float(rng.uniform(8.0, 20.0))),
+              Hidden("warm_start", "", float(rng.uniform(1.0, 3.0)))]
+    assert [(h.target, round(h.value, 3)) for h in hidden] == [
+        ("spindle_bore", 10.198), ("", 1.686)]
+    rec = _rng_record(plant, hidden, rng, "s100027", "quantised")
+    d = diagnose_geometry(model, rec)
+    assert sorted(c.name for c in d.established) == [
+        "missing_source:spindle_bore", "warm_start"], d.text
+    got = {c.kind: ci for c, ci in zip(d.named.causes, d.named.ci95)}
+    lo, hi = got["missing_source"]["power_W"]
+    assert lo <= hidden[0].value <= hi
+    lo, hi = got["warm_start"]["initial_offset_K"]
+    assert lo <= hidden[1].value <= hi
+
+
 def _rng_record(plant, hidden, rng, name, noise):
     t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
     y = generate(plant, hidden, t, speed, power, amb, rng, noise)

@@ -34,7 +34,9 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    model's bias there removed), then a second cause is screened with the first's
    nonlinear parameter held, fitted jointly for the best, and added when its F test
    against the first passes the same level, it is above the floor and it lowers the
-   whitened hold-out error; since the fifth pre-registration (development seed 90027)
+   whitened hold-out error (the passing partner of lowest BIC whose pair does; before the
+   sixth pre-registration only the lowest-BIC partner was tried, development seed
+   100027); since the fifth pre-registration (development seed 90027)
    when the first gets a partner, the same screen runs beside each other passing
    single of step 3 (:func:`_best_pair`, at most three leads) and the pair of lowest
    BIC is kept. Then the first cause is revisited (:func:`_swap`, added
@@ -46,7 +48,9 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    the fifth pre-registration, development seed 90027).
 5. Verdict (:func:`verdict_of`): ``established`` when each named cause's 95 % interval
    of its effect excludes "no effect", no interval reaches an end of the range the fit
-   can return, magnitudes are plausible and the hold-out gain is positive;
+   can return, magnitudes are plausible and the hold-out gain is positive (on the
+   whitened hold-out, step 3's score, since the sixth pre-registration: the raw RMS
+   under a random walk, development seed 100016);
    ``explained`` when nothing is named and the nominal residual is within the noise on
    every channel (Ljung–Box on N_eff, p ≥ 0.05/C, of the residual whitened by the
    channel's fitted noise) with no MLR on the thermometers (paper eq. 18) better on
@@ -93,6 +97,8 @@ class GeoDiagnosis:
     holdout_rmse : dict, per channel {column: (baseline, extended, mlr or None)} in
         record units (µm, K) on the hold-out
     gain_pct : float, 100 (1 − extended/baseline) of the weighted hold-out RMS
+    gain_whitened_pct : float, the same of the whitened hold-out RMS (each channel's
+        one-step errors under its fitted noise): the gain the verdict requires
     failed : tuple of str, the checks of ``established`` the named causes fail
     ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-], the
         one-step errors over their σ under each channel's fitted noise)
@@ -114,6 +120,7 @@ class GeoDiagnosis:
     within_noise: dict
     text: str
     sigma: dict = field(default_factory=dict)
+    gain_whitened_pct: float = float("nan")
 
     @property
     def established(self) -> tuple:
@@ -293,7 +300,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
     lead = first.causes[0]
     held = {lead.name: first.params[0][lead.nonlinear]} if lead.nonlinear and hold_first \
         else {}
-    best = None
+    passing = []
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
         if c == lead or (c.nonlinear and c.nonlinear == lead.nonlinear and c.kind == lead.kind
@@ -303,16 +310,21 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
         b = bic(f.sse_w, N, ne, f.n_params)
-        if p < ALPHA / n_tests and implausible(f) is None and (best is None or b < best[0]) \
+        if p < ALPHA / n_tests and implausible(f) is None \
                 and not below_floor(ctx, f.prediction, first.prediction, train) \
                 and not walk_explains(ctx, c, first.prediction, train, ALPHA / n_tests):
-            best = (b, f)
-    if best is None:
-        return None
-    pair = fit_causes(ctx, best[1].causes, train, intervals=False)
-    if _holdout_score(ctx, pair.prediction, hold) >= _holdout_score(ctx, first.prediction, hold):
-        return None
-    return pair
+            passing.append((b, f))
+    # the passing partner of lowest BIC whose pair (refitted jointly) lowers the whitened
+    # hold-out error; until the sixth pre-registration only the lowest-BIC partner was
+    # tried, and its failing the hold-out ended the search (development seed 100027: a
+    # spindle-bore convection at BIC 553 failed it, the true warm start at 700 was never
+    # tried)
+    first_score = _holdout_score(ctx, first.prediction, hold)
+    for _, f in sorted(passing, key=lambda r: r[0]):
+        pair = fit_causes(ctx, f.causes, train, intervals=False)
+        if _holdout_score(ctx, pair.prediction, hold) < first_score:
+            return pair
+    return None
 
 
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
@@ -425,12 +437,13 @@ def _effect_failures(fit: Fit) -> list:
 
 
 def verdict_of(named: Fit | None, gain_pct: float, within: dict, mlr_better: bool):
-    """(verdict, failed checks) by the rules of the module docstring."""
+    """(verdict, failed checks) by the rules of the module docstring; ``gain_pct`` is
+    the gain on the whitened hold-out (``GeoDiagnosis.gain_whitened_pct``)."""
     if named is not None:
         failed = _effect_failures(named)
         if not gain_pct > 0:
-            failed.append(f"the extended model does not beat the nominal on the hold-out "
-                          f"(gain {gain_pct:.1f} %)")
+            failed.append(f"the extended model does not beat the nominal on the whitened "
+                          f"hold-out (gain {gain_pct:.1f} %)")
         return ("established" if not failed else "unconfirmed"), tuple(failed)
     ok = all(p >= 0.05 / max(len(within), 1) for p in within.values() if np.isfinite(p))
     return ("explained" if ok and not mlr_better else "not_explained"), ()
@@ -443,7 +456,10 @@ def _text(rec: GeoRecord, verdict: str, named: Fit | None, failed, gain: float) 
             ps = ", ".join(f"{k} = {v:.3g} [{ci[k][0]:.3g}, {ci[k][1]:.3g}]" for k, v in p.items())
             parts.append(f"{c.name} ({ps})")
         return (f"The model is wrong here: {' and '.join(parts)}; the extended model cuts the "
-                f"hold-out error by {gain:.0f} %.")
+                f"hold-out error by {gain:.0f} %." if gain >= 0 else
+                f"The model is wrong here: {' and '.join(parts)}; the extended model cuts the "
+                f"one-step hold-out error under the fitted noise, while the raw hold-out RMS "
+                f"is {-gain:.0f} % higher: the sensors' slow wander sets its level there.")
     if verdict == "unconfirmed":
         return (f"Best candidate {' + '.join(c.name for c in named.causes)}, not established: "
                 f"{'; '.join(failed)}.")
@@ -507,6 +523,12 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     ext = named if named is not None else base
     wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
     gain = 100.0 * (1.0 - we / wb) if wb > 0 else 0.0
+    # the verdict's hold-out check is on the whitened errors, the score of step 3: under
+    # a random walk the raw RMS of a hold-out is mostly the walk's level there, and a
+    # warm start named at 2.11 K [2.10, 2.12] (truth 2.11; development seed 100016)
+    # "lost" 10.8 % on it while its whitened error fell (0.975 against 0.981)
+    sb, se = _holdout_score(ctx, base.prediction, hold), _holdout_score(ctx, ext.prediction, hold)
+    gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
     mlr = mlr_holdout(rec, train)
     table, mlr_better = {}, False
     for j, c in enumerate(rec.channels):
@@ -531,7 +553,8 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     for j, c in enumerate(rec.channels):
         ok = ctx.valid[:, j]
         within[c.column] = within_noise_p(whitened(ctx, rec.data - base.prediction, j, ok))
-    verdict, failed = verdict_of(named, gain, within, mlr_better)
+    verdict, failed = verdict_of(named, gain_w, within, mlr_better)
     return GeoDiagnosis(rec.name, verdict, named, base, float(h0), table, float(gain), failed,
                         ranking, within, _text(rec, verdict, named, failed, gain),
-                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)})
+                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)},
+                        float(gain_w))
