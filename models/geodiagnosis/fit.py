@@ -334,7 +334,7 @@ def _search_1d(f, lo: float, hi: float) -> float:
     return float(np.exp(res.x)) if res.fun <= v[k] else float(np.exp(g[k]))
 
 
-def _optimise(ctx: FitContext, causes, rows, fixed: dict) -> dict:
+def _optimise(ctx: FitContext, causes, rows, fixed: dict, polish: bool = False) -> dict:
     nl = {c.name: NO_EFFECT[c.nonlinear] if c.nonlinear != "lag_h" else 1.0
           for c in causes if c.nonlinear}
     nl.update({k: v for k, v in fixed.items() if k in nl})
@@ -346,6 +346,33 @@ def _optimise(ctx: FitContext, causes, rows, fixed: dict) -> dict:
             def f(v, c=c):
                 return _profile(ctx, causes, {**nl, c.name: v}, rows)[0]
             nl[c.name] = _search_1d(f, lo, hi)
+    if polish and len(nls) > 1:
+        nl = _polish(ctx, causes, rows, nl, nls)
+    return nl
+
+
+def _polish(ctx: FitContext, causes, rows, nl: dict, nls) -> dict:
+    """The joint minimum of the profiled SSE over the free nonlinear parameters
+    ``nls``, by Nelder–Mead on their logarithms within their bounds, from the
+    coordinate sweeps' point ``nl`` (kept when it is lower).
+
+    Two coordinate sweeps stop short in a correlated valley: a shaft convection and a
+    rear contact (development seed 70007) stopped at h 0.458, κ 0.311 with a weighted
+    SSE of 2879.8, while the truth (0.440, 0.270) gives 2870.7, and both 95 % intervals
+    missed it (added before the sixth pre-registration)."""
+    from scipy.optimize import minimize
+    names = [c.name for c in nls]
+    b = [(np.log(BOUNDS[c.nonlinear][0]), np.log(BOUNDS[c.nonlinear][1])) for c in nls]
+
+    def f(x):
+        return _profile(ctx, causes, {**nl, **dict(zip(names, np.exp(x)))}, rows)[0]
+    x0 = np.log([nl[n] for n in names])
+    f0 = f(x0)
+    res = minimize(f, x0, method="Nelder-Mead", bounds=b,
+                   options={"xatol": 1e-5, "fatol": 1e-6 * max(abs(f0), 1.0),
+                            "maxfev": 200})
+    if res.fun < f0:
+        nl = {**nl, **dict(zip(names, (float(v) for v in np.exp(res.x))))}
     return nl
 
 
@@ -437,7 +464,10 @@ def fit_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True
     value} holds nonlinear parameters (a screening shortcut; not for intervals).
     """
     causes = tuple(causes)
-    nl = _optimise(ctx, causes, rows, fixed or {}) if any(c.nonlinear for c in causes) else {}
+    # the joint polish of two nonlinear parameters where intervals are wanted (the named
+    # fit): the screens compare BICs of coordinate-swept fits, as before
+    nl = _optimise(ctx, causes, rows, fixed or {}, polish=intervals) \
+        if any(c.nonlinear for c in causes) else {}
     sse, beta, base, cols, names, s = _profile(ctx, causes, nl, rows)
     pred = base.copy()
     for b, c in zip(beta, cols):
