@@ -18,7 +18,7 @@ from arfem.fem.thermal3d import InputHistory, solve_reduced
 from arfem.models.geodiagnosis.problem import ambient_lagged
 from arfem.models.geodiagnosis.rom import ScaledBody, group_conduction, surface_power_column
 
-__all__ = ["Plant", "Hidden", "duty_cycle", "generate", "NOISE_KINDS"]
+__all__ = ["Plant", "Hidden", "duty_cycle", "generate", "signal", "add_noise", "NOISE_KINDS"]
 
 NOISE_KINDS = ("white", "walk", "quantised")
 
@@ -95,10 +95,18 @@ def _history(plant: Plant, t, speed, power, amb_C, h_scale, extra=None):
 def generate(plant: Plant, hidden, t, speed, power, amb_C, rng, noise: str = "white",
              sigma_um: float = 0.3, sigma_K: float = 0.03, candidate_shape=None):
     """Sensor readings (N, r) in record units (µm; °C) with ``hidden`` causes (a list
-    of :class:`Hidden`, possibly empty) and noise of kind ``noise`` (``NOISE_KINDS``).
+    of :class:`Hidden`, possibly empty) and noise of kind ``noise`` (``NOISE_KINDS``):
+    :func:`add_noise` of :func:`signal`.
 
     The missing source follows ``candidate_shape`` (N,) (default speed / max speed).
     """
+    return add_noise(plant, signal(plant, hidden, t, speed, power, amb_C, candidate_shape),
+                     rng, noise, sigma_um, sigma_K)
+
+
+def signal(plant: Plant, hidden, t, speed, power, amb_C, candidate_shape=None) -> np.ndarray:
+    """The noise-free readings (N, r) in record units (µm; °C) with ``hidden`` causes
+    (a sensor's drift included: it is what that sensor reads)."""
     body = plant.body
     hs = np.ones(len(plant.convections))
     kap, Kvs, extra, shape_col = [], [], None, None
@@ -141,6 +149,15 @@ def generate(plant: Plant, hidden, t, speed, power, amb_C, rng, noise: str = "wh
     for hd in drifts:
         j = plant.names.index(hd.target.split("_", 1)[1].rsplit("_", 1)[0])
         y[:, j] += hd.value * t / 3600.0
+    return y
+
+
+def add_noise(plant: Plant, y: np.ndarray, rng, noise: str = "white", sigma_um: float = 0.3,
+              sigma_K: float = 0.03) -> np.ndarray:
+    """``y`` (N, r) with noise of kind ``noise``: white (σ ``sigma_um`` µm on a
+    displacement, ``sigma_K`` K on a thermometer); ``walk``: white plus a random walk of
+    0.05 σ per sample; ``quantised``: white, then rounded to a quantum of 4 σ."""
+    disp = np.array([k == "displacement" for k in plant.kinds])
     sig = np.where(disp, sigma_um, sigma_K)
     y = y + rng.normal(size=y.shape) * sig[None, :]
     if noise == "walk":
