@@ -275,6 +275,68 @@ benchmarks/bench_geodiagnosis.py --batch --seed0 100000``, run once; 185.1 s CPU
   misses 100012's power_W (walk) and 100026's initial_offset_K (quantised).
 * extended / uncalibrated hold-out RMS median 0.282 (target <= 0.25: MISSED); extended
   below the MLR of eq. 18 on 22/24.
+
+ANALYSIS OF THE REMAINING MISSES (2026-11-26, 01:55-02:40 UTC, every batch above now
+development data; reproduced through this file's own generation). Four flaws of the
+procedure, each fixed as a procedure (no threshold moved, no seed special-cased):
+
+* 100016 and 70016 (walk, warm starts 2.11 K and 1.47 K, both named at the truth with
+  tight intervals, left "unconfirmed"): the verdict's hold-out check used the raw
+  weighted RMS, which under a random walk is mostly the walk's level on the hold-out
+  (100016: -10.8 % on it, from T_housing_C 0.032 -> 0.057 K) while the whitened
+  one-step error, step 3's own score, fell (0.981 -> 0.975). Fix: the check is on the
+  whitened hold-out (``GeoDiagnosis.gain_whitened_pct``); the raw gain is still
+  reported.
+* 100027 (quantised pair missing source spindle_bore + warm start, named a housing
+  source alone): beside the housing source the lowest-BIC partner (a bore convection,
+  BIC 553) failed the hold-out and ``_second`` returned nothing; the warm start (BIC
+  700, whitened hold-out 1.35 against the single's 4.88) was never tried. Fix: the
+  passing partners are tried in BIC order, the first whose pair lowers the whitened
+  hold-out kept. The beam then reaches the true pair (BIC 3.3).
+* 70015 (walk, sensor drift d_tcp_z 0.13 µm/h, named with an extra shaft convection
+  h 0.94): the thermometers' walk ratio, fitted once on the largest model, came out a
+  tenth of the truth, and the convection (the best single by the hold-out within
+  ΔBIC 10) stood in for the drift on the thermometers' wander; no step ever dropped a
+  cause. A per-channel median ratio without the sensors' own columns was tried and
+  withdrawn (it lost the drift itself: the displacements' ratio swelled to 4x the
+  truth). Fix: a partner must also pass a likelihood-ratio test with each sensor
+  kind's walk ratio re-fitted under both models (``engine.walk_profiled_p``), and at
+  the end each cause of a pair is tested against the other alone by the F test and
+  that test, the weaker dropped when it fails either (``engine._prune``, the backward
+  step of stepwise selection).
+* 70007 (white pair shaft convection 0.44 + rear contact 0.27, both intervals missing
+  the truth): two coordinate sweeps stopped short in the correlated valley (weighted
+  SSE 2879.8 at 0.458 / 0.311, 2870.7 at the truth). Fix: the named fit of two
+  nonlinear parameters is polished jointly (Nelder-Mead on their logarithms).
+
+Not fixed: 50017 (walk pair rear contact κ 0.36 + ambient lag 3.8 h named the lag
+alone): beside the lag the contact's F test gives p = 0.044 on the fit window, no
+evidence at the naming level; its noise-free residual after the lag is 0.084 µm against
+the walk's 0.41 µm floor.
+
+The benchmark now also prints the residuals against the noise-free readings
+(``synth.signal``; ``generate`` is ``add_noise`` of it, its random draws unchanged):
+what the compensation leaves on the machine. The measured ratio above cannot fall below
+the probes' noise over the uncalibrated error; the noise-free one can. It counts a
+sensor's drift as what that sensor reads.
+
+Checked on development data, engine at the commit that adds this paragraph (the
+whitened verdict and the partner order at 346d695, the polish at e39e8f5, the profiled
+test and the prune after; ``nice -n 5 python benchmarks/bench_geodiagnosis.py --batch
+--seed0 S``, 02:18-02:40 UTC, two at a time): 50000- 23/24 (50017), 70000- 24/24,
+80000- 24/24, 90000- 24/24, 100000- 24/24; clean records with a cause 0/30;
+coverage 26/26, 27/27, 27/27, 26/27, 25/27 (131/134, 98 %).
+
+SIXTH PRE-REGISTRATION (committed before any record of it was generated): the engine at
+the commit that adds this paragraph; THREE fresh batches, seeds 110000 + i, 110030 + i
+and 110060 + i, i = 0..29 (90 records: 72 with causes, 18 clean), never used before by
+any test, benchmark or development run; the same composition, drawing, plant and scores
+as the first five, plus the noise-free residual ratio (median over the records with a
+cause, target <= 0.25) and the extended model below the MLR against the noise-free
+readings. Commands, each run ONCE: ``nice -n 5 /usr/bin/time -v python
+benchmarks/bench_geodiagnosis.py --batch --seed0 S`` for S = 110000, 110030, 110060
+(two at a time on the 2-core machine). The score is the three pooled; each batch is
+reported too. Anything changed after it is post hoc.
 """
 from __future__ import annotations
 

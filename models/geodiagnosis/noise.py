@@ -32,7 +32,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 __all__ = ["LevelNoise", "fit_level_noise", "reml_level_noise", "reml_level_noise_pooled",
-           "reml_joint", "Whitener", "whitener", "drift_vs_walk_p"]
+           "reml_joint", "Whitener", "whitener", "drift_vs_walk_p", "walk_profiled_lr_p"]
 
 
 @dataclass(frozen=True)
@@ -253,6 +253,24 @@ def _joint_terms(Y, Xs, idxs, sig, lams):
     return (n - p) * np.log(s2) + logF + logdet, s2
 
 
+def _joint_ratios(Y, Xs, idxs, sigma, groups, ratios=None, sweeps: int = 2) -> dict:
+    """{group: λ} minimising :func:`_joint_terms` by coordinate sweeps on the grid."""
+    if ratios is None:
+        ratios = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
+    names = list(dict.fromkeys(groups))
+    lam = {g: 0.0 for g in names}
+    for _ in range(sweeps):
+        for g in names:
+            best = None
+            for v in ratios:
+                trial = {**lam, g: float(v)}
+                obj, _ = _joint_terms(Y, Xs, idxs, sigma, [trial[k] for k in groups])
+                if best is None or obj < best[0]:
+                    best = (obj, float(v))
+            lam[g] = best[1]
+    return lam
+
+
 def reml_joint(Y, Xs, idxs, sigma, groups, floors, ratios=None, sweeps: int = 2) -> list:
     """REML of one walk-to-white ratio λ_g per group of channels (sensors of one kind)
     in a JOINT regression whose columns are shared across channels (a cause moves every
@@ -283,17 +301,7 @@ def reml_joint(Y, Xs, idxs, sigma, groups, floors, ratios=None, sweeps: int = 2)
         _, sv, Vt = np.linalg.svd(Xcat, full_matrices=False)
         T = Vt[sv > sv[0] * 1e-7].T
         Xs = [X @ T for X in Xs]
-    names = list(dict.fromkeys(groups))
-    lam = {g: 0.0 for g in names}
-    for _ in range(sweeps):
-        for g in names:
-            best = None
-            for v in ratios:
-                trial = {**lam, g: float(v)}
-                obj, _ = _joint_terms(Y, Xs, idxs, sigma, [trial[k] for k in groups])
-                if best is None or obj < best[0]:
-                    best = (obj, float(v))
-            lam[g] = best[1]
+    lam = _joint_ratios(Y, Xs, idxs, sigma, groups, ratios, sweeps)
     _, s2 = _joint_terms(Y, Xs, idxs, sigma, [lam[k] for k in groups])
     s = float(np.sqrt(s2))
     return [LevelNoise(max(sc * s, fl), sc * s * float(np.sqrt(lam[g])))
@@ -356,3 +364,46 @@ def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray,
     l0 = min(_ml_terms(y, none, idx, float(v)) for v in ratios)
     l1 = min(_ml_terms(y, X, idx, float(v)) for v in ratios)
     return float(chi2.sf(max(l0 - l1, 0.0), 2))
+
+
+def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int, ratios=None) -> float:
+    """p of the likelihood-ratio test of a larger fitted model (residuals ``R1``)
+    against a smaller one (``R0``), each channel's noise white plus a random walk whose
+    walk-to-white ratio λ per group (sensor kind) and common scale are profiled out
+    under EACH model (χ² on ``df``).
+
+    A test at one λ fitted once on the largest model takes a walk's excursion for an
+    effect wherever that λ came out low; here the smaller model may explain the same
+    wander by a larger walk, and the effect counts only beyond that.
+
+    Parameters
+    ----------
+    R0, R1 : lists of ndarray (n_c,), per channel residual of the smaller / larger model
+        on the rows ``idxs`` [record unit]
+    idxs : list of int ndarray (n_c,)
+    sigma : array_like (C,), each channel's white σ_c (second differences)
+    groups : sequence (C,), the channel's sensor kind
+    df : int, the larger model's extra parameters
+    ratios : the λ grid (default 0 and 10^-7 … 10^-0.5)
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(3)
+    >>> n = 500; idx = np.arange(n); t = idx / 60.0
+    >>> walk = [rng.normal(0, 1, n) + np.cumsum(rng.normal(0, 0.1, n)) for _ in range(3)]
+    >>> fake = [w - (w[-1] - w[0]) * t / t[-1] for w in walk]   # a "drift" fitted away
+    >>> walk_profiled_lr_p(walk, fake, [idx] * 3, [1.0] * 3, ["d"] * 3, 3) > 0.01
+    True
+    >>> real = [rng.normal(0, 1, n) + 0.5 * t for _ in range(3)]
+    >>> walk_profiled_lr_p(real, [r - 0.5 * t for r in real], [idx] * 3, [1.0] * 3,
+    ...                    ["d"] * 3, 1) < 1e-6
+    True
+    """
+    from scipy.stats import chi2
+    empty = [np.zeros((np.asarray(r).size, 0)) for r in R0]
+
+    def m2ll(R):
+        lam = _joint_ratios(R, empty, idxs, sigma, groups, ratios)
+        return _joint_terms(R, empty, idxs, sigma, [lam[g] for g in groups])[0]
+    lr = max(m2ll(list(R0)) - m2ll(list(R1)), 0.0)
+    return float(chi2.sf(lr, max(int(df), 1)))
