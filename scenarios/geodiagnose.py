@@ -161,6 +161,7 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
          "parameters": ent[0]["parameters"] if est else {},
          "parameters_ci95": ent[0]["ci95"] if est else {},
          "holdout": {"start_s": d.holdout_start_s, "gain_pct": d.gain_pct,
+                     "gain_whitened_pct": d.gain_whitened_pct,
                      "per_channel": {k: {"baseline_rmse": b, "extended_rmse": e,
                                          "mlr_rmse": m}
                                      for k, (b, e, m) in d.holdout_rmse.items()},

@@ -166,7 +166,9 @@ def _markdown(s: dict, d, sc) -> str:
     lines += _compensator_gist(s.get("extended_model"))
     lines += ["## Hold-out", "",
               f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
-              f"before it); weighted gain {d.gain_pct:.1f} %.", "",
+              f"before it); weighted gain {d.gain_pct:.1f} %; on the whitened hold-out "
+              f"(each channel's one-step errors under its fitted noise, the gain the "
+              f"verdict requires) {d.gain_whitened_pct:.1f} %.", "",
               "| channel | nominal RMSE | extended RMSE | MLR (eq. 18) RMSE |",
               "|---|---|---|---|"]
     for k, (b, e, m) in d.holdout_rmse.items():
