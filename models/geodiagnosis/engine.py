@@ -506,7 +506,7 @@ def _text(rec: GeoRecord, verdict: str, named: Fit | None, failed, gain: float) 
     if verdict == "established":
         parts = []
         for c, p, ci in zip(named.causes, named.params, named.ci95):
-            ps = ", ".join(f"{k} = {v:.3g} [{ci[k][0]:.3g}, {ci[k][1]:.3g}]" for k, v in p.items())
+            ps = ", ".join(f"{k} = {v:.4g} [{ci[k][0]:.4g}, {ci[k][1]:.4g}]" for k, v in p.items())
             parts.append(f"{c.name} ({ps})")
         return (f"The model is wrong here: {' and '.join(parts)}; the extended model cuts the "
                 f"hold-out error by {gain:.0f} %." if gain >= 0 else
