@@ -369,6 +369,12 @@ at its peak; engine 5c6242a; the three commands above, each run once, 110000- an
   44.0 s wall for ``run_geodiagnosis`` (target <= 60 s: MET): assembly 13.8 s,
   reduced model 2.3 s, diagnosis 19.6 s, export and replay 2.5 s; the process's peak
   RSS 4.86 GB (the benchmark also generates the record with the full-order model).
+  The command itself on that record (``farm-bench -n 3 -- sh -c 'rm -rf OUT; exec
+  arfem diagnose rec48.toml --out OUT'``, 02:50 UTC, load < 1): median 44.5 s CPU,
+  43.4 s wall, 2.61 GB peak.
+
+After the sixth scoring (post hoc, text only, no score changes): the verdict's text
+prints parameters and intervals to 4 significant digits instead of 3 (commit b6270e6).
 """
 from __future__ import annotations
 
