@@ -373,8 +373,12 @@ at its peak; engine 5c6242a; the three commands above, each run once, 110000- an
   arfem diagnose rec48.toml --out OUT'``, 02:50 UTC, load < 1): median 44.5 s CPU,
   43.4 s wall, 2.61 GB peak.
 
-After the sixth scoring (post hoc, text only, no score changes): the verdict's text
-prints parameters and intervals to 4 significant digits instead of 3 (commit b6270e6).
+After the sixth scoring (post hoc; neither changes a score, which counts established
+causes only): the verdict's text prints parameters and intervals to 4 significant
+digits instead of 3 (commit b6270e6); and a channel whose whitened nominal residual has
+fewer than 10 effective samples is no longer skipped by the "within the noise" test of
+``explained`` (p = 0 instead of NaN: found by an audit, a thermometer 30 σ off counted
+as within the noise), so such a record reads ``not_explained``, not ``explained``.
 """
 from __future__ import annotations
 

@@ -165,9 +165,9 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
                      "per_channel": {k: {"baseline_rmse": b, "extended_rmse": e,
                                          "mlr_rmse": m}
                                      for k, (b, e, m) in d.holdout_rmse.items()},
-                     "how_chosen": "the last third of the record (fit window before it)"},
+                     "how_chosen": d.holdout_how},
          "noise_sigma": d.sigma, "nominal_ljung_box_p_neff": d.within_noise,
-         "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_weighted_rms": h}
+         "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": h}
                      for n, b, p, h in d.ranking],
          "reduced_model": rom_statement}
     if not est and d.named is not None:
@@ -188,7 +188,11 @@ def terminal_line(s: dict) -> str:
     line = f"{s['dataset']}: verdict = {s['verdict']}; cause = {named}"
     if s.get("best_candidate"):
         line += f" (best candidate {s['best_candidate']['cause']}, not established)"
-    return line + f"; hold-out gain {s['holdout']['gain_pct']:.1f} %"
+    h = s["holdout"]
+    line += f"; hold-out gain {h['gain_pct']:.1f} %"
+    if h.get("gain_whitened_pct") is not None:
+        line += f" (whitened {h['gain_whitened_pct']:.1f} %, the one the verdict uses)"
+    return line
 
 
 def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:

@@ -182,14 +182,23 @@ def _markdown(s: dict, d, sc) -> str:
               "this record's nominal inputs: " + ", ".join(
                   f"{n} {v:.2g}" for n, v in rm["max_abs_error"].items())
               + " (µm / K).", "", "## Candidates (best BIC first)", "",
-              "| cause | BIC | F-test p | hold-out weighted RMS |", "|---|---|---|---|"]
-    for r in s["ranking"][:12]:
+              "| cause | BIC | F-test p | whitened hold-out RMS [-] |", "|---|---|---|---|"]
+    shown = s["ranking"][:12]
+    for r in shown:
         lines.append(f"| {r['cause']} | {r['bic']:.1f} | {r['f_test_p']:.2g} | "
-                     f"{r['holdout_weighted_rms']:.3g} |")
-    lines += ["", "Rules: a cause is named when its F test passes p < 0.01/candidates on the "
-              "fit window and it scores best on the hold-out among the three best by BIC; it "
-              "is established when its 95 % interval excludes no effect, reaches no end of "
-              "the fitted range and the hold-out gain is positive "
+                     f"{r['holdout_whitened_rms']:.3g} |")
+    if len(s["ranking"]) > len(shown):
+        lines += ["", f"The {len(shown)} best of {len(s['ranking'])} single causes; every one "
+                      "is in diagnosis.json (`ranking`)."]
+    lines += ["", "Rules: a single cause passes when its F test on the fit window gives "
+              "p < 0.01/candidates, its fit is physical and its effect is above the "
+              "sensors' practical floor; among the passing causes within ΔBIC 10 of the "
+              "best (at most three) the lowest whitened hold-out RMS (each channel's "
+              "one-step errors under its fitted noise, 1 for a perfect model) is named. A "
+              "second cause is added by the same tests, the pair revisited from both sides "
+              "and each of its causes tested against the other alone. A cause is "
+              "established when its 95 % interval excludes no effect, reaches no end of "
+              "the fitted range and the gain on the whitened hold-out is positive "
               "(arfem.models.geodiagnosis.engine).", ""]
     return "\n".join(lines)
 

@@ -503,6 +503,29 @@ def test_named_pair_of_two_nonlinear_causes_is_at_its_joint_optimum(setup):
     assert lo <= hidden[1].value <= hi
 
 
+def test_channel_far_from_white_is_not_within_the_noise():
+    """A residual with too few effective samples to thin (a thermometer 30 σ off along a
+    slow curve, N_eff ~ 2) is far from white: p = 0, not NaN (NaN was skipped by the
+    verdict, so such a channel counted as within the noise; found by an audit). A white
+    residual still passes, and fewer than 10 rows still give no test (NaN)."""
+    from arfem.models.geodiagnosis.engine import within_noise_p
+    rng = np.random.default_rng(5)
+    t = np.linspace(0.0, 1.0, 400)
+    assert within_noise_p(30.0 * np.sin(np.pi * t) + rng.normal(size=t.size)) == 0.0
+    assert within_noise_p(rng.normal(size=t.size)) > 0.01
+    assert np.isnan(within_noise_p(rng.normal(size=8)))
+
+
+def test_terminal_line_names_the_gain_the_verdict_uses():
+    """The first line shows the raw hold-out gain and the whitened one the verdict
+    requires, labelled (an audit found the raw one alone, unlabelled)."""
+    from arfem.scenarios.geodiagnose import terminal_line
+    line = terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
+                          "causes": [{"name": "warm_start"}],
+                          "holdout": {"gain_pct": -10.8, "gain_whitened_pct": 0.5}})
+    assert "hold-out gain -10.8 % (whitened 0.5 %, the one the verdict uses)" in line
+
+
 def _rng_record(plant, hidden, rng, name, noise):
     t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
     y = generate(plant, hidden, t, speed, power, amb, rng, noise)

@@ -11,8 +11,9 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    (every candidate at once, :func:`.fit.with_noise`); every fit below is generalised
    least squares on it (the Kalman innovations whiten the rows), every interval the
    GLS covariance on the whitened residual's own variance.
-1. The hold-out is the last third of the record (or ``holdout_start_s``); every fit
-   uses the rows before it only.
+1. The hold-out is the last third of the record (moved back to the last change of the
+   inputs before it when the last third holds none), or from ``holdout_start_s``; every
+   fit uses the rows before it only.
 2. Every single cause of :func:`.fit.candidate_causes` is fitted. A cause passes when
    its nested F test against the nominal model, on the pooled effective sample size of
    its whitened residual (Σ_c N_eff,c, :func:`arfem.models.diagnosis.stats.noise_n_eff`),
@@ -38,8 +39,8 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    sixth pre-registration only the lowest-BIC partner was tried, development seed
    100027); since the fifth pre-registration (development seed 90027)
    when the first gets a partner, the same screen runs beside each other passing
-   single of step 3 (:func:`_best_pair`, at most three leads) and the pair of lowest
-   BIC is kept. Then the first cause is revisited (:func:`_swap`, added
+   single of step 3 (:func:`_best_pair`, at most three leads) and among the pairs
+   within ``DELTA_BIC`` of the lowest BIC the lowest whitened hold-out error is kept. Then the first cause is revisited (:func:`_swap`, added
    after the third scoring on development seed 80017): the second kept, every other
    cause is screened as its partner by the same rules (its nonlinear parameter not
    held), and the best partner's pair replaces the named one when its BIC is lower
@@ -103,6 +104,7 @@ class GeoDiagnosis:
     gain_pct : float, 100 (1 − extended/baseline) of the weighted hold-out RMS
     gain_whitened_pct : float, the same of the whitened hold-out RMS (each channel's
         one-step errors under its fitted noise): the gain the verdict requires
+    holdout_how : str, how the hold-out's start was chosen, in words
     failed : tuple of str, the checks of ``established`` the named causes fail
     ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-], the
         one-step errors over their σ under each channel's fitted noise)
@@ -125,6 +127,7 @@ class GeoDiagnosis:
     text: str
     sigma: dict = field(default_factory=dict)
     gain_whitened_pct: float = float("nan")
+    holdout_how: str = ""
 
     @property
     def established(self) -> tuple:
@@ -266,14 +269,16 @@ def within_noise_p(r: np.ndarray) -> float:
     whitened residual on its effective samples: every ⌊N/N_eff⌋-th row, so that at
     least N_eff rows are kept (⌈N/N_eff⌉ halved a white residual whose batch-means
     N_eff came out a little under N, and the test on half the rows then failed clean
-    records by chance)."""
+    records by chance). Fewer than 10 effective samples in 10 rows or more is a residual
+    far from white: p = 0 (it had been NaN, and the verdict skipped the channel, so a
+    thermometer off by 30 σ with N_eff 2 counted as "within the noise")."""
     r = np.asarray(r, float)
     r = r[np.isfinite(r)]
     if r.size < 10:
         return float("nan")
     stride = max(int(np.floor(r.size / max(noise_n_eff(r), 1.0))), 1)
     thin = r[::stride]
-    return ljung_box_p(thin, min(20, max(thin.size // 5, 1))) if thin.size >= 10 else float("nan")
+    return ljung_box_p(thin, min(20, max(thin.size // 5, 1))) if thin.size >= 10 else 0.0
 
 
 def mlr_holdout(rec: GeoRecord, rows: np.ndarray) -> dict:
@@ -546,6 +551,12 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     progress = progress or (lambda s: None)
     ctx = make_context(model, rec)
     h0 = default_holdout(rec.time_s, ctx.shape) if holdout_start_s is None else holdout_start_s
+    third = float(rec.time_s[0] + (rec.time_s[-1] - rec.time_s[0]) * 2.0 / 3.0)
+    how = ("given by the caller (--holdout-start); the fits saw only the rows before it"
+           if holdout_start_s is not None else
+           "the last third of the record (fit window before it)" if h0 == third else
+           "the last change of the inputs before the last third (the last third holds "
+           "none); the fits saw only the rows before it")
     train, hold = rec.time_s < h0, rec.time_s >= h0
     progress("fitting each channel's noise (white plus a random walk)")
     ctx = with_noise(ctx, train)
@@ -613,4 +624,4 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     return GeoDiagnosis(rec.name, verdict, named, base, float(h0), table, float(gain), failed,
                         ranking, within, _text(rec, verdict, named, failed, gain),
                         {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)},
-                        float(gain_w))
+                        float(gain_w), how)
