@@ -393,17 +393,14 @@ import numpy as np
 
 from arfem.models.geodiagnosis.engine import diagnose_geometry, mlr_holdout
 from arfem.models.geodiagnosis.problem import make_record
-from arfem.models.geodiagnosis.synth import (NOISE_KINDS, Hidden, add_noise, duty_cycle,
-                                             generate, signal)
+from arfem.models.geodiagnosis.synth import (NOISE_KINDS, Hidden, add_noise, covers,
+                                             duty_cycle, generate, signal)
 from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
 
 ROOT = Path(__file__).resolve().parents[1]
 COARSE = ROOT / "tests" / "data" / "geodiag" / "spindle_coarse.toml"
 KINDS = ("convection_scale", "source_scale", "missing_source", "contact_conductance",
          "ambient_lag", "sensor_drift", "warm_start")
-EFFECT = {"convection_scale": "h_scale", "source_scale": "scale", "missing_source": "power_W",
-          "contact_conductance": "conductivity_scale", "ambient_lag": "lag_h",
-          "warm_start": "initial_offset_K"}
 
 
 def _draw(rng, kind, plant, model) -> Hidden:
@@ -424,11 +421,6 @@ def _draw(rng, kind, plant, model) -> Hidden:
     return Hidden(kind, "", float(rng.uniform(1.0, 3.0)))
 
 
-def _cols(plant):
-    return [("d_%s_um" if k == "displacement" else "T_%s_C") % n
-            for n, k in zip(plant.names, plant.kinds)]
-
-
 def _score(d, hidden, rec, truth=None) -> dict:
     """One record's scores; ``truth`` (N, r), the noise-free readings, adds the
     residuals against it (``*_true``): what the compensation leaves on the machine,
@@ -437,12 +429,7 @@ def _score(d, hidden, rec, truth=None) -> dict:
     truth_set = {(h.kind, h.target) for h in hidden}
     cover = []
     if d.verdict == "established":
-        for h in hidden:
-            for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
-                if (c.kind, c.target) == (h.kind, h.target):
-                    key = EFFECT.get(h.kind) or [k for k in ci if k.startswith("drift")][0]
-                    lo, hi = ci[key]
-                    cover.append(bool(lo <= h.value <= hi))
+        cover = [c for c in (covers(d.named, h) for h in hidden) if c is not None]
     train = rec.time_s < d.holdout_start_s
     hold = ~train
     mlr = mlr_holdout(rec, train)
@@ -482,7 +469,7 @@ def batch(n_noise: int, seed0: int = 70000) -> None:
             t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
             clean = signal(plant, hidden, t, speed, power, amb)
             y = add_noise(plant, clean, rng, noise)
-            rec = make_record(f"s{seed}", t, y, _cols(plant), plant.names, plant.kinds, power,
+            rec = make_record(f"s{seed}", t, y, plant.columns, plant.names, plant.kinds, power,
                               speed, amb, plant.reference_C)
             c0 = time.process_time()
             d = diagnose_geometry(model, rec)
@@ -543,7 +530,7 @@ def speed() -> None:
         y = generate(plant, [Hidden("convection_scale", "housing_outer", 1.8)], t, sp, power,
                      amb, rng, "white")
         cols = {"time_s": t, "speed_rpm": sp, "ambient_C": amb}
-        cols.update({c: y[:, j] for j, c in enumerate(_cols(plant))})
+        cols.update({c: y[:, j] for j, c in enumerate(plant.columns)})
         cols.update({f"P_{s}_W": power[:, j] for j, s in enumerate(plant.sources)})
         toml = write_record(tmp / "rec48.toml", "spindle_unit.toml", cols)
         r0 = resource.getrusage(resource.RUSAGE_SELF)

@@ -61,8 +61,7 @@ def _case(d: Path, plant, hidden, seed: int) -> Path:
     for f in ("spindle_coarse.toml", "spindle_coarse.msh"):
         shutil.copy(DATA / f, d / f)
     cols = {"time_s": t, "speed_rpm": speed, "ambient_C": amb}
-    for j, (n, k) in enumerate(zip(plant.names, plant.kinds)):
-        cols[("d_%s_um" if k == "displacement" else "T_%s_C") % n] = y[:, j]
+    cols.update({c: y[:, j] for j, c in enumerate(plant.columns)})
     for j, s in enumerate(plant.sources):
         cols[f"P_{s}_W"] = power[:, j]
     return write_record(d / "rec.toml", "spindle_coarse.toml", cols)
@@ -194,8 +193,7 @@ def test_exported_model_is_the_reduced_model_with_the_cause(plant, which):
     model, _ = reduced_model(plant, sc, spec, 8000.0)
     rng = np.random.default_rng(1012)
     t, speed, power, amb = duty_cycle(rng, 12.0, 120.0, plant.sources)
-    cols = [("d_%s_um" if k == "displacement" else "T_%s_C") % n
-            for n, k in zip(plant.names, plant.kinds)]
+    cols = plant.columns
     rec = make_record("r", t, np.zeros((t.size, len(cols))), cols, plant.names, plant.kinds,
                       power, speed, amb, plant.reference_C)
     if which == "pair":
@@ -263,8 +261,7 @@ def test_a_cause_that_cannot_be_built_in_writes_no_extended_model(plant):
     model, _ = reduced_model(plant, sc, spec, 8000.0)
     rng = np.random.default_rng(1013)
     t, speed, power, amb = duty_cycle(rng, 6.0, 120.0, plant.sources)
-    cols = [("d_%s_um" if k == "displacement" else "T_%s_C") % n
-            for n, k in zip(plant.names, plant.kinds)]
+    cols = plant.columns
     rec = make_record("r", t, np.zeros((t.size, len(cols))), cols, plant.names, plant.kinds,
                       power, speed, amb, plant.reference_C)
     ctx = make_context(model, rec)

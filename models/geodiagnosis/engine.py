@@ -73,7 +73,8 @@ from dataclasses import replace as with_fields
 
 from arfem.models.diagnosis.stats import bic, f_test_p, ljung_box_p, noise_n_eff
 from arfem.models.geodiagnosis.fit import (BOUNDS, NO_EFFECT, PLAUSIBLE, Fit, FitContext,
-                                           candidate_causes, fit_causes, implausible,
+                                           candidate_causes, channel_rows, fit_causes,
+                                           implausible,
                                            make_context, whitened, with_noise)
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 
@@ -135,10 +136,15 @@ class GeoDiagnosis:
         return self.named.causes if self.verdict == "established" and self.named else ()
 
 
+def _last_third(time_s: np.ndarray) -> float:
+    """The start of the record's last third [s]."""
+    return float(time_s[0] + (time_s[-1] - time_s[0]) * 2.0 / 3.0)
+
+
 def default_holdout(time_s: np.ndarray, shape: np.ndarray) -> float:
     """The start of the last third, moved back to the last change of the input before
     it if the last third holds none [s]."""
-    t0 = float(time_s[0] + (time_s[-1] - time_s[0]) * 2.0 / 3.0)
+    t0 = _last_third(time_s)
     tail = shape[time_s >= t0]
     if tail.size and np.ptp(tail) > 0:
         return t0
@@ -249,18 +255,13 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
     drift for the thermometers' wander (F test p = 5e-14). A partner must also pass
     this test at the same level (added before the sixth pre-registration)."""
     from arfem.models.geodiagnosis.noise import walk_profiled_lr_p
-    R0, R1, idxs, js = [], [], [], []
-    for j in range(ctx.rec.data.shape[1]):
-        idx = np.flatnonzero(ctx.valid[:, j] & rows)
-        if idx.size <= 20:
-            continue
-        js.append(j)
-        idxs.append(idx)
-        R0.append(ctx.rec.data[idx, j] - pred0[idx, j])
-        R1.append(ctx.rec.data[idx, j] - pred1[idx, j])
-    if not js:
+    chans = channel_rows(ctx, rows)
+    if not chans:
         return 1.0
-    return walk_profiled_lr_p(R0, R1, idxs, np.asarray(ctx.sigma)[js],
+    js = [j for j, _ in chans]
+    return walk_profiled_lr_p([ctx.rec.data[idx, j] - pred0[idx, j] for j, idx in chans],
+                              [ctx.rec.data[idx, j] - pred1[idx, j] for j, idx in chans],
+                              [idx for _, idx in chans], np.asarray(ctx.sigma)[js],
                               [ctx.rec.channels[j].kind for j in js], df)
 
 
@@ -459,11 +460,12 @@ def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
     the best single (it stood in for the drift on the thermometers' wander) and stayed
     beside the drift found second (added before the sixth pre-registration)."""
     worst = None
+    ne = _n_eff(ctx, pair.prediction, train)
     for k in range(len(pair.causes)):
         rest = tuple(c for i, c in enumerate(pair.causes) if i != k)
         sub = fit_causes(ctx, rest, train, intervals=False)
         df = pair.n_params - sub.n_params
-        p = max(f_test_p(sub.sse_w, pair.sse_w, df, _n_eff(ctx, pair.prediction, train)),
+        p = max(f_test_p(sub.sse_w, pair.sse_w, df, ne),
                 walk_profiled_p(ctx, sub.prediction, pair.prediction, train, df))
         if p >= ALPHA / n_tests and (worst is None or p > worst[0]):
             worst = (p, sub)
@@ -551,10 +553,10 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     progress = progress or (lambda s: None)
     ctx = make_context(model, rec)
     h0 = default_holdout(rec.time_s, ctx.shape) if holdout_start_s is None else holdout_start_s
-    third = float(rec.time_s[0] + (rec.time_s[-1] - rec.time_s[0]) * 2.0 / 3.0)
     how = ("given by the caller (--holdout-start); the fits saw only the rows before it"
            if holdout_start_s is not None else
-           "the last third of the record (fit window before it)" if h0 == third else
+           "the last third of the record (fit window before it)"
+           if h0 == _last_third(rec.time_s) else
            "the last change of the inputs before the last third (the last third holds "
            "none); the fits saw only the rows before it")
     train, hold = rec.time_s < h0, rec.time_s >= h0

@@ -52,7 +52,7 @@ from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
-           "candidate_causes", "fit_causes",
+           "candidate_causes", "channel_rows", "fit_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
@@ -159,6 +159,17 @@ def make_context(model: GeoModel, rec: GeoRecord) -> FitContext:
     return FitContext(model, rec, 1.0 / sig, sig, shape, np.isfinite(rec.data), quantum=q)
 
 
+def channel_rows(ctx: FitContext, rows: np.ndarray) -> list:
+    """[(channel, its valid row indices in ``rows``)] for the channels with more than 20
+    such rows: those whose noise is fitted and tested."""
+    out = []
+    for j in range(ctx.rec.data.shape[1]):
+        idx = np.flatnonzero(ctx.valid[:, j] & rows)
+        if idx.size > 20:
+            out.append((j, idx))
+    return out
+
+
 def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
     """``ctx`` with each channel's noise fitted as white noise plus a random walk
     (:mod:`.noise`) by REML (:func:`.noise.reml_joint`: one walk-to-white ratio per
@@ -180,10 +191,7 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
             cols.append(_design(ctx, (c,), _setting(ctx, (c,), {c.name: v}))[0] - base)
     C3 = np.stack(cols, axis=2) if cols else np.zeros(base.shape + (0,))
     js, Y, Xs, idxs, floors = [], [], [], [], []
-    for j, ch in enumerate(ctx.rec.channels):
-        idx = np.flatnonzero(ctx.valid[:, j] & rows)
-        if idx.size <= 20:
-            continue
+    for j, idx in channel_rows(ctx, rows):
         js.append(j)
         Y.append(ctx.rec.data[idx, j] - base[idx, j])
         Xs.append(C3[idx, j])

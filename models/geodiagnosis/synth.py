@@ -18,7 +18,8 @@ from arfem.fem.thermal3d import InputHistory, solve_reduced
 from arfem.models.geodiagnosis.problem import ambient_lagged
 from arfem.models.geodiagnosis.rom import ScaledBody, group_conduction, surface_power_column
 
-__all__ = ["Plant", "Hidden", "duty_cycle", "generate", "signal", "add_noise", "NOISE_KINDS"]
+__all__ = ["Plant", "Hidden", "duty_cycle", "generate", "signal", "add_noise", "NOISE_KINDS",
+           "EFFECT_PARAMETER", "covers"]
 
 NOISE_KINDS = ("white", "walk", "quantised")
 
@@ -48,6 +49,20 @@ class Plant:
     h_law: np.ndarray
     reference_C: float
 
+    @property
+    def columns(self) -> list:
+        """Each output's record column (contract v3): ``d_<sensor>_um`` for a
+        displacement, ``T_<sensor>_C`` for a thermometer."""
+        return [f"d_{n}_um" if k == "displacement" else f"T_{n}_C"
+                for n, k in zip(self.names, self.kinds)]
+
+
+#: the fitted parameter a hidden cause's ``value`` is, per kind (a sensor drift's
+#: depends on its channel's unit: :attr:`Hidden.parameter`)
+EFFECT_PARAMETER = {"convection_scale": "h_scale", "source_scale": "scale",
+                    "missing_source": "power_W", "contact_conductance": "conductivity_scale",
+                    "ambient_lag": "lag_h", "warm_start": "initial_offset_K"}
+
 
 @dataclass(frozen=True)
 class Hidden:
@@ -58,6 +73,27 @@ class Hidden:
     kind: str
     target: str = ""
     value: float = 0.0
+
+    @property
+    def parameter(self) -> str:
+        """The name of the fitted parameter ``value`` is (the key of its 95 % interval).
+
+        >>> Hidden("sensor_drift", "d_tcp_z_um", 0.1).parameter, Hidden("warm_start").parameter
+        ('drift_um_per_h', 'initial_offset_K')
+        """
+        if self.kind == "sensor_drift":
+            return "drift_um_per_h" if self.target.endswith("_um") else "drift_K_per_h"
+        return EFFECT_PARAMETER[self.kind]
+
+
+def covers(fit, hidden: Hidden) -> bool | None:
+    """Whether the 95 % interval of ``hidden``'s parameter in ``fit`` (a :class:`.fit.Fit`)
+    holds its true value; None when ``fit`` does not name that cause (kind and target)."""
+    for c, ci in zip(fit.causes, fit.ci95):
+        if (c.kind, c.target) == (hidden.kind, hidden.target):
+            lo, hi = ci[hidden.parameter]
+            return bool(lo <= hidden.value <= hi)
+    return None
 
 
 def duty_cycle(rng, hours: float, dt_s: float, sources, n_max: float = 12000.0):
