@@ -192,7 +192,7 @@ def _chromium_args(profile):
             "--no-first-run", f"--user-data-dir={profile}", "--hide-scrollbars"]
 
 
-@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (CI has none)")
+@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (.ci/run installs it)")
 def test_report_in_headless_chromium(run_dir, tmp_path):
     """In Chromium the page loads without console or resource errors, every image
     decodes (naturalWidth > 0), and its screenshot is not blank.
@@ -259,7 +259,7 @@ def test_verdict_is_shown_once_and_tables_scroll_in_their_own_box(tmp_path):
     assert ".wide{max-width:100%;overflow-x:auto}" in text and "img{max-width:100%" in text
 
 
-@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (CI has none)")
+@pytest.mark.skipif(_chromium() is None, reason="no chromium on PATH (.ci/run installs it)")
 @pytest.mark.parametrize("width", [1280, 390])
 def test_report_does_not_scroll_sideways_in_chromium(tmp_path, width):
     """At a laptop's (1280 px) and a phone's (390 px) width the page is no wider than
