@@ -331,7 +331,8 @@ def _title(root: Path, files: list[Path]) -> str:
     return root.resolve().name
 
 
-def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True) -> Path:
+def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True,
+                      versions: bool = True) -> Path:
     """Write ``out_dir/report.html`` from whatever arfem outputs ``out_dir`` holds.
 
     Parameters
@@ -345,6 +346,10 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         List each file's size. ``arfem reproduce`` passes False: its report must be
         byte-identical on a rerun, and the size of the compressed field file depends
         on the last digits of the values, which depend on the CPU's BLAS kernels.
+    versions : bool
+        List the versions of the installed packages. ``arfem reproduce`` passes False:
+        its report is committed, and a fresh clone must stay clean on a machine with
+        other package versions (only arfem's own version is then given).
 
     Returns
     -------
@@ -387,7 +392,7 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
             toc.append(f'<li><a href="#{_e(sid)}">{_e(name)}</a></li>')
             sections.append(f'<h2 id="{_e(sid)}">{_e(name)}</h2>' + "".join(body))
     page = _page(title, lead, toc, sections, _external_inputs(inputs, root), root, files,
-                 file_sizes)
+                 file_sizes, versions)
     path = root / REPORT_NAME
     atomic_write_text(path, _scroll_tables(page))
     return path
@@ -457,14 +462,18 @@ def _external_inputs(inputs: dict, root: Path) -> list[str]:
 
 
 def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[str],
-          root: Path, files: list[Path], file_sizes: bool) -> str:
+          root: Path, files: list[Path], file_sizes: bool, versions: bool = True) -> str:
     """The whole page: title, verdict, contents, the folders' sections, the inputs, the
     file listing and the software versions."""
     listing = "".join(
         f'<tr><td><a href="{_href(r)}">{_e(r.as_posix())}</a></td>'
         + (f'<td class="num">{_e(_size((root / r).stat().st_size))}</td>' if file_sizes else "")
         + "</tr>" for r in files)
-    versions = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _versions())
+    rows = _versions() if versions else [r for r in _versions() if r[0] == "arfem"]
+    software = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in rows)
+    said = ("Versions installed where this report was written." if versions else
+            "The arfem version that wrote this report (the other packages' versions are "
+            "left out: the page is committed and must not change with them).")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
@@ -485,6 +494,6 @@ def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[
            '<p class="note">No input file is recorded in this directory.</p>')
         + '<h2 id="files">files</h2><table><tr><th>file</th>'
         + ("<th>size</th>" if file_sizes else "") + f"</tr>{listing}</table>"
-        + '<h2 id="versions">software</h2><p class="note">Versions installed where this '
-        f"report was written.</p><table>{versions}</table>"
+        + f'<h2 id="versions">software</h2><p class="note">{said}</p>'
+        f"<table>{software}</table>"
         "</body></html>\n")
