@@ -59,8 +59,9 @@ unit; lengths in the file are in the mesh's ``unit``)::
     output_interval_s = 60.0      # sensor sampling
 
     [outputs]
-    fields = true                 # XDMF 3 time series of θ and u for ParaView
-    picture = true                # geometry.png: the mesh and its groups
+    fields = false                # XDMF 3 time series of θ and u for ParaView; default
+                                  # false (it factors the stiffness: about 2x the memory)
+    picture = true                # geometry.png: the mesh and its groups (default true)
     field_interval_s = 3600.0
 
 Every refusal is one line naming the file and the key (exit 2).
@@ -293,7 +294,7 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         order=order, reference_C=ref, materials=materials, cycle=cycle,
         sources=tuple(sources), convections=tuple(convs), support=support,
         support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
-        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
+        output_interval_s=oi, fields=_bool(out.get("fields", False), "outputs.fields"),
         picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
 
 
