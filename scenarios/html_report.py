@@ -521,6 +521,7 @@ def _folder_body(root: Path, d: Path, rels: list[Path], shown: set, inputs: dict
         text = (root / r).read_text("utf-8", errors="replace")
         if verdict_from is not None and r == Path(verdict_from):
             text = _without_verdict(text)
+        _linked_inputs(text, (root / r).parent, root, inputs)
         lead = d == Path(".") and k == 0
         if lead:
             text = _without_title(text, title)
@@ -545,6 +546,17 @@ def _folder_body(root: Path, d: Path, rels: list[Path], shown: set, inputs: dict
         body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
                     f"<pre>{_e(text)}</pre>")
     return body
+
+
+def _linked_inputs(text: str, base: Path, root: Path, inputs: dict) -> None:
+    """Record the files outside ``root`` that a Markdown file links (the model and the
+    record a replay names): they are the folder's inputs."""
+    for href in re.findall(r"\]\(([^)\s]+)\)", text):
+        if "://" in href or href.startswith("#"):
+            continue
+        dest = (base / unquote(href)).resolve()
+        if dest.is_file() and not dest.is_relative_to(root.resolve()):
+            inputs.setdefault(str(dest), dest)
 
 
 def _without_title(text: str, title: str) -> str:

@@ -162,3 +162,12 @@ def test_no_table_of_the_replay_page_is_cut_at_1280_px(runs):
     start = dom.index('<pre id="w">') + len('<pre id="w">')
     n, cut = json.loads(html.unescape(dom[start:dom.index("</pre>", start)]))
     assert n >= 4 and cut == [], cut
+
+
+def test_the_replay_page_lists_the_model_and_the_record_as_its_inputs(runs):
+    """The page's inputs section links the model and the record the replay names (it
+    said 'No input file is recorded in this directory')."""
+    page = (runs / "comp" / "report.html").read_text("utf-8")
+    inputs = page.split('<h2 id="inputs">', 1)[1].split("<h2", 1)[0]
+    assert "No input file is recorded" not in inputs
+    assert "run/model.json" in inputs and "run/record.toml" in inputs
