@@ -97,7 +97,7 @@ def _figure(res: Replay, path) -> None:
 def _markdown(res: Replay, model_path=None, record_path=None) -> str:
     """``summary.md``: the verdict (saying when the record is the model's own output),
     the figures, then the model and the record by name and the replay's limits."""
-    from arfem.scenarios.replay_axes_report import _file, reproduced_to_roundoff
+    from arfem.scenarios.replay_axes_report import file_link, reproduced_to_roundoff
     m = res.summary
     rate = m.compensation_rate_rms_pct
     rates = f" ({rate:.0f} %)" if rate is not None else ""
