@@ -236,7 +236,17 @@ def check_geometry_case(case: GeometryCheckCase, max_abs_pct: float | None = Non
     ar = cmp.slowest_mode if gated == "slowest-mode" else cmp.lumped
     notes = (f"{other} AR (reported, not gated): " + ", ".join(
         f"{n} {e * 1e6:.3g} µm = {100 * e / peak:.2f} %" for n, e, _ in orow),
-             f"{gated} AR: C1 = {ar.c1.min():.6f}..{ar.c1.max():.6f} at Δτ = {dtau:g} s, "
+             f"{gated} AR: C1 = {_span(ar.c1.min(), ar.c1.max())} at Δτ = {dtau:g} s, "
              f"{len(cmp.inputs)} inputs superposed")
     return ScenarioResult(sc.name, sc.source, gated, crit, time.perf_counter() - t0,
                           notes=notes)
+
+
+def _span(lo: float, hi: float, fmt: str = ".6f") -> str:
+    """``lo..hi``, or one value when both print the same (a constant h: one C1).
+
+    >>> _span(0.9950271, 0.9950274), _span(0.99584, 0.99772)
+    ('0.995027', '0.995840..0.997720')
+    """
+    a, b = format(lo, fmt), format(hi, fmt)
+    return a if a == b else f"{a}..{b}"

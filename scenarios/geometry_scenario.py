@@ -59,8 +59,9 @@ unit; lengths in the file are in the mesh's ``unit``)::
     output_interval_s = 60.0      # sensor sampling
 
     [outputs]
-    fields = true                 # XDMF 3 time series of θ and u for ParaView
-    picture = true                # geometry.png: the mesh and its groups
+    fields = false                # XDMF 3 time series of θ and u for ParaView; default
+                                  # false (it factors the stiffness: about 2x the memory)
+    picture = true                # geometry.png: the mesh and its groups (default true)
     field_interval_s = 3600.0
 
 Every refusal is one line naming the file and the key (exit 2).
@@ -293,7 +294,7 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         order=order, reference_C=ref, materials=materials, cycle=cycle,
         sources=tuple(sources), convections=tuple(convs), support=support,
         support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
-        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
+        output_interval_s=oi, fields=_bool(out.get("fields", False), "outputs.fields"),
         picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
 
 
@@ -873,20 +874,31 @@ def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "",
         pl.add_point_labels(point[None, :], [label], font_size=20, point_size=1,
                             shape_opacity=0.85, shape_color="white", text_color="black",
                             always_visible=True, margin=4)
-    pl.add_axes()
     # from the front (−y), to the side (+x) and a little from below: a spindle unit's
-    # nose and the TCP face the viewer, the column stub (+y) stays behind
+    # nose and the TCP face the viewer, the column stub (+y) stays behind; orthographic,
+    # so that one scale bar holds at every depth
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
+    from arfem.fem.export import ParallelView
+    pl.enable_parallel_projection()
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
-    pl.camera.zoom(1.5)
+    cam = pl.camera
+    view = ParallelView.of(cam.position, cam.focal_point, cam.up, 1.0, 2)
+    w, h = pl.window_size
+    half_w = float(np.ptp((P - c) @ np.asarray(view.right))) / 2
+    half_h = float(np.ptp((P - c) @ np.asarray(view.up))) / 2
+    cam.parallel_scale = 1.12 * max(half_h, half_w * h / w)    # the body fills the view
     img = pl.screenshot(None, return_img=True)
+    view = ParallelView.of(cam.position, cam.focal_point, cam.up, cam.parallel_scale,
+                           img.shape[0])
     pl.close()
-    _picture_with_legend(img, entries, title, path)
+    _picture_with_legend(img, entries, title, path, view)
 
 
-def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path) -> None:
-    """The rendered view with the groups' legend beside it (never over the geometry)."""
+def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path,
+                         view=None) -> None:
+    """The rendered view with the groups' legend beside it (never over the geometry), a
+    scale bar and the model's axes (``view``: :class:`arfem.fem.export.ParallelView`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -895,6 +907,11 @@ def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path)
     ax = fig.add_axes([0.30, 0.0, 0.70, 0.94])
     ax.imshow(img)
     ax.set_axis_off()
+    if view is not None:
+        from arfem.fem.export import draw_axis_triad, draw_scale_bar
+        draw_scale_bar(ax, view, img.shape)
+        draw_axis_triad(ax, view, (0.06 * img.shape[1], 0.9 * img.shape[0]),
+                        0.07 * img.shape[1])
     handles = [Patch(facecolor=col, edgecolor="black", label=lab) for lab, col in entries]
     if handles:
         fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.01, 0.92),

@@ -26,7 +26,10 @@ is the SHA-256 of that dict (the mesh by its SHA-256, names and outputs left out
 an interrupted sweep resumes as the rod's does.
 
 What is reused between points (per process: in-process, per local worker, per Dask
-worker), and why it gives the same numbers as a run of each point on its own:
+worker), and why it gives the same numbers as a run of each point on its own (on
+workers, each worker gets one task of adjacent points, in the order that shares the
+most, so that it builds the model once for its task:
+:func:`arfem.scenarios.sweep.geometry_run.plan_tasks`):
 
 - the mesh read, the heat assembly (M, K, the convection matrices B_g, the input
   matrix F), the elasticity's factored stiffness and the sensors' rows G: none depends
@@ -446,7 +449,9 @@ def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=No
     t0 = time.perf_counter()
     sc = geometry_scenario_from_dict(data, source, Path(data["geometry"]["mesh"]).parent)
     sc = replace(sc, fields=False, picture=False)
+    t_model = time.perf_counter()
     model, mkey, reused = _model_for(sc)
+    model_s = time.perf_counter() - t_model
     modes = None
     if sc.solver == "reduced":
         h = model.history.h_W_m2K
@@ -462,5 +467,5 @@ def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=No
                     "n_samples": int(run.result.times_s.size),
                     "reference_C": float(sc.reference_C),
                     "total_h": float(sc.total_s / 3600.0), "reused": reused})
-    return {"metrics": metrics, "run_time_s": time.perf_counter() - t0,
+    return {"metrics": metrics, "run_time_s": time.perf_counter() - t0, "model_s": model_s,
             "worker": f"{socket.gethostname()}:{os.getpid()}"}
