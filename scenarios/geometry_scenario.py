@@ -28,12 +28,13 @@ unit; lengths in the file are in the mesh's ``unit``)::
     # or: csv = "duty.csv"  (columns time_s = start of each interval, speed_rpm,
     #      ambient_C, any source columns) and total_h = 24.0
 
-    [[heat_source]]               # one per heated surface group
+    [[heat_source]]               # one per heated surface or volume group
     name = "front_bearing"
-    group = "front_bearing_seat"
+    group = "front_bearing_seat"  # a surface group (power spread over its area) or a
+                                  # volume group (spread over its volume: P/V [W/m³])
     power_W = 150.0               # a constant, or a list (one value per cycle phase),
                                   # or a CSV column name: power_W = "P_front_W";
-                                  # flux_W_m2 instead of power_W for a flux
+                                  # flux_W_m2 instead of power_W for a flux (surfaces)
     # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
     # scale = 1.0               optional factor on every value of the schedule [-]
 
