@@ -76,8 +76,30 @@ def load_axes_record(path) -> AxesRecord:
     temps = {k: cols.pop(k) for k in list(cols) if k.startswith("T_") and k.endswith("_C")}
     speed = cols.pop("speed_rpm", None)
     amb = cols.pop("ambient_C", None)
+    if speed is not None:
+        cols.update(_powers_from_speed(files, cols, speed))
     return AxesRecord(files.name, t, speed, amb, temps, {k: _cells(v) for k, v in cols.items()},
                       tuple(range(2, t.size + 2)), files.csv, files.scenario)
+
+
+def _powers_from_speed(files, cols: dict, speed: np.ndarray) -> dict:
+    """``P_<source>_W`` for every source of the record's scenario that has no column,
+    from the recorded speed (its speed law or its (speed, power) pairs:
+    :func:`arfem.scenarios.geometry_scenario.source_power_at_speed`), so that a record of
+    the speed alone drives every source; a source whose power the speed does not give
+    is left out (the replay then names its missing column)."""
+    from arfem.scenarios.geometry_scenario import load_geometry_scenario, source_power_at_speed
+    sc = load_geometry_scenario(files.scenario)
+    out = {}
+    for src in sc.sources:
+        name = f"P_{src.spec.name}_W"
+        if name in cols or src.spec.kind != "power":
+            continue
+        try:
+            out[name] = source_power_at_speed(sc, src, speed, str(files.csv))
+        except InputError:
+            continue
+    return out
 
 
 def require_axes_model(model, record: AxesRecord, where: str) -> None:

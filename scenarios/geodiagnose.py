@@ -71,17 +71,10 @@ def _map_columns(cols: dict, sc, where: str):
 
 
 def _speed_power(sc, src, speed, where: str) -> np.ndarray:
-    """A source's power at each speed, linear between its scenario's (speed, power)
-    pairs (its values on the cycle's phases)."""
-    if src.edges_s.shape != sc.cycle.edges_s.shape or not np.allclose(src.edges_s,
-                                                                        sc.cycle.edges_s):
-        raise InputError(f"source {src.spec.name!r} follows its own schedule in the scenario, "
-                         f"so speed_rpm does not give its power: add a column "
-                         f"P_{src.spec.name}_W", where)
-    n = np.concatenate([[0.0], sc.cycle.speed_rpm])
-    p = np.concatenate([[0.0], src.values])
-    o = np.argsort(n, kind="stable")
-    return np.interp(speed, n[o], p[o])
+    """A source's power at each speed (its speed law, else linear between its
+    scenario's (speed, power) pairs): :func:`arfem.scenarios.geometry_scenario.source_power_at_speed`."""
+    from arfem.scenarios.geometry_scenario import source_power_at_speed
+    return source_power_at_speed(sc, src, speed, where)
 
 
 def load_mesh_record(path, progress=None):

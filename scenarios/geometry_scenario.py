@@ -36,7 +36,13 @@ unit; lengths in the file are in the mesh's ``unit``)::
                                   # or a CSV column name: power_W = "P_front_W";
                                   # flux_W_m2 instead of power_W for a flux (surfaces)
     # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
+    # power_W = { a = 0.0, b = 0.003, m = 1.0 }   from the cycle's speed n [rpm]:
+    #                               P = a + b·n^m [W]
+    # bearing = { f0 = 2.0, nu_mm2_s = 22.0, dm_mm = 90.0, f1 = 3.2e-4, P1_N = 1000.0,
+    #             count = 2 }       Palmgren's friction moment × ω from the speed
+    #                               (arfem.models.bearing: coefficients and units)
     # scale = 1.0               optional factor on every value of the schedule [-]
+    #                           (e.g. the part of the friction heat the structure takes)
 
     [[convection]]                # one per cooled surface group
     group = "housing_outer"
@@ -90,7 +96,7 @@ from arfem.strict import table as _table
 __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
            "geometry_scenario_from_dict", "GeometryModel", "build_geometry_model",
            "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES",
-           "check_geometry_scenario"]
+           "check_geometry_scenario", "source_power_at_speed"]
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
         "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
@@ -100,7 +106,8 @@ _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "e
         "youngs_modulus_Pa", "poisson_ratio"}
 _CYCLE = {"phases", "csv", "total_h", "total_s"}
 _PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
-_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale"}
+_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale", "bearing"}
+_BEARING = {"f0", "nu_mm2_s", "dm_mm", "f1", "P1_N", "count"}
 _CONV = {"name", "group", "h_W_m2K", "ambient_C"}
 _SUP = {"type", "group", "points"}
 _SENS = {"name", "point", "direction", "quantity", "group"}
@@ -129,6 +136,15 @@ class SourceSetting:
     spec: SourceSpec
     edges_s: np.ndarray          # own schedule's edges (or the cycle's)
     values: np.ndarray           # power [W] or flux [W/m²] per segment of edges_s
+    law: object = None           # PowerLaw / PalmgrenBearing: power from the speed [W]
+    scale: float = 1.0           # the source's ``scale`` (already in ``values``)
+
+    def power_at_speed_W(self, speed_rpm) -> np.ndarray | None:
+        """The power [W] its speed law gives at ``speed_rpm`` (times ``scale``), or None
+        for a source without one."""
+        if self.law is None:
+            return None
+        return self.scale * self.law.power_W(speed_rpm)
 
 
 @dataclass(frozen=True)
@@ -366,16 +382,77 @@ def _sources(data: dict, cycle: Schedule3D) -> list:
         _unknown(s, _SRC, w)
         grp = _string(s.get("group"), f"{w}.group")
         name = _string(s.get("name", grp), f"{w}.name")
-        if "phases" in s:
+        law = _speed_law(s, w)
+        if law is not None:
+            edges, values, kind = cycle.edges_s, law.power_W(cycle.speed_rpm), "power_W"
+        elif "phases" in s:
             edges, values, kind = _source_own_phases(s["phases"], w, cycle)
         else:
             edges, values, kind = _source_on_cycle(s, w, cycle)
+        scale = 1.0
         if "scale" in s:          # a factor on the whole schedule (e.g. swept: 0.5, 1, 2)
-            values = values * _number(s["scale"], f"{w}.scale", positive=True,
-                                      allow_zero=True)
+            scale = _number(s["scale"], f"{w}.scale", positive=True, allow_zero=True)
+            values = values * scale
         spec = SourceSpec(name=name, group=grp, kind="power" if kind == "power_W" else "flux")
-        sources.append(SourceSetting(spec, edges, values))
+        sources.append(SourceSetting(spec, edges, values, law, scale))
     return sources
+
+
+def _speed_law(s: dict, w: str):
+    """A source's power as a function of the cycle's speed (:mod:`arfem.models.bearing`):
+    ``power_W = {a, b, m}`` (P = a + b·n^m [W]) or ``bearing = {f0, nu_mm2_s, dm_mm, f1,
+    P1_N, count}`` (Palmgren's friction moment × ω); None for a source without one.
+    Every value range-checked (:data:`arfem.models.bearing.RANGES`)."""
+    from arfem.models.bearing import PalmgrenBearing, PowerLaw, check_range
+    if "bearing" in s:
+        others = [k for k in ("power_W", "flux_W_m2", "phases") if k in s]
+        if others:
+            raise InputError(f"gives both bearing and {others[0]}: the bearing model gives "
+                             "the power from the speed", w)
+        b = s["bearing"]
+        if not isinstance(b, dict):
+            raise InputError("must be a table { f0, nu_mm2_s, dm_mm, f1, P1_N, count }",
+                             f"{w}.bearing")
+        _unknown(b, _BEARING, f"{w}.bearing")
+        missing = sorted({"f0", "nu_mm2_s", "dm_mm"} - set(b))
+        if missing:
+            raise InputError(f"missing {', '.join(missing)} (Palmgren's M0 = 1e-7·f0·"
+                             "(ν·n)^(2/3)·dm³ needs them)", f"{w}.bearing")
+        kw = {k: check_range(k, _number(b[k], f"{w}.bearing.{k}", integer=k == "count"),
+                             f"{w}.bearing.{k}") for k in _BEARING if k in b}
+        if "count" in kw:
+            kw["count"] = int(kw["count"])
+        return PalmgrenBearing(**kw)
+    p = s.get("power_W")
+    if isinstance(p, dict):
+        if "phases" in s:
+            raise InputError("gives both power_W = {a, b, m} (from the speed) and phases",
+                             w)
+        _unknown(p, {"a", "b", "m"}, f"{w}.power_W")
+        abm = {k: check_range(k, _number(p.get(k, d), f"{w}.power_W.{k}"), f"{w}.power_W.{k}")
+               for k, d in (("a", 0.0), ("b", 0.0), ("m", 1.0))}
+        return PowerLaw(**abm)
+    return None
+
+
+def source_power_at_speed(sc: "GeometryScenario", src: SourceSetting, speed_rpm,
+                          where: str) -> np.ndarray:
+    """A source's power [W] at each recorded speed: its speed law where it has one
+    (``bearing`` or ``power_W = {a, b, m}``), else linear between its scenario's
+    (speed, power) pairs on the cycle's phases; a source on its own schedule is refused
+    (its power does not follow the speed): one line naming ``where``."""
+    own = src.power_at_speed_W(speed_rpm)
+    if own is not None:
+        return own
+    if src.edges_s.shape != sc.cycle.edges_s.shape or not np.allclose(src.edges_s,
+                                                                        sc.cycle.edges_s):
+        raise InputError(f"source {src.spec.name!r} follows its own schedule in the scenario, "
+                         f"so speed_rpm does not give its power: add a column "
+                         f"P_{src.spec.name}_W", where)
+    n = np.concatenate([[0.0], sc.cycle.speed_rpm])
+    p = np.concatenate([[0.0], src.values])
+    o = np.argsort(n, kind="stable")
+    return np.interp(speed_rpm, n[o], p[o])
 
 
 def _source_own_phases(ph, w: str, cycle: Schedule3D) -> tuple:
