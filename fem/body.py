@@ -31,7 +31,7 @@ element-wise constants.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,7 +43,7 @@ from arfem.fem.gmsh_io import ELASTIC_DIRECT_MAX_DOFS, ELASTIC_FACTOR_MAX_DOFS, 
 from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError
 
-__all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
+__all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec", "SENSOR_QUANTITIES",
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
            "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
            "LumpedGeometry", "group_volumes_m3", "lumped_geometry", "assemble_elastic_stiffness",
@@ -264,16 +264,71 @@ class Support:
     points: tuple = ()
 
 
+#: Per sensor quantity: (column prefix, column unit suffix, output → record unit factor,
+#: unit shown, kind index for the Krylov tolerance's per-kind floor).
+SENSOR_QUANTITIES = {
+    "temperature": ("T", "C", 1.0, "°C", 0),
+    "displacement": ("d", "um", 1e6, "µm", 1),
+    "tilt": ("tilt", "urad", 1e6, "µrad", 2),
+}
+
+
 @dataclass(frozen=True)
 class SensorSpec:
-    """A named sensor: a temperature at a point, or a displacement along ``direction``
-    (a unit vector) at a point or averaged over a surface group."""
+    """A named sensor: a temperature at a point; a displacement along ``direction``
+    (a unit vector) at a point or averaged over a surface group; or a tilt [rad]: the
+    difference of the displacements along ``direction`` at the two ``points`` over
+    their distance, (d(p₂) − d(p₁))/|p₂ − p₁| (two probes on a test mandrel, ISO 230-3's
+    A and B). A rigid rotation ω gives the tilt ω·(t × e), t the unit vector p₁→p₂ and
+    e the direction: the rotation about :attr:`about`."""
 
     name: str
-    quantity: str                # "temperature" | "displacement"
+    quantity: str                # "temperature" | "displacement" | "tilt"
     point: tuple | None = None   # [m]
     group: str | None = None     # displacement averaged over this surface group
     direction: tuple = (0.0, 0.0, 1.0)
+    points: tuple = ()           # a tilt's two points ((x, y, z), (x, y, z)) [m]
+
+    @property
+    def elastic(self) -> bool:
+        """True when the sensor reads the displacement field (an elastic adjoint)."""
+        return self.quantity != "temperature"
+
+    @property
+    def column(self) -> str:
+        """Its record column: ``T_<name>_C``, ``d_<name>_um`` or ``tilt_<name>_urad``."""
+        pre, unit = SENSOR_QUANTITIES[self.quantity][:2]
+        return f"{pre}_{self.name}_{unit}"
+
+    @property
+    def record_scale(self) -> float:
+        """Model output (K above reference, m, rad) → record unit (°C offset, µm, µrad)."""
+        return SENSOR_QUANTITIES[self.quantity][2]
+
+    @property
+    def unit(self) -> str:
+        return SENSOR_QUANTITIES[self.quantity][3]
+
+    @property
+    def kind_index(self) -> int:
+        """0 temperature, 1 displacement, 2 tilt (the reduced solve's per-kind floor)."""
+        return SENSOR_QUANTITIES[self.quantity][4]
+
+    @property
+    def about(self) -> tuple | None:
+        """A tilt's rotation axis t × e (unit vector), None for other sensors."""
+        if self.quantity != "tilt":
+            return None
+        t = np.subtract(self.points[1], self.points[0])
+        a = np.cross(t / np.linalg.norm(t), np.asarray(self.direction, float))
+        return tuple(float(v) for v in a / np.linalg.norm(a))
+
+    @property
+    def base_m(self) -> float | None:
+        """A tilt's base |p₂ − p₁| [m], None for other sensors."""
+        if self.quantity != "tilt":
+            return None
+        return float(np.linalg.norm(np.subtract(self.points[1], self.points[0])))
 
 
 def element_for(gmesh: GroupedMesh, order: int):
@@ -830,7 +885,13 @@ class ElasticBody:
         return G[:, 0] if np.ndim(w) == 1 else G
 
     def sensor_weight(self, sensor: SensorSpec, where: str) -> np.ndarray:
-        """w with wᵀu = the sensor's displacement [m] (point value or group average)."""
+        """w with wᵀu = the sensor's displacement [m] (point value or group average), or
+        its tilt [rad]: (w(p₂) − w(p₁))/|p₂ − p₁| of the point displacements."""
+        if sensor.quantity == "tilt":
+            w1, w2 = (self.sensor_weight(replace(sensor, quantity="displacement", point=p,
+                                                 points=()), f"{where}.points[{k}]")
+                      for k, p in enumerate(sensor.points))
+            return (w2 - w1) / sensor.base_m
         d = np.asarray(sensor.direction, float)
         d = d / np.linalg.norm(d)
         gm = self.thermal.gmesh

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arfem.fem.body import SENSOR_QUANTITIES
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
@@ -42,9 +43,16 @@ def _map_columns(cols: dict, sc, where: str):
     name the column and what the scenario has."""
     disp = [s.name for s in sc.sensors if s.quantity == "displacement"]
     temp = [s.name for s in sc.sensors if s.quantity == "temperature"]
+    tilts = [s.name for s in sc.sensors if s.quantity == "tilt"]
     srcs = [s.spec.name for s in sc.sources]
     chans, power = [], {}
     for c in cols:
+        if c.startswith("tilt_") and c.endswith("_urad"):      # a tilt: evidence
+            if c[5:-5] not in tilts:
+                raise InputError(f"names no tilt sensor of {sc.source} (its tilts: "
+                                 f"{', '.join(tilts) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+            continue
         if c.startswith("d_") and c.endswith("_um"):
             if c[2:-3] not in disp:
                 raise InputError(f"names no displacement sensor of {sc.source} (it has "
@@ -202,7 +210,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     hist = InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K)
     t0 = time.perf_counter()
     full = solve_reduced(plant.body, hist, plant.G, t,
-                         kinds=[int(k == "displacement") for k in plant.kinds]).outputs
+                         kinds=[SENSOR_QUANTITIES[k][4] for k in plant.kinds]).outputs
     t_full = time.perf_counter() - t0
     tr0 = type(tr)(tr.durations_s, tr.h_W_m2K, tr.kappa,
                    np.column_stack([tr.inputs[:, :S + G],
@@ -211,12 +219,12 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     red = simulate(model.rb, tr0, columns=False)
     err = np.max(np.abs(red - full), axis=0)
     scale = np.max(np.abs(full), axis=0)
-    unit = [1e6 if k == "displacement" else 1.0 for k in plant.kinds]
+    unit = [1.0 if k == "temperature" else 1e6 for k in plant.kinds]
     return {"basis_vectors": model.rb.k, "krylov_blocks": model.rb.n_blocks,
             "max_abs_error": {n: float(e * u) for n, e, u in zip(plant.names, err, unit)},
             "max_rel_error": {n: float(e / s) if s > 0 else 0.0
                               for n, e, s in zip(plant.names, err, scale)},
-            "units": "µm for displacements, K for temperatures",
+            "units": "µm for displacements, µrad for tilts, K for temperatures",
             "reference": "arfem.fem.thermal3d.solve_reduced at the nominal h (own basis)",
             "reference_solve_s": t_full}
 

@@ -110,7 +110,7 @@ _SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale", "bearing"}
 _BEARING = {"f0", "nu_mm2_s", "dm_mm", "f1", "P1_N", "count"}
 _CONV = {"name", "group", "h_W_m2K", "ambient_C"}
 _SUP = {"type", "group", "points"}
-_SENS = {"name", "point", "direction", "quantity", "group"}
+_SENS = {"name", "point", "direction", "quantity", "group", "points"}
 _FEM = {"solver", "dt_s", "output_interval_s"}
 _OUT = {"fields", "picture", "field_interval_s"}
 _SOLVERS = {"reduced": None, "crank-nicolson": 0.5, "backward-euler": 1.0}
@@ -588,7 +588,12 @@ def _sensor(s, w: str, scale: float, seen: set) -> SensorSpec:
                          f"{name!r}", f"{w}.name")
     seen.add(name)
     q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
-                choices=("displacement", "temperature"))
+                choices=("displacement", "temperature", "tilt"))
+    if q == "tilt":
+        return _tilt_sensor(s, w, name, scale)
+    if "points" in s:
+        raise InputError("points (two of them) belong to a quantity = \"tilt\" sensor; a "
+                         "displacement or a thermometer has one point", f"{w}.points")
     if q == "temperature" and name.startswith("T_"):
         raise InputError(f"a thermometer's column is T_<name>_C (the measured-data "
                          f"contract); name it without \"T_\" ({name[2:]!r}), or its "
@@ -597,15 +602,43 @@ def _sensor(s, w: str, scale: float, seen: set) -> SensorSpec:
     grp = _string(s["group"], f"{w}.group") if "group" in s else None
     if (point is None) == (grp is None) or (q == "temperature" and point is None):
         raise InputError("needs a point (or, for a displacement, a surface group)", w)
-    d = s.get("direction", "z")
+    return SensorSpec(name, q, point, grp, _direction(s.get("direction", "z"), w))
+
+
+def _direction(d, w: str) -> tuple:
+    """A sensor's ``direction``: ``"x"``, ``"y"``, ``"z"`` or a vector, as a unit vector."""
     if isinstance(d, str):
-        d = _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
-    else:
-        d = _point(d, 1.0, f"{w}.direction")
-        if np.linalg.norm(d) == 0:
-            raise InputError("must not be zero", f"{w}.direction")
-        d = tuple(np.asarray(d) / np.linalg.norm(d))
-    return SensorSpec(name, q, point, grp, tuple(d))
+        return _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
+    d = _point(d, 1.0, f"{w}.direction")
+    if np.linalg.norm(d) == 0:
+        raise InputError("must not be zero", f"{w}.direction")
+    return tuple(float(v) for v in np.asarray(d) / np.linalg.norm(d))
+
+
+def _tilt_sensor(s: dict, w: str, name: str, scale: float) -> SensorSpec:
+    """A ``quantity = "tilt"`` sensor: ``points = [p1, p2]`` (mesh unit) and the
+    ``direction`` both probes read; the tilt (d(p2) − d(p1))/|p2 − p1| [rad, reported in
+    µrad]. The direction must be across the line p1→p2 (along it the difference is a
+    strain, not a tilt)."""
+    pts = s.get("points")
+    if not isinstance(pts, list) or len(pts) != 2:
+        raise InputError("a tilt needs points = [[x1, y1, z1], [x2, y2, z2]] (the two "
+                         "probes, mesh unit)", f"{w}.points")
+    if "point" in s or "group" in s:
+        raise InputError("a tilt is read at its two points, not at point or group", w)
+    if "direction" not in s:
+        raise InputError("a tilt needs the direction its two probes read (e.g. \"y\" "
+                         "for A, the tilt about X of a spindle along Z)", w)
+    p = tuple(_point(v, scale, f"{w}.points[{k}]") for k, v in enumerate(pts))
+    d = _direction(s["direction"], w)
+    line = np.subtract(p[1], p[0])
+    base = float(np.linalg.norm(line))
+    if base == 0.0:
+        raise InputError("the two points coincide: a tilt needs a base", f"{w}.points")
+    if abs(float(np.dot(line / base, d))) > 0.01:
+        raise InputError("direction must be across the line between the two points (a "
+                         "difference along it is a strain, not a tilt)", f"{w}.direction")
+    return SensorSpec(name, "tilt", direction=d, points=p)
 
 
 def _fem_and_outputs(data: dict, cycle: Schedule3D) -> tuple:
@@ -718,8 +751,9 @@ def check_geometry_scenario(sc: GeometryScenario) -> None:
         for s in sc.sensors:
             if s.group is not None:
                 gm.surface_group(s.group, f"sensor {s.name!r}.group")
-            else:
-                locate(th.basis, s.point, f"sensor {s.name!r}.point", gm.source)
+            for k, p in enumerate([s.point] if s.point is not None else s.points):
+                locate(th.basis, p, f"sensor {s.name!r}.point" + (f"s[{k}]" if s.points
+                                                                   else ""), gm.source)
         if support.kind == "clamped":
             gm.surface_group(support.group, "support.group")
     except InputError as exc:
@@ -747,7 +781,7 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         if temp:
             P = th.probe(np.array([s.point for s in temp]).T, [s.name for s in temp])
         t0 = time.perf_counter()
-        disp = [s for s in sc.sensors if s.quantity == "displacement"]
+        disp = [s for s in sc.sensors if s.elastic]
         el = None
         if disp or sc.fields:
             progress("assembling and factoring elasticity")
@@ -757,7 +791,7 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         t0 = time.perf_counter()
         W = []
         for i, s in enumerate(sc.sensors):
-            if s.quantity == "displacement":
+            if s.elastic:
                 W.append(el.sensor_weight(s, f"sensor {s.name!r}"))
         Gd = el.functional(np.column_stack(W)) if W else None
         k_t = k_d = 0
@@ -786,15 +820,14 @@ class GeometryRun:
     timings_s: dict
 
     def sensor_series(self) -> dict:
-        """{column name: values}: ``T_<name>_C`` [°C] and ``d_<name>_um`` [µm]."""
+        """{column name: values}: ``T_<name>_C`` [°C], ``d_<name>_um`` [µm] and
+        ``tilt_<name>_urad`` [µrad]."""
         out = {}
         sc = self.model.scenario
         for j, s in enumerate(sc.sensors):
             y = self.result.outputs[:, j]
-            if s.quantity == "temperature":
-                out[f"T_{s.name}_C"] = y + sc.reference_C
-            else:
-                out[f"d_{s.name}_um"] = y * 1e6
+            out[s.column] = (y + sc.reference_C if s.quantity == "temperature"
+                             else y * s.record_scale)
         return out
 
 
@@ -815,7 +848,7 @@ def solve_geometry(model: GeometryModel, progress=None,
     progress("transient heat")
     theta = _SOLVERS[sc.solver]
     if theta is None:
-        kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+        kinds = [s.kind_index for s in sc.sensors]
         res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
                             mode_cache=mode_cache)
     else:
@@ -896,10 +929,12 @@ def _sensor_labels(sensors) -> list:
     a thermometer's name carries ``(°C)``."""
     at: dict = {}
     for s in sensors:
-        if s.point is None:
-            continue
-        key = tuple(round(float(c), 12) for c in s.point)
-        at.setdefault(key, []).append(s.name + (" (°C)" if s.quantity == "temperature" else ""))
+        pts = [s.point] if s.point is not None else list(s.points)
+        for k, p in enumerate(pts):
+            key = tuple(round(float(c), 12) for c in p)
+            at.setdefault(key, []).append(
+                s.name + (" (°C)" if s.quantity == "temperature" else "")
+                + (f" (tilt, probe {k + 1})" if s.quantity == "tilt" else ""))
     return [(np.array(k), ", ".join(v)) for k, v in at.items()]
 
 
@@ -992,10 +1027,12 @@ def _sensor_figure(run: GeometryRun, path: Path) -> None:
     t_h = run.result.times_s / 3600.0
     d = {k: v for k, v in ser.items() if k.startswith("d_")}
     T = {k: v for k, v in ser.items() if k.startswith("T_")}
-    n = int(bool(d)) + int(bool(T))
+    a = {k: v for k, v in ser.items() if k.startswith("tilt_")}
+    n = int(bool(d)) + int(bool(T)) + int(bool(a))
     fig, axes = plt.subplots(n, 1, figsize=(9, 3.2 * n), sharex=True, squeeze=False)
     i = 0
-    for group, unit in ((d, "displacement [µm]"), (T, "temperature [°C]")):
+    for group, unit in ((d, "displacement [µm]"), (a, "tilt [µrad]"),
+                        (T, "temperature [°C]")):
         if not group:
             continue
         ax = axes[i, 0]
@@ -1060,14 +1097,12 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
     write_csv(out_dir / "sensors.csv", {"time_s": t, "time_h": t / 3600.0, **ser})
     write_json(out_dir / "sensors.json", {
         "scenario": sc.name, "time_s": t.tolist(),
-        "sensors": [{"name": s.name, "quantity": s.quantity,
-                     "column": (f"T_{s.name}_C" if s.quantity == "temperature"
-                                else f"d_{s.name}_um"),
-                     "unit": "°C" if s.quantity == "temperature" else "µm",
-                     "point_m": s.point, "group": s.group,
-                     "direction": s.direction if s.quantity == "displacement" else None,
-                     "values": ser[f"T_{s.name}_C" if s.quantity == "temperature"
-                                   else f"d_{s.name}_um"].tolist()}
+        "sensors": [{"name": s.name, "quantity": s.quantity, "column": s.column,
+                     "unit": s.unit, "point_m": s.point, "group": s.group,
+                     "direction": s.direction if s.elastic else None,
+                     **({"points_m": list(s.points), "about": s.about, "base_m": s.base_m}
+                        if s.quantity == "tilt" else {}),
+                     "values": ser[s.column].tolist()}
                     for s in sc.sensors]})
     s = summary(run)
     write_json(out_dir / "summary.json", s)

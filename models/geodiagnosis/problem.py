@@ -30,10 +30,10 @@ class Channel:
     ----------
     column : str, e.g. ``d_tcp_z_um`` or ``T_housing_C``
     sensor : str, the scenario's sensor name
-    kind : str, ``"displacement"`` or ``"temperature"``
+    kind : str, ``"displacement"``, ``"temperature"`` or ``"tilt"``
     output : int, the sensor's column in the model's outputs
-    scale : float, model unit → record unit (1e6 m → µm; 1 K → K)
-    unit : str, ``"um"`` or ``"K"``
+    scale : float, model unit → record unit (1e6 m → µm, rad → µrad; 1 K → K)
+    unit : str, ``"um"``, ``"urad"`` or ``"K"``
     """
 
     column: str
@@ -214,6 +214,8 @@ def make_record(name: str, time_s, readings, columns, sensor_names, sensor_kinds
     for j, col in enumerate(columns):
         if col.startswith("d_") and col.endswith("_um"):
             s, kind, scale, unit = col[2:-3], "displacement", 1e6, "um"
+        elif col.startswith("tilt_") and col.endswith("_urad"):     # evidence, in µrad
+            s, kind, scale, unit = col[5:-5], "tilt", 1e6, "urad"
         else:
             s, kind, scale, unit = col[2:-2], "temperature", 1.0, "K"
             data[:, j] -= reference_C
