@@ -42,6 +42,8 @@ class AxesRecord:
     line_numbers : tuple of int, the CSV line of each row
     csv_path : Path
     scenario : Path, the mesh scenario the record names
+    displacement_zero : str, ``"reference"`` or ``"first_row"`` (the record's
+        ``[dataset] displacement_zero``)
     """
 
     name: str
@@ -54,6 +56,7 @@ class AxesRecord:
     csv_path: Path
     scenario: Path
     q_W_m2: None = field(default=None)
+    displacement_zero: str = "reference"     # or "first_row": probes zeroed at the start
 
 
 def _cells(v: np.ndarray) -> np.ndarray:
@@ -79,7 +82,8 @@ def load_axes_record(path) -> AxesRecord:
     if speed is not None:
         cols.update(_powers_from_speed(files, cols, speed))
     return AxesRecord(files.name, t, speed, amb, temps, {k: _cells(v) for k, v in cols.items()},
-                      tuple(range(2, t.size + 2)), files.csv, files.scenario)
+                      tuple(range(2, t.size + 2)), files.csv, files.scenario,
+                      displacement_zero=files.displacement_zero)
 
 
 def _powers_from_speed(files, cols: dict, speed: np.ndarray) -> dict:

@@ -122,7 +122,7 @@ def load_mesh_record(path, progress=None):
     data = np.column_stack([tab.columns[c] for c in chans])
     rec = make_record(files.name, tab.columns["time_s"], data, chans, plant.names, plant.kinds,
                       np.column_stack(P) if P else np.zeros((data.shape[0], 0)), speed, amb,
-                      sc.reference_C)
+                      sc.reference_C, files.displacement_zero)
     _check_units(model, rec, where)
     return rec, model, plant, sc, tm
 
