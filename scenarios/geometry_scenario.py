@@ -1110,9 +1110,12 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
     _sensor_figure(run, out_dir / "sensors.png")
     if sc.picture:
         progress("geometry picture")
+        vols = [f"{s.spec.name} in {s.spec.group}" for s in sc.sources
+                if s.spec.group in run.model.thermal.source_volumes_m3]
         geometry_picture(run.model.gmesh, out_dir / "geometry.png", sc.sensors,
-                         title=f"{sc.name}: physical groups and sensors",
-                         roles=group_roles(sc))
+                         title=f"{sc.name}: physical groups and sensors" + (
+                             "\nheat generated in volume groups: " + ", ".join(vols)
+                             if vols else ""), roles=group_roles(sc))
     if sc.fields and run.result.fields is not None:
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")

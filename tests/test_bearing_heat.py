@@ -25,8 +25,7 @@ import pytest
 from arfem.models.bearing import (PalmgrenBearing, PowerLaw, friction_power_W,
                                   viscous_moment_Nmm)
 
-sys.path.insert(0, str(Path(__file__).parent))
-from geometry_meshes import BOX_TOML, box_meshio, write_msh  # noqa: E402
+from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
 BEARING = ('bearing = { f0 = 2.0, nu_mm2_s = 22.0, dm_mm = 90.0, f1 = 3.2e-4, '
            'P1_N = 1000.0, count = 2 }\nscale = 0.01')

@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parent))
-from geometry_meshes import BOX_TOML, box_meshio, write_msh  # noqa: E402
+from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
 SENSORS = """
 [[sensor]]

@@ -155,7 +155,6 @@ def test_lumped_geometry_and_candidate_column_of_a_volume_source():
 
 def test_flux_on_a_volume_group_is_refused(tmp_path):
     """flux_W_m2 on a volume group: one line naming the file and the source, exit 2."""
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
     from geometry_meshes import BOX_TOML, box_meshio, write_msh
     write_msh(box_meshio(), tmp_path / "box.msh")
     toml = BOX_TOML.replace('group = "left"\npower_W = [50.0, 0.0]',
@@ -172,7 +171,6 @@ def test_flux_on_a_volume_group_is_refused(tmp_path):
 def test_volume_source_runs_through_a_scenario(tmp_path):
     """A box scenario with its heater in the volume: the model's input matrix column is
     the volume's, the run's record carries P_heater_W, the lumped AR(1) sees 1 W/W."""
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
     from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
     from arfem.scenarios.geometry_scenario import (build_geometry_model,
