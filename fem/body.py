@@ -455,13 +455,13 @@ class ThermalBody:
         volume = unit_load.assemble(basis)
         areas, cols, Bs, vols = {}, [], [], {}
         for i, s in enumerate(sources):
-            f, measure, volume = _unit_source(gmesh, basis, s.group, io,
-                                              f"heat_source[{i}].group")
-            if volume and s.kind != "power":
+            f, measure, in_volume = _unit_source(gmesh, basis, s.group, io,
+                                                 f"heat_source[{i}].group")
+            if in_volume and s.kind != "power":
                 raise InputError(f"{s.group!r} is a volume group: a volume source takes "
                                  "power_W [W] (spread over its volume), not flux_W_m2",
                                  f"heat_source[{i}]")
-            (vols if volume else areas)[s.group] = measure
+            (vols if in_volume else areas)[s.group] = measure
             cols.append(f / measure if s.kind == "power" else f)
         for i, c in enumerate(convections):
             fac = gmesh.surface_group(c.group, f"convection[{i}].group")

@@ -55,6 +55,7 @@ def test_insulated_body_warms_at_p_over_rho_c_v(order):
                              [SourceSpec("heater", "body")], order=order)
     assert body.source_volumes_m3 == pytest.approx({"body": 2e-3}, rel=1e-12)
     assert body.areas_m2 == {}
+    assert float(body.volume.sum()) == pytest.approx(2e-3, rel=1e-12)   # ∫v dV kept
     P, rhoc = 100.0, 7850.0 * 460.0
     hist = InputHistory(np.array([0.0, 3600.0]), np.array([[P]]), np.zeros((1, 0)))
     G = np.eye(body.ndofs)[:, :: max(1, body.ndofs // 7)]
