@@ -303,6 +303,9 @@ def metric_columns(sensors) -> list:
     for name, q in sensors:
         if q == "temperature":
             cols += [f"T_{name}_peak_C", f"T_{name}_peak_time_h", f"T_{name}_final_C"]
+        elif q == "tilt":
+            cols += [f"tilt_{name}_peak_urad", f"tilt_{name}_peak_time_h",
+                     f"tilt_{name}_final_urad"]
         else:
             cols += [f"d_{name}_peak_um", f"d_{name}_peak_time_h", f"d_{name}_final_um"]
     return cols
@@ -322,7 +325,8 @@ def sensor_metrics(run) -> dict:
         else:
             v = run.result.outputs[:, list(sc.sensors).index(s)] * 1e6
             j = int(np.argmax(np.abs(v)))
-            pre, unit = f"d_{s.name}", "um"
+            pre, unit = ((f"tilt_{s.name}", "urad") if s.quantity == "tilt"
+                         else (f"d_{s.name}", "um"))
         out[f"{pre}_peak_{unit}"] = float(v[j])
         out[f"{pre}_peak_time_h"] = float(t_h[j])
         out[f"{pre}_final_{unit}"] = float(v[-1])
@@ -374,7 +378,7 @@ def _adjoint(entry: _Entry) -> np.ndarray:
         m = entry.base
         el = m.elastic
         W = np.column_stack([el.sensor_weight(s, f"sensor {s.name!r}")
-                             for s in m.scenario.sensors if s.quantity == "displacement"])
+                             for s in m.scenario.sensors if s.elastic])
         Y = np.zeros_like(W)
         Y[el.free] = el.factor.solve(np.ascontiguousarray(W[el.free]))
         entry.adjoint = Y
@@ -408,7 +412,7 @@ def _variant(entry: _Entry, sc) -> tuple:
         T = thermal_coupling.assemble(th.basis, el.basis,
                                       beta=_per_element(th.basis, props["beta"])).tocsr()
         el2 = replace(el, thermal=th2, T=T)
-        cols = [j for j, s in enumerate(base.scenario.sensors) if s.quantity == "displacement"]
+        cols = [j for j, s in enumerate(base.scenario.sensors) if s.elastic]
         G = G.copy()
         G[:, cols] = np.asarray(T.T @ _adjoint(entry))
         redone.append("T and G = Tᵀ(K⁻¹w)")
