@@ -384,6 +384,33 @@ def _verdict(t, what):
             f"{max(d):+.2f} µm, below 0 at {sum(v < 0 for v in d)} of {len(d)}")
 
 
+def _board(roll):
+    """The issue's table with the primary among the six models of peers.md, and the
+    primary against the extended model pair by pair (added after the scoring run: a
+    presentation of the same scores, nothing refitted)."""
+    keys = PEER_TABLE + (PRIMARY,)
+    wins = dict.fromkeys(keys, 0)
+    for e in roll:
+        sc = {k: e["scores"][k]["rms_um"] for k in keys if k in e["scores"]}
+        wins[min(sc, key=sc.get)] += 1
+    both = [e for e in roll if "extended" in e["scores"]]
+    d = [e["scores"][PRIMARY]["rms_um"] - e["scores"]["extended"]["rms_um"] for e in both]
+    dp = [e["scores"][PRIMARY]["rms_um"] - min(e["scores"]["tf"]["rms_um"],
+                                                e["scores"]["arx"]["rms_um"]) for e in both]
+    L = ["", "Added after the scoring run (the same scores, nothing refitted): the issue's "
+         "table with the primary on the board, best of the seven at each of the "
+         f"{len(roll)} pairs:", "", "| model | best at (of 50) |", "|---|---|"]
+    L += [f"| {LABEL[k]} | {wins[k]} |" for k in sorted(keys, key=lambda k: -wins[k])]
+    top = max(wins, key=wins.get)
+    L += ["", f"Most pairs won: {LABEL[top]} ({wins[top]}). "
+          f"On the {len(both)} pairs where the extended model exists: "
+          f"{LABEL[PRIMARY]} minus the extended model, median {np.median(d):+.2f} µm, "
+          f"lower at {sum(v < 0 for v in d)} of {len(d)}; minus the better peer, median "
+          f"{np.median(dp):+.2f} µm (the extended model's: "
+          f"{np.median([e['scores']['extended']['rms_um'] - min(e['scores']['tf']['rms_um'], e['scores']['arx']['rms_um']) for e in both]):+.2f} µm)."]
+    return L
+
+
 def markdown(entries, dev_out, worst) -> str:
     from peers import SPLIT_28H_S
     roll = [e for e in entries if e["split_s"] != SPLIT_28H_S]
@@ -413,10 +440,19 @@ def markdown(entries, dev_out, worst) -> str:
     L.append(f"- The residual rule kept a correction of the extended model (forward CV "
              f"below no correction) at {act} of {len(roll)} pairs; elsewhere "
              f"'{LABEL['ext_residual']}' is the extended model itself.")
+    met = t["best"] > t["of"] / 2 and t["median_minus_better_peer_um"] < 0
+    L.append(f"- **In plain words**: the targets of issue 43 are "
+             f"{'met' if met else 'not met'} on FL_THERMAL (see the table below for "
+             "where the primary stands among the models). No observer runs here: the "
+             "extended model of this speed record predicts none of the 16 thermometers "
+             "(it reads them as inputs), so they enter only as inputs of the residual "
+             "model.")
     L.append(f"- Check: this run's scores of the six models of peers.md differ from "
              f"peers.json's by at most {worst:.2g} µm (same origins, same replay).")
+    L += _board(roll)
     L += ["", PREREG_MD, "", "## Rolling origins", "",
-          "**Bold**: the lowest among the six models of peers.md and the primary.", ""]
+          "**Bold**: the lowest among the six models of peers.md and the primary.", "",
+          "![RMS at every rolling origin](thermometers.png)", ""]
     L += _rows_table(roll, PEER_TABLE + new, PEER_TABLE + (PRIMARY,))
     if s28:
         L += ["", "## 28 h split (fit t < 28 h, scored to the end)", ""]
@@ -447,6 +483,35 @@ def markdown(entries, dev_out, worst) -> str:
     return "\n".join(L) + "\n"
 
 
+def figure(entries, path) -> None:
+    """RMS at every rolling origin, per channel (log scale): the primary, the extended
+    model, the TF and ARX peers and the thermometers-only model."""
+    from matplotlib.figure import Figure
+    from peers import COLOR, SPLIT_28H_S, _one_legend
+    roll = [e for e in entries if e["split_s"] != SPLIT_28H_S]
+    chans = sorted({e["channel"] for e in roll})
+    fig = Figure(figsize=(9, 11), dpi=110, layout="constrained")
+    axes = fig.subplots(len(chans), 1, sharex=True, squeeze=False)[:, 0]
+    style = {"extended": (COLOR["extended"], "o"), "tf": (COLOR["tf"], "D"),
+             "arx": (COLOR["arx"], "^"), "thermo_only": ("#56B4E9", "v"),
+             PRIMARY: ("k", "s")}
+    for c, ax in zip(chans, axes):
+        es = sorted((e for e in roll if e["channel"] == c), key=lambda e: e["split_s"])
+        o = np.array([e["split_s"] / 3600 for e in es])
+        for k, (col, mk) in style.items():
+            v = np.array([e["scores"][k]["rms_um"] if k in e["scores"] else np.nan
+                          for e in es])
+            ax.plot(o, v, marker=mk, ms=5 if k == PRIMARY else 4,
+                    lw=1.4 if k == PRIMARY else 0.7, color=col, label=LABEL[k])
+        ax.set_yscale("log")
+        ax.set_ylabel(f"{c}: RMS [µm]")
+        ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    _one_legend(fig, axes)
+    axes[-1].set_xlabel("origin [h] (each scored up to the next origin)")
+    fig.suptitle("FL_THERMAL: RMS after compensation, thermometers online (log scale)")
+    fig.savefig(path)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--jobs", type=int, default=2)
@@ -470,6 +535,7 @@ def main(argv=None) -> int:
     dev_out = json.loads(DEV_JSON.read_text(encoding="utf-8"))
     atomic_write_text(HERE / "thermometers.md",
                       markdown(doc["entries"], dev_out, doc["max_abs_diff_to_peers_json_um"]))
+    figure(doc["entries"], HERE / "thermometers.png")
     return 0
 
 
