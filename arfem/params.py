@@ -73,54 +73,14 @@ class InputError(ValueError):
         return InputError(self.message, loc)
 
 
-#: Plausible ranges [lo, hi] of the quantities a user types or records, with the unit
-#: they must be in: a value outside is almost certainly in the wrong unit.
-PLAUSIBLE_RANGES = {
-    "radius_m": (1e-4, 5.0, "metres (a radius in mm?)"),
-    "length_m": (1e-3, 50.0, "metres (a length in mm?)"),
-    "conductivity_W_mK": (1e-3, 2000.0, "W/(m·K)"),
-    "density_kg_m3": (10.0, 30000.0, "kg/m³ (a density in g/cm³?)"),
-    "specific_heat_J_kgK": (10.0, 20000.0, "J/(kg·K) (a value in kJ/(kg·K)?)"),
-    "expansion_1_K": (1e-8, 1e-3, "1/K (a value in µm/(m·K) or ppm/K?)"),
-    "youngs_modulus_Pa": (1e6, 2e12, "Pa (a modulus in GPa?)"),
-    "convection_W_m2K": (1.0, 2000.0, "W/(m²·K) (a value in kW/(m²·K)?)"),
-    "ambient_C": (-60.0, 150.0, "°C (a temperature in K?)"),
-    "q_W_m2": (0.0, 1e7, "W/m²"),
-    "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
-    "speed_rpm": (0.0, 1e6, "1/min (a speed in rad/s or Hz?)"),
-    # fitted magnitudes of the diagnosis (arfem.models.diagnosis): outside these the fit
-    # points at wrong units or a wrong [rod], not at a physical cause
-    "heat_input_scale": (0.2, 5.0, "times the nominal heat input (growth_um in mm, or a "
-                                   "[rod] value in the wrong unit?)"),
-    "fitted_h_W_m2K": (1.0, 2000.0, "W/(m²·K) (a [rod] value in the wrong unit?)"),
-    "ambient_gain_um_per_K": (0.05, 500.0, "µm/K (growth_um in mm?)"),
-    "drift_um_per_h": (-100.0, 100.0, "µm/h (growth_um in nm?)"),
-    # measured thermal growth of a spindle: tens of µm; 5 mm would be a value in nm or
-    # a broken sensor, and 1e300 ends in inf/nan scores
-    "growth_um": (-5000.0, 5000.0, "µm (a growth in nm?)"),
-}
-
-
-def check_plausible(key: str, value: float, where: str) -> float:
-    """``value`` if it lies in ``PLAUSIBLE_RANGES[key]`` (or ``key`` has no range), else an
-    :class:`InputError` at ``where`` that names the unit expected.
-
-    Examples
-    --------
-    >>> check_plausible("ambient_C", 21.5, "case.toml: rod.ambient_C")
-    21.5
-    >>> try:
-    ...     check_plausible("ambient_C", 293.15, "case.toml: rod.ambient_C")
-    ... except InputError as e:
-    ...     print(e)
-    case.toml: rod.ambient_C: 293.15 is outside the plausible range [-60, 150] for a value in °C (a temperature in K?)
-    """
-    if key in PLAUSIBLE_RANGES:
-        lo, hi, unit = PLAUSIBLE_RANGES[key]
-        if not lo <= value <= hi:
-            raise InputError(f"{value:g} is outside the plausible range [{lo:g}, {hi:g}] "
-                             f"for a value in {unit}", where)
-    return value
+def __getattr__(name: str):
+    """``PLAUSIBLE_RANGES`` and ``check_plausible``: the one table of physical ranges and
+    its check, which live in :mod:`arfem.ranges` (imported on first use: that module
+    imports :class:`InputError` from here)."""
+    if name in ("PLAUSIBLE_RANGES", "check_plausible"):
+        from arfem import ranges
+        return ranges.RANGES if name == "PLAUSIBLE_RANGES" else ranges.check_range
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def check_finite(name: str, value) -> float:
