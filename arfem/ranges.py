@@ -57,6 +57,8 @@ RANGES = {
     "power_W": (0.0, 1e6, "W (a power in mW?)"),
     "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
     "speed_rpm": (0.0, 1e5, "1/min (a speed in rad/s or Hz?)"),
+    # a scenario's cycle, a phase of it [s]: a century at most (a duration in ms?)
+    "duration_s": (0.0, 3.2e9, "s (a duration in ms?)"),
     # a coordinate of a mesh or a sensor, in metres once the declared unit is applied
     "coordinate_m": (-100.0, 100.0, "metres of the declared unit (the unit wrong?)"),
     # fitted magnitudes of the diagnosis (arfem.models.diagnosis): outside these the fit
