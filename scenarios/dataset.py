@@ -326,6 +326,11 @@ def _column_names(mapping: dict, table: CsvTable, toml_path: Path) -> dict:
         if foreign not in header:
             _fail(f"maps to column {foreign!r}, which is not in the header of "
                   f"{table.path}", f"{toml_path}: columns.{key}")
+    for key, foreign in mapping.items():
+        if key in header and key not in mapping.values():
+            _fail(f"maps {foreign!r} onto {key}, and the CSV has a column {key!r} of its own: "
+                  "two columns would be one (rename or drop one of them)",
+                  f"{toml_path}: columns.{key}")
     col = dict(mapping)
     for h in header:
         if h not in col and h not in col.values() and h in table.numbers:
