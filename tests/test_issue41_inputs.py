@@ -37,6 +37,7 @@ import numpy as np
 import pytest
 
 from arfem.scenarios.cli import main
+from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
 HERE = Path(__file__).parent
 GEO = HERE / "data" / "geodiag"
@@ -297,9 +298,6 @@ def test_a_bad_cell_found_by_the_fast_reader_is_named_by_the_strict_one(
 
 def _box(tmp_path, toml_edit=None, mesh_edit=None) -> Path:
     """The box scenario of tests/geometry_meshes.py (a 1 s run), edited."""
-    import sys
-    sys.path.insert(0, str(HERE))
-    from geometry_meshes import BOX_TOML, box_meshio, write_msh
     m = box_meshio()
     if mesh_edit is not None:
         mesh_edit(m)
