@@ -542,8 +542,9 @@ def nonfinite(case: dict, stdout: str) -> str | None:
             # compensated.csv echoes the record's inputs (a missing reading stays missing)
             # and marks a held cycle's prediction NaN (docs/commands/compensate); the
             # number sent to the machine, offset_um, must always be finite
-            cols = ([hdr.index("offset_um")] if p.name == "compensated.csv"
-                    and "offset_um" in hdr else
+            # (per axis offset_<A>_um for a version-2 model on a v3 record)
+            offs = [j for j, h in enumerate(hdr) if re.match(r"^offset(_[A-Za-z]+)?_um$", h)]
+            cols = (offs if p.name == "compensated.csv" and offs else
                     [j for j, h in enumerate(hdr) if h not in echoed
                      and h not in ("growth_um", "q_W_m2", "speed_rpm", "ambient_C")
                      and not re.match(r"^T_.+_C$", h)])
@@ -566,7 +567,9 @@ def _raise(tok):
 
 # -- issue 16's parts (optional: --hypothesis, --hangs) -------------------------------------
 
-HYP_BASE = (ROOT / "tests" / "test_fuzz.py").read_text("utf-8").split('BASE = """', 1)[1] \
+#: the coarse base scenario of the sweep tests (tests/sweep_fakes.py, which test_fuzz.py
+#: imports), read as text: a module-level read failed once that file moved
+HYP_BASE = (ROOT / "tests" / "sweep_fakes.py").read_text("utf-8").split('BASE = """', 1)[1] \
     .split('"""', 1)[0]
 
 

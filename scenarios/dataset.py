@@ -13,7 +13,7 @@ folder, a v3 record's scenario read) and :func:`read_record_columns` (the CSV th
 :func:`arfem.io.read_csv_table`: size, rows, NUL, duplicate columns, numbers; then
 every contract column finite and within its physical range, :mod:`arfem.ranges`).
 :func:`load_dataset` turns a record into the rod's validated, immutable
-:class:`~arfem.models.diagnosis.dataset.Dataset`; :func:`arfem.scenarios.georecord.load_mesh_record`
+:class:`~arfem.models.diagnosis.dataset.Dataset`; :func:`arfem.scenarios.georecord.read_mesh_record`
 into a v3 record. A refusal is one :class:`arfem.params.InputError` naming the file,
 the CSV line or the column/key, and what is wrong.
 
@@ -39,8 +39,9 @@ from arfem.io import CsvTable, TomlFile, read_csv_table, read_toml_file
 from arfem.limits import Limits, resolve
 from arfem.ranges import check_range, first_outside, reading_quantity
 from arfem.strict import check_keys
-from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
-from arfem.models.diagnosis.stats import resolution
+# the rod's Dataset and its robust flags (arfem.models.diagnosis.dataset, .stats) are
+# imported where a Dataset is built: they load scipy.stats (~1 s), which a replay of a
+# mesh record never needs
 from arfem.params import InputError, Rod
 
 __all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
@@ -476,6 +477,8 @@ def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> tuple[np.n
     """The growth's Hampel outlier flags, with the σ floored at the sensor's resolution
     where the growth is quantised (a one-quantum flicker of a quantised reading is the
     sensor, not an outlier); and that resolution [µm]."""
+    from arfem.models.diagnosis.dataset import hampel_outliers
+    from arfem.models.diagnosis.stats import resolution
     res = resolution(g)
     if res > 0:
         notes.append(f"growth_um is quantised at {res:.4g} µm (the sensor's resolution, "
@@ -492,6 +495,7 @@ def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> tuple[np.n
 
 def _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes: list) -> None:
     """Notes on the sampling, the gaps, the carried columns and the sensor tables."""
+    from arfem.models.diagnosis.dataset import GAP_FACTOR
     if dt.size:
         notes.append(f"{t.size} rows over {t[-1] - t[0]:g} s; sampling interval median "
                      f"{np.median(dt):g} s, min {dt.min():g} s, max {dt.max():g} s")
@@ -589,6 +593,7 @@ def _checked_dataset(values, lines, extra_raw, sensors, col, label, notes, *, na
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
     g = values["growth_um"]
     outliers, res = _growth_outliers(g, lines, where, label, notes)
+    from arfem.models.diagnosis.dataset import Dataset, sampling_gaps
     gaps = sampling_gaps(t)
     _record_notes(t, dt, gaps, list(extra_raw), sensors, col, initial_unknown, notes)
     extra_cols = {h: a[keep] for h, a in extra_raw.items()}
