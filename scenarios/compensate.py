@@ -140,23 +140,29 @@ def add_parser(sub) -> None:
                         "node every period_s) or JSON lines on stdin/stdout "
                         "(docs: arfem compensate)")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
-                   help="largest |offset| written [µm] (default: no limit)")
+                   help="largest |offset| written [µm] (default: no limit; with --live "
+                        "the config's, and a value given here may only tighten it: a "
+                        "larger one is refused)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
-                   help="largest change of the offset per cycle [µm] (default: no limit)")
+                   help="largest change of the offset per cycle [µm] (default: no limit; "
+                        "with --live as --max-offset-um)")
     p.add_argument("--axis-limits", action="append", default=None,
                    metavar="AXIS=OFFSET:STEP",
                    help="a version-2 model's clamp and step limit of one axis [µm], e.g. "
                         "X=20:0.5 (repeat per axis); axes not named take --max-offset-um "
-                        "and --max-step-um")
+                        "and --max-step-um; with --live each may only tighten the "
+                        "config's limit of that axis (a larger one is refused)")
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
-                        "correct the model's state (Kalman update); default: never")
+                        "correct the model's state (Kalman update); default: never "
+                        "(replay only: refused with --live)")
     p.add_argument("--score-from", type=float, default=None, metavar="SECONDS",
                    help="measure the error from this time on [s]; default: after the "
                         "model's fit window (fit_window_s in model.json), or every row for "
                         "a model without one; 0 scores every row. The replay itself "
-                        "always starts at the first row")
-    p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+                        "always starts at the first row (replay only: refused with --live)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out "
+                   "(replay only: refused with --live)")
     p.set_defaults(func=main)
 
 
@@ -212,6 +218,26 @@ def _main_axes(args, model, ds, probe) -> int:
     return 0
 
 
+#: options of a replay that a live run has no use for: refused with --live, one line
+LIVE_REFUSES = (("record", "RECORD", "a live run reads its inputs from the config's "
+                 "transport, not from a record"),
+                ("out", "--out", "a live run writes stdout (JSON lines) and the config's "
+                 "log, not a folder"),
+                ("probe_every", "--probe-every", "a live run reads no measured growth to "
+                 "correct its state with"),
+                ("score_from", "--score-from", "a live run scores nothing (it has no "
+                 "measured growth)"),
+                ("force", "--force", "a live run writes no --out (its log is appended "
+                 "to, never replaced)"))
+
+
+def _refuse_replay_options(args) -> None:
+    """One line naming the first option of a replay given with ``--live``."""
+    for attr, opt, why in LIVE_REFUSES:
+        if getattr(args, attr, None) not in (None, False):
+            raise InputError(f"is for a replay, not with --live: {why}", opt)
+
+
 def main(args) -> int:
     """``arfem compensate``: the replay or the live loop on one BLAS thread. A version-2
     model's step is a few 400 x 400 products; with OpenBLAS's threads contending on a
@@ -238,19 +264,17 @@ def _load_record(args, model):
 
 
 def _main(args) -> int:
+    for name in ("max_offset_um", "max_step_um"):
+        v = getattr(args, name)
+        if not (v > 0):
+            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     if args.live is not None:
-        if args.record is not None or args.out is not None:
-            raise InputError("takes no RECORD and no --out (it reads stdin, writes stdout "
-                             "and the config's log)", "--live")
+        _refuse_replay_options(args)
         from arfem.scenarios.live import run_live
         return run_live(args)
     if args.record is None or args.out is None:
         raise InputError("a replay needs MODEL.json RECORD.toml --out DIR (or --live "
                          "CONFIG.toml)", "arfem compensate")
-    for name in ("max_offset_um", "max_step_um"):
-        v = getattr(args, name)
-        if not (v > 0):
-            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model, args.limits)
