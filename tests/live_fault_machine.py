@@ -184,11 +184,12 @@ def paper_model(d: Path) -> Path:
     return d / "model.json"
 
 
-def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name="live.toml"):
+def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name="live.toml",
+                 cycles=0):
     (d / name).write_text(
         f'[live]\ntransport = "opcua"\nmax_offset_um = {CLAMP}\nmax_step_um = {STEP}\n'
         f'period_s = 0.05\nstale_after_s = 1000\nmax_clock_jump_s = 3600\n'
-        f'status_every = 0\nlog = "{log}"\n'
+        f'status_every = 0\ncycles = {cycles}\nlog = "{log}"\n'
         f'[opcua]\nendpoint = "{endpoint}"\noffset_node = "{NODE.format("offset_um")}"\n'
         f'alarm_node = "{NODE.format("alarm")}"\ntime_node = "{NODE.format("time_s")}"\n'
         f'timeout_s = {timeout_s}\nreconnect_initial_s = 0.1\nreconnect_max_s = 0.4\n'
@@ -196,12 +197,14 @@ def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name=
     return d / name
 
 
-async def start_compensator(d: Path, cfg: Path, tag: str):
+async def start_compensator(d: Path, cfg: Path, tag: str, extra=(), model=None):
+    """``arfem compensate MODEL --live CFG [extra...]`` as a process (MODEL: d/model.json
+    unless given)."""
     out = open(d / f"{tag}.stdout", "w")
     err = open(d / f"{tag}.stderr", "w")
     p = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "arfem", "compensate", str(d / "model.json"), "--live",
-        str(cfg), stdout=out, stderr=err)
+        sys.executable, "-m", "arfem", "compensate", str(model or d / "model.json"),
+        "--live", str(cfg), *extra, stdout=out, stderr=err)
     out.close()
     err.close()
     return p
