@@ -53,18 +53,21 @@ import numpy as np
 
 
 
-def _fault_machine():
-    """``tests/live_fault_machine.py``, loaded from its file (the tests' helper)."""
+def _tests_module(name: str):
+    """``tests/<name>.py``, loaded from its file (the tests' helpers: the machines, the
+    box scenario), once."""
+    if name in sys.modules:
+        return sys.modules[name]
     import importlib.util
-    path = Path(__file__).resolve().parent.parent / "tests" / "live_fault_machine.py"
-    spec = importlib.util.spec_from_file_location("live_fault_machine", path)
+    path = Path(__file__).resolve().parent.parent / "tests" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod            # (its dataclasses look their module up)
     spec.loader.exec_module(mod)
     return mod
 
 
-_fm = _fault_machine()
+_fm = _tests_module("live_fault_machine")
 FaultMachine, free_port, CLAMP, STEP = _fm.FaultMachine, _fm.free_port, _fm.CLAMP, _fm.STEP
 log_lines, paper_model, start_compensator = _fm.log_lines, _fm.paper_model, \
     _fm.start_compensator
@@ -75,15 +78,6 @@ AXES_LIMITS = {"X": (15.0, 0.3), "Y": (2.0, 0.2), "Z": (3.0, 0.1)}
 #: ... and with a run folder's (``--model-dir``, e.g. the shipped spindle unit's): the
 #: limits issue 40 typed with --axis-limits
 RUN_LIMITS = {"X": (0.01, 0.0005), "Y": (0.3, 0.02), "Z": (3.0, 0.1)}
-
-
-def _tests_module(name: str):
-    """A module of ``tests/`` (the machines and the box scenario are the tests')."""
-    tests = str(Path(__file__).resolve().parent.parent / "tests")
-    if tests not in sys.path:
-        sys.path.insert(0, tests)
-    import importlib
-    return importlib.import_module(name)
 
 
 class ControllerFaults:
@@ -166,6 +160,7 @@ def box_model(d: Path, run_dir: Path | None = None):
     from arfem.scenarios.model_file import read_model
     from arfem.scenarios.replay_axes import record_columns
     if run_dir is None:
+        _tests_module("geometry_meshes")           # (the box scenario's import)
         box = _tests_module("test_model_v2_export").box_scenario
         assert arfem(["run", str(box(d, 0.0)), "--out", str(d / "run")]) == 0
         run_dir = d / "run"

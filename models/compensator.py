@@ -24,8 +24,18 @@ centre point's drift in X, Y, Z of a spindle unit from a mesh): C is p × n, D p
 d0 a p-vector, and each output carries the axis its offset is written to. The cycle is
 the same, per axis: offset_j = clamp(−ŷ_j, ±max_offset_j), rate-limited to
 ±max_step_j; an unusable input holds every axis (they share the inputs), a clamp or a
-rate limit is that axis's alarm (``clamped@X``). Version 1 is read and run exactly as
-before.
+rate limit is that axis's alarm (``clamped@X``). A version-1 model is one axis: the
+same per-axis clamp and rate limit run it (the same floats as before), its alarms
+untagged.
+
+What the controller holds (issue 40): the rate limit of each axis counts from the value
+that axis of the controller holds, given by a transport to
+:meth:`Compensator.resume_axis`, the one rule every transport calls: a value inside
+the axis's clamp is adopted; one beyond it, or not a finite number, is not -- the axis
+is held (``held_beyond_clamp`` / ``held_nonfinite``, offset NaN: not to be written) until
+the controller is seen holding a value inside; a read-back that differs from what was
+last set is ``external_change`` and the ramp starts from it. No offset beyond the clamp
+is ever produced, nor one more than a step from a value the controller was seen holding.
 """
 from __future__ import annotations
 
@@ -813,7 +823,9 @@ class Cycle:
         too, tagged with their axis (``clamped@X``, ``write_refused@Y:BadNotWritable``).
     held : bool
         True when the last offset was kept because an input was not usable (every axis
-        is held: they share the inputs).
+        is held: they share the inputs); for a version-1 model also while the controller
+        holds a value beyond the clamp or not a number (``offset_um`` NaN: nothing to
+        write). A version-2 model's axis held alone says so in its :class:`AxisCycle`.
     axes : tuple of AxisCycle
         Version 2: one per output, in the model's order; () for version 1.
     """

@@ -25,6 +25,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.model_file import read_model
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios.replay import Replay, replay
+from arfem.scenarios.replay_axes import axis_limits
 
 __all__ = ["parse_duration_s", "axis_limits", "add_parser", "main", "WRITES"]
 
@@ -164,41 +165,6 @@ def add_parser(sub) -> None:
     p.add_argument("--force", action="store_true", help="write into a non-empty --out "
                    "(replay only: refused with --live)")
     p.set_defaults(func=main)
-
-
-def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:
-    """(max offsets, max steps) per axis of a version-2 model [µm] from ``--axis-limits
-    AXIS=OFFSET:STEP`` items over the common limits; one line naming a bad item.
-
-    >>> from types import SimpleNamespace as N
-    >>> m = N(outputs=(N(axis="X"), N(axis="Z")))
-    >>> axis_limits(m, ["Z=20:0.5"], 50.0, 1.0)
-    ((50.0, 20.0), (1.0, 0.5))
-    """
-    axes = [o.axis for o in model.outputs]
-    off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
-    seen = set()
-    for item in items or ():
-        m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
-        if not axes:
-            raise InputError("is for a model with several axes (model_version 2)",
-                             "--axis-limits")
-        if not m or m.group(1) not in axes:
-            raise InputError(f"must be AXIS=OFFSET:STEP with AXIS one of "
-                             f"{', '.join(axes)}, got {item!r}", "--axis-limits")
-        try:
-            vals = float(m.group(2)), float(m.group(3))
-        except ValueError:
-            vals = (math.nan, math.nan)
-        if not all(math.isfinite(v) and v > 0 for v in vals):
-            raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
-        if m.group(1) in seen:             # two limits for one axis: which one is meant?
-            raise InputError(f"axis {m.group(1)} is given more than once, got {item!r}",
-                             "--axis-limits")
-        seen.add(m.group(1))
-        j = axes.index(m.group(1))
-        off[j], step[j] = vals
-    return tuple(off), tuple(step)
 
 
 def _main_axes(args, model, ds, probe) -> int:

@@ -11,7 +11,12 @@ and one JSON object per line on standard output is its answer, flushed at once,
 
 for any bridge that speaks lines (an MTConnect agent adapter, a PLC gateway). A line may
 also carry ``controller_offset_um``, the offset the controller holds (read back by the
-gateway): the rate limit then counts from it. Each cycle runs
+gateway), taken by the compensator's one rule (:func:`take_held`): inside the clamp the
+rate limit counts from it (a value that differs from the last answer is
+``external_change``); beyond the clamp or not a finite number the offset is answered
+``null`` (not to be written) with ``held_beyond_clamp`` / ``held_nonfinite`` until a
+line reports a value inside. The limits are the config's, tightened by the command line
+(:func:`with_command_line`). Each cycle runs
 :meth:`arfem.models.compensator.Compensator.step`, the call ``arfem compensate``'s replay
 makes, so replaying the logged inputs gives the same offsets.
 
@@ -23,8 +28,9 @@ Safety, per cycle (``docs/safety.md`` lists every fault):
   is written, flushed and fsync'ed before its offset leaves the process, so the log holds
   every offset the machine may have received;
 * **warm start**: the state is restored from the log's last good line (a torn last
-  line is ignored; a log of another model is not used); the ``started`` line says
-  ``"start": "warm"`` or ``"cold"``;
+  line is ignored; a log of another model is not used), and its offsets are taken by the
+  same rule as a line's (a value beyond the clamp there holds that axis); the
+  ``started`` line says ``"start": "warm"`` or ``"cold"`` and the limits in use;
 * a line that is not a reading (not JSON, nested too deeply, longer than 64 KiB, blank,
   not an object) is held and logged without advancing the model; an input missing, not
   finite or outside its plausible range (:func:`arfem.models.compensator.plausible_ranges`,
@@ -717,7 +723,7 @@ def with_command_line(cfg: LiveConfig, model, args) -> LiveConfig:
     is refused in one line (exit 2), so that a live run never runs looser than either.
     Axes not named by ``--axis-limits`` take ``--max-offset-um`` / ``--max-step-um``
     where given, else the config's (``[live.axes.<AXIS>]``, else ``[live]``)."""
-    from arfem.scenarios.compensate import axis_limits
+    from arfem.scenarios.replay_axes import axis_limits
     items = getattr(args, "axis_limits", None) or []
     common = (args.max_offset_um, args.max_step_um)
     if not model.axes:

@@ -34,8 +34,8 @@ writes the offset node and the alarm node in one request. The config::
     speed_rpm = "ns=2;s=Spindle.speed_rpm"
 
 A version-2 model (one output per axis) writes one offset node per axis instead of
-``offset_node``/``alarm_node``, each checked as above, read back on start and on every
-reconnect, and written in the same request as the others::
+``offset_node``/``alarm_node``, each checked as above, read back on start, on every
+reconnect and every cycle, and written in the same request as the others::
 
     [opcua.axes.X]
     offset_node = "ns=2;s=X.thermal_offset_um"
@@ -53,16 +53,25 @@ model's inputs are matched with ``[opcua.inputs]``: a node id that does not exis
 offset node that this client cannot write, or one whose type is not Double or Float, is
 refused in one line naming the key and node (exit 2).
 
-Bumpless: the offset the controller holds is read on start and on every reconnect, and
-the rate limit counts from it (the first write is at most ``max_step_um`` from it); the
-state is warm-started from the cycle log (:func:`arfem.scenarios.live.warm_start`).
+Bumpless: the offset the controller holds is read on start, on every reconnect and in
+every cycle (in the cycle's one read request, with the inputs), and taken by
+:func:`arfem.scenarios.live.take_held` -- the compensator's one rule
+(:meth:`arfem.models.compensator.Compensator.resume_axis`): inside the axis's clamp it
+is adopted and the rate limit counts from it (the next write is at most
+``max_step_um`` from it; a value that differs from the last one written is
+``external_change``); beyond the clamp or not a finite number the axis is held
+(``held_beyond_clamp`` / ``held_nonfinite``) and its offset node is not written -- its
+alarm node is -- until it holds a value inside. A read-back that fails
+(``readback_failed:STATUS``) leaves that axis unwritten for the cycle. The state is
+warm-started from the cycle log (:func:`arfem.scenarios.live.warm_start`); the log's
+offsets are not used over OPC UA.
 
 Per cycle: a bad status, a non-finite value or one outside its plausible range holds
 the offset (``missing:NAME`` / ``nonfinite:NAME`` / ``out_of_range:NAME``); the machine
 clock (``time_node``) is handled by :func:`arfem.scenarios.live.clocked_step` (stale,
 backwards, jump, missed intervals in closed form). The cycle's log line is written and
 fsync'ed before the write request leaves (write-ahead). Every write is checked: a
-refused offset write (``write_refused:STATUS``, e.g. a read-only or deleted node) puts
+refused offset write (``write_refused:STATUS``, e.g. a read-only node) puts
 the command back to the controller's last accepted value and raises the alarm until a
 write is accepted; a failed or timed-out request drops the connection
 (``connection_lost``), which is retried with backoff, and on reconnect the controller's
