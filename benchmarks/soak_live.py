@@ -151,27 +151,6 @@ def in_process_jump_times() -> dict:
     return out
 
 
-def box_model(d: Path, run_dir: Path | None = None):
-    """The three-axis model ``arfem run`` writes (into ``run_dir`` already, e.g. for
-    the shipped spindle unit; else for the tests' small box, now) and the rows of its
-    record (the machine serves them in lockstep)."""
-    from arfem.scenarios.cli import main as arfem
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import record_columns
-    if run_dir is None:
-        _tests_module("geometry_meshes")           # (the box scenario's import)
-        box = _tests_module("test_model_v2_export").box_scenario
-        assert arfem(["run", str(box(d, 0.0)), "--out", str(d / "run")]) == 0
-        run_dir = d / "run"
-    model = read_model(run_dir / "model.json")
-    ds = load_dataset(run_dir / "record.toml")
-    inputs, _ = record_columns(model, ds, "record")
-    rows = [{"time_s": float(ds.time_s[k]), **{nm: float(v[k]) for nm, v in inputs.items()}}
-            for k in range(ds.time_s.size)]
-    return run_dir / "model.json", model, rows
-
-
 class _One:
     """The one-axis machine (tests/live_fault_machine.py) behind the soak's interface."""
 
@@ -210,8 +189,11 @@ class _Three(_One):
     limits = AXES_LIMITS
 
     def __init__(self, d, on_advance, run_dir=None):
-        self.model_path, model, rows = box_model(d, run_dir)
-        if run_dir is not None:
+        _tests_module("geometry_meshes")           # (the box scenario's imports)
+        _tests_module("test_model_v2_export")
+        run_dir, model, rows = _tests_module("axes_machine").box_run(d, run_dir)
+        self.model_path = run_dir / "model.json"
+        if run_dir != d / "run":
             self.limits = RUN_LIMITS
         self.inputs = [i.name for i in model.inputs]
         self.rows = rows

@@ -141,6 +141,28 @@ class AxesMachine:
         await self.publish()
 
 
+def box_run(d, run_dir=None) -> tuple:
+    """(run folder, version-2 model, rows) for the machine to serve: the folder ``arfem
+    run`` writes for the small box of tests/test_model_v2_export.py (run here, into
+    ``d/run``), or ``run_dir`` written before (e.g. for the shipped spindle unit); rows
+    are the record's, ``time_s`` and each input the model reads, from row 0."""
+    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.replay_axes import record_columns
+    if run_dir is None:
+        from test_model_v2_export import box_scenario
+
+        from arfem.scenarios.cli import main
+        assert main(["run", str(box_scenario(d, 0.0)), "--out", str(d / "run")]) == 0
+        run_dir = d / "run"
+    model = read_model(run_dir / "model.json")
+    ds = load_dataset(run_dir / "record.toml")
+    inputs, _ = record_columns(model, ds, "record")
+    rows = [{"time_s": float(ds.time_s[k]), **{nm: float(v[k]) for nm, v in inputs.items()}}
+            for k in range(ds.time_s.size)]
+    return run_dir, model, rows
+
+
 def write_config(d, endpoint: str, inputs, *, log="live.log", name="live.toml",
                  limits=None, cycles=0) -> object:
     """The live config: per-axis limits (``limits``: axis → (clamp, step)), one offset

@@ -87,21 +87,10 @@ def q_rows(n, q=3000.0):
 @pytest.fixture(scope="module")
 def box(tmp_path_factory):
     """The version-2 model ``arfem run`` writes for a small box (axes Y, Z, X) and its
-    record's rows (tests/test_model_v2_export.py's scenario)."""
-    from test_model_v2_export import box_scenario
-
-    from arfem.scenarios.cli import main
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import record_columns
-    d = tmp_path_factory.mktemp("box")
-    assert main(["run", str(box_scenario(d, 0.0)), "--out", str(d / "run")]) == 0
-    model = read_model(d / "run" / "model.json")
-    ds = load_dataset(d / "run" / "record.toml")
-    inputs, _ = record_columns(model, ds, "record")
-    rows = [{"time_s": float(ds.time_s[k]), **{nm: float(v[k]) for nm, v in inputs.items()}}
-            for k in range(1, ds.time_s.size)]
-    return d / "run", model, rows
+    record's rows from row 1 (a reading ends each interval)."""
+    from axes_machine import box_run
+    run_dir, model, rows = box_run(tmp_path_factory.mktemp("box"))
+    return run_dir, model, rows[1:]
 
 
 def test_one_axis_never_takes_up_a_value_beyond_its_clamp(tmp_path):
