@@ -97,8 +97,8 @@ def main() -> int:
           f"{np.percentile(busy, 99):.2f} ms, max {busy.max():.2f} ms")
     total = np.array([c["last_cycle_total_s"] for c in cyc
                       if c.get("last_cycle_total_s") is not None]) * 1e3
-    print(f"whole cycle (read -> offset -> logged and {'flushed' if a.no_fsync else 'fsync'}"
-          f"'ed -> write answered): median {np.median(total):.2f} ms, p99 "
+    print(f"whole cycle (read -> offset -> logged and "
+          f"{'flushed' if a.no_fsync else 'fsynced'} -> write answered): median {np.median(total):.2f} ms, p99 "
           f"{np.percentile(total, 99):.2f} ms, max {total.max():.2f} ms "
           f"({total.size} cycles, fsync {'off' if a.no_fsync else 'on'})")
     without, with_ = readback
@@ -114,9 +114,11 @@ def main() -> int:
 async def readback_cost(url: str, prefix: str, n: int = 300):
     """Wall times [ms] of ``n`` read requests of the twin's input and time nodes, and of
     ``n`` that also read its offset node (the per-cycle read-back), alternating."""
+    import logging
     import time as _t
 
     from asyncua import Client, ua
+    logging.getLogger("asyncua").setLevel(logging.ERROR)    # (its session-timeout note)
     ids = [ua.NodeId.from_string(prefix + x) for x in ("q_W_m2", "time_s")]
     back = ids + [ua.NodeId.from_string(prefix + "offset_um")]
     out = ([], [])

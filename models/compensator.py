@@ -906,6 +906,8 @@ class Compensator:
     _speed_last: float | None = field(init=False, default=None)
     _held: list = field(init=False)             # per axis: None, or why it is not written
     _events: list = field(init=False)           # per axis: alarms for the next cycle
+    _d0: np.ndarray = field(init=False)
+    _lims: tuple = field(init=False)
 
     def __post_init__(self):
         p = len(self.model.outputs)
@@ -920,6 +922,8 @@ class Compensator:
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
         n_axes = max(p, 1)                          # version 1: one axis
+        self._d0 = self.model.d0_vector()           # (the model is frozen)
+        self._lims = (None, [])                     # (limits' fields, per axis), cached
         self.offsets_um = np.zeros(n_axes)
         self._held = [None] * n_axes
         self._events = [[] for _ in range(n_axes)]
@@ -937,11 +941,15 @@ class Compensator:
 
     def limits(self, j: int) -> tuple[float, float]:
         """(max_offset_um, max_step_um) of axis ``j`` [µm] (0 for a version-1 model)."""
-        out = []
-        for v in (self.max_offset_um, self.max_step_um):
-            vals = v if isinstance(v, (tuple, list)) else (v,)
-            out.append(float(vals[j] if len(vals) > 1 else vals[0]))
-        return out[0], out[1]
+        key = (self.max_offset_um, self.max_step_um)
+        if self._lims[0] != key:                    # computed once per value of the fields
+            per = []
+            for v in key:
+                vals = v if isinstance(v, (tuple, list)) else (v,)
+                per.append([float(vals[i] if len(vals) > 1 else vals[0])
+                            for i in range(len(self.offsets_um))])
+            self._lims = (key, list(zip(*per)))
+        return self._lims[1][j]
 
     def step(self, inputs: Mapping[str, float | None], alarms=(), advance: bool = True) -> Cycle:
         """One cycle: read the inputs of interval k, advance the state, set the offset.
@@ -1012,26 +1020,37 @@ class Compensator:
         model tags each axis's alarms (``clamped@X``). ``D``: the interval's (a speed
         schedule's), else the model's."""
         mdl = self.model
-        D = mdl.D if D is None else D
-        y = (np.full(len(self.offsets_um), np.nan) if u is None
-             else mdl.C @ self.x + D @ u + mdl.d0_vector())
+        y = None
+        if u is not None:
+            y = mdl.C @ self.x + (mdl.D if D is None else D) @ u + self._d0
+        if not mdl.outputs:                         # version 1: the cycle is the axis
+            off, own = self._axis_result(0, None if y is None else -float(y[0]))
+            return Cycle(off, math.nan if y is None else float(y[0]),
+                         tuple(alarms + own) if own else tuple(alarms),
+                         y is None or math.isnan(off))
         axes = []
-        for j in range(len(self.offsets_um)):
-            if u is None:                           # every axis keeps what it holds
-                off, own = float(self.offsets_um[j]), [] if self._held[j] is None \
-                    else [self._held[j]]
-            else:
-                off, own = self._axis_offset(j, -float(y[j]))
-            own += self._events[j]
-            self._events[j] = []
-            held = u is None or math.isnan(off)
-            if not mdl.outputs:                     # version 1: the cycle is the axis
-                return Cycle(off, float(y[0]), tuple(alarms + own), held)
-            o = mdl.outputs[j]
+        for j, o in enumerate(mdl.outputs):
+            off, own = self._axis_result(j, None if y is None else -float(y[j]))
             alarms += [f"{a.split(':')[0]}@{o.axis}" + (":" + a.split(":", 1)[1]
                                                          if ":" in a else "") for a in own]
-            axes.append(AxisCycle(o.axis, o.name, off, float(y[j]), tuple(own), held))
-        return Cycle(float("nan"), float("nan"), tuple(alarms), u is None, tuple(axes))
+            axes.append(AxisCycle(o.axis, o.name, off, math.nan if y is None else float(y[j]),
+                                  tuple(own), y is None or math.isnan(off)))
+        return Cycle(math.nan, math.nan, tuple(alarms), y is None, tuple(axes))
+
+    def _axis_result(self, j: int, want: float | None) -> tuple[float, list]:
+        """Axis ``j``'s offset and own alarms this cycle: :meth:`_axis_offset` of the
+        wanted correction, or (``want`` None: the inputs were not usable) what it holds,
+        with its hold's alarm; then the events seen since the last cycle
+        (``external_change``)."""
+        if want is not None:
+            off, own = self._axis_offset(j, want)
+        else:
+            off, own = float(self.offsets_um[j]), ([] if self._held[j] is None
+                                                   else [self._held[j]])
+        if self._events[j]:
+            own += self._events[j]
+            self._events[j] = []
+        return off, own
 
     def _axis_offset(self, j: int, want: float) -> tuple[float, list]:
         """Axis ``j``'s offset for the wanted correction ``want`` [µm] and its own
