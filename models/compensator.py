@@ -906,6 +906,7 @@ class Compensator:
     _speed_last: float | None = field(init=False, default=None)
     _held: list = field(init=False)             # per axis: None, or why it is not written
     _events: list = field(init=False)           # per axis: alarms for the next cycle
+    _known: list = field(init=False)            # per axis: its value set or adopted
     _d0: np.ndarray = field(init=False)
     _lims: tuple = field(init=False)
 
@@ -927,6 +928,7 @@ class Compensator:
         self.offsets_um = np.zeros(n_axes)
         self._held = [None] * n_axes
         self._events = [[] for _ in range(n_axes)]
+        self._known = [False] * n_axes              # (0 at a cold start is assumed)
 
     @property
     def offset_um(self) -> float:
@@ -1073,6 +1075,7 @@ class Compensator:
             want = held + math.copysign(step, want - held)
             own.append("rate_limited")
         self.offsets_um[j] = want
+        self._known[j] = True
         return float(want), own
 
     def resume_axis(self, j: int, offset_um, readback: bool = False) -> str | None:
@@ -1082,9 +1085,10 @@ class Compensator:
 
         * inside the axis's clamp (|v| <= max_offset_um): adopted; the next offset is at
           most the axis's step from it. With ``readback`` (a value read again while
-          running), a value that differs from what this compensator last set (by more
-          than :data:`READBACK_TOLERANCE` relative) raises ``external_change`` on the
-          next cycle: someone else changed it; the ramp starts from it;
+          running), a value that differs from what this compensator last set or took
+          (by more than :data:`READBACK_TOLERANCE` relative; not the 0 a cold start
+          assumes) raises ``external_change`` on the next cycle: someone else changed
+          it; the ramp starts from it;
         * beyond the clamp, or not a finite number (None, NaN, ±inf, not a number):
           NOT adopted; the axis raises ``held_beyond_clamp`` or ``held_nonfinite`` on
           every cycle and is not written (NaN) until a value inside the clamp is taken.
@@ -1113,9 +1117,9 @@ class Compensator:
             self.offsets_um[j] = math.nan
             return kind
         known = float(self.offsets_um[j])
-        changed = (readback and self._held[j] is None and math.isfinite(known)
+        changed = (readback and self._known[j] and self._held[j] is None
                    and abs(v - known) > READBACK_TOLERANCE * max(1.0, abs(known)))
-        self._held[j] = None
+        self._held[j], self._known[j] = None, True
         self.offsets_um[j] = float(v)
         if changed:
             self._events[j].append("external_change")

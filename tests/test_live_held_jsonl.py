@@ -124,6 +124,20 @@ def test_one_axis_never_takes_up_a_value_beyond_its_clamp(tmp_path):
     assert log[-1]["event"] == "stopped" and log[-1]["last_offset_um"] == g.offset(70)
 
 
+def test_a_cold_starts_first_read_back_is_taken_without_an_external_change(tmp_path):
+    """At a cold start the compensator assumes 0 until told: the first line's 2.0 is
+    adopted (the first write within a step of it) and is not someone else's change; a
+    later difference is."""
+    model = ar1_model(0.99, 1e-3, dtau_s=60.0)
+
+    def on_advance(g, n):
+        if n == 5:
+            g.held[None] = -1.0
+    g, _ = go(tmp_path, model, q_rows(10), {None: 2.0}, ONE, on_advance=on_advance)
+    assert abs(g.offset(1) - 2.0) <= 0.1 + 1e-12 and "external_change" not in g.alarms(1)
+    assert [n for n in range(1, 11) if "external_change" in g.alarms(n)] == [6]
+
+
 def _reference(tmp_path, model, rows):
     g, _ = go(tmp_path, model, rows, {ax: 0.0 for ax in model.axes}, AXES, log="ref.log")
     return g
