@@ -200,7 +200,8 @@ LIVE_REFUSES = (("record", "RECORD", "a live run reads its inputs from the confi
 def _refuse_replay_options(args) -> None:
     """One line naming the first option of a replay given with ``--live``."""
     for attr, opt, why in LIVE_REFUSES:
-        if getattr(args, attr, None) not in (None, False):
+        v = getattr(args, attr, None)
+        if v is not None and v is not False:        # (not `in`: --score-from 0 == False)
             raise InputError(f"is for a replay, not with --live: {why}", opt)
 
 

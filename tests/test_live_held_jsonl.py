@@ -277,6 +277,7 @@ def test_limits_typed_with_live_tighten_the_config(box, tmp_path):
 @pytest.mark.parametrize("extra, key", [
     (["--probe-every", "nonsense"], "--probe-every"),
     (["--score-from", "5"], "--score-from"),
+    (["--score-from", "0"], "--score-from"),
     (["--force"], "--force"),
     (["--max-offset-um", "nan"], "--max-offset-um"),
     (["--max-offset-um", "30"], "--max-offset-um"),
