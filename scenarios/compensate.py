@@ -25,6 +25,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.model_file import read_model
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios.replay import Replay, replay
+from arfem.scenarios.replay_axes import axis_limits
 
 __all__ = ["parse_duration_s", "axis_limits", "add_parser", "main", "WRITES"]
 
@@ -153,59 +154,30 @@ def add_parser(sub) -> None:
                         "node every period_s) or JSON lines on stdin/stdout "
                         "(docs: arfem compensate)")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
-                   help="largest |offset| written [µm] (default: no limit)")
+                   help="largest |offset| written [µm] (default: no limit; with --live "
+                        "the config's, and a value given here may only tighten it: a "
+                        "larger one is refused)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
-                   help="largest change of the offset per cycle [µm] (default: no limit)")
+                   help="largest change of the offset per cycle [µm] (default: no limit; "
+                        "with --live as --max-offset-um)")
     p.add_argument("--axis-limits", action="append", default=None,
                    metavar="AXIS=OFFSET:STEP",
                    help="a version-2 model's clamp and step limit of one axis [µm], e.g. "
                         "X=20:0.5 (repeat per axis); axes not named take --max-offset-um "
-                        "and --max-step-um")
+                        "and --max-step-um; with --live each may only tighten the "
+                        "config's limit of that axis (a larger one is refused)")
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
-                        "correct the model's state (Kalman update); default: never")
+                        "correct the model's state (Kalman update); default: never "
+                        "(replay only: refused with --live)")
     p.add_argument("--score-from", type=float, default=None, metavar="SECONDS",
                    help="measure the error from this time on [s]; default: after the "
                         "model's fit window (fit_window_s in model.json), or every row for "
                         "a model without one; 0 scores every row. The replay itself "
-                        "always starts at the first row")
-    p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+                        "always starts at the first row (replay only: refused with --live)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out "
+                   "(replay only: refused with --live)")
     p.set_defaults(func=main)
-
-
-def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:
-    """(max offsets, max steps) per axis of a version-2 model [µm] from ``--axis-limits
-    AXIS=OFFSET:STEP`` items over the common limits; one line naming a bad item.
-
-    >>> from types import SimpleNamespace as N
-    >>> m = N(outputs=(N(axis="X"), N(axis="Z")))
-    >>> axis_limits(m, ["Z=20:0.5"], 50.0, 1.0)
-    ((50.0, 20.0), (1.0, 0.5))
-    """
-    axes = [o.axis for o in model.outputs]
-    off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
-    seen = set()
-    for item in items or ():
-        m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
-        if not axes:
-            raise InputError("is for a model with several axes (model_version 2)",
-                             "--axis-limits")
-        if not m or m.group(1) not in axes:
-            raise InputError(f"must be AXIS=OFFSET:STEP with AXIS one of "
-                             f"{', '.join(axes)}, got {item!r}", "--axis-limits")
-        try:
-            vals = float(m.group(2)), float(m.group(3))
-        except ValueError:
-            vals = (math.nan, math.nan)
-        if not all(math.isfinite(v) and v > 0 for v in vals):
-            raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
-        if m.group(1) in seen:             # two limits for one axis: which one is meant?
-            raise InputError(f"axis {m.group(1)} is given more than once, got {item!r}",
-                             "--axis-limits")
-        seen.add(m.group(1))
-        j = axes.index(m.group(1))
-        off[j], step[j] = vals
-    return tuple(off), tuple(step)
 
 
 def _main_axes(args, model, ds, probe) -> int:
@@ -223,6 +195,27 @@ def _main_axes(args, model, ds, probe) -> int:
         write_html_report(stage)
     print(terminal_line(res, args.out))
     return 0
+
+
+#: options of a replay that a live run has no use for: refused with --live, one line
+LIVE_REFUSES = (("record", "RECORD", "a live run reads its inputs from the config's "
+                 "transport, not from a record"),
+                ("out", "--out", "a live run writes stdout (JSON lines) and the config's "
+                 "log, not a folder"),
+                ("probe_every", "--probe-every", "a live run reads no measured growth to "
+                 "correct its state with"),
+                ("score_from", "--score-from", "a live run scores nothing (it has no "
+                 "measured growth)"),
+                ("force", "--force", "a live run writes no --out (its log is appended "
+                 "to, never replaced)"))
+
+
+def _refuse_replay_options(args) -> None:
+    """One line naming the first option of a replay given with ``--live``."""
+    for attr, opt, why in LIVE_REFUSES:
+        v = getattr(args, attr, None)
+        if v is not None and v is not False:        # (not `in`: --score-from 0 == False)
+            raise InputError(f"is for a replay, not with --live: {why}", opt)
 
 
 def main(args) -> int:
@@ -252,19 +245,17 @@ def _load_record(args, model):
 
 
 def _main(args) -> int:
+    for name in ("max_offset_um", "max_step_um"):
+        v = getattr(args, name)
+        if not (v > 0):
+            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     if args.live is not None:
-        if args.record is not None or args.out is not None:
-            raise InputError("takes no RECORD and no --out (it reads stdin, writes stdout "
-                             "and the config's log)", "--live")
+        _refuse_replay_options(args)
         from arfem.scenarios.live import run_live
         return run_live(args)
     if args.record is None or args.out is None:
         raise InputError("a replay needs MODEL.json RECORD.toml --out DIR (or --live "
                          "CONFIG.toml)", "arfem compensate")
-    for name in ("max_offset_um", "max_step_um"):
-        v = getattr(args, name)
-        if not (v > 0):
-            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model, args.limits)
