@@ -862,7 +862,8 @@ class SweepResult:
     def to_json(self) -> str:
         """The report and the rows as a JSON document."""
         return json_text({**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                             if f.name not in ("failures", "rows")},
+                             if f.name not in ("out", "failures", "rows")},
+                          "out": str(self.out),
                           "failures": [f._asdict() for f in self.failures],
                           "rows": list(self.rows)})
 
