@@ -274,3 +274,21 @@ def test_sweep_of_the_rod_and_a_mesh_gives_results_csv(files, tmp_path, kind):
     again = arfem.sweep(files[f"sweep_{kind}"], tmp_path / "out", workers=1)
     assert (again.n_stored_before, again.n_computed) == (2, 0) and again.rows == rep.rows
     assert json.loads(rep.to_json())["rows"][0]["point_key"] == rep.rows[0]["point_key"]
+
+
+def test_the_spindle_gallery_example_uses_the_public_api_only():
+    """docs/examples/plot_07_spindle_unit.py runs the shipped unit through arfem.run and
+    arfem.shipped_scenario: no subprocess, no module under arfem imported (it used
+    ``python -m arfem run`` and ``arfem.scenarios.__file__``: no public function ran a
+    mesh scenario)."""
+    import ast
+    src = (Path(__file__).resolve().parents[1] / "docs" / "examples"
+           / "plot_07_spindle_unit.py").read_text("utf-8")
+    tree = ast.parse(src)
+    imported = {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    imported |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert "arfem" in imported and "subprocess" not in imported
+    assert not [m for m in imported if m and m.startswith("arfem.")]
+    used = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+            and isinstance(n.value, ast.Name) and n.value.id == "arfem"}
+    assert {"run", "shipped_scenario"} <= used and used <= set(arfem.__all__)
