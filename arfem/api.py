@@ -712,8 +712,8 @@ class CheckResult:
     criteria : tuple of arfem.scenarios.checking.Criterion
         Each criterion (frozen): ``name``, ``value`` against ``limit`` (in ``unit``),
         ``passed``, and the ``message`` ``arfem check`` prints. The rod: max|AR − FEM|
-        [% of the FEM peak] and |C1 fitted − C1| [-]; a mesh: max|AR − FEM| per
-        displacement sensor [% of the largest FEM drift].
+        [% of the FEM peak] and the C1 difference (fitted to the FEM, of the AR) [-]; a
+        mesh: max|AR − FEM| per displacement sensor [% of the largest FEM drift].
     kind : str
         ``"rod"`` or ``"mesh"``.
     file : str
