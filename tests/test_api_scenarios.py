@@ -4,8 +4,10 @@ user's mesh alike and give one result type each.
 
 What is verified and why:
 * each function on a rod scenario (a coarse one: Δτ = 60 s, a 2 × 8 mesh) and on a
-  small box mesh (tests/geometry_meshes.py, P1, 2 h) returns the one result type, with
-  ``kind`` saying which;
+  small box mesh (tests/geometry_meshes.py, P1, 2 h; a displacement, a thermometer and
+  a tilt) returns the one result type, with ``kind`` saying which (the box's tilt found
+  that a mesh sweep over a scenario with a tilt ended in a KeyError: its stored points
+  were checked, and its README written, under the displacement's ``d_`` names);
 * the numbers are the CLI's: the same scenario through ``arfem run``, ``arfem check
   --json`` and ``arfem sweep`` (in process, :func:`arfem.scenarios.cli.main`) writes the
   arrays and figures the API returns (``timeseries.csv``, ``sensors.csv``, the check's
@@ -46,12 +48,22 @@ picture = false
 """
 
 
+#: A tilt on the box's free face, from two x probes 0.1 m apart along y [µrad].
+TILT = """
+[[sensor]]
+name = "yaw"
+quantity = "tilt"
+points = [[0.3, 0.05, 0.1], [0.3, 0.15, 0.1]]
+direction = "x"
+"""
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory) -> dict:
     """The rod's and the box's scenario files, and a sweep over each."""
     d = tmp_path_factory.mktemp("api")
     write_msh(box_meshio(), d / "box.msh")
-    (d / "box.toml").write_text(BOX_TOML, encoding="utf-8")
+    (d / "box.toml").write_text(BOX_TOML + TILT, encoding="utf-8")
     (d / "rod.toml").write_text(ROD_TOML, encoding="utf-8")
     (d / "sweep_box.toml").write_text('[sweep]\nname = "box_h"\nbase = "box.toml"\n'
                                       '[sweep.grid]\n"convection.right.h_W_m2K" = [5.0, 20.0]\n',
@@ -80,7 +92,7 @@ def test_load_scenario_reads_the_rod_and_a_mesh_with_their_kind(files):
     rod, box = arfem.load_scenario(files["rod"]), arfem.load_scenario(files["box"])
     assert (rod.kind, rod.name, rod.dtau_s) == ("rod", "small_rod", 60.0)
     assert (box.kind, box.name, box.source) == ("mesh", "box", str(files["box"]))
-    assert [s.name for s in box.scenario.sensors] == ["tip_x", "mid"]
+    assert [s.name for s in box.scenario.sensors] == ["tip_x", "mid", "yaw"]
     assert box.max_abs_diff_pct_of_peak is None          # the file has no [check]
 
 
@@ -150,15 +162,18 @@ def test_solve_a_mesh_gives_sensors_csv(files, cli_runs):
     csv = pd.read_csv(cli_runs["box"] / "sensors.csv")
     df = r.to_dataframe()
     assert (r.kind, r.scenario, r.model, r.solver) == ("mesh", "box", "mesh", "reduced")
-    assert list(df.columns) == ["time_s", "d_tip_x_um", "T_mid_C"]
-    assert [c.quantity for c in r.channels] == ["displacement", "temperature"]
+    assert list(df.columns) == ["time_s", "d_tip_x_um", "T_mid_C", "tilt_yaw_urad"]
+    assert [c.quantity for c in r.channels] == ["displacement", "temperature", "tilt"]
+    assert [c.unit for c in r.channels] == ["µm", "°C", "µrad"]
     assert set(r.displacement_um) == {"tip_x"} and set(r.temperature_C) == {"mid"}
-    assert r.tilt_urad == {} and r.heat_J is None
+    assert set(r.tilt_urad) == {"yaw"} and r.heat_J is None
+    assert np.abs(r.tilt_urad["yaw"]).max() > 0.0
     for col in df.columns:
         np.testing.assert_allclose(df[col].to_numpy(), csv[col].to_numpy(), rtol=1e-9)
     assert r.displacement_um["tip_x"].max() > 1.0        # the heater moves the tip [µm]
     doc = json.loads(r.to_json())
-    assert [c["column"] for c in doc["channels"]] == ["d_tip_x_um", "T_mid_C"]
+    assert [c["column"] for c in doc["channels"]] == ["d_tip_x_um", "T_mid_C",
+                                                      "tilt_yaw_urad"]
     assert doc["channels"][0]["values"] == df["d_tip_x_um"].tolist()
     with pytest.raises(AttributeError, match="tip_x"):
         r.growth_um
@@ -220,7 +235,7 @@ def test_compare_a_mesh_measures_what_check_gates(files, cli_runs):
     corrected (slowest-mode) error in % of the largest drift is the value arfem check
     gates, its paper (lumped) error the one check reports in its notes."""
     c = arfem.compare(files["box"])
-    assert c.kind == "mesh" and list(c.fem_um) == ["tip_x"]        # no thermometer
+    assert c.kind == "mesh" and list(c.fem_um) == ["tip_x"]   # no thermometer, no tilt
     assert list(c.to_dataframe().columns) == ["time_s", "fem_tip_x_um", "ar_tip_x_um",
                                               "ar_corrected_tip_x_um"]
     case = arfem.load_scenario(files["box"])             # the check's Δτ: no [check]
