@@ -210,7 +210,7 @@ def test_run_writes_what_arfem_run_writes_and_returns_it(files, cli_runs, tmp_pa
         got, want = ((r.displacement_um["tip_x"], csv["d_tip_x_um"]) if k == "box" else
                      (r.growth_um, csv["fem_growth_um"]))
         np.testing.assert_allclose(got, want.to_numpy(), rtol=1e-9)
-    with pytest.raises(arfem.InputError, match="not empty|arfem did not write|exists"):
+    with pytest.raises(arfem.InputError, match="mine: is not empty"):
         (tmp_path / "mine").mkdir()
         (tmp_path / "mine" / "notes.txt").write_text("mine")
         arfem.run(files["rod"], tmp_path / "mine")
