@@ -37,6 +37,7 @@ from typing import Mapping
 import numpy as np
 
 from arfem.params import InputError
+from arfem.ranges import RANGES, reading_quantity, reading_range
 
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
@@ -656,8 +657,9 @@ def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "p
 INFORMATIVE = frozenset({"clamped", "rate_limited", "extrapolated", "outside_schedule"})
 
 #: no spindle's thermal growth reaches 1 mm: an input whose steady-state share of the
-#: predicted growth would exceed this is not a reading [µm]
-PLAUSIBLE_GROWTH_UM = 1000.0
+#: predicted growth would exceed this is not a reading [µm] (the growth's range in the
+#: one table of ranges, :data:`arfem.ranges.RANGES`)
+PLAUSIBLE_GROWTH_UM = RANGES["growth_um"][1]
 
 #: missed intervals up to this many are stepped one by one (the same floats as a replay
 #: that saw them); more are stepped in closed form (:func:`propagate`)
@@ -703,15 +705,18 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     """The range [lo, hi] each input's raw reading must lie in to be fed to the state.
 
     A reading outside is a bad reading (``out_of_range:NAME``: the offset is held, the
-    state never sees it; issue 28). Defaults, by the input's name and unit:
+    state never sees it; issue 28). The ranges are the one table's
+    (:func:`arfem.ranges.reading_range`, which the record reader applies to every
+    record replayed or diagnosed), narrowed by the model:
 
-    * a heat input (``q_*`` or a unit in W): >= 0;
+    * a heat input (``q_*`` or a unit in W/m²: 0 to 1e7 W/m²; ``P_*_W`` or a unit in
+      W: 0 to 1 MW);
     * a speed (``*_rpm``): 0 to twice the fastest speed of its map or speed schedule (or
-      100 000 /min);
+      the table's 100 000 /min);
     * an ambient temperature (``ambient*``): -10 to 50 °C; any other ``*_C``: -10 to
       150 °C;
-    * every input whose share of the steady-state growth, C (I − A)⁻¹ B + D per unit,
-      is known: no more than :data:`PLAUSIBLE_GROWTH_UM` (1 mm) of growth.
+    * every other input whose share of the steady-state growth, C (I − A)⁻¹ B + D per
+      unit, is known: no more than :data:`PLAUSIBLE_GROWTH_UM` (1 mm) of growth.
 
     ``overrides`` maps an input name to ``(lo, hi)`` (the config's ``[live.ranges]``).
 
@@ -732,20 +737,19 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     out = {}
     for j, spec in enumerate(model.inputs):
         nm, unit = spec.name, spec.unit
-        lo, hi = -math.inf, math.inf
-        if nm.startswith("q_") or unit.startswith("W"):
-            lo = 0.0
-        if nm.endswith("_rpm"):
+        kind = reading_quantity(nm, unit)
+        lo, hi = reading_range(nm, unit)
+        if kind == "speed_rpm":
             m = model.input_maps.get(nm)
             if m is None and model.schedule is not None and model.schedule.input == nm:
                 m = (model.schedule.speeds_rpm,)        # its tabulated speeds
-            lo, hi = 0.0, (2.0 * max(float(m[0][-1]), 1.0) if m is not None else 1e5)
-        elif nm.endswith("_C") or unit in ("°C", "degC", "C"):
-            lo, hi = (-10.0, 50.0) if "ambient" in nm else (-10.0, 150.0)
-        elif nm not in model.input_maps and abs(dc[j]) > 0:
+            if m is not None:
+                hi = 2.0 * max(float(m[0][-1]), 1.0)
+        elif kind not in ("ambient_C", "temperature_C") and nm not in model.input_maps \
+                and abs(dc[j]) > 0:
             ref = model.input_offsets.get(nm, 0.0)
             half = PLAUSIBLE_GROWTH_UM / abs(float(dc[j]))
-            lo, hi = max(lo, ref - half), ref + half
+            lo, hi = max(lo, ref - half), min(hi, ref + half)
         out[nm] = (float(lo), float(hi))
     for nm, (lo, hi) in (overrides or {}).items():
         out[nm] = (float(lo), float(hi))

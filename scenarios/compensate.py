@@ -240,14 +240,15 @@ def _load_record(args, model):
     """The record: contract v3 (a ``[model]`` table, ``d_<sensor>_um`` channels, read by
     :mod:`arfem.scenarios.axes_record`, for a version-2 model only) or the contract's
     version 1/2 (``growth_um``)."""
-    from arfem.scenarios.georecord import is_mesh_record
-    if is_mesh_record(args.record):
+    from arfem.scenarios.dataset import load_dataset, read_record_doc
+    doc = read_record_doc(args.record, args.limits)      # the one reader: TOML once
+    if doc.is_mesh:
         from arfem.scenarios.axes_record import load_axes_record, require_axes_model
-        ds = load_axes_record(args.record)
+        from arfem.scenarios.georecord import read_mesh_record
+        ds = load_axes_record(read_mesh_record(args.record, args.limits, doc))
         require_axes_model(model, ds, str(args.record))
         return ds
-    from arfem.scenarios.dataset import load_dataset
-    return load_dataset(args.record, args.limits)
+    return load_dataset(doc, args.limits)
 
 
 def _main(args) -> int:

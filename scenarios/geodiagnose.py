@@ -23,7 +23,7 @@ from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
 from arfem.params import InputError
 from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
-from arfem.scenarios.georecord import is_mesh_record, read_record_files, read_table
+from arfem.scenarios.georecord import MeshRecord, is_mesh_record, read_mesh_record
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
@@ -85,16 +85,17 @@ def _speed_power(sc, src, speed, where: str) -> np.ndarray:
     return source_power_at_speed(sc, src, speed, where)
 
 
-def load_mesh_record(path, progress=None):
-    """Read a v3 record, its scenario, and build the reduced model.
+def load_mesh_record(path, progress=None, limits=None):
+    """Read a v3 record (or take a :class:`~arfem.scenarios.georecord.MeshRecord` read
+    once), its scenario, and build the reduced model.
 
     Returns (GeoRecord, GeoModel, Plant, scenario, timings {step: s}).
     """
     progress = progress or (lambda s: None)
-    files = read_record_files(path)
+    mr = path if isinstance(path, MeshRecord) else read_mesh_record(path, limits)
+    files, tab = mr.files, mr.table
     where = str(files.csv)
-    tab = read_table(files)
-    sc, spec = load_diagnosis_scenario(files.scenario)
+    sc, spec = load_diagnosis_scenario(files.scenario, files.doc.scenario_toml)
     chans, power, speed, amb = _map_columns(tab.columns, sc, where)
     if speed is not None and (np.any(~np.isfinite(speed)) or np.any(speed < 0)):
         raise InputError("speed_rpm must be finite and >= 0", f"{where}: column speed_rpm")
@@ -229,13 +230,16 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
             "reference_solve_s": t_full}
 
 
-def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None) -> dict:
-    """Diagnose a v3 record and write every output into ``out``; returns the summary."""
+def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None,
+                     limits=None) -> dict:
+    """Diagnose a v3 record (its path, or a :class:`~arfem.scenarios.georecord.MeshRecord`
+    read once) and write every output into ``out``; returns the summary."""
     from arfem.scenarios.geodiagnose_report import write_report
-    prepare_out_dir(out, force, inputs=[case], writes=WRITES)
     progress = progress or (lambda s: None)
     progress("reading the record")
     t0 = time.perf_counter()
+    case = case if isinstance(case, MeshRecord) else read_mesh_record(case, limits)
+    prepare_out_dir(out, force, inputs=[case.files.toml], writes=WRITES)
     rec, model, plant, sc, tm = load_mesh_record(case, progress)
     if holdout_start_s is not None and not rec.time_s[0] < holdout_start_s < rec.time_s[-1]:
         raise InputError(f"{holdout_start_s:g} s is outside the record "
@@ -267,24 +271,29 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
 
 def _export_models(case, d, model, rec, sc, progress):
     """model_extended.json / model_nominal.json and their replay on the record
-    (:mod:`arfem.scenarios.geodiagnose_export`)."""
+    (:mod:`arfem.scenarios.geodiagnose_export`); ``case`` the record read once."""
     from arfem import __version__
     from arfem.scenarios.axes_record import load_axes_record
     from arfem.scenarios.geodiagnose_export import diagnosis_models, replay_table
-    files = read_record_files(case)
-    ds = load_axes_record(case)             # read once: its columns and the replay
-    models = diagnosis_models(d, model, rec, sc, files, set(ds.extra_columns), __version__,
-                              progress)
-    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s, str(case))
+    ds = load_axes_record(case)             # the record as read, not read again
+    models = diagnosis_models(d, model, rec, sc, case.files, set(ds.extra_columns),
+                              __version__, progress)
+    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s,
+                                              str(case.files.toml))
     return models
 
 
-def main_geodiagnose(args) -> int:
+def main_geodiagnose(args, record=None) -> int:
     """The ``arfem diagnose`` command for a mesh record (parsed ``args`` of
-    :mod:`arfem.scenarios.diagnose`)."""
+    :mod:`arfem.scenarios.diagnose`; ``record`` its TOML as read, or None)."""
     from arfem.scenarios.progress import Progress
+    limits = getattr(args, "limits", None)
     with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
-        s = run_geodiagnosis(args.case, args.out, args.holdout_start, args.force, progress)
+        case = args.case if record is None else read_mesh_record(args.case, limits, record)
+        s = run_geodiagnosis(case, args.out, args.holdout_start, args.force, progress,
+                             limits)
     print(terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")
+    for n in (case.table.notes if isinstance(case, MeshRecord) else ()):
+        print(f"note: {n}")               # what the record reader did (e.g. filled cells)
     return 0

@@ -87,7 +87,9 @@ from arfem.fem.body import (ConvectionSpec, ElasticBody, Material, SensorSpec, S
 from arfem.fem.gmsh_io import GroupedMesh, UNITS, check_memory, read_grouped_mesh
 from arfem.fem.thermal3d import BodyResult, InputHistory, solve_reduced, solve_theta
 from arfem.io import atomic_write_text, read_text_utf8, read_toml, write_csv, write_json
+from arfem.limits import Limits, resolve
 from arfem.params import InputError
+from arfem.ranges import check_range
 from arfem.strict import boolean as _bool
 from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
@@ -191,12 +193,14 @@ def is_geometry_scenario(path) -> bool:
     return toml_has_table(path, "geometry")
 
 
-def load_geometry_scenario(path) -> GeometryScenario:
-    """Read and validate a geometry scenario file; refusals name the file and key."""
+def load_geometry_scenario(path, limits: Limits | None = None,
+                           toml=None) -> GeometryScenario:
+    """Read and validate a geometry scenario file; refusals name the file and key.
+    ``toml``: the file already read (:class:`arfem.io.TomlFile`), not read again."""
     p = Path(path)
-    data = read_toml(p)
+    data = read_toml(p, limits) if toml is None else toml.data
     try:
-        return geometry_scenario_from_dict(data, str(p), p.parent)
+        return geometry_scenario_from_dict(data, str(p), p.parent, limits)
     except InputError as exc:
         if exc.where and exc.where.startswith(str(p)):
             raise
@@ -285,13 +289,24 @@ def _point(v, scale: float, where: str) -> tuple:
 
 
 def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
-                                base: Path | None = None) -> GeometryScenario:
+                                base: Path | None = None,
+                                limits: Limits | None = None) -> GeometryScenario:
     """Validate a geometry scenario given as a dict (as read from TOML).
 
     One reader per table, in the order a refusal is looked for: ``[scenario]`` and
     ``[geometry]``, ``[[material]]``, ``[cycle]``, ``[[heat_source]]``,
-    ``[[convection]]``, ``[support]``, ``[[sensor]]``, ``[fem]`` and ``[outputs]``.
+    ``[[convection]]``, ``[support]``, ``[[sensor]]``, ``[fem]`` and ``[outputs]``;
+    then every number against its physical range (:func:`_check_ranges`) and the
+    sizes against the limits (``limits``: :class:`arfem.limits.Limits`).
     """
+    sc = _from_dict(data, source, base)
+    _check_ranges(sc, data)
+    _check_sizes(sc, resolve(limits))
+    return sc
+
+
+def _from_dict(data: dict, source: str, base: Path | None) -> GeometryScenario:
+    """The tables of a geometry scenario, each read and checked (no ranges yet)."""
     base = Path(".") if base is None else base
     _unknown(data, _TOP, "")
     sc = _table(data, "scenario", "")
@@ -611,6 +626,7 @@ def _direction(d, w: str) -> tuple:
     if isinstance(d, str):
         return _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
     d = _point(d, 1.0, f"{w}.direction")
+    _finite_vector(d, f"{w}.direction")
     if np.linalg.norm(d) == 0:
         raise InputError("must not be zero", f"{w}.direction")
     return tuple(float(v) for v in np.asarray(d) / np.linalg.norm(d))
@@ -653,13 +669,106 @@ def _fem_and_outputs(data: dict, cycle: Schedule3D) -> tuple:
     out = _table(data, "outputs", "")
     _unknown(out, _OUT, "outputs")
     total = float(cycle.edges_s[-1])
-    if total / oi > 200_000:
-        raise InputError(f"{total / oi:.0f} samples; at most 200000", "fem.output_interval_s")
     fi = _number(out.get("field_interval_s", 3600.0), "outputs.field_interval_s", positive=True)
     if total / fi > 2000:
         raise InputError(f"{total / fi:.0f} field snapshots; at most 2000",
                          "outputs.field_interval_s")
     return solver, dt, oi, fi, out
+
+
+# -- physical ranges and sizes (arfem.ranges: the table the rod's reader uses too) ----------
+
+#: Largest number of sensor samples and θ-method steps over the cycle without
+#: ``--allow-large`` (the rod's limit: :data:`arfem.scenarios.config.MAX_TIME_STEPS`).
+MAX_SAMPLES = 200_000
+MAX_STEPS = 2_000_000
+#: Largest mesh file read without ``--allow-large`` [bytes] (the limit of any text input).
+MAX_MESH_BYTES = 256 * 1024 ** 2
+
+
+def _finite_vector(v, where: str) -> None:
+    """Refuse a vector with a NaN or an infinite component (one line, before any
+    arithmetic on it could warn)."""
+    if not all(np.isfinite(x) for x in v):
+        raise InputError(f"must be finite, got {list(v)!r}", where)
+
+
+def _check_ranges(sc: GeometryScenario, data: dict) -> None:
+    """Every number of a validated scenario within its physical range
+    (:data:`arfem.ranges.RANGES`: the same entries as the rod's reader for λ, ρ, c, α,
+    E, h, an ambient, a heat input and a speed): one line naming the key."""
+    check_range("ambient_C", sc.reference_C, "geometry.reference_C")
+    for i, mat in enumerate(sc.materials.values()):
+        for k in ("conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK",
+                  "expansion_1_K", "youngs_modulus_Pa"):
+            check_range(k, getattr(mat, k), f"material[{i}].{k}")
+    cyc = sc.cycle
+    check_range("duration_s", float(cyc.edges_s[-1]), "cycle (its total length)")
+    csv_cycle = isinstance(data.get("cycle"), dict) and "csv" in data["cycle"]
+    for j in range(cyc.speed_rpm.size):
+        w = f"cycle.csv: row {j + 2}" if csv_cycle else f"cycle.phases[{j}]"
+        check_range("speed_rpm", float(cyc.speed_rpm[j]), f"{w}.speed_rpm")
+        check_range("ambient_C", float(cyc.ambient_C[j]), f"{w}.ambient_C")
+    for i, src in enumerate(sc.sources):
+        key, kind = (("power_W", "power_W") if src.spec.kind == "power"
+                     else ("q_W_m2", "flux_W_m2"))
+        for v in np.asarray(src.values, float):
+            check_range(key, float(v), f"heat_source[{i}].{kind}")
+    for i, conv in enumerate(sc.convections):
+        _check_convection(conv, cyc.speed_rpm, f"convection[{i}]")
+    for i, sen in enumerate(sc.sensors):
+        _check_point(sen.point, f"sensor[{i}].point")
+        for k, pt in enumerate(sen.points or ()):          # a tilt's two probes
+            _check_point(pt, f"sensor[{i}].points[{k}]")
+        _finite_vector(sen.direction, f"sensor[{i}].direction")
+    for j, pt in enumerate(sc.support.points):
+        _check_point(pt, f"support.points[{j}]")
+
+
+def _check_convection(conv: "ConvectionSetting", speeds_rpm, where: str) -> None:
+    """A convection group's h = a + b·n^m at every speed of the cycle (and at rest)
+    within the range of an h, and its own ambient within the ambient's."""
+    a, b, m = conv.h
+    n = np.concatenate([[0.0], np.maximum(np.asarray(speeds_rpm, float), 0.0)])
+    with np.errstate(over="ignore", invalid="ignore"):
+        h = a + b * np.power(n, m)
+    for hv, nv in zip(h, n):
+        at = f" (at {nv:g} rpm)" if b else ""
+        check_range("h_W_m2K", float(hv), f"{where}.h_W_m2K{at}")
+    if conv.ambient_C is not None:
+        check_range("ambient_C", conv.ambient_C, f"{where}.ambient_C")
+
+
+def _check_point(point, where: str) -> None:
+    """A point [m] (None: none given): finite, each coordinate a machine's."""
+    if point is None:
+        return
+    _finite_vector(point, where)
+    for x in point:
+        check_range("coordinate_m", float(x), where)
+
+
+def _check_sizes(sc: GeometryScenario, limits: Limits) -> None:
+    """The sample and step counts and the mesh file's size within arfem's limits,
+    unless ``limits.large`` (``--allow-large``): refused before anything is read or
+    built."""
+    if limits.large:
+        return
+    lift = "pass --allow-large to run it anyway"
+    n_out = sc.total_s / sc.output_interval_s
+    if n_out > MAX_SAMPLES:
+        raise InputError(f"{n_out:.0f} samples; at most {MAX_SAMPLES} ({lift})",
+                         "fem.output_interval_s")
+    if sc.solver != "reduced" and sc.total_s / sc.dt_s > MAX_STEPS:
+        raise InputError(f"{sc.total_s / sc.dt_s:.3g} {sc.solver} steps over the "
+                         f"{sc.total_s:g} s cycle; at most {MAX_STEPS:g} ({lift})", "fem.dt_s")
+    try:
+        size = sc.mesh_path.stat().st_size
+    except OSError:
+        return                              # missing: the mesh reader says so
+    if size > MAX_MESH_BYTES:
+        raise InputError(f"{sc.mesh_path} is {size / 1024 ** 2:.0f} MiB; arfem reads at most "
+                         f"{MAX_MESH_BYTES / 1024 ** 2:.0f} MiB ({lift})", "geometry.mesh")
 
 
 # -- the model ------------------------------------------------------------------------------
@@ -1104,9 +1213,10 @@ def _summary_md(s: dict, run: GeometryRun) -> str:
 
 
 def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
-                           mode_cache: dict | None = None) -> None:
+                           mode_cache: dict | None = None, copy_plan=None) -> None:
     """sensors.csv, sensors.json, summary.json/.md, geometry.png, sensors.png, fields;
-    ``mode_cache``: the run's reduced-solve modes, reused by the model's export."""
+    ``mode_cache``: the run's reduced-solve modes, reused by the model's export;
+    ``copy_plan``: the scenario copy planned by the caller (from the text it read)."""
     progress = progress or (lambda s: None)
     sc = run.model.scenario
     ser = run.sensor_series()
@@ -1137,7 +1247,8 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")
     from arfem.scenarios.geometry_copy import plan_scenario_copy, write_copy
-    copy, text = plan_scenario_copy(sc.source, WRITES)     # re-runnable from anywhere
+    copy, text = (plan_scenario_copy(sc.source, WRITES) if copy_plan is None
+                  else copy_plan)                          # re-runnable from anywhere
     if copy is not None:
         write_copy(copy, text, out_dir)
     progress("model.json")                      # issue 32 item 5: the MIMO model
@@ -1147,14 +1258,18 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
                   scenario_copy=None if copy is None else copy.names[0])
 
 
-def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
-    """Load, solve and write one geometry scenario into ``out`` (atomically)."""
+def run_geometry(path, out, force: bool = False, progress=None, limits: Limits | None = None,
+                 toml=None) -> GeometryRun:
+    """Load, solve and write one geometry scenario into ``out`` (atomically); ``limits``
+    as the user allows (``--allow-large``), ``toml`` the file already read (once)."""
+    from arfem.io import read_toml_file
     from arfem.scenarios.html_report import write_html_report
     from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
     progress = progress or (lambda s: None)
     from arfem.scenarios.geometry_copy import plan_scenario_copy
-    sc = load_geometry_scenario(path)
-    copy, _ = plan_scenario_copy(sc.source, WRITES)
+    toml = read_toml_file(path, limits) if toml is None else toml
+    sc = load_geometry_scenario(path, limits, toml)
+    copy, text = plan_scenario_copy(sc.source, WRITES, toml.text)
     prepare_out_dir(out, force, writes=WRITES + (copy.names if copy else ()),
                     inputs=[p for p, _ in copy.files] if copy else ())
     model = build_geometry_model(sc, progress)
@@ -1162,16 +1277,20 @@ def run_geometry(path, out, force: bool = False, progress=None) -> GeometryRun:
     run = solve_geometry(model, progress, mode_cache=modes)
     modes = {h: md for h, md in modes.items() if md.n_blocks > 0}   # the grown basis
     with staged_out_dir(out, force) as stage:
-        write_geometry_outputs(run, stage, progress, modes)
+        write_geometry_outputs(run, stage, progress, modes, (copy, text))
         progress("report.html")
         write_html_report(stage)
     return run
 
 
-def main_run_geometry(args) -> int:
-    """``arfem run`` on a scenario with ``[geometry]``."""
+def main_run_geometry(args, toml=None) -> int:
+    """``arfem run`` on a scenario with ``[geometry]`` (``toml``: the file as read), with
+    its progress and the user's limits (``--allow-large``)."""
+    from arfem.scenarios.progress import Progress
     t0 = time.perf_counter()
-    run = run_geometry(args.scenario, args.out, args.force)
+    with Progress(8, "arfem run", enabled=not getattr(args, "no_progress", False)) as pr:
+        run = run_geometry(args.scenario, args.out, args.force, pr,
+                           getattr(args, "limits", None), toml)
     s = summary(run)
     parts = [f"{k} peak {v['peak']:.3f}" for k, v in s["sensors"].items()]
     print(f"{s['scenario']}: {s['n_elements']} {s['cell_type']} cells, {s['heat_dofs']} "

@@ -28,13 +28,17 @@ def _print_summary(ev: Evaluation, out) -> None:
 
 
 def _main_run(args) -> int:
+    from arfem.io import read_toml_file
     from arfem.scenarios import geometry_scenario as geo     # a [geometry] scenario (issue 32)
-    if geo.is_geometry_scenario(args.scenario):
-        return geo.main_run_geometry(args)
+    from arfem.scenarios.config import load_scenario, scenario_file
+    path = scenario_file(args.scenario)
+    toml = read_toml_file(path, args.limits)          # the scenario, read once
+    if toml.has_table("geometry"):
+        return geo.main_run_geometry(args, toml)
     from arfem.scenarios.progress import Progress
     with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
-        ev = run_scenario(args.scenario, args.out, args.force, progress=progress,
-                          limits=args.limits)
+        ev = run_scenario(load_scenario(path, args.limits, toml), args.out, args.force,
+                          progress=progress, limits=args.limits)
     _print_summary(ev, args.out)
     return 0
 

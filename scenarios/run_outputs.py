@@ -16,7 +16,8 @@ import numpy as np
 from arfem.fem.heat import solve_modal, solve_theta
 from arfem.models.ar1 import c1_paper, c2_paper, corrected_coefficients
 from arfem.params import InputError
-from arfem.scenarios.config import PAPER_SCENARIOS, builtin_scenario_path, load_scenario
+from arfem.scenarios.config import (PAPER_SCENARIOS, Scenario, builtin_scenario_path,
+                                    load_scenario)
 from arfem.scenarios.evaluation import Evaluation, evaluate, no_progress
 from arfem.io import atomic_write_text, read_text_utf8, sha256_file, write_csv, write_json
 from arfem.scenarios.html_report import write_html_report
@@ -340,10 +341,11 @@ def _write_fields(ev: Evaluation, out_dir: Path, progress=no_progress) -> dict:
 
 
 def run_scenario(path, out, force: bool = False, progress=None, limits=None) -> Evaluation:
-    """Load, evaluate and write one scenario into ``out`` (atomically); ``progress`` as in
+    """Load (``path``, or a :class:`Scenario` read already), evaluate and write one
+    scenario into ``out`` (atomically); ``progress`` as in
     :func:`evaluate`, ``limits`` (:class:`arfem.limits.Limits`) as the user allows."""
     progress = progress or no_progress
-    scenario = load_scenario(path, limits)
+    scenario = path if isinstance(path, Scenario) else load_scenario(path, limits)
     prepare_out_dir(out, force, writes=WRITES)
     ev = evaluate(scenario, progress=progress)
     with staged_out_dir(out, force) as stage:
