@@ -41,7 +41,7 @@ from arfem.scenarios.deterministic import blas_threads
 from arfem.scenarios.config import (PAPER_SCENARIOS, Scenario,
                                     builtin_scenario_path, check_limit, scenario_from_dict)
 
-__all__ = ["Criterion", "ScenarioResult", "Skipped", "collect", "check_scenario",
+__all__ = ["Criterion", "ScenarioResult", "Skipped", "collect", "check_scenario", "check_case",
            "run_checks", "junit_xml", "json_report", "check_report_path",
            "DEFAULT_MAX_ABS_PCT", "DEFAULT_MAX_C1_DIFF"]
 
@@ -238,12 +238,21 @@ def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print
     results = []
     with blas_threads():             # small FEMs: threads only contend on a CI machine
         for sc in scenarios:
-            r = (_check_geometry(sc, max_abs_pct, max_c1_diff, model)
-                 if not isinstance(sc, Scenario) else
-                 check_scenario(sc, max_abs_pct, max_c1_diff, model, cache))
+            r = check_case(sc, max_abs_pct, max_c1_diff, model, cache)
             results.append(r)
             echo(_line(r))
     return results, skipped
+
+
+def check_case(case, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
+               model: str | None = None, cache: dict | None = None) -> ScenarioResult:
+    """Check one collected scenario, the rod's (a :class:`Scenario`:
+    :func:`check_scenario`) or a mesh's (a
+    :class:`~arfem.scenarios.geometry_check.GeometryCheckCase`); the limits as there
+    (``arfem check`` and :func:`arfem.check` both come here)."""
+    if isinstance(case, Scenario):
+        return check_scenario(case, max_abs_pct, max_c1_diff, model, cache)
+    return _check_geometry(case, max_abs_pct, max_c1_diff, model)
 
 
 def _check_geometry(case, max_abs_pct, max_c1_diff, model) -> ScenarioResult:

@@ -147,6 +147,11 @@ class Scenario:
     check: CheckLimits = field(default_factory=CheckLimits)
 
     @property
+    def kind(self) -> str:
+        """``"rod"``: the paper's rod (a mesh scenario's is ``"mesh"``)."""
+        return "rod"
+
+    @property
     def q_levels(self) -> list[float]:
         """Distinct non-zero heat fluxes of the cycle [W/m²], ascending."""
         return sorted({float(q) for q in self.schedule.q_W_m2 if q > 0})

@@ -45,7 +45,7 @@ from arfem.strict import number as _number
 from arfem.strict import string as _string
 
 __all__ = ["GeometryCheckCase", "geometry_case_from_dict", "load_geometry_case", "GeometryARComparison",
-           "compare_geometry_ar1", "check_geometry_case", "DEFAULT_MAX_ABS_PCT_GEOMETRY",
+           "compare_geometry_ar1", "check_geometry_case", "ar_errors", "DEFAULT_MAX_ABS_PCT_GEOMETRY",
            "GEOMETRY_MODELS"]
 
 #: Default limit on max|AR − FEM| [% of the largest FEM drift peak] for a mesh scenario.
@@ -78,6 +78,17 @@ class GeometryCheckCase:
     @property
     def source(self) -> str:
         return self.scenario.source
+
+    @property
+    def kind(self) -> str:
+        """``"mesh"``: a scenario on a mesh (the rod's is ``"rod"``)."""
+        return "mesh"
+
+    @property
+    def check_dtau_s(self) -> float:
+        """The Δτ the AR(1)s are held to the FEM at [s]: ``[check] dtau_s``, else the
+        scenario's ``output_interval_s``."""
+        return self.dtau_s if self.dtau_s is not None else self.scenario.output_interval_s
 
 
 def geometry_case_from_dict(data: dict, source: str, base: Path) -> GeometryCheckCase:
@@ -199,7 +210,7 @@ def compare_geometry_ar1(model, dtau_s: float) -> GeometryARComparison:
                                 np.array([s.quantity == "tilt" for s in sc.sensors]))
 
 
-def _errors(cmp: GeometryARComparison, model: str, tilts: bool = False):
+def ar_errors(cmp: GeometryARComparison, model: str, tilts: bool = False):
     """Per displacement sensor (per tilt with ``tilts``): (name, max|AR − FEM| [m or
     rad], own peak [m or rad]); the largest peak of the kind."""
     d = np.flatnonzero(cmp.tilt if tilts else cmp.displacement)
@@ -239,24 +250,24 @@ def check_geometry_case(case: GeometryCheckCase, max_abs_pct: float | None = Non
     key = next(v for v in (model, case.model, "corrected") if v is not None)
     gated = GEOMETRY_MODELS[key]
     other = "lumped" if gated == "slowest-mode" else "slowest-mode"
-    dtau = case.dtau_s if case.dtau_s is not None else sc.output_interval_s
+    dtau = case.check_dtau_s
     t0 = time.perf_counter()
     if not any(s.quantity == "displacement" for s in sc.sensors):
         raise InputError("has no displacement sensor: arfem check gates the AR(1) of a "
                          "displacement (add a [[sensor]] with a direction)", f"{sc.source}: sensor")
     cmp = compare_geometry_ar1(build_geometry_model(sc), dtau)
-    rows, peak = _errors(cmp, gated)
+    rows, peak = ar_errors(cmp, gated)
     if not peak > 0:
         raise InputError("the FEM drift is zero at every displacement sensor: nothing to "
                          "compare (no heat input?)", f"{sc.source}: heat_source")
     crit = _criteria(rows, peak, pct, gated, "µm", "drift")
     tilt_note = ()
     if cmp.tilt is not None and cmp.tilt.any():       # reported, not gated: a tilt is
-        trows, tpeak = _errors(cmp, gated, tilts=True)     # not compensated
+        trows, tpeak = ar_errors(cmp, gated, tilts=True)     # not compensated
         if tpeak > 0:
             tilt_note = (f"tilts (reported, not gated; {gated} AR): " + ", ".join(
                 c.message for c in _criteria(trows, tpeak, pct, gated, "µrad", "tilt")),)
-    orow, _ = _errors(cmp, other)
+    orow, _ = ar_errors(cmp, other)
     ar = cmp.slowest_mode if gated == "slowest-mode" else cmp.lumped
     notes = (f"{other} AR (reported, not gated): " + ", ".join(
         f"{n} {e * 1e6:.3g} µm = {100 * e / peak:.2f} %" for n, e, _ in orow),
