@@ -95,24 +95,15 @@ def shipped_scenario(name: str) -> Path:
     >>> p.name, p.with_suffix(".msh").is_file()
     ('spindle_unit.toml', True)
     """
-    from importlib import resources
-
     from arfem.scenarios.config import builtin_scenario_path
-    try:
-        return builtin_scenario_path(name)
-    except InputError:
-        have = sorted(p.name[:-5] for p in resources.files("arfem.scenarios").iterdir()
-                      if p.name.endswith(".toml"))
-        raise InputError(f"no such shipped scenario (there are: {', '.join(have)})",
-                         str(name)) from None
+    return builtin_scenario_path(str(name))
 
 
 def _file_or_shipped(path: str | Path) -> Path:
-    """``path`` itself, or the shipped file of a bare name that is no file here."""
-    p = Path(path)
-    if not p.exists() and not p.suffix and len(p.parts) == 1:
-        return shipped_scenario(p.name)
-    return p
+    """``path`` itself, or the shipped file of a bare name that is no file here (the
+    CLI's rule, :func:`arfem.scenarios.config.scenario_file`)."""
+    from arfem.scenarios.config import scenario_file
+    return scenario_file(path)
 
 
 def load_scenario(path: str | Path, *, order: int | None = None) -> Scenario | GeometryCheckCase:

@@ -38,8 +38,7 @@ from arfem.models.checks import C1_TOL, MAX_DEV_OF_PEAK, check_ar_tracks_fem
 from arfem.models.ar1 import ar1_on_schedule, c1_paper, corrected_coefficients
 from arfem.params import InputError, Rod
 from arfem.scenarios.deterministic import blas_threads
-from arfem.scenarios.config import (PAPER_SCENARIOS, Scenario,
-                                    builtin_scenario_path, check_limit, scenario_from_dict)
+from arfem.scenarios.config import Scenario, check_limit, scenario_file, scenario_from_dict
 
 __all__ = ["Criterion", "ScenarioResult", "Skipped", "collect", "check_scenario", "check_case",
            "run_checks", "junit_xml", "json_report", "check_report_path",
@@ -114,9 +113,7 @@ def collect(paths, limits=None) -> tuple[list[Scenario], list[Skipped]]:
     if not paths:
         raise InputError("name at least one scenario file or directory", "SCENARIO_OR_DIR")
     for arg in paths:
-        p = Path(arg)
-        if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
-            p = builtin_scenario_path(p.name)
+        p = scenario_file(arg)
         if p.is_dir():
             entries = sorted(p.iterdir())
             files = [e for e in entries if e.is_file() and e.suffix == ".toml"]

@@ -158,18 +158,31 @@ class Scenario:
 
 
 def builtin_scenario_path(name: str) -> Path:
-    """Path of a scenario file shipped with arfem (``paper_fig2`` …)."""
+    """Path of a scenario file shipped with arfem (``paper_fig2``, ``spindle_unit`` …;
+    ``.toml`` may be given or left out): the one rule by which the CLI, the sweeps, the
+    check and the Python API (:func:`arfem.shipped_scenario`) map a name to a file."""
     stem = name[:-5] if name.endswith(".toml") else name
     p = resources.files("arfem.scenarios").joinpath(f"{stem}.toml")
     if not p.is_file():
-        raise InputError("no such built-in scenario", name)
+        raise InputError(f"no such shipped scenario (there are: {shipped_names()})", name)
     return Path(str(p))
 
 
+def shipped_names() -> str:
+    """The names of the scenarios shipped with arfem, for a message."""
+    here = resources.files("arfem.scenarios")
+    return ", ".join(sorted(q.name[:-5] for q in here.iterdir() if q.name.endswith(".toml")))
+
+
 def scenario_file(path) -> Path:
-    """The file of scenario ``path``: itself, or a built-in's (``paper_fig2`` …)."""
+    """The file of scenario ``path``: itself, or, for a bare name that is no file here
+    (no folder, no suffix), the shipped scenario of that name
+    (:func:`builtin_scenario_path`)."""
     p = Path(path)
-    if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
+    if not p.exists() and not p.suffix and len(p.parts) == 1:
+        if not resources.files("arfem.scenarios").joinpath(f"{p.name}.toml").is_file():
+            raise InputError(f"is no file here, nor a shipped scenario (there are: "
+                             f"{shipped_names()})", str(path))
         p = builtin_scenario_path(p.name)
     return p
 

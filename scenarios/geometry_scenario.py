@@ -1283,13 +1283,14 @@ def run_geometry(path, out, force: bool = False, progress=None, limits: Limits |
     return run
 
 
-def main_run_geometry(args, toml=None) -> int:
-    """``arfem run`` on a scenario with ``[geometry]`` (``toml``: the file as read), with
-    its progress and the user's limits (``--allow-large``)."""
+def main_run_geometry(args, toml=None, path=None) -> int:
+    """``arfem run`` on a scenario with ``[geometry]`` (``toml``: the file as read;
+    ``path``: its file, where ``args.scenario`` is a shipped name), with its progress and
+    the user's limits (``--allow-large``)."""
     from arfem.scenarios.progress import Progress
     t0 = time.perf_counter()
     with Progress(8, "arfem run", enabled=not getattr(args, "no_progress", False)) as pr:
-        run = run_geometry(args.scenario, args.out, args.force, pr,
+        run = run_geometry(args.scenario if path is None else path, args.out, args.force, pr,
                            getattr(args, "limits", None), toml)
     s = summary(run)
     parts = [f"{k} peak {v['peak']:.3f}" for k, v in s["sensors"].items()]

@@ -34,7 +34,7 @@ def _main_run(args) -> int:
     path = scenario_file(args.scenario)
     toml = read_toml_file(path, args.limits)          # the scenario, read once
     if toml.has_table("geometry"):
-        return geo.main_run_geometry(args, toml)
+        return geo.main_run_geometry(args, toml, path)
     from arfem.scenarios.progress import Progress
     with Progress(7, "arfem run", enabled=not args.no_progress) as progress:
         ev = run_scenario(load_scenario(path, args.limits, toml), args.out, args.force,

@@ -117,7 +117,7 @@ def test_an_unknown_shipped_name_lists_the_shipped_ones():
         arfem.shipped_scenario("spindle_unti")
     assert str(exc.value).startswith("spindle_unti: no such shipped scenario")
     assert "paper_fig2" in str(exc.value) and "spindle_unit" in str(exc.value)
-    with pytest.raises(arfem.InputError, match="no such shipped scenario"):
+    with pytest.raises(arfem.InputError, match="is no file here, nor a shipped scenario"):
         arfem.load_scenario("spindle_unti")
 
 
