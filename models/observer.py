@@ -380,6 +380,23 @@ class Observer:
                 **({"speeds_rpm": [float(v) for v in self.speeds_rpm]}
                    if self.speeds_rpm is not None else {})}
 
+    def estimate_sd(self, A, B) -> np.ndarray:
+        """The steady-state standard deviation of each disturbance estimate (its unit)
+        with the matrices ``A``, ``B`` (a schedule's at one speed): the square root of
+        the disturbance block of the a-posteriori covariance P⁺ = P − K S Kᵀ, S = H P
+        Hᵀ + R, of the noise levels the observer was designed for. A 95 % interval of an
+        estimate is ± 1.96 of it.
+        """
+        F, Q = augmented_matrices(A, B, self.columns, self.rho, self.uniform,
+                                  [d.sigma_per_sqrt_h for d in self.disturbances],
+                                  self.noise.uniform_K_per_sqrt_h, self.dtau_s)
+        H = measurement_matrix(self.C_T, self.D_T, self.columns)
+        R = self.noise.thermometer_K ** 2 * np.eye(len(self.thermometers))
+        K, P = steady_state_gain(F, H, Q, R)
+        post = P - K @ (H @ P @ H.T + R) @ K.T
+        n = A.shape[0]
+        return np.sqrt(np.maximum(np.diag(post)[n:], 0.0))
+
     def closed_loop_radius(self, A, B, k: int = 0) -> float:
         """Spectral radius of the error dynamics (I − K H) F with the ``k``-th gain and
         the matrices ``A``, ``B`` of that speed: < 1 for an observer that settles."""
