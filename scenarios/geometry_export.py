@@ -226,7 +226,7 @@ def export_state_space(gmodel, arfem_version: str = "",
     # responses compared from the model's interval on: a discrete model at Δτ never samples
     # sooner after a step), so that at the same h the model and the run agree to round-off
     kinds = [int(s.quantity == "displacement") for s in sc.sensors]
-    noise = getattr(sc, "observer_noise", None)     # the scenario's [observer] table
+    noise = sc.observer_noise                       # the scenario's [observer] table
     if len(_speed_rows(gmodel)[0]) > 1 and any(c.h[1] != 0.0 for c in sc.convections):
         base, model = _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version)
         T = np.column_stack([T, np.zeros(T.shape[0])])         # speed: through the matrices

@@ -271,3 +271,28 @@ def test_compensate_replays_with_the_observer_and_no_observer_is_open_loop(tmp_p
     assert sno.pop("observer") == {"on": False, "why": "--no-observer", "thermometers": [],
                                    "disturbances": [], "cycles_thermometer_held": 0}
     assert sno == spl
+
+
+def test_the_scenario_states_the_noise_levels(tmp_path, capsys):
+    """``[observer]`` in the scenario: the exported gain is designed for its levels
+    (a quieter thermometer, a larger gain on it); a bad level is one line, exit 2,
+    nothing written."""
+    from test_model_v2_export import box_scenario
+
+    from arfem.scenarios.cli import main
+    toml = box_scenario(tmp_path, 0.0)
+    base = toml.read_text()
+    assert main(["run", str(toml), "--out", str(tmp_path / "a")]) == 0
+    toml.write_text(base + "\n[observer]\nthermometer_K = 0.01\ntime_constant_h = 50.0\n")
+    assert main(["run", str(toml), "--out", str(tmp_path / "b")]) == 0
+    a = json.loads((tmp_path / "a" / "model.json").read_text("utf-8"))["observer"]
+    b = json.loads((tmp_path / "b" / "model.json").read_text("utf-8"))["observer"]
+    assert a["noise"]["thermometer_K"] == 0.05 and b["noise"]["thermometer_K"] == 0.01
+    assert b["noise"]["time_constant_h"] == 50.0
+    assert np.linalg.norm(b["gain"]) > np.linalg.norm(a["gain"])
+    toml.write_text(base + "\n[observer]\nthermometer_K = 0.0\n")
+    capsys.readouterr()
+    assert main(["run", str(toml), "--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("arfem: error: ") and "observer.thermometer_K: must be > 0" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "c").exists()
