@@ -169,9 +169,7 @@ def parse_config(table, path: str, model=None) -> OpcuaConfig:
         if nm not in ins:
             raise InputError(f"has no node for {nm!r}, which the model reads",
                              f"{where}.inputs")
-    # the observer's thermometers (issue 43) may have nodes too: then it runs
-    therm = list(model.observer.thermometers) if model is not None and \
-        model.observer is not None else []
+    therm = list(getattr(getattr(model, "observer", None), "thermometers", ()))  # issue 43
     for nm in ins:
         if nm not in names and nm not in therm:
             raise InputError(f"the model does not read this input (it reads "

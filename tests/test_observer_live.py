@@ -99,3 +99,24 @@ def test_no_observer_live_is_the_open_loop(box, tmp_path, monkeypatch):
               Status(0, io.StringIO()))
     assert seen["answers"] == [json.loads(x) for x in out.getvalue().splitlines()]
     assert all("observer" not in a for a in seen["answers"])
+
+
+def test_opcua_reads_thermometer_nodes_beside_the_inputs(box):
+    """``[opcua.inputs]`` may name the observer's thermometers (then the loop reads
+    them after the inputs); a name that is neither is refused in one line."""
+    import pytest
+
+    from arfem.params import InputError
+    from arfem.scenarios.opcua_live import parse_config
+    run_dir, model, ds, inputs = box
+    nodes = {i.name: f"ns=2;s={i.name}" for i in model.inputs}
+    table = {"endpoint": "opc.tcp://127.0.0.1:4840", "inputs": {**nodes,
+             "T_mid_C": "ns=2;s=T_mid_C"}, "axes": {ax: {"offset_node": f"ns=2;s={ax}"}
+                                                  for ax in model.axes}}
+    cfg = parse_config(table, "live.toml", model)
+    assert [nm for nm, _ in cfg.inputs] == [i.name for i in model.inputs] + ["T_mid_C"]
+    plain = parse_config({**table, "inputs": nodes}, "live.toml", model)
+    assert [nm for nm, _ in plain.inputs] == [i.name for i in model.inputs]
+    with pytest.raises(InputError, match="inputs.T_other_C: the model does not read"):
+        parse_config({**table, "inputs": {**nodes, "T_other_C": "ns=2;s=x"}}, "live.toml",
+                     model)
