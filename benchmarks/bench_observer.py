@@ -126,8 +126,8 @@ def setup():
 
 
 def _draw(rng, kind, plant, geo):
-    """A hidden cause of ``kind`` (vocabulary: as benchmarks/bench_geodiagnosis.py
-    draws them) → (Hidden or None, extra dict)."""
+    """A hidden cause of ``kind`` (the vocabulary's drawn as benchmarks/bench_geodiagnosis.py
+    draws them, copied so that this pre-registered procedure cannot move with it)."""
     from arfem.models.geodiagnosis.synth import Hidden
     if kind == "convection_scale":
         return Hidden(kind, str(rng.choice(plant.convections)),

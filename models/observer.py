@@ -388,15 +388,22 @@ class Observer:
         Hᵀ + R, of the noise levels the observer was designed for. A 95 % interval of an
         estimate is ± 1.96 of it.
         """
+        K, P, H, R = self.riccati(A, B)
+        post = P - K @ (H @ P @ H.T + R) @ K.T
+        n = A.shape[0]
+        return np.sqrt(np.maximum(np.diag(post)[n:], 0.0))
+
+    def riccati(self, A, B) -> tuple:
+        """(K, P, H, R): the steady-state gain and a-priori covariance of the augmented
+        model with the matrices ``A``, ``B`` for this observer's noise levels, its
+        measurement matrix and the thermometers' noise covariance [K²]."""
         F, Q = augmented_matrices(A, B, self.columns, self.rho, self.uniform,
                                   [d.sigma_per_sqrt_h for d in self.disturbances],
                                   self.noise.uniform_K_per_sqrt_h, self.dtau_s)
         H = measurement_matrix(self.C_T, self.D_T, self.columns)
         R = self.noise.thermometer_K ** 2 * np.eye(len(self.thermometers))
         K, P = steady_state_gain(F, H, Q, R)
-        post = P - K @ (H @ P @ H.T + R) @ K.T
-        n = A.shape[0]
-        return np.sqrt(np.maximum(np.diag(post)[n:], 0.0))
+        return K, P, H, R
 
     def closed_loop_radius(self, A, B, k: int = 0) -> float:
         """Spectral radius of the error dynamics (I − K H) F with the ``k``-th gain and
@@ -613,12 +620,7 @@ def _log_likelihood(model, ob: Observer, U: np.ndarray, Z: np.ndarray) -> float:
     """The innovations' Gaussian log-likelihood of ``ob`` run on rows ``U``, ``Z``
     (a time-invariant model, or a schedule's nominal matrices)."""
     A, B = model.A, model.B
-    F, Q = augmented_matrices(A, B, ob.columns, ob.rho, ob.uniform,
-                              [d.sigma_per_sqrt_h for d in ob.disturbances],
-                              ob.noise.uniform_K_per_sqrt_h, ob.dtau_s)
-    H = measurement_matrix(ob.C_T, ob.D_T, ob.columns)
-    R = ob.noise.thermometer_K ** 2 * np.eye(len(ob.thermometers))
-    K, P = steady_state_gain(F, H, Q, R)
+    K, P, H, R = ob.riccati(A, B)
     S = H @ P @ H.T + R
     Si = np.linalg.inv(S)
     logdet = float(np.linalg.slogdet(S)[1])

@@ -50,12 +50,14 @@ def coarse():
 
 
 def _record(plant, extra_W, seed=7):
-    """A 24 h record whose sources make ``extra_W`` more than their inputs say:
-    (columns, noisy readings, noise-free readings)."""
+    """A 24 h record whose sources make ``extra_W`` more than their inputs say (three
+    powers [W], or a function of the time [s] giving (N, 3)): (columns, noisy
+    readings, noise-free readings)."""
     from arfem.models.geodiagnosis.synth import add_noise, duty_cycle, signal
     rng = np.random.default_rng(seed)
     t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
-    clean = signal(plant, [], t, speed, power + np.asarray(extra_W)[None, :], amb)
+    extra = extra_W(t) if callable(extra_W) else np.asarray(extra_W)[None, :]
+    clean = signal(plant, [], t, speed, power + extra, amb)
     y = add_noise(plant, clean, np.random.default_rng(seed + 1), "white")
     cols = {"time_s": t, "speed_rpm": speed, "ambient_C": amb}
     cols.update({f"P_{s}_W": power[:, j] for j, s in enumerate(plant.sources)})
@@ -296,3 +298,26 @@ def test_the_scenario_states_the_noise_levels(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("arfem: error: ") and "observer.thermometer_K: must be > 0" in err
     assert len(err.splitlines()) == 1 and not (tmp_path / "c").exists()
+
+
+def test_noise_fitted_on_a_record(coarse):
+    """``fit_noise_scale``: the thermometers' noise from their second differences near
+    the generator's 0.03 K (the signal's curvature adds a little: within 0.025-0.045),
+    and a record whose unknown heat switches between 0 and 20 W every 2 h asks for
+    larger process noise than a clean one (the innovations' likelihood; a constant
+    unknown heat does not: once estimated, its innovations are a clean record's)."""
+    from arfem.models.observer import fit_noise_scale
+    plant, m = coarse
+    names = [i.name for i in m.inputs]
+    fits = []
+    def switching(t):
+        on = (np.floor(t / 7200.0) % 2 == 1).astype(float)
+        return np.column_stack([20.0 * on, 0 * t, 0 * t])
+    for extra in (switching, [0.0, 0.0, 0.0]):
+        cols, _, _ = _record(plant, extra)
+        U = np.column_stack([cols[n][1:] - m.input_offsets.get(n, 0.0) for n in names])
+        Z = np.column_stack([cols[t][1:] for t in m.observer.thermometers])
+        fits.append(fit_noise_scale(m, m.observer, U, Z))
+    (f_heat, s_heat), (f_clean, s_clean) = fits
+    assert 0.025 <= s_heat <= 0.045 and 0.025 <= s_clean <= 0.045, fits
+    assert f_heat > f_clean, fits
