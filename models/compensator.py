@@ -1113,8 +1113,9 @@ class Compensator:
 
     def state(self) -> dict:
         """The state to log (a warm start restores it): ``x`` [µm], ``P`` [µm²] and the
-        last good inputs ``u`` (as the matrices take them), and with a speed schedule the
-        last good speed ``speed_rpm`` (its matrices), JSON-ready."""
+        last good inputs ``u`` (as the matrices take them; with an observer, plus its
+        estimated disturbances), with a speed schedule the last good speed ``speed_rpm``
+        (its matrices), and with an observer its ``disturbances`` (W, K), JSON-ready."""
         return {"x": self.x.tolist(), "P": self.P.tolist(),
                 "u": None if self._u_last is None else self._u_last.tolist(),
                 **({"speed_rpm": self._speed_last} if self.model.schedule is not None
