@@ -321,3 +321,20 @@ def test_noise_fitted_on_a_record(coarse):
     (f_heat, s_heat), (f_clean, s_clean) = fits
     assert 0.025 <= s_heat <= 0.045 and 0.025 <= s_clean <= 0.045, fits
     assert f_heat > f_clean, fits
+
+
+def test_the_replay_runs_open_loop_where_the_record_lacks_a_thermometer(coarse):
+    """On by default only where the record has every thermometer; else open loop, and
+    the summary says why."""
+    from types import SimpleNamespace
+
+    from arfem.scenarios.replay_axes import observer_readings
+    _, m = coarse
+    part = SimpleNamespace(temperatures={"T_front_bearing_C": np.zeros(3)})
+    assert observer_readings(m, part, True) == ({}, "the record has no T_housing_C, "
+                                                    "T_column_C")
+    full = SimpleNamespace(temperatures={t: np.zeros(3) for t in m.observer.thermometers})
+    assert list(observer_readings(m, full, True)[0]) == list(m.observer.thermometers)
+    assert observer_readings(m, full, False) == ({}, "--no-observer")
+    assert observer_readings(replace(m, observer=None), full, True)[1] == \
+        "the model has no observer"
