@@ -677,14 +677,14 @@ def read_record(path: str | Path) -> Record:
     >>> rec.initial, list(rec.data.columns), rec.units["q_W_m2"]
     ('unknown', ['time_s', 'growth_um', 'q_W_m2'], 'W/m²')
     """
-    from arfem.io import read_toml
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.dataset import load_dataset, read_record_doc
     from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
-    refuse_mesh_record(path)             # contract v3: the mesh's diagnosis, not this
-    ds = load_dataset(path)
+    doc = read_record_doc(path)          # the TOML, read once
+    refuse_mesh_record(doc)              # contract v3: the mesh's diagnosis, not this
+    ds = load_dataset(doc)
     refuse_mesh_channels(ds)
     frame = _record_frame(ds)
-    mapping = read_toml(Path(path)).get("columns", {})
+    mapping = doc.mapping
     columns = {c: mapping.get(c, c) for c in frame.columns}
     units = {c: _UNITS.get(c, "°C") for c in frame.columns}
     return Record(frame, ds.name, "equilibrium" if ds.initial_known else "unknown", units,
@@ -844,15 +844,15 @@ def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
         if isinstance(data, Record):
             ds = data._dataset
         else:
-            from arfem.scenarios.georecord import (
-                is_mesh_record, refuse_mesh_channels, refuse_mesh_record)
-            if is_mesh_record(data):
+            from arfem.scenarios.dataset import read_record_doc
+            from arfem.scenarios.georecord import refuse_mesh_channels
+            doc = read_record_doc(data)                # the TOML, read once
+            if doc.is_mesh:
                 raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
                                  "diagnosed by arfem.diagnose_mesh(path), not by the rod's "
                                  "diagnosis",
                                  str(data))
-            refuse_mesh_record(data)
-            ds = load_dataset(data)
+            ds = load_dataset(doc)
             refuse_mesh_channels(ds)
         recorded = "equilibrium" if ds.initial_known else "unknown"
         _initial_of(initial, recorded, str(ds.source))

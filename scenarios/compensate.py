@@ -25,6 +25,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.model_file import read_model
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 from arfem.scenarios.replay import Replay, replay
+from arfem.scenarios.replay_axes import axis_limits
 
 __all__ = ["parse_duration_s", "axis_limits", "add_parser", "main", "WRITES"]
 
@@ -65,9 +66,9 @@ def _figure(res: Replay, path) -> None:
                         gridspec_kw={"height_ratios": [2.2] + [1.4] * len(panels)})[:, 0]
     ax = axes[0]
     ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
-            label="without compensation\n(measured growth)")
+            label="without compensation\n(the record's growth_um)")
     ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
-            label="with compensation\n(measured + offset)")
+            label="with compensation\n(record + offset)")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
                  f"{m.rms_after_um:.3g} µm\n" + textwrap.fill(m.score_window_text(), 95),
@@ -86,7 +87,7 @@ def _figure(res: Replay, path) -> None:
         if names is temps:
             bx.set_ylabel("temperature [°C]")
         else:
-            units = {"speed_rpm": "speed [1/min]", "q_W_m2": "heat flux [W/m²]"}
+            units = {"speed_rpm": "speed [rpm]", "q_W_m2": "heat flux [W/m²]"}
             bx.set_ylabel(units.get(names[0], "input") if len(names) == 1 else "inputs")
         bx.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
                   ncol=1 + len(names) // 9)
@@ -94,15 +95,26 @@ def _figure(res: Replay, path) -> None:
     fig.savefig(path)
 
 
-def _markdown(res: Replay) -> str:
+def _markdown(res: Replay, model_path=None, record_path=None) -> str:
+    """``summary.md``: the verdict (saying when the record is the model's own output),
+    the figures, then the model and the record by name and the replay's limits."""
+    from arfem.scenarios.replay_axes_report import file_link, reproduced_to_roundoff
     m = res.summary
     rate = m.compensation_rate_rms_pct
-    text = (f"Compensating with `{m.model_kind}` {'reduces' if rate and rate > 0 else 'does not reduce'} "
-            f"the thermal error of `{m.dataset}` ({m.score_window_text()}): RMS "
-            f"{m.rms_before_um:.3g} → "
-            f"{m.rms_after_um:.3g} µm ({rate:.0f} %), peak to peak "
-            f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
-            "replayed strictly causally.")
+    rates = f" ({rate:.0f} %)" if rate is not None else ""
+    if reproduced_to_roundoff([(m.rms_before_um, m.rms_after_um)]):
+        text = (f"**The record is the model's own output.** `{m.model_kind}` reproduces "
+                f"{file_link(record_path, m.dataset)} to round-off (residual "
+                f"{m.rms_after_um:.1g} µm RMS), so the figures below say that the replay "
+                "is exact, not how well the model compensates a machine: replay a record "
+                "measured on the machine to judge that.")
+    else:
+        text = (f"Compensating with `{m.model_kind}` "
+                f"{'reduces' if rate and rate > 0 else 'does not reduce'} the thermal "
+                f"error of `{m.dataset}` ({m.score_window_text()}): RMS "
+                f"{m.rms_before_um:.3g} → {m.rms_after_um:.3g} µm{rates}, peak to peak "
+                f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
+                "replayed strictly causally.")
     if m.cycles_held:
         text += f" The offset was held in {m.cycles_held} cycles (an input was not usable)."
     L = [f"# Compensation replay: `{m.dataset}`", "", "## Verdict", "", text, "",
@@ -111,7 +123,9 @@ def _markdown(res: Replay) -> str:
          f"| RMS [µm] | {m.rms_before_um:.4g} | {m.rms_after_um:.4g} |",
          f"| peak to peak [µm] | {m.peak_to_peak_before_um:.4g} | "
          f"{m.peak_to_peak_after_um:.4g} |", "", "## The replay", "",
-         f"Model: {m.model_description or m.model_kind}; Δτ = {m.dtau_s:g} s; "
+         f"Model {file_link(model_path, 'model.json')}: "
+         f"{m.model_description or m.model_kind}. Record {file_link(record_path, m.dataset)} "
+         f"(`{m.dataset}`). Δτ = {m.dtau_s:g} s; "
          f"{m.n_cycles} cycles. Largest offset step {m.largest_offset_step_um:.4g} µm; "
          f"clamped in {m.cycles_clamped} and rate-limited in {m.cycles_rate_limited} "
          f"cycles (limits: ±{m.max_offset_um or '∞'} µm, "
@@ -140,63 +154,34 @@ def add_parser(sub) -> None:
                         "node every period_s) or JSON lines on stdin/stdout "
                         "(docs: arfem compensate)")
     p.add_argument("--max-offset-um", type=float, default=math.inf, metavar="UM",
-                   help="largest |offset| written [µm] (default: no limit)")
+                   help="largest |offset| written [µm] (default: no limit; with --live "
+                        "the config's, and a value given here may only tighten it: a "
+                        "larger one is refused)")
     p.add_argument("--max-step-um", type=float, default=math.inf, metavar="UM",
-                   help="largest change of the offset per cycle [µm] (default: no limit)")
+                   help="largest change of the offset per cycle [µm] (default: no limit; "
+                        "with --live as --max-offset-um)")
     p.add_argument("--axis-limits", action="append", default=None,
                    metavar="AXIS=OFFSET:STEP",
                    help="a version-2 model's clamp and step limit of one axis [µm], e.g. "
                         "X=20:0.5 (repeat per axis); axes not named take --max-offset-um "
-                        "and --max-step-um")
+                        "and --max-step-um; with --live each may only tighten the "
+                        "config's limit of that axis (a larger one is refused)")
     p.add_argument("--probe-every", default=None, metavar="DURATION",
                    help="use the measured growth only every DURATION (1h, 30min, 900s) to "
-                        "correct the model's state (Kalman update); default: never")
+                        "correct the model's state (Kalman update); default: never "
+                        "(replay only: refused with --live)")
     p.add_argument("--score-from", type=float, default=None, metavar="SECONDS",
                    help="measure the error from this time on [s]; default: after the "
                         "model's fit window (fit_window_s in model.json), or every row for "
                         "a model without one; 0 scores every row. The replay itself "
-                        "always starts at the first row")
+                        "always starts at the first row (replay only: refused with --live)")
     p.add_argument("--no-observer", action="store_true",
                    help="run the model open loop: do not correct its state from the "
                         "thermometers even where model.json has an observer (by default "
                         "it is used when the record or stream has its thermometers)")
-    p.add_argument("--force", action="store_true", help="write into a non-empty --out")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out "
+                   "(replay only: refused with --live)")
     p.set_defaults(func=main)
-
-
-def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:
-    """(max offsets, max steps) per axis of a version-2 model [µm] from ``--axis-limits
-    AXIS=OFFSET:STEP`` items over the common limits; one line naming a bad item.
-
-    >>> from types import SimpleNamespace as N
-    >>> m = N(outputs=(N(axis="X"), N(axis="Z")))
-    >>> axis_limits(m, ["Z=20:0.5"], 50.0, 1.0)
-    ((50.0, 20.0), (1.0, 0.5))
-    """
-    axes = [o.axis for o in model.outputs]
-    off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
-    seen = set()
-    for item in items or ():
-        m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
-        if not axes:
-            raise InputError("is for a model with several axes (model_version 2)",
-                             "--axis-limits")
-        if not m or m.group(1) not in axes:
-            raise InputError(f"must be AXIS=OFFSET:STEP with AXIS one of "
-                             f"{', '.join(axes)}, got {item!r}", "--axis-limits")
-        try:
-            vals = float(m.group(2)), float(m.group(3))
-        except ValueError:
-            vals = (math.nan, math.nan)
-        if not all(math.isfinite(v) and v > 0 for v in vals):
-            raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
-        if m.group(1) in seen:             # two limits for one axis: which one is meant?
-            raise InputError(f"axis {m.group(1)} is given more than once, got {item!r}",
-                             "--axis-limits")
-        seen.add(m.group(1))
-        j = axes.index(m.group(1))
-        off[j], step[j] = vals
-    return tuple(off), tuple(step)
 
 
 def _main_axes(args, model, ds, probe) -> int:
@@ -211,10 +196,31 @@ def _main_axes(args, model, ds, probe) -> int:
                       score_from_s=args.score_from, where=str(args.record),
                       use_observer=not getattr(args, "no_observer", False))
     with staged_out_dir(args.out, args.force) as stage:
-        write_axes_replay(res, stage)
+        write_axes_replay(res, stage, args.model, args.record)
         write_html_report(stage)
     print(terminal_line(res, args.out))
     return 0
+
+
+#: options of a replay that a live run has no use for: refused with --live, one line
+LIVE_REFUSES = (("record", "RECORD", "a live run reads its inputs from the config's "
+                 "transport, not from a record"),
+                ("out", "--out", "a live run writes stdout (JSON lines) and the config's "
+                 "log, not a folder"),
+                ("probe_every", "--probe-every", "a live run reads no measured growth to "
+                 "correct its state with"),
+                ("score_from", "--score-from", "a live run scores nothing (it has no "
+                 "measured growth)"),
+                ("force", "--force", "a live run writes no --out (its log is appended "
+                 "to, never replaced)"))
+
+
+def _refuse_replay_options(args) -> None:
+    """One line naming the first option of a replay given with ``--live``."""
+    for attr, opt, why in LIVE_REFUSES:
+        v = getattr(args, attr, None)
+        if v is not None and v is not False:        # (not `in`: --score-from 0 == False)
+            raise InputError(f"is for a replay, not with --live: {why}", opt)
 
 
 def main(args) -> int:
@@ -232,30 +238,29 @@ def _load_record(args, model):
     """The record: contract v3 (a ``[model]`` table, ``d_<sensor>_um`` channels, read by
     :mod:`arfem.scenarios.axes_record`, for a version-2 model only) or the contract's
     version 1/2 (``growth_um``)."""
-    from arfem.scenarios.georecord import is_mesh_record
-    if is_mesh_record(args.record):
+    from arfem.scenarios.dataset import load_dataset, read_record_doc
+    doc = read_record_doc(args.record, args.limits)      # the one reader: TOML once
+    if doc.is_mesh:
         from arfem.scenarios.axes_record import load_axes_record, require_axes_model
-        ds = load_axes_record(args.record)
+        from arfem.scenarios.georecord import read_mesh_record
+        ds = load_axes_record(read_mesh_record(args.record, args.limits, doc))
         require_axes_model(model, ds, str(args.record))
         return ds
-    from arfem.scenarios.dataset import load_dataset
-    return load_dataset(args.record, args.limits)
+    return load_dataset(doc, args.limits)
 
 
 def _main(args) -> int:
+    for name in ("max_offset_um", "max_step_um"):
+        v = getattr(args, name)
+        if not (v > 0):
+            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     if args.live is not None:
-        if args.record is not None or args.out is not None:
-            raise InputError("takes no RECORD and no --out (it reads stdin, writes stdout "
-                             "and the config's log)", "--live")
+        _refuse_replay_options(args)
         from arfem.scenarios.live import run_live
         return run_live(args)
     if args.record is None or args.out is None:
         raise InputError("a replay needs MODEL.json RECORD.toml --out DIR (or --live "
                          "CONFIG.toml)", "arfem compensate")
-    for name in ("max_offset_um", "max_step_um"):
-        v = getattr(args, name)
-        if not (v > 0):
-            raise InputError(f"must be > 0, got {v!r}", "--" + name.replace("_", "-"))
     probe = None if args.probe_every is None else parse_duration_s(args.probe_every)
     prepare_out_dir(args.out, args.force, inputs=[args.model, args.record], writes=WRITES)
     model = read_model(args.model, args.limits)
@@ -270,7 +275,7 @@ def _main(args) -> int:
     with staged_out_dir(args.out, args.force) as stage:
         write_csv(stage / "compensated.csv", res.series.columns())
         write_json(stage / "summary.json", res.summary.to_dict())
-        atomic_write_text(stage / "summary.md", _markdown(res))
+        atomic_write_text(stage / "summary.md", _markdown(res, args.model, args.record))
         _figure(res, stage / "figure.png")
         write_html_report(stage)
     m = res.summary

@@ -63,7 +63,7 @@ from arfem.strict import string as _string
 from arfem.strict import table as _table
 
 
-__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario",
+__all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario", "scenario_file",
            "scenario_from_dict", "apply_override", "builtin_scenario_path", "ALIASES",
            "PAPER_SCENARIOS"]
 __all__ += ["CheckLimits", "check_limit", "CHECK_MODELS"]
@@ -161,13 +161,21 @@ def builtin_scenario_path(name: str) -> Path:
     return Path(str(p))
 
 
-def load_scenario(path, limits: Limits | None = None) -> Scenario:
-    """Load and validate a scenario file (or a built-in name such as ``paper_fig2``);
-    ``limits`` (:class:`arfem.limits.Limits`) as the user allows."""
+def scenario_file(path) -> Path:
+    """The file of scenario ``path``: itself, or a built-in's (``paper_fig2`` …)."""
     p = Path(path)
     if not p.exists() and not p.suffix and p.name in PAPER_SCENARIOS:
         p = builtin_scenario_path(p.name)
-    return scenario_from_dict(read_toml(p, limits), str(p), limits)
+    return p
+
+
+def load_scenario(path, limits: Limits | None = None, toml=None) -> Scenario:
+    """Load and validate a scenario file (or a built-in name such as ``paper_fig2``);
+    ``limits`` (:class:`arfem.limits.Limits`) as the user allows; ``toml`` the file
+    already read (:class:`arfem.io.TomlFile`), not read again."""
+    p = scenario_file(path)
+    return scenario_from_dict(read_toml(p, limits) if toml is None else toml.data, str(p),
+                              limits)
 
 
 # -- validation helpers ---------------------------------------------------------------

@@ -1,82 +1,161 @@
-"""Read a measured dataset (``NAME.toml`` + ``NAME.csv``) exactly per the measured-data contract.
+"""The one reader of a measured record (``NAME.toml`` + ``NAME.csv``), every version of
+the measured-data contract (``docs/measured-data.md``).
 
-The contract (``docs/measured-data.md``) fixes the form of every measured dataset: a CSV of
-samples with the columns ``time_s``, ``growth_um``, ``q_W_m2`` or ``speed_rpm``,
-optionally ``ambient_C`` and ``T_<name>_C``, and a TOML beside it with the tables
-``[dataset]``, ``[rod]``, ``[columns]`` and ``[sensors.*]``. :func:`load_dataset`
-turns the pair into a validated, immutable :class:`~arfem.models.diagnosis.dataset.Dataset` or refuses it with one
-:class:`arfem.params.InputError` whose message names the file, the CSV line or the
-column/key, and what is wrong.
+A record is a CSV of samples -- ``time_s``, ``growth_um``, ``q_W_m2`` or ``speed_rpm``,
+optionally ``ambient_C`` and ``T_<name>_C`` (versions 1-2, on the rod); or ``d_<sensor>_um``,
+``T_<sensor>_C``, ``P_<source>_W``, ``speed_rpm``, ``ambient_C`` (version 3, a
+``[model]`` table naming a mesh scenario) -- and a TOML beside it with the tables
+``[dataset]``, ``[rod]``, ``[model]``, ``[columns]`` and ``[sensors.*]``.
+
+Reading is in two steps, each done once per command and passed along:
+:func:`read_record_doc` (the TOML, checked, the CSV's place confined to the TOML's
+folder, a v3 record's scenario read) and :func:`read_record_columns` (the CSV through
+:func:`arfem.io.read_csv_table`: size, rows, NUL, duplicate columns, numbers; then
+every contract column finite and within its physical range, :mod:`arfem.ranges`).
+:func:`load_dataset` turns a record into the rod's validated, immutable
+:class:`~arfem.models.diagnosis.dataset.Dataset`; :func:`arfem.scenarios.georecord.read_mesh_record`
+into a v3 record. A refusal is one :class:`arfem.params.InputError` naming the file,
+the CSV line or the column/key, and what is wrong.
 
 Data flow: file -> ``Dataset`` (this module) -> models. Nothing here fits or
 simulates; the only processing is what the contract prescribes (drop <= 5 % rows with
 an empty ``time_s``/``growth_um``, fill short ``ambient_C`` gaps) plus robust flags
 that the models may use (growth outliers, sampling gaps), each reported in ``notes``.
+A cell outside its physical range refuses the record (the live loop, which cannot
+refuse a machine, holds such a reading instead).
 
 ``[dataset] initial`` may be ``"equilibrium"`` (the default: at t = 0 the rod is in
 equilibrium with the nominal ambient) or ``"unknown"``.
 """
 from __future__ import annotations
 
-import csv
-import io
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from arfem.io import read_text_utf8, read_toml
+from arfem.io import CsvTable, TomlFile, read_csv_table, read_toml_file
 from arfem.limits import Limits, resolve
+from arfem.ranges import check_range, first_outside, reading_quantity
 from arfem.strict import check_keys
-from arfem.models.diagnosis.dataset import GAP_FACTOR, Dataset, hampel_outliers, sampling_gaps
-from arfem.models.diagnosis.stats import resolution
-from arfem.params import InputError, Rod, check_plausible
+# the rod's Dataset and its robust flags (arfem.models.diagnosis.dataset, .stats) are
+# imported where a Dataset is built: they load scipy.stats (~1 s), which a replay of a
+# mesh record never needs
+from arfem.params import InputError, Rod
 
-__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES"]
+__all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
+           "RecordDoc", "read_record_doc", "RecordColumns", "read_record_columns",
+           "record_toml_of", "check_columns"]
 
 #: ``[rod]`` keys of the contract (a subset of :class:`arfem.params.Rod`'s fields).
 ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
             "specific_heat_J_kgK", "expansion_1_K", "convection_W_m2K", "ambient_C")
 #: Rows with an empty ``time_s``/``growth_um`` are dropped up to this fraction, refused above.
 MAX_MISSING_FRACTION = 0.05
-#: Largest record diagnosed without ``--allow-large`` (28 h at 1 s, 12 days at 10 s; the
+#: Largest record read without ``--allow-large`` (28 h at 1 s, 12 days at 10 s; the
 #: shipped record has 11 115 rows); the CSV's lines are counted before it is parsed.
 #: Measured: 20 000 rows diagnose in 93 s, 200 000 in 652 s (256 MB peak) on a shared
 #: 2-core machine, so this keeps a run to minutes.
 MAX_ROWS = 100_000
-#: Largest dataset CSV read without ``--allow-large`` [bytes]: MAX_ROWS rows of ~600
+#: Largest record CSV read without ``--allow-large`` [bytes]: MAX_ROWS rows of ~600
 #: characters; checked from the file's size before it is read.
 MAX_CSV_BYTES = 64 * 1024 ** 2
 
-#: ``model``: a contract-v3 record's (the mesh scenario it belongs to); read here only
-#: so that ``arfem compensate`` can replay a mesh run's record on its ``growth_um``; the
-#: rod's diagnosis refuses such a record (:func:`arfem.scenarios.georecord.refuse_mesh_record`)
+#: ``model``: a contract-v3 record's (the mesh scenario it belongs to); the rod's
+#: diagnosis refuses such a record (:func:`arfem.scenarios.georecord.refuse_mesh_record`)
 _TOP_TABLES = ("dataset", "rod", "columns", "sensors", "model")
-_DATASET_KEYS = ("name", "csv", "initial")
+_DATASET_KEYS = ("name", "csv", "initial", "displacement_zero")
+#: ``[dataset] displacement_zero`` of a v3 record: where the displacement (and tilt)
+#: channels are read from: the stress-free reference state (the default), or the first
+#: row (probes zeroed at the start of the test, as ISO 230-3 does)
+DISPLACEMENT_ZERO = ("reference", "first_row")
 _INITIAL_VALUES = ("equilibrium", "unknown")
 _SENSOR_KEYS = ("description",)
 _BASE_COLUMNS = ("time_s", "growth_um", "q_W_m2", "speed_rpm", "ambient_C")
 _TEMP_RE = re.compile(r"^T_.+_C$")
-_NUMBER_RE = re.compile(r"^[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$")
-_NONFINITE_RE = re.compile(r"^[+-]?(?:nan|inf|infinity)$", re.IGNORECASE)
+#: the v3 contract's own columns: a displacement sensor, a source's power
+_MESH_RE = re.compile(r"^(?:d_.+_um|tilt_.+_urad|P_.+_W)$")
 
-
-# -- reading ------------------------------------------------------------------------
 
 def _fail(message: str, where: str):
     raise InputError(message, where)
-
-
-
 
 
 def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _parse_meta(path: Path, doc: dict, limits: Limits):
-    """Validate the TOML tables; return (name, csv_path, initial_known, rod, columns, sensors)."""
-    where = str(path)
+def is_contract_column(name: str) -> bool:
+    """True for a column name of the contract (any version)."""
+    return name in _BASE_COLUMNS or bool(_TEMP_RE.match(name) or _MESH_RE.match(name))
+
+
+@dataclass(frozen=True)
+class RecordDoc:
+    """A record's TOML, read and checked once (:func:`read_record_doc`).
+
+    Attributes
+    ----------
+    toml : TomlFile
+    name : str
+    csv_path : Path, the CSV (inside the TOML's folder unless the user allowed otherwise)
+    initial_unknown : bool
+    rod : Rod, the ``[rod]`` table (the paper's rod where absent)
+    mapping : dict, contract name -> the CSV's column name (``[columns]``)
+    sensors : dict, column -> description (``[sensors.*]``)
+    scenario : Path or None, the mesh scenario of a v3 record (``[model]``)
+    scenario_toml : TomlFile or None, that scenario read (once)
+    displacement_zero : {"reference", "first_row"}, what the displacement channels are
+        measured from (:data:`DISPLACEMENT_ZERO`; a v3 record's key)
+    """
+
+    toml: TomlFile
+    name: str
+    csv_path: Path
+    initial_unknown: bool
+    rod: Rod
+    mapping: dict
+    sensors: dict
+    scenario: Path | None = None
+    scenario_toml: TomlFile | None = None
+    displacement_zero: str = "reference"
+
+    @property
+    def path(self) -> Path:
+        return self.toml.path
+
+    @property
+    def is_mesh(self) -> bool:
+        """A contract-v3 record (its TOML names a mesh scenario)."""
+        return self.scenario is not None
+
+
+def record_toml_of(path) -> Path:
+    """The record's TOML: ``path`` itself, or the ``.toml`` beside a ``.csv``."""
+    p = Path(path)
+    return p.with_suffix(".toml") if p.suffix == ".csv" else p
+
+
+def read_record_doc(path, limits: Limits | None = None,
+                    toml: TomlFile | None = None) -> RecordDoc:
+    """Read and check a record's TOML (any contract version), once.
+
+    ``path`` is the TOML (or the CSV beside it); ``toml`` an already read copy. A v3
+    record's scenario (``[model] scenario``) is read here too, and must be a mesh
+    scenario. A ``[dataset] csv`` outside the TOML's folder (an absolute path, ``..``,
+    a symbolic link out) is refused before anything of it is read, unless
+    ``limits.csv_outside`` (``--allow-csv-outside``).
+    """
+    p = record_toml_of(path)
+    limits = resolve(limits)
+    toml = read_toml_file(p, limits) if toml is None else toml
+    return _parse_meta(p, toml, limits)
+
+
+def _parse_meta(path: Path, toml: TomlFile, limits: Limits) -> RecordDoc:
+    """Validate the TOML's tables into a :class:`RecordDoc`."""
+    where, doc = str(path), toml.data
     try:
         check_keys(doc, _TOP_TABLES, "")
     except InputError as e:
@@ -84,8 +163,6 @@ def _parse_meta(path: Path, doc: dict, limits: Limits):
     for key in doc:
         if not isinstance(doc[key], dict):
             _fail(f"must be a table, got {type(doc[key]).__name__}", f"{where}: {key}")
-
-    check_keys(doc.get("model", {}), ("scenario",), f"{where}: model")
     ds = doc.get("dataset", {})
     check_keys(ds, _DATASET_KEYS, f"{where}: dataset")
     name = ds.get("name", path.stem)
@@ -98,8 +175,35 @@ def _parse_meta(path: Path, doc: dict, limits: Limits):
     if initial not in _INITIAL_VALUES:
         _fail(f"must be one of {', '.join(repr(v) for v in _INITIAL_VALUES)}, got {initial!r}",
               f"{where}: dataset.initial")
+    rod = _rod_table(doc.get("rod", {}), where)
+    mapping = _columns_table(doc.get("columns", {}), where)
+    sensors = _sensors_table(doc.get("sensors", {}), where)
+    csv_path = path.parent / csv_name
+    if not _inside(csv_path, path.parent) and not limits.csv_outside:
+        _fail(f"{csv_name!r} is outside the dataset's folder; arfem reads only files beside "
+              "the TOML (pass --allow-csv-outside to read it anyway)", f"{where}: dataset.csv")
+    scenario, sc_toml = _model_table(doc, path, limits)
+    zero = displacement_zero(ds, f"{where}: dataset.displacement_zero")
+    if zero != "reference" and scenario is None:
+        _fail("applies to a record of a mesh scenario's displacement channels ([model]); "
+              "a record on the rod reads growth_um from the reference state",
+              f"{where}: dataset.displacement_zero")
+    return RecordDoc(toml, name, csv_path, initial == "unknown", rod, mapping, sensors,
+                     scenario, sc_toml, zero)
 
-    rod_doc = doc.get("rod", {})
+
+def displacement_zero(ds: dict, where: str) -> str:
+    """The record's ``displacement_zero`` (:data:`DISPLACEMENT_ZERO`; default
+    ``"reference"``), or one line naming ``where``."""
+    v = ds.get("displacement_zero", "reference")
+    if not isinstance(v, str) or v not in DISPLACEMENT_ZERO:
+        raise InputError(f"must be \"reference\" (read from the stress-free state) or "
+                         f"\"first_row\" (probes zeroed at the start), got {v!r}", where)
+    return v
+
+
+def _rod_table(rod_doc: dict, where: str) -> Rod:
+    """``[rod]``: each key a number of the contract, plausible (:mod:`arfem.ranges`)."""
     check_keys(rod_doc, ROD_KEYS, f"{where}: rod")
     for key, value in rod_doc.items():
         if not _is_number(value):
@@ -109,23 +213,31 @@ def _parse_meta(path: Path, doc: dict, limits: Limits):
     except InputError as e:
         raise e.at(f"{where}: rod") from None
     for key, value in rod_doc.items():       # physical, so now: in the right unit?
-        check_plausible(key, float(value), f"{where}: rod.{key}")
+        check_range(key, float(value), f"{where}: rod.{key}")
+    return rod
 
-    columns = doc.get("columns", {})
+
+def _columns_table(columns: dict, where: str) -> dict:
+    """``[columns]``: contract name -> the CSV's column name, each used once."""
     seen: dict[str, str] = {}
     for key, value in columns.items():
-        if key not in _BASE_COLUMNS and not _TEMP_RE.match(key):
+        if not is_contract_column(key):
             _fail("is not a contract column name (time_s, growth_um, q_W_m2, speed_rpm, "
-                  "ambient_C, T_<name>_C)", f"{where}: columns.{key}")
+                  "ambient_C, T_<name>_C; a mesh record's d_<sensor>_um, tilt_<sensor>_urad, P_<source>_W)",
+                  f"{where}: columns.{key}")
         if not isinstance(value, str) or not value:
             _fail(f"must be a column name (string), got {value!r}", f"{where}: columns.{key}")
         if value in seen:
             _fail(f"maps to {value!r}, which columns.{seen[value]} already maps to",
                   f"{where}: columns.{key}")
         seen[value] = key
+    return dict(columns)
 
+
+def _sensors_table(table_doc: dict, where: str) -> dict:
+    """``[sensors.<column>]``: column -> description."""
     sensors: dict[str, str] = {}
-    for key, table in doc.get("sensors", {}).items():
+    for key, table in table_doc.items():
         if not isinstance(table, dict):
             _fail("must be a table [sensors.<column>]", f"{where}: sensors.{key}")
         check_keys(table, _SENSOR_KEYS, f"{where}: sensors.{key}")
@@ -133,11 +245,33 @@ def _parse_meta(path: Path, doc: dict, limits: Limits):
             if not isinstance(v, str):
                 _fail(f"must be a string, got {v!r}", f"{where}: sensors.{key}.{k}")
         sensors[key] = table.get("description", "")
-    csv_path = path.parent / csv_name
-    if not _inside(csv_path, path.parent) and not limits.csv_outside:
-        _fail(f"{csv_name!r} is outside the dataset's folder; arfem reads only files beside "
-              "the TOML (pass --allow-csv-outside to read it anyway)", f"{where}: dataset.csv")
-    return name, csv_path, initial == "unknown", rod, dict(columns), sensors
+    return sensors
+
+
+def _model_table(doc: dict, path: Path, limits: Limits):
+    """A v3 record's ``[model]``: (the scenario's path, the scenario read), or (None,
+    None) without ``[model]``. The scenario must exist, beside or below nothing in
+    particular (it is the user's model, not data), and be a mesh scenario."""
+    if "model" not in doc:
+        return None, None
+    where = str(path)
+    m = doc["model"]
+    check_keys(m, ("scenario",), f"{where}: model")
+    if "scenario" not in m:
+        _fail('needs scenario = "<mesh scenario>.toml"', f"{where}: model")
+    if not isinstance(m["scenario"], str) or not m["scenario"].strip():
+        _fail("must be a file name", f"{where}: model.scenario")
+    if "rod" in doc:
+        _fail("a record with [model] takes its materials from the mesh scenario; "
+              "[rod] belongs to a record on the rod", f"{where}: rod")
+    sc = path.parent / m["scenario"]
+    if not sc.is_file():
+        _fail(f"scenario file {sc} not found", f"{where}: model.scenario")
+    sc_toml = read_toml_file(sc, limits)
+    if not sc_toml.has_table("geometry"):    # a rod scenario: say so, not "rod: unknown key"
+        _fail(f"{sc} has no [geometry] table: a record with [model] is checked against a "
+              "mesh scenario (a rod record has no [model] table)", f"{where}: model.scenario")
+    return sc, sc_toml
 
 
 def _inside(p: Path, folder: Path) -> bool:
@@ -149,82 +283,101 @@ def _inside(p: Path, folder: Path) -> bool:
         return False
 
 
-def _read_csv(path: Path, toml_path: Path, limits: Limits):
-    """Return (header, rows, line_numbers) of a strict, rectangular CSV."""
-    text = read_text_utf8(path, missing=f"CSV file not found (named by {toml_path})",
-                          max_bytes=MAX_CSV_BYTES, limits=limits)
-    n_rows = text.count("\n") - 1                 # minus the header
-    if n_rows > MAX_ROWS and not limits.large:
-        _fail(f"has about {n_rows:,} rows; arfem diagnoses at most {MAX_ROWS:,} (resample "
-              "the record, or pass --allow-large)", str(path))
-    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
-    rows, lines = [], []
-    header = None
-    start = 1
-    try:
-        while True:
-            start = reader.line_num + 1           # where the next record begins
-            try:
-                row = next(reader)
-            except StopIteration:
-                break
-            if not row or (len(row) == 1 and not row[0].strip()):
-                continue          # blank line
-            if header is None:
-                header = [c.strip() for c in row]
-                header_line = reader.line_num
-                continue
-            if len(row) != len(header):
-                _fail(f"has {len(row)} fields, the header has {len(header)}",
-                      f"{path}: line {reader.line_num}")
-            rows.append(row)
-            lines.append(reader.line_num)
-    except csv.Error as e:
-        if reader.line_num > start:               # e.g. a quote never closed
-            _fail(f"broken CSV: {e} (the record starting here runs on to line "
-                  f"{reader.line_num}: a quote opened here is never closed?)",
-                  f"{path}: line {start}")
-        _fail(f"broken CSV: {e}", f"{path}: line {reader.line_num}")
-    if header is None:
-        _fail("is empty (no header row)", str(path))
-    for i, name in enumerate(header):
-        if not name:
-            _fail(f"header field {i + 1} is empty", f"{path}: line {header_line}")
-        if header.index(name) != i:
-            _fail(f"column {name!r} appears twice in the header", f"{path}: line {header_line}")
-    if not rows:
-        _fail("has a header but no data rows", str(path))
-    return header, rows, np.asarray(lines, dtype=int)
+@dataclass(frozen=True)
+class RecordColumns:
+    """A record's CSV read once and mapped onto the contract's names
+    (:func:`read_record_columns`).
+
+    Attributes
+    ----------
+    values : dict, contract name -> float ndarray (NaN for an empty cell), each cell
+        finite and within its physical range
+    extra : dict, every other CSV column -> its raw cells (object ndarray)
+    lines : ndarray of int, the CSV line of each row
+    csv_path : Path
+    header : dict, contract name -> the CSV's column name
+    """
+
+    values: dict
+    extra: dict
+    lines: np.ndarray
+    csv_path: Path
+    header: dict
+
+    def label(self, key: str) -> str:
+        """How a message names column ``key``: ``'growth_um' ('ch1(um)')`` where the CSV
+        calls it otherwise."""
+        foreign = self.header.get(key, key)
+        return f"{key!r}" if foreign == key else f"{key!r} ({foreign!r})"
 
 
-def _parse_column(csv_path: Path, rows, lines, j: int, label: str,
-                  echo: bool = True) -> np.ndarray:
-    """Numbers of column ``j``; empty cells -> NaN; text/NaN/inf -> InputError.
+def read_record_columns(doc: RecordDoc, limits: Limits | None = None) -> RecordColumns:
+    """Read the record's CSV once (:func:`arfem.io.read_csv_table`, with the record's
+    size and row limits unless ``limits.large``), map its columns onto the contract's
+    names, and check every cell of each contract column against its physical range
+    (:func:`check_columns`)."""
+    limits = resolve(limits)
+    mapping = doc.mapping
+    foreign = set(mapping.values())
 
-    With ``echo`` False (a file outside the dataset's folder) a message never shows the
-    cell's content, only its place."""
-    out = np.empty(len(rows))
-    match = _NUMBER_RE.match
-    for i, row in enumerate(rows):
-        cell = row[j].strip()
-        if not cell:
-            out[i] = np.nan
+    def numeric(h: str) -> bool:
+        return h in foreign or (h not in mapping and is_contract_column(h))
+
+    back = {v: k for k, v in mapping.items()}
+
+    def label(h: str) -> str:
+        key = back.get(h, h)
+        return f"{key!r}" if key == h else f"{key!r} ({h!r})"
+    table = read_csv_table(doc.csv_path, numeric, max_bytes=MAX_CSV_BYTES,
+                           max_rows=MAX_ROWS, limits=limits,
+                           missing=f"CSV file not found (named by {doc.path})",
+                           echo=_inside(doc.csv_path, doc.path.parent), label=label)
+    col = _column_names(mapping, table, doc.path)
+    rc = RecordColumns({k: table.numbers[h] for k, h in col.items()},
+                       {h: table.cells[h] if h in table.cells else table.numbers[h]
+                        for h in table.header if h not in col.values()},
+                       table.lines, doc.csv_path, col)
+    check_columns(rc.values, rc.lines, doc.csv_path, rc.label)
+    return rc
+
+
+def _column_names(mapping: dict, table: CsvTable, toml_path: Path) -> dict:
+    """Contract name -> the CSV's column name: mapped names first, then the contract's
+    own names found in the header."""
+    header = table.header
+    for key, foreign in mapping.items():
+        if foreign not in header:
+            _fail(f"maps to column {foreign!r}, which is not in the header of "
+                  f"{table.path}", f"{toml_path}: columns.{key}")
+    for key, foreign in mapping.items():
+        if key in header and key not in mapping.values():
+            _fail(f"maps {foreign!r} onto {key}, and the CSV has a column {key!r} of its own: "
+                  "two columns would be one (rename or drop one of them)",
+                  f"{toml_path}: columns.{key}")
+    col = dict(mapping)
+    for h in header:
+        if h not in col and h not in col.values() and h in table.numbers:
+            col[h] = h
+    return col
+
+
+def check_columns(values: dict, lines, where, label) -> None:
+    """Every cell of each contract column within its physical range
+    (:func:`arfem.ranges.reading_range`: the live loop's ranges), empty cells aside: one
+    line naming the first cell out of range. ``ambient_C`` is judged by its median first,
+    whose message names a column in kelvin. Shared by every contract version and by a
+    record held in memory."""
+    amb = values.get("ambient_C")
+    if amb is not None and np.isfinite(amb).any():
+        check_range("ambient_C", float(np.nanmedian(amb)),
+                    f"{where}: column {label('ambient_C')} (median)")
+    for key, v in values.items():
+        q = reading_quantity(key)
+        if q is None:
             continue
-        if match(cell):
-            out[i] = float(cell)
-            continue
-        # only a bad cell is shown (a repr per cell was a tenth of a real record's run)
-        shown = repr(cell if len(cell) <= 40 else cell[:40] + "…") if echo else "the cell"
-        if _NONFINITE_RE.match(cell):
-            _fail(f"{shown} is not a finite number (NaN/inf are refused; leave the cell "
-                  f"empty for a missing value)", f"{csv_path}: line {lines[i]}, column {label}")
-        else:
-            _fail(f"{shown} is not a number", f"{csv_path}: line {lines[i]}, column {label}")
-    if not np.all(np.isfinite(out[~np.isnan(out)])):      # e.g. 1e999
-        i = int(np.flatnonzero(np.isinf(out))[0])
-        _fail(f"{repr(rows[i][j].strip()) if echo else 'the cell'} overflows to infinity",
-              f"{csv_path}: line {lines[i]}, column {label}")
-    return out
+        i = first_outside(key, v)
+        if i is not None:
+            check_range(q, float(v[i]), f"{where}: line {lines[i]}, column {label(key)}")
 
 
 def _fill_short_gaps(t, y):
@@ -235,61 +388,53 @@ def _fill_short_gaps(t, y):
     return y
 
 
-def _column_indices(mapping: dict, header: list, toml_path: Path, csv_path: Path):
-    """Contract name -> header index (mapped names first, then the contract's own names
-    found in the header), and the header names no contract column uses."""
-    for key, foreign in mapping.items():
-        if foreign not in header:
-            _fail(f"maps to column {foreign!r}, which is not in the header of {csv_path}",
-                  f"{toml_path}: columns.{key}")
-    col: dict[str, int] = {key: header.index(foreign) for key, foreign in mapping.items()}
-    mapped_foreign = set(mapping.values())
-    for j, h in enumerate(header):
-        if h in mapped_foreign or h in col:
-            continue
-        if h in _BASE_COLUMNS or _TEMP_RE.match(h):
-            col[h] = j
-    used = set(col.values())
-    extra = [h for j, h in enumerate(header) if j not in used]
+def _required_columns(col: dict, toml_path: Path, csv_path: Path, mapped: bool) -> None:
+    """A record on the rod needs time_s, growth_um and an input (q_W_m2 or speed_rpm)."""
     for req in ("time_s", "growth_um"):
         if req not in col:
             _fail(f"required column {req!r} is missing"
-                  + (f" (map a column onto it under [columns] in {toml_path})" if mapping else ""),
+                  + (f" (map a column onto it under [columns] in {toml_path})" if mapped else ""),
                   str(csv_path))
     if "q_W_m2" not in col and "speed_rpm" not in col:
         _fail("needs a q_W_m2 or a speed_rpm column; it has neither", str(csv_path))
-    return col, extra
 
 
-def _drop_missing_rows(values: dict, lines, csv_path: Path, notes: list):
-    """Drop the rows with an empty time or growth (up to 5 %, else refuse). Where only
-    the growth is empty, the row's input is kept aside as unobserved.
+def _drop_missing_rows(values: dict, lines, csv_path: Path, notes: list,
+                       keys: tuple = ("time_s", "growth_um")):
+    """Drop the rows with an empty cell in ``keys`` (time and growth; a mesh record's
+    time) up to 5 %, else refuse. Where only the growth is empty, the row's input is
+    kept aside as unobserved.
 
     Returns (values, lines, keep, unobserved) over the kept rows."""
     n_all = len(lines)
-    missing = np.isnan(values["time_s"]) | np.isnan(values["growth_um"])
+    missing = np.zeros(n_all, bool)
+    for k in keys:
+        missing |= np.isnan(values[k])
     n_missing = int(missing.sum())
+    what = " or ".join(keys)
     if n_missing > MAX_MISSING_FRACTION * n_all:
         _fail(f"{n_missing} of {n_all} rows ({100 * n_missing / n_all:.1f} %) have an empty "
-              f"time_s or growth_um; at most {100 * MAX_MISSING_FRACTION:g} % may be dropped "
+              f"{what}; at most {100 * MAX_MISSING_FRACTION:g} % may be dropped "
               f"(first at line {lines[missing][0]})", str(csv_path))
     if n_missing:
         shown = ", ".join(str(x) for x in lines[missing][:10])
         notes.append(f"dropped {n_missing} of {n_all} rows ({100 * n_missing / n_all:.2f} %) "
-                     f"with an empty time_s or growth_um: CSV lines {shown}"
+                     f"with an empty {what}: CSV lines {shown}"
                      + (" ..." if n_missing > 10 else "")
-                     + "; where only growth_um is empty the row's input is kept")
-    # rows with a time and an input but no growth: the observation is dropped, the input kept
-    inp = "q_W_m2" if "q_W_m2" in values else "speed_rpm"
-    unobs = (np.isnan(values["growth_um"]) & ~np.isnan(values["time_s"])
-             & np.isfinite(values[inp]) & (values[inp] >= 0))
-    unobserved = {k: v[unobs].copy() for k, v in values.items()
-                  if k in ("time_s", inp, "ambient_C") or _TEMP_RE.match(k)}
+                     + ("; where only growth_um is empty the row's input is kept"
+                        if "growth_um" in keys else ""))
+    unobserved = {}
+    if "growth_um" in keys:   # a time and an input but no growth: the input is kept
+        inp = "q_W_m2" if "q_W_m2" in values else "speed_rpm"
+        unobs = (np.isnan(values["growth_um"]) & ~np.isnan(values["time_s"])
+                 & np.isfinite(values[inp]) & (values[inp] >= 0))
+        unobserved = {k: v[unobs].copy() for k, v in values.items()
+                      if k in ("time_s", inp, "ambient_C") or _TEMP_RE.match(k)}
     keep = ~missing
     lines = lines[keep]
     values = {k: v[keep] for k, v in values.items()}
     if lines.size == 0:
-        _fail("no row has both time_s and growth_um", str(csv_path))
+        _fail(f"no row has {' and '.join(keys)}", str(csv_path))
     return values, lines, keep, unobserved
 
 
@@ -306,58 +451,28 @@ def _check_time(t, lines, csv_path: Path, label) -> np.ndarray:
     return dt
 
 
+def input_complete(v, key: str, lines, csv_path, label) -> None:
+    """An input column (a heat flux, a speed, a source's power): given on every row
+    and >= 0, else one line naming the first row that is not."""
+    if np.any(np.isnan(v)):
+        i = int(np.flatnonzero(np.isnan(v))[0])
+        _fail("is empty; the input must be given on every row with a reading",
+              f"{csv_path}: line {lines[i]}, column {label(key)}")
+    if np.any(v < 0):
+        i = int(np.flatnonzero(v < 0)[0])
+        _fail(f"{v[i]:g} is negative; it must be >= 0",
+              f"{csv_path}: line {lines[i]}, column {label(key)}")
+
+
 def _check_input(values: dict, lines, csv_path: Path, label, notes: list) -> None:
-    """The input (q_W_m2 where given, else speed_rpm): complete, >= 0 and plausible."""
+    """The input (q_W_m2 where given, else speed_rpm): complete and >= 0 (its range:
+    :func:`check_columns`)."""
     for key in ("q_W_m2", "speed_rpm")[:1 if "q_W_m2" in values else 2]:
-        if key not in values:
-            continue
-        v = values[key]
-        if np.any(np.isnan(v)):
-            i = int(np.flatnonzero(np.isnan(v))[0])
-            _fail("is empty; the input must be given on every row with a growth value",
-                  f"{csv_path}: line {lines[i]}, column {label(key)}")
-        if np.any(v < 0):
-            i = int(np.flatnonzero(v < 0)[0])
-            _fail(f"{v[i]:g} is negative; it must be >= 0",
-                  f"{csv_path}: line {lines[i]}, column {label(key)}")
-        i = int(np.argmax(v))
-        check_plausible(key, float(v[i]), f"{csv_path}: line {lines[i]}, column {label(key)}")
+        if key in values:
+            input_complete(values[key], key, lines, csv_path, label)
     if "q_W_m2" in values and "speed_rpm" in values:
         notes.append("both q_W_m2 and speed_rpm are given; the heat flux q_W_m2 is the input, "
                      "speed_rpm is carried along")
-
-
-#: A temperature reading of a machine tool outside this range [°C] is not one (below
-#: absolute zero, or far above any spindle part): the cell is refused (issue 29: a
-#: reading of -1e308 °C made a hold-out RMSE of inf with exit 0).
-TEMPERATURE_CELL_RANGE_C = (-273.15, 1000.0)
-
-
-def _check_temperature_cells(values: dict, lines, csv_path: Path, label,
-                             ambient: bool = False) -> None:
-    """Every cell of each ``T_<name>_C`` (:data:`TEMPERATURE_CELL_RANGE_C`), and with
-    ``ambient`` of ``ambient_C`` (the plausible ambient range; :func:`_ambient` asks after
-    its median check, whose message names a column in K), that is given: one line naming
-    the row and column of the first one out of range."""
-    for key, v in values.items():
-        if not (key == "ambient_C" and ambient or _TEMP_RE.match(key)):
-            continue
-        fin = np.flatnonzero(np.isfinite(v))
-        if np.any(np.isinf(v)):
-            i = int(np.flatnonzero(np.isinf(v))[0])
-            _fail(f"{v[i]:g} is not a temperature", f"{csv_path}: line {lines[i]}, "
-                                                   f"column {label(key)}")
-        if not fin.size:
-            continue
-        for i in (int(fin[np.argmin(v[fin])]), int(fin[np.argmax(v[fin])])):
-            where = f"{csv_path}: line {lines[i]}, column {label(key)}"
-            if key == "ambient_C":
-                check_plausible("ambient_C", float(v[i]), where)
-            else:
-                lo, hi = TEMPERATURE_CELL_RANGE_C
-                if not lo <= v[i] <= hi:
-                    _fail(f"{v[i]:g} °C is outside [{lo:g}, {hi:g}] °C, no machine "
-                          "reading", where)
 
 
 def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
@@ -367,9 +482,6 @@ def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
         notes.append("ambient_C: the column has no value; treated as absent")
         amb = None
     if amb is not None:
-        med = float(np.nanmedian(amb))
-        check_plausible("ambient_C", med, f"{csv_path}: column {label('ambient_C')} (median)")
-        _check_temperature_cells({"ambient_C": amb}, lines, csv_path, label, ambient=True)
         nan = np.isnan(amb)
         if nan.sum() > MAX_MISSING_FRACTION * amb.size:
             i = int(np.flatnonzero(nan)[0])
@@ -384,13 +496,11 @@ def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
 
 
 def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> tuple[np.ndarray, float]:
-    """The growth in a plausible range; its Hampel outlier flags, with the σ floored at
-    the sensor's resolution where the growth is quantised (a one-quantum flicker of a
-    quantised reading is the sensor, not an outlier); and that resolution [µm]."""
-    if g.size and np.isfinite(g).any():
-        i = int(np.nanargmax(np.abs(g)))
-        check_plausible("growth_um", float(g[i]),
-                        f"{csv_path}: line {lines[i]}, column {label('growth_um')}")
+    """The growth's Hampel outlier flags, with the σ floored at the sensor's resolution
+    where the growth is quantised (a one-quantum flicker of a quantised reading is the
+    sensor, not an outlier); and that resolution [µm]."""
+    from arfem.models.diagnosis.dataset import hampel_outliers
+    from arfem.models.diagnosis.stats import resolution
     res = resolution(g)
     if res > 0:
         notes.append(f"growth_um is quantised at {res:.4g} µm (the sensor's resolution, "
@@ -407,6 +517,7 @@ def _growth_outliers(g, lines, csv_path: Path, label, notes: list) -> tuple[np.n
 
 def _record_notes(t, dt, gaps, extra, sensors, col, initial_unknown, notes: list) -> None:
     """Notes on the sampling, the gaps, the carried columns and the sensor tables."""
+    from arfem.models.diagnosis.dataset import GAP_FACTOR
     if dt.size:
         notes.append(f"{t.size} rows over {t[-1] - t[0]:g} s; sampling interval median "
                      f"{np.median(dt):g} s, min {dt.min():g} s, max {dt.max():g} s")
@@ -438,9 +549,10 @@ def load_dataset(toml_path, limits: Limits | None = None) -> Dataset:
 
     Parameters
     ----------
-    toml_path : str or path-like
-        The dataset's TOML file; its ``[dataset] csv`` (default ``<stem>.csv``) is
-        read relative to it.
+    toml_path : str or path-like, or RecordDoc
+        The dataset's TOML file (or its CSV; or the TOML as read,
+        :func:`read_record_doc`); its ``[dataset] csv`` (default ``<stem>.csv``) is read
+        relative to it.
     limits : arfem.limits.Limits, optional
         What the user allows: a larger file or more rows (``large``), a CSV outside the
         TOML's folder (``csv_outside``). Default: :meth:`Limits.from_environment`.
@@ -464,26 +576,24 @@ def load_dataset(toml_path, limits: Limits | None = None) -> Dataset:
     >>> ds.input_kind, ds.growth_um.tolist(), ds.rod.convection_W_m2K
     ('q_W_m2', [0.0, 0.2, 0.4], 55.0)
     """
-    toml_path = Path(toml_path)
-    limits = resolve(limits)
-    doc = read_toml(toml_path, limits)
-    name, csv_path, initial_unknown, rod, mapping, sensors = _parse_meta(toml_path, doc, limits)
-    header, rows, lines = _read_csv(csv_path, toml_path, limits)
-    notes: list[str] = []
-    col, extra = _column_indices(mapping, header, toml_path, csv_path)
+    doc = toml_path if isinstance(toml_path, RecordDoc) else read_record_doc(toml_path, limits)
+    return dataset_of(doc, limits)
 
-    def label(key):
-        foreign = header[col[key]]
-        return f"{key!r}" if foreign == key else f"{key!r} ({foreign!r})"
 
-    echo = _inside(csv_path, toml_path.parent)
-    values = {key: _parse_column(csv_path, rows, lines, j, label(key), echo)
-              for key, j in col.items()}
-    extra_raw = {h: np.array([row[header.index(h)] for row in rows], dtype=object)
-                 for h in extra}
-    return _checked_dataset(values, lines, extra_raw, sensors, col, label, notes,
-                            name=name, source=toml_path, csv_path=csv_path, rod=rod,
-                            initial_unknown=initial_unknown, where=csv_path)
+def dataset_of(doc: RecordDoc, limits: Limits | None = None,
+               columns: RecordColumns | None = None) -> Dataset:
+    """The rod's :class:`Dataset` of a record whose TOML is read (``doc``) and, where
+    given, whose CSV is read (``columns``; else it is read here): the contract's
+    version-2 view (a v3 record's ``growth_um``, its other columns carried)."""
+    rc = read_record_columns(doc, limits) if columns is None else columns
+    base = {k: v for k, v in rc.values.items() if k in _BASE_COLUMNS or _TEMP_RE.match(k)}
+    _required_columns(base, doc.path, doc.csv_path, bool(doc.mapping))
+    extra = {h: v for h, v in rc.extra.items()}
+    extra.update({k: v for k, v in rc.values.items() if k not in base})
+    return _checked_dataset(dict(base), rc.lines, extra, doc.sensors, base, rc.label, [],
+                            name=doc.name, source=doc.path, csv_path=doc.csv_path,
+                            rod=doc.rod, initial_unknown=doc.initial_unknown,
+                            where=doc.csv_path)
 
 
 def _checked_dataset(values, lines, extra_raw, sensors, col, label, notes, *, name, source,
@@ -499,13 +609,13 @@ def _checked_dataset(values, lines, extra_raw, sensors, col, label, notes, *, na
     dt = _check_time(t, lines, where, label)
     _check_input(values, lines, where, label, notes)
     amb = _ambient(values, t, lines, where, label, notes)
-    _check_temperature_cells(values, lines, where, label)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():
             notes.append(f"{k}: {int(np.isnan(v).sum())} empty cells (NaN)")
     g = values["growth_um"]
     outliers, res = _growth_outliers(g, lines, where, label, notes)
+    from arfem.models.diagnosis.dataset import Dataset, sampling_gaps
     gaps = sampling_gaps(t)
     _record_notes(t, dt, gaps, list(extra_raw), sensors, col, initial_unknown, notes)
     extra_cols = {h: a[keep] for h, a in extra_raw.items()}
@@ -609,7 +719,7 @@ def dataset_from_columns(columns, *, name: str = "dataframe", rod: Rod | None = 
         _fail(f"must be a non-empty string, got {name!r}", "name")
     rod = Rod() if rod is None else rod
     for key in ROD_KEYS:
-        check_plausible(key, float(getattr(rod, key)), f"rod.{key}")
+        check_range(key, float(getattr(rod, key)), f"rod.{key}")
     header = [str(c) for c in columns.keys()]
     for i, h in enumerate(header):
         if header.index(h) != i:
@@ -645,6 +755,7 @@ def _dataset_from_values(values, lines, extra, extra_raw, *, name, rod, initial_
     :func:`load_dataset` does after reading the CSV), for a record held in memory: its
     notes count rows, not CSV lines."""
     notes: list[str] = []
+    check_columns(values, lines, where, lambda key: f"{key!r}")
     ds = _checked_dataset(values, lines, {h: extra_raw[h] for h in extra}, {}, values,
                           lambda key: f"{key!r}", notes, name=name, source=Path(where),
                           csv_path=None, rod=rod, initial_unknown=initial_unknown,

@@ -53,9 +53,11 @@ def add_parser(subparsers):
 
 
 def main(args) -> int:
-    from arfem.scenarios.geodiagnose import is_mesh_record, main_geodiagnose
-    if is_mesh_record(args.case):        # contract v3: the record names a mesh scenario
-        rc = main_geodiagnose(args)
+    from arfem.scenarios.dataset import read_record_doc
+    from arfem.scenarios.geodiagnose import main_geodiagnose
+    doc = read_record_doc(args.case, args.limits)    # the record's TOML, read once
+    if doc.is_mesh:                      # contract v3: the record names a mesh scenario
+        rc = main_geodiagnose(args, doc)
         rod_only = [f for f, on in (("--frame-search", args.frame_search != "narrow"),
                                     ("--drift-last", args.drift_last),
                                     ("--stability", args.stability)) if on]
@@ -67,7 +69,7 @@ def main(args) -> int:
         return rc
     with Progress(12 + max(args.stability, 0), "arfem diagnose",
                   enabled=not args.no_progress) as progress:
-        s = diagnosis_run.run_diagnosis(args.case, args.out, args.holdout_start, args.force,
+        s = diagnosis_run.run_diagnosis(doc, args.out, args.holdout_start, args.force,
                           args.frame_search, progress, args.drift_last, args.limits,
                           args.stability)
     print(terminal_line(s) + f"; wrote {args.out}")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from arfem.models.diagnosis.engine import Diagnosis, diagnose
 from arfem.params import InputError
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.dataset import RecordDoc, load_dataset, read_record_doc
 from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
@@ -107,10 +107,12 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
 
 
 def _rod_dataset(toml_path, limits):
-    """The record read for the rod's diagnosis; a mesh model's record (contract v3, or
+    """The record read for the rod's diagnosis (``toml_path``, or its TOML as read: a
+    :class:`arfem.scenarios.dataset.RecordDoc`); a mesh model's record (contract v3, or
     its displacement channels without the ``[model]`` table) is refused in one line."""
-    refuse_mesh_record(toml_path)
-    ds = load_dataset(toml_path, limits)
+    doc = toml_path if isinstance(toml_path, RecordDoc) else read_record_doc(toml_path, limits)
+    refuse_mesh_record(doc)
+    ds = load_dataset(doc, limits)
     refuse_mesh_channels(ds)
     return ds
 
@@ -166,11 +168,12 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
     from arfem.scenarios.diagnosis_report import write_all
     from arfem.scenarios.model_file import write_model
-    refuse_mesh_record(case)         # a v3 record goes to the mesh diagnosis, not here
-    prepare_out_dir(out, force, inputs=[case], writes=WRITES)   # refuse early, before any work
+    doc = case if isinstance(case, RecordDoc) else read_record_doc(case, limits)
+    refuse_mesh_record(doc)          # a v3 record goes to the mesh diagnosis, not here
+    prepare_out_dir(out, force, inputs=[doc.path], writes=WRITES)   # refuse early, before any work
     if progress is not None:
         progress("reading the dataset")
-    ds = _rod_dataset(case, limits)
+    ds = _rod_dataset(doc, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
     add_stability(diag, ds, stability, frame_search, drift_last, progress)
     if progress is not None:

@@ -17,12 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
+from arfem.fem.body import SENSOR_QUANTITIES
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
 from arfem.params import InputError
 from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
-from arfem.scenarios.georecord import is_mesh_record, read_record_files, read_table
+from arfem.scenarios.georecord import MeshRecord, is_mesh_record, read_mesh_record
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
@@ -42,9 +43,16 @@ def _map_columns(cols: dict, sc, where: str):
     name the column and what the scenario has."""
     disp = [s.name for s in sc.sensors if s.quantity == "displacement"]
     temp = [s.name for s in sc.sensors if s.quantity == "temperature"]
+    tilts = [s.name for s in sc.sensors if s.quantity == "tilt"]
     srcs = [s.spec.name for s in sc.sources]
     chans, power = [], {}
     for c in cols:
+        if c.startswith("tilt_") and c.endswith("_urad"):      # a tilt: evidence
+            if c[5:-5] not in tilts:
+                raise InputError(f"names no tilt sensor of {sc.source} (its tilts: "
+                                 f"{', '.join(tilts) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+            continue
         if c.startswith("d_") and c.endswith("_um"):
             if c[2:-3] not in disp:
                 raise InputError(f"names no displacement sensor of {sc.source} (it has "
@@ -71,29 +79,23 @@ def _map_columns(cols: dict, sc, where: str):
 
 
 def _speed_power(sc, src, speed, where: str) -> np.ndarray:
-    """A source's power at each speed, linear between its scenario's (speed, power)
-    pairs (its values on the cycle's phases)."""
-    if src.edges_s.shape != sc.cycle.edges_s.shape or not np.allclose(src.edges_s,
-                                                                        sc.cycle.edges_s):
-        raise InputError(f"source {src.spec.name!r} follows its own schedule in the scenario, "
-                         f"so speed_rpm does not give its power: add a column "
-                         f"P_{src.spec.name}_W", where)
-    n = np.concatenate([[0.0], sc.cycle.speed_rpm])
-    p = np.concatenate([[0.0], src.values])
-    o = np.argsort(n, kind="stable")
-    return np.interp(speed, n[o], p[o])
+    """A source's power at each speed (its speed law, else linear between its
+    scenario's (speed, power) pairs): :func:`arfem.scenarios.geometry_scenario.source_power_at_speed`."""
+    from arfem.scenarios.geometry_scenario import source_power_at_speed
+    return source_power_at_speed(sc, src, speed, where)
 
 
-def load_mesh_record(path, progress=None):
-    """Read a v3 record, its scenario, and build the reduced model.
+def load_mesh_record(path, progress=None, limits=None):
+    """Read a v3 record (or take a :class:`~arfem.scenarios.georecord.MeshRecord` read
+    once), its scenario, and build the reduced model.
 
     Returns (GeoRecord, GeoModel, Plant, scenario, timings {step: s}).
     """
     progress = progress or (lambda s: None)
-    files = read_record_files(path)
+    mr = path if isinstance(path, MeshRecord) else read_mesh_record(path, limits)
+    files, tab = mr.files, mr.table
     where = str(files.csv)
-    tab = read_table(files)
-    sc, spec = load_diagnosis_scenario(files.scenario)
+    sc, spec = load_diagnosis_scenario(files.scenario, files.doc.scenario_toml)
     chans, power, speed, amb = _map_columns(tab.columns, sc, where)
     if speed is not None and (np.any(~np.isfinite(speed)) or np.any(speed < 0)):
         raise InputError("speed_rpm must be finite and >= 0", f"{where}: column speed_rpm")
@@ -121,7 +123,7 @@ def load_mesh_record(path, progress=None):
     data = np.column_stack([tab.columns[c] for c in chans])
     rec = make_record(files.name, tab.columns["time_s"], data, chans, plant.names, plant.kinds,
                       np.column_stack(P) if P else np.zeros((data.shape[0], 0)), speed, amb,
-                      sc.reference_C)
+                      sc.reference_C, files.displacement_zero)
     _check_units(model, rec, where)
     return rec, model, plant, sc, tm
 
@@ -209,7 +211,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     hist = InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K)
     t0 = time.perf_counter()
     full = solve_reduced(plant.body, hist, plant.G, t,
-                         kinds=[int(k == "displacement") for k in plant.kinds]).outputs
+                         kinds=[SENSOR_QUANTITIES[k][4] for k in plant.kinds]).outputs
     t_full = time.perf_counter() - t0
     tr0 = type(tr)(tr.durations_s, tr.h_W_m2K, tr.kappa,
                    np.column_stack([tr.inputs[:, :S + G],
@@ -218,23 +220,26 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     red = simulate(model.rb, tr0, columns=False)
     err = np.max(np.abs(red - full), axis=0)
     scale = np.max(np.abs(full), axis=0)
-    unit = [1e6 if k == "displacement" else 1.0 for k in plant.kinds]
+    unit = [1.0 if k == "temperature" else 1e6 for k in plant.kinds]
     return {"basis_vectors": model.rb.k, "krylov_blocks": model.rb.n_blocks,
             "max_abs_error": {n: float(e * u) for n, e, u in zip(plant.names, err, unit)},
             "max_rel_error": {n: float(e / s) if s > 0 else 0.0
                               for n, e, s in zip(plant.names, err, scale)},
-            "units": "µm for displacements, K for temperatures",
+            "units": "µm for displacements, µrad for tilts, K for temperatures",
             "reference": "arfem.fem.thermal3d.solve_reduced at the nominal h (own basis)",
             "reference_solve_s": t_full}
 
 
-def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None) -> dict:
-    """Diagnose a v3 record and write every output into ``out``; returns the summary."""
+def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None,
+                     limits=None) -> dict:
+    """Diagnose a v3 record (its path, or a :class:`~arfem.scenarios.georecord.MeshRecord`
+    read once) and write every output into ``out``; returns the summary."""
     from arfem.scenarios.geodiagnose_report import write_report
-    prepare_out_dir(out, force, inputs=[case], writes=WRITES)
     progress = progress or (lambda s: None)
     progress("reading the record")
     t0 = time.perf_counter()
+    case = case if isinstance(case, MeshRecord) else read_mesh_record(case, limits)
+    prepare_out_dir(out, force, inputs=[case.files.toml], writes=WRITES)
     rec, model, plant, sc, tm = load_mesh_record(case, progress)
     if holdout_start_s is not None and not rec.time_s[0] < holdout_start_s < rec.time_s[-1]:
         raise InputError(f"{holdout_start_s:g} s is outside the record "
@@ -266,24 +271,29 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
 
 def _export_models(case, d, model, rec, sc, progress):
     """model_extended.json / model_nominal.json and their replay on the record
-    (:mod:`arfem.scenarios.geodiagnose_export`)."""
+    (:mod:`arfem.scenarios.geodiagnose_export`); ``case`` the record read once."""
     from arfem import __version__
     from arfem.scenarios.axes_record import load_axes_record
     from arfem.scenarios.geodiagnose_export import diagnosis_models, replay_table
-    files = read_record_files(case)
-    ds = load_axes_record(case)             # read once: its columns and the replay
-    models = diagnosis_models(d, model, rec, sc, files, set(ds.extra_columns), __version__,
-                              progress)
-    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s, str(case))
+    ds = load_axes_record(case)             # the record as read, not read again
+    models = diagnosis_models(d, model, rec, sc, case.files, set(ds.extra_columns),
+                              __version__, progress)
+    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s,
+                                              str(case.files.toml))
     return models
 
 
-def main_geodiagnose(args) -> int:
+def main_geodiagnose(args, record=None) -> int:
     """The ``arfem diagnose`` command for a mesh record (parsed ``args`` of
-    :mod:`arfem.scenarios.diagnose`)."""
+    :mod:`arfem.scenarios.diagnose`; ``record`` its TOML as read, or None)."""
     from arfem.scenarios.progress import Progress
+    limits = getattr(args, "limits", None)
     with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
-        s = run_geodiagnosis(args.case, args.out, args.holdout_start, args.force, progress)
+        case = args.case if record is None else read_mesh_record(args.case, limits, record)
+        s = run_geodiagnosis(case, args.out, args.holdout_start, args.force, progress,
+                             limits)
     print(terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")
+    for n in (case.table.notes if isinstance(case, MeshRecord) else ()):
+        print(f"note: {n}")               # what the record reader did (e.g. filled cells)
     return 0

@@ -5,8 +5,8 @@ search uses.
 The scenario may carry (and ``arfem run`` ignores)::
 
     [diagnosis]
-    candidate_groups = ["spindle_bore", "housing_outer"]   # surface groups where a
-                                                           # source may be missing
+    candidate_groups = ["spindle_bore", "housing_outer"]   # surface (or volume) groups
+                                                           # where a source may be missing
     interface_groups = ["front_bearing", "rear_bearing"]   # thin volume groups whose
                                                            # conductivity stands for a
                                                            # contact resistance
@@ -48,10 +48,11 @@ def _names(v, where: str) -> tuple:
     return tuple(v)
 
 
-def load_diagnosis_scenario(path) -> tuple[GeometryScenario, DiagnosisSpec]:
-    """Read a geometry scenario and its ``[diagnosis]`` table (module docstring)."""
+def load_diagnosis_scenario(path, toml=None) -> tuple[GeometryScenario, DiagnosisSpec]:
+    """Read a geometry scenario and its ``[diagnosis]`` table (module docstring);
+    ``toml``: the file already read (:class:`arfem.io.TomlFile`), not read again."""
     p = Path(path)
-    data = dict(read_toml(p))
+    data = dict(read_toml(p) if toml is None else toml.data)
     d = data.pop("diagnosis", {}) or {}
     if not isinstance(d, dict):
         raise InputError("must be a table", f"{p}: diagnosis")

@@ -94,14 +94,15 @@ def plan_copy(source, doc: dict, taken=()) -> ScenarioCopy:
     return ScenarioCopy(source, tuple(files), values, originals)
 
 
-def plan_scenario_copy(source, taken=()) -> tuple:
+def plan_scenario_copy(source, taken=(), text: str | None = None) -> tuple:
     """(:class:`ScenarioCopy`, text) of the scenario file ``source`` (read as an input
-    of this run), or (None, '') where it is not a file (a scenario built in memory)."""
+    of this run; ``text``: its text already read, not read again), or (None, '') where
+    it is not a file (a scenario built in memory)."""
     from arfem.io import read_text_utf8
     source = Path(source)
     if not source.is_file():
         return None, ""
-    text = read_text_utf8(source)
+    text = read_text_utf8(source) if text is None else text
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError:

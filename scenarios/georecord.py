@@ -21,42 +21,42 @@ of the nominal model's (mm declared as µm); a ``[diagnosis]`` group the mesh la
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from arfem.io import read_toml
+from arfem.limits import Limits
 from arfem.params import InputError
-from arfem.strict import check_keys
+from arfem.scenarios.dataset import (DISPLACEMENT_ZERO, RecordColumns, RecordDoc,
+                                     displacement_zero, read_record_columns,
+                                     read_record_doc, record_toml_of)
 
 __all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
-           "read_record_files", "record_toml_of",
+           "read_record_files", "record_toml_of", "MeshRecord", "read_mesh_record",
+           "DISPLACEMENT_ZERO", "displacement_zero",
            "RecordTable", "read_table", "write_record"]
-
-_TOP = ("dataset", "model", "columns", "sensors")
 
 
 @dataclass(frozen=True)
 class RecordFiles:
-    """The two files of a v3 record and the scenario it names."""
+    """The two files of a v3 record and the scenario it names (``doc``: the TOML as
+    read, with the scenario read beside it, passed along so nothing reads them again)."""
 
     toml: Path
     csv: Path
     scenario: Path
     name: str
     renames: dict
-
-
-def record_toml_of(path) -> Path:
-    """The record's TOML: ``path`` itself, or the ``.toml`` beside a ``.csv``."""
-    p = Path(path)
-    return p.with_suffix(".toml") if p.suffix == ".csv" else p
+    doc: RecordDoc | None = field(default=None, repr=False, compare=False)
+    displacement_zero: str = "reference"     # or "first_row": probes zeroed at the start
 
 
 def is_mesh_record(path) -> bool:
     """True when the record's TOML has a ``[model]`` table: a cheap text test, then
-    (for a ``model = {...}`` inline table or a dotted key) the parsed document."""
+    (for a ``model = {...}`` inline table or a dotted key) the parsed document. A
+    command reads the record once (:func:`arfem.scenarios.dataset.read_record_doc`) and
+    asks its :attr:`~arfem.scenarios.dataset.RecordDoc.is_mesh` instead."""
     import tomllib
 
     from arfem.io import toml_has_table
@@ -73,14 +73,17 @@ def is_mesh_record(path) -> bool:
 
 
 def refuse_mesh_record(path) -> None:
-    """Refuse (one line) to read ``path`` as a record on the rod where its TOML names a
-    mesh scenario (``[model]``, contract v3): such a record is diagnosed against that
-    mesh (``arfem diagnose`` routes it; :func:`arfem.scenarios.geodiagnose.run_geodiagnosis`),
-    never silently against the paper's rod."""
-    if is_mesh_record(path):
+    """Refuse (one line) to read ``path`` (or a read :class:`RecordDoc`) as a record on
+    the rod where its TOML names a mesh scenario (``[model]``, contract v3): such a
+    record is diagnosed against that mesh (``arfem diagnose`` routes it;
+    :func:`arfem.scenarios.geodiagnose.run_geodiagnosis`), never silently against the
+    paper's rod."""
+    mesh = path.is_mesh if isinstance(path, RecordDoc) else is_mesh_record(path)
+    if mesh:
+        p = path.path if isinstance(path, RecordDoc) else record_toml_of(path)
         raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
                          "diagnosed against that mesh (arfem diagnose RECORD.toml routes it "
-                         "there), not by the rod's diagnosis", f"{record_toml_of(path)}: model")
+                         "there), not by the rod's diagnosis", f"{p}: model")
 
 
 def refuse_mesh_channels(ds) -> None:
@@ -97,72 +100,78 @@ def refuse_mesh_channels(ds) -> None:
                          "; a record on the rod has growth_um only", f"{ds.source}")
 
 
-def read_record_files(path) -> RecordFiles:
-    """Check the record's TOML (contract v3) and find its CSV and scenario."""
-    p = record_toml_of(path)
-    doc = read_toml(p)
-    check_keys(doc, _TOP, f"{p}")
-    ds = doc.get("dataset", {})
-    if not isinstance(ds, dict):
-        raise InputError("must be a table", f"{p}: dataset")
-    check_keys(ds, ("name", "csv", "initial"), f"{p}: dataset")
-    m = doc.get("model")
-    if not isinstance(m, dict) or "scenario" not in m:
-        raise InputError("needs scenario = \"<mesh scenario>.toml\"", f"{p}: model")
-    check_keys(m, ("scenario",), f"{p}: model")
-    if not isinstance(m["scenario"], str):
-        raise InputError("must be a file name", f"{p}: model.scenario")
-    sc = p.parent / m["scenario"]
-    if not sc.is_file():
-        raise InputError(f"scenario file {sc} not found", f"{p}: model.scenario")
-    from arfem.scenarios.geometry_scenario import is_geometry_scenario
-    if not is_geometry_scenario(sc):        # a rod scenario: say so, not "rod: unknown key"
-        raise InputError(f"{sc} has no [geometry] table: a record with [model] is checked "
-                         "against a mesh scenario (a rod record has no [model] table)",
-                         f"{p}: model.scenario")
-    csv = p.parent / str(ds.get("csv", p.with_suffix(".csv").name))
-    if not csv.is_file():
-        raise InputError(f"CSV file {csv} not found", f"{p}: dataset.csv")
-    ren = doc.get("columns", {})
-    if not isinstance(ren, dict) or not all(isinstance(v, str) for v in ren.values()):
-        raise InputError("must map contract names to the CSV's column names", f"{p}: columns")
-    return RecordFiles(p, csv, sc, str(ds.get("name", p.stem)), dict(ren))
+def read_record_files(path, limits: Limits | None = None,
+                      doc: RecordDoc | None = None) -> RecordFiles:
+    """Check the record's TOML (contract v3) and find its CSV and scenario: the TOML and
+    the scenario are read once (:func:`arfem.scenarios.dataset.read_record_doc`), or
+    taken from ``doc``."""
+    doc = read_record_doc(path, limits) if doc is None else doc
+    if not doc.is_mesh:
+        raise InputError("needs scenario = \"<mesh scenario>.toml\"", f"{doc.path}: model")
+    if not doc.csv_path.is_file():
+        raise InputError(f"CSV file {doc.csv_path} not found", f"{doc.path}: dataset.csv")
+    return RecordFiles(doc.path, doc.csv_path, doc.scenario, doc.name, dict(doc.mapping), doc,
+                       doc.displacement_zero)
 
 
 @dataclass(frozen=True)
 class RecordTable:
-    """The CSV's columns by contract name (renames applied), as float arrays."""
+    """The CSV's columns by contract name (renames applied), as float arrays, each
+    cell finite and within its physical range (empty cells NaN in a channel; an empty
+    ambient cell filled, an empty time refused or its row dropped, as the contract
+    says); ``extra``: the columns the contract does not know, as their cells; ``lines``:
+    each row's CSV line; ``notes``: what the reader did."""
 
     columns: dict
     source: str
+    lines: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    extra: dict = field(default_factory=dict)
+    notes: tuple = ()
 
 
-def read_table(files: RecordFiles) -> RecordTable:
-    """Read the CSV (header row, ``.`` decimals, empty cells missing)."""
-    import pandas as pd
-    try:
-        df = pd.read_csv(files.csv)
-    except Exception as exc:                       # noqa: BLE001 (any parser error)
-        raise InputError(f"cannot read the CSV ({exc.__class__.__name__}: "
-                         f"{str(exc).splitlines()[0]})", str(files.csv)) from None
-    back = {v: k for k, v in files.renames.items()}
-    cols = {}
-    for c in df.columns:
-        name = back.get(str(c), str(c))
-        v = pd.to_numeric(df[c], errors="coerce").to_numpy(float)
-        bad = np.flatnonzero(np.isnan(v) & df[c].notna().to_numpy())
-        if bad.size:
-            raise InputError(f"{df[c].iloc[bad[0]]!r} is not a number",   # header = line 1
-                             f"{files.csv}: line {bad[0] + 2}, column {c}")
-        cols[name] = v
-    if "time_s" not in cols:
-        raise InputError("missing column time_s", str(files.csv))
-    t = cols["time_s"]
-    if np.any(~np.isfinite(t)) or np.any(np.diff(t) <= 0) or t[0] < 0:
-        i = int(np.flatnonzero(~np.isfinite(t) | np.concatenate([[t[0] < 0], np.diff(t) <= 0]))[0])
-        raise InputError(f"row {i + 2}: time_s must be finite, >= 0 and strictly increasing",
-                         f"{files.csv}: column time_s")
-    return RecordTable(cols, str(files.csv))
+def read_table(files: RecordFiles, limits: Limits | None = None) -> RecordTable:
+    """Read the CSV once (:func:`arfem.scenarios.dataset.read_record_columns`: every
+    limit and range of the contract) and apply the missing-value rules of every
+    version: rows with an empty ``time_s`` dropped (at most 5 %), ``time_s`` from >= 0
+    strictly increasing, each input (``speed_rpm``, ``P_<source>_W``) on every row and
+    >= 0, ``ambient_C``'s short gaps filled."""
+    from arfem.scenarios.dataset import _ambient, _check_time, _drop_missing_rows, input_complete
+    doc = files.doc if files.doc is not None else read_record_doc(files.toml, limits)
+    rc: RecordColumns = read_record_columns(doc, limits)
+    where = files.csv
+    if "time_s" not in rc.values:
+        raise InputError("missing column time_s", str(where))
+    notes: list[str] = []
+    values, lines, _, _ = _drop_missing_rows(dict(rc.values), rc.lines, where, notes,
+                                             keys=("time_s",))
+    _check_time(values["time_s"], lines, where, rc.label)
+    for k, v in values.items():
+        if k == "speed_rpm" or (k.startswith("P_") and k.endswith("_W")):
+            input_complete(v, k, lines, where, rc.label)
+    amb = _ambient(values, values["time_s"], lines, where, rc.label, notes)
+    if amb is None:
+        values.pop("ambient_C", None)
+    else:
+        values["ambient_C"] = amb
+    keep = np.isin(rc.lines, lines)
+    extra = {h: np.asarray(v)[keep] for h, v in rc.extra.items()}
+    return RecordTable(values, str(files.csv), lines, extra, tuple(notes))
+
+
+@dataclass(frozen=True)
+class MeshRecord:
+    """A v3 record read once: its files (TOML, CSV, the scenario read) and its table."""
+
+    files: RecordFiles
+    table: RecordTable
+
+
+def read_mesh_record(path, limits: Limits | None = None,
+                     doc: RecordDoc | None = None) -> MeshRecord:
+    """Read a v3 record (its TOML, or the CSV beside it) once: the TOML and its
+    scenario, then the CSV (:func:`read_record_files`, :func:`read_table`)."""
+    files = read_record_files(path, limits, doc)
+    return MeshRecord(files, read_table(files, limits))
 
 
 def write_record(toml_path, scenario: str, columns: dict, name: str | None = None) -> Path:

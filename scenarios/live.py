@@ -11,7 +11,12 @@ and one JSON object per line on standard output is its answer, flushed at once,
 
 for any bridge that speaks lines (an MTConnect agent adapter, a PLC gateway). A line may
 also carry ``controller_offset_um``, the offset the controller holds (read back by the
-gateway): the rate limit then counts from it. Each cycle runs
+gateway), taken by the compensator's one rule (:func:`take_held`): inside the clamp the
+rate limit counts from it (a value that differs from the last answer is
+``external_change``); beyond the clamp or not a finite number the offset is answered
+``null`` (not to be written) with ``held_beyond_clamp`` / ``held_nonfinite`` until a
+line reports a value inside. The limits are the config's, tightened by the command line
+(:func:`with_command_line`). Each cycle runs
 :meth:`arfem.models.compensator.Compensator.step`, the call ``arfem compensate``'s replay
 makes, so replaying the logged inputs gives the same offsets.
 
@@ -23,8 +28,9 @@ Safety, per cycle (``docs/safety.md`` lists every fault):
   is written, flushed and fsync'ed before its offset leaves the process, so the log holds
   every offset the machine may have received;
 * **warm start**: the state is restored from the log's last good line (a torn last
-  line is ignored; a log of another model is not used); the ``started`` line says
-  ``"start": "warm"`` or ``"cold"``;
+  line is ignored; a log of another model is not used), and its offsets are taken by the
+  same rule as a line's (a value beyond the clamp there holds that axis); the
+  ``started`` line says ``"start": "warm"`` or ``"cold"`` and the limits in use;
 * a line that is not a reading (not JSON, nested too deeply, longer than 64 KiB, blank,
   not an object) is held and logged without advancing the model; an input missing, not
   finite or outside its plausible range (:func:`arfem.models.compensator.plausible_ranges`,
@@ -73,7 +79,8 @@ if TYPE_CHECKING:                                  # (opcua_live imports this mo
     from arfem.scenarios.opcua_live import OpcuaConfig
 
 __all__ = ["LiveConfig", "Clock", "CycleLog", "Status", "load_config", "clocked_step",
-           "model_sha", "warm_start", "faults", "resume_from", "offsets_text", "answer",
+           "model_sha", "warm_start", "faults", "resume_from", "take_held", "offsets_text",
+           "offsets_doc", "limits_doc", "held_text", "answer", "with_command_line",
            "run_jsonl", "run_live", "observer_doc", "reading_names"]
 
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
@@ -409,12 +416,14 @@ def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
             comp.restore(doc["state"])
         except (KeyError, TypeError, ValueError):
             continue
-        t, off = doc.get("time_s"), doc.get("offset_um")
+        t = doc.get("time_s")
         t = float(t) if _num(t) else None
-        off = float(off) if _num(off) else None
+        # an offset the line names but that is not a finite number (null: that axis was
+        # not written) is kept as NaN, so that resume_axis holds that axis
+        off = _held_value(doc["offset_um"]) if "offset_um" in doc else None
         axes = doc.get("axes") if isinstance(doc.get("axes"), dict) else {}
-        offs = {ax: float(v["offset_um"]) for ax, v in axes.items()
-                if isinstance(v, dict) and _num(v.get("offset_um"))} or None
+        offs = {ax: _held_value(v.get("offset_um")) for ax, v in axes.items()
+                if isinstance(v, dict)} or None
         return WarmStart("warm", f"state of the log's line at time_s = {t}", t, off, offs)
     return WarmStart("cold", "the log's last state is of another model" if other
                      else "no state in the log")
@@ -422,6 +431,50 @@ def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
 
 def _num(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _held_value(v) -> float:
+    """An offset read from a log or a line: the number, or NaN where it is not one."""
+    return float(v) if _num(v) else math.nan
+
+
+def um_or_none(v):
+    """A value [µm] for a JSON line: the float, or None where it is not a finite number
+    (an axis not written; a controller holding NaN or ±inf)."""
+    return float(v) if _num(v) else None
+
+
+def axis_names(model) -> tuple:
+    """The axes a compensator writes: a version-2 model's, or ``(None,)`` for the one
+    axis of a version-1 model."""
+    return model.axes or (None,)
+
+
+def take_held(comp: Compensator, held: Mapping, source: str,
+              readback: bool = False) -> list:
+    """Give ``comp`` what the controller holds, per axis (``held``: axis → value, the
+    key None for a version-1 model; axes it lacks are left as they are), through the one
+    rule :meth:`Compensator.resume_axis` (adopted inside the clamp; beyond it or not a
+    finite number the axis is held, ``held_beyond_clamp`` / ``held_nonfinite``; with
+    ``readback``, a value that differs from what was last set is ``external_change``).
+    Used by every transport. Returns the log's event lines: an axis entering or leaving
+    the hold, and an external change, each with ``source`` (``start``, ``reconnect``,
+    ``readback``, ``line``, ``log``) and the value."""
+    events = []
+    for j, ax in enumerate(axis_names(comp.model)):
+        if ax not in held:
+            continue
+        v, before = held[ax], comp.held_reason(j)
+        kind = comp.resume_axis(j, v, readback=readback)
+        if kind == before:
+            continue
+        kind = kind or "held_cleared"
+        doc = {"event": kind, **({"axis": ax} if ax else {}), "source": source,
+               "controller_offset_um": um_or_none(v), "wall_time": time.time()}
+        if um_or_none(v) is None:
+            doc["value"] = repr(v)[:40]
+        events.append(doc)
+    return events
 
 
 def faults(cyc, axis: str | None = None) -> list:
@@ -432,33 +485,54 @@ def faults(cyc, axis: str | None = None) -> list:
     return sorted({a for a in alarms if alarm_kind(a) not in INFORMATIVE})
 
 
-def resume_from(comp: Compensator, offsets_um) -> None:
-    """Count each axis's rate limit from what that axis holds: ``offsets_um`` a mapping
-    axis → offset [µm] (axes it lacks or holding a non-number are left as they are)."""
-    for j, ax in enumerate(comp.model.axes):
-        v = offsets_um.get(ax) if isinstance(offsets_um, Mapping) else None
-        if _num(v):
-            comp.resume_axis(j, float(v))
+def resume_from(comp: Compensator, offsets_um, source: str = "line",
+                readback: bool = False) -> list:
+    """:func:`take_held` for a version-2 model's ``offsets_um`` (a mapping axis →
+    offset [µm]; axes it lacks are left as they are; one that is not a number is held)."""
+    if not isinstance(offsets_um, Mapping):
+        return []
+    return take_held(comp, {ax: v for ax, v in offsets_um.items()
+                            if ax in comp.model.axes}, source, readback)
 
 
 def offsets_text(cyc) -> str:
     """The offset(s) of a cycle for a status line."""
+    def um(v):
+        return f"{v:+.3f}" if math.isfinite(v) else "not written"
     if cyc.axes:
-        return "offsets " + ", ".join(f"{a.axis} {a.offset_um:+.3f}" for a in cyc.axes) + " um"
-    return f"offset {cyc.offset_um:+.3f} um"
+        return "offsets " + ", ".join(f"{a.axis} {um(a.offset_um)}" for a in cyc.axes) + " um"
+    return f"offset {um(cyc.offset_um)} um"
+
+
+def offsets_doc(comp: Compensator, key: str = "offset_um") -> dict:
+    """What each axis holds as far as ``comp`` knows, for a ``started`` or ``stopped``
+    line: ``{key: value}`` for a version-1 model, ``{"offsets_um": {axis: value}}`` per
+    axis for a version-2 one (null for an axis held beyond its clamp)."""
+    if not comp.model.axes:
+        return {key: um_or_none(comp.offset_um)}
+    return {"offsets_um": {ax: um_or_none(v) for ax, v in zip(comp.model.axes,
+                                                              comp.offsets_um)}}
+
+
+def limits_doc(comp: Compensator) -> dict:
+    """The limits each axis runs with, for the ``started`` line."""
+    return {"limits_um": {ax or "offset": {"max_offset_um": lim, "max_step_um": step}
+                          for j, ax in enumerate(axis_names(comp.model))
+                          for lim, step in [comp.limits(j)]}}
 
 
 def answer(cyc, t) -> dict:
-    """A cycle's answer line (and the log's copy): one offset, or one per axis."""
-    g = cyc.predicted_growth_um
+    """A cycle's answer line (and the log's copy): one offset, or one per axis; an
+    offset not to be written (the controller holds a value beyond the clamp or not a
+    number) is null, with ``held`` true."""
     if not cyc.axes:
-        return {"time_s": t, "offset_um": cyc.offset_um,
-                "predicted_growth_um": None if math.isnan(g) else g,
+        return {"time_s": t, "offset_um": um_or_none(cyc.offset_um),
+                "predicted_growth_um": um_or_none(cyc.predicted_growth_um),
                 "alarms": list(cyc.alarms), "held": cyc.held}
     return {"time_s": t,
-            "axes": {a.axis: {"offset_um": a.offset_um,
-                              "predicted_um": None if math.isnan(a.predicted_um)
-                              else a.predicted_um, "alarms": list(a.alarms)}
+            "axes": {a.axis: {"offset_um": um_or_none(a.offset_um),
+                              "predicted_um": um_or_none(a.predicted_um),
+                              "alarms": list(a.alarms), "held": a.held}
                      for a in cyc.axes},
             "alarms": list(cyc.alarms), "held": cyc.held,
             **({"observer": observer_doc(cyc.observer)} if cyc.observer is not None
@@ -522,10 +596,9 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     sha = model_sha(model)
     ws = warm_start(cfg.log, comp, sha)
-    if ws.offset_um is not None:              # what the gateway may have been sent last
-        comp.resume(ws.offset_um)
-    if ws.offsets_um:
-        resume_from(comp, ws.offsets_um)
+    # what the gateway may have been sent last: adopted inside the clamp only
+    from_log = take_held(comp, ({None: ws.offset_um} if ws.offset_um is not None else {})
+                         if not model.axes else (ws.offsets_um or {}), "log")
     run = _JsonRun(comp, reading_names(model), cfg, sha, Clock(ws.time_s), stdout, status)
     n = 0
     try:
@@ -533,8 +606,10 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
         try:
             run.log.write({"event": "started", "model": sha, "kind": model.kind,
                            "transport": "jsonl", "start": ws.mode, "start_reason": ws.reason,
-                           "offset_um": comp.offset_um, **_axes_held(comp),
+                           **offsets_doc(comp), **limits_doc(comp),
                            "wall_time": time.time()})
+            for e in from_log:
+                run.log.write(e)
             status.say(f"live (JSON lines), {ws.mode} start ({ws.reason}); log {cfg.log}")
             try:
                 while True:
@@ -551,12 +626,8 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
             reason = stop["signal"] or ("cycles done" if cfg.cycles and n >= cfg.cycles
                                         else "end of input")
             run.log.write({"event": "stopped", "cycles": n, "reason": reason,
-                           "last_offset_um": comp.offset_um, **_axes_held(comp),
-                           "wall_time": time.time()})
-            status.say(f"stopped after {n} cycles ({reason}); last "
-                       + (", ".join(f"{a} {v:+.3f}" for a, v in _axes_held(comp)
-                                    ["offsets_um"].items()) + " um" if model.axes
-                          else f"offset {comp.offset_um:+.3f} um"))
+                           **offsets_doc(comp, "last_offset_um"), "wall_time": time.time()})
+            status.say(f"stopped after {n} cycles ({reason}); last " + held_text(comp))
         finally:
             run.log.close()
     finally:
@@ -565,11 +636,13 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     return 0
 
 
-def _axes_held(comp: Compensator) -> dict:
-    """``{"offsets_um": {axis: offset}}`` for a version-2 model's log lines; {} else."""
+def held_text(comp: Compensator) -> str:
+    """What each axis holds as far as ``comp`` knows, for a status line."""
+    def um(v):
+        return f"{v:+.3f}" if math.isfinite(v) else "held (not adopted)"
     if not comp.model.axes:
-        return {}
-    return {"offsets_um": {ax: float(v) for ax, v in zip(comp.model.axes, comp.offsets_um)}}
+        return f"offset {um(comp.offset_um)} um"
+    return ", ".join(f"{a} {um(v)}" for a, v in zip(comp.model.axes, comp.offsets_um)) + " um"
 
 
 class _Stop(Exception):
@@ -635,11 +708,15 @@ class _JsonRun:
                 v = doc.get(nm)
                 values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
                     else None
-            held = doc.get("controller_offset_um")
-            if _num(held) and not self.comp.model.axes:
-                self.comp.resume(held)
-            if isinstance(doc.get("controller_offsets_um"), dict):
-                resume_from(self.comp, doc["controller_offsets_um"])
+            # what the controller holds, read back by the gateway: one rule for all
+            if not self.comp.model.axes and "controller_offset_um" in doc:
+                events = take_held(self.comp, {None: doc["controller_offset_um"]}, "line",
+                                   readback=True)
+            else:
+                events = resume_from(self.comp, doc.get("controller_offsets_um"), "line",
+                                     readback=True)
+            for e in events:
+                self.log.write(e)
             cyc, self.clock = clocked_step(
                 self.comp, values, t, self.clock, stale_after_s=self.cfg.stale_after_s,
                 max_clock_jump_s=self.cfg.max_clock_jump_s, alarms=alarms)
@@ -657,13 +734,58 @@ class _JsonRun:
         return 1
 
 
-def run_live(args) -> int:
-    """``arfem compensate MODEL --live CONFIG``: refuse bad input before any offset."""
+def with_command_line(cfg: LiveConfig, model, args) -> LiveConfig:
+    """``cfg`` with the limits typed on the command line (``--max-offset-um``,
+    ``--max-step-um``, ``--axis-limits``, parsed as for a replay) where they are given.
+
+    Precedence: the command line can only TIGHTEN the config. Per axis and per limit a
+    value typed is used where it is at most the config's; one larger than the config's
+    is refused in one line (exit 2), so that a live run never runs looser than either.
+    Axes not named by ``--axis-limits`` take ``--max-offset-um`` / ``--max-step-um``
+    where given, else the config's (``[live.axes.<AXIS>]``, else ``[live]``)."""
+    from arfem.scenarios.replay_axes import axis_limits
+    items = getattr(args, "axis_limits", None) or []
+    common = (args.max_offset_um, args.max_step_um)
+    if not model.axes:
+        axis_limits(model, items, *common)            # refuses --axis-limits (one axis)
+        lims = [(None, cfg.max_offset_um, cfg.max_step_um)]
+        cli = [common]
+    else:
+        off, step = axis_limits(model, items, *common)
+        lims = list(cfg.axes) or [(ax, cfg.max_offset_um, cfg.max_step_um)
+                                  for ax in model.axes]
+        cli = list(zip(off, step))
+    named = {it.split("=", 1)[0].strip() for it in items}
+    out = []
+    for (ax, c_off, c_step), typed in zip(lims, cli):
+        vals = []
+        for key, c, v in (("max_offset_um", c_off, typed[0]),
+                          ("max_step_um", c_step, typed[1])):
+            if math.isinf(v):                          # not given
+                vals.append(c)
+                continue
+            if v > c:
+                opt = "--axis-limits" if ax in named else "--" + key.replace("_", "-")
+                raise InputError(
+                    f"{v:g} um{f' for axis {ax}' if ax else ''} is looser than the "
+                    f"config's {key} = {c:g} ({args.live}); with --live the command line "
+                    "can only tighten the config's limits", opt)
+            vals.append(v)
+        out.append((ax, *vals))
+    if not model.axes:
+        return replace(cfg, max_offset_um=out[0][1], max_step_um=out[0][2])
+    return replace(cfg, axes=tuple(out))
+
+
+def run_live(args, stdin=None, stdout=None, status=None) -> int:
+    """``arfem compensate MODEL --live CONFIG``: refuse bad input before any offset. The
+    limits are the config's, tightened by the command line's
+    (:func:`with_command_line`)."""
     from arfem.scenarios.model_file import read_model
-    model = read_model(args.model)
+    model = read_model(args.model, getattr(args, "limits", None))
     if model.observer is not None and getattr(args, "no_observer", False):
         model = replace(model, observer=None)      # open loop, exactly as without one
-    cfg = load_config(args.live, model)
+    cfg = with_command_line(load_config(args.live, model), model, args)
     if cfg.transport == "opcua":
         lack = [] if model.observer is None else [
             t for t in model.observer.thermometers if t not in dict(cfg.opcua.inputs)]
@@ -672,4 +794,4 @@ def run_live(args) -> int:
             Status(0).say(f"observer off: [opcua.inputs] has no node for {', '.join(lack)}")
         from arfem.scenarios.opcua_live import run_opcua
         return run_opcua(model, cfg)
-    return run_jsonl(model, cfg)
+    return run_jsonl(model, cfg, stdin, stdout, status)

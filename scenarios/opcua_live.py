@@ -34,8 +34,8 @@ writes the offset node and the alarm node in one request. The config::
     speed_rpm = "ns=2;s=Spindle.speed_rpm"
 
 A version-2 model (one output per axis) writes one offset node per axis instead of
-``offset_node``/``alarm_node``, each checked as above, read back on start and on every
-reconnect, and written in the same request as the others::
+``offset_node``/``alarm_node``, each checked as above, read back on start, on every
+reconnect and every cycle, and written in the same request as the others::
 
     [opcua.axes.X]
     offset_node = "ns=2;s=X.thermal_offset_um"
@@ -53,16 +53,25 @@ model's inputs are matched with ``[opcua.inputs]``: a node id that does not exis
 offset node that this client cannot write, or one whose type is not Double or Float, is
 refused in one line naming the key and node (exit 2).
 
-Bumpless: the offset the controller holds is read on start and on every reconnect, and
-the rate limit counts from it (the first write is at most ``max_step_um`` from it); the
-state is warm-started from the cycle log (:func:`arfem.scenarios.live.warm_start`).
+Bumpless: the offset the controller holds is read on start, on every reconnect and in
+every cycle (in the cycle's one read request, with the inputs), and taken by
+:func:`arfem.scenarios.live.take_held` -- the compensator's one rule
+(:meth:`arfem.models.compensator.Compensator.resume_axis`): inside the axis's clamp it
+is adopted and the rate limit counts from it (the next write is at most
+``max_step_um`` from it; a value that differs from the last one written is
+``external_change``); beyond the clamp or not a finite number the axis is held
+(``held_beyond_clamp`` / ``held_nonfinite``) and its offset node is not written -- its
+alarm node is -- until it holds a value inside. A read-back that fails
+(``readback_failed:STATUS``) leaves that axis unwritten for the cycle. The state is
+warm-started from the cycle log (:func:`arfem.scenarios.live.warm_start`); the log's
+offsets are not used over OPC UA.
 
 Per cycle: a bad status, a non-finite value or one outside its plausible range holds
 the offset (``missing:NAME`` / ``nonfinite:NAME`` / ``out_of_range:NAME``); the machine
 clock (``time_node``) is handled by :func:`arfem.scenarios.live.clocked_step` (stale,
 backwards, jump, missed intervals in closed form). The cycle's log line is written and
 fsync'ed before the write request leaves (write-ahead). Every write is checked: a
-refused offset write (``write_refused:STATUS``, e.g. a read-only or deleted node) puts
+refused offset write (``write_refused:STATUS``, e.g. a read-only node) puts
 the command back to the controller's last accepted value and raises the alarm until a
 write is accepted; a failed or timed-out request drops the connection
 (``connection_lost``), which is retried with backoff, and on reconnect the controller's
@@ -81,8 +90,9 @@ import time
 from dataclasses import dataclass, replace
 
 from arfem.params import InputError, one_line
-from arfem.scenarios.live import (Clock, CycleLog, Status, answer, clocked_step, faults,
-                                  model_sha, refuse_unknown_axes, warm_start)
+from arfem.scenarios.live import (Clock, CycleLog, Status, answer, axis_names,
+                                  clocked_step, faults, limits_doc, model_sha, offsets_doc,
+                                  refuse_unknown_axes, take_held, um_or_none, warm_start)
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
@@ -296,9 +306,10 @@ async def _drop(c) -> None:
 
 @dataclass(frozen=True)
 class _AxisNodes:
-    """One axis's resolved nodes: its offset node and variant type, its alarm node and
-    type (None: none), and the offset that axis of the controller holds (None where it
-    is not a finite number)."""
+    """One axis's resolved nodes (``axis`` None: a version-1 model's one offset): its
+    offset node and variant type, its alarm node and type (None: none), and the value
+    that axis of the controller held when resolved (a float, possibly not finite; None
+    where it is not a number)."""
 
     axis: str | None
     offset: object
@@ -310,17 +321,10 @@ class _AxisNodes:
 
 @dataclass(frozen=True)
 class _Nodes:
-    """The resolved nodes: input ids (+ the time node last, if any), the offset node and
-    its variant type, the alarm node and its type, and the offset the controller holds
-    (None where it is not a finite number); a version-2 model's axes in ``axes`` (the
-    single-offset fields then unused)."""
+    """The resolved nodes: input ids (+ the time node last, if any) and one
+    :class:`_AxisNodes` per offset written (one for a version-1 model)."""
 
     ids: list
-    offset: object
-    offset_type: object
-    alarm: object = None
-    alarm_type: object = None
-    held_um: float | None = None
     axes: tuple = ()
 
 
@@ -372,19 +376,25 @@ async def _resolve(c, cfg: OpcuaConfig) -> _Nodes:
                              "offset)", okey)
         dv = dvs[n_in + i]
         v = dv.Value.Value if dv.Value is not None else None
-        held = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) \
-            and math.isfinite(v) else None
+        held = _number_or_none(v)
         alarm, atype = None, None
         if al is not None:
             alarm, atype = ids[n_in + i + 1], types[i + 1] or ua.VariantType.String
         axes.append(_AxisNodes(ax, ids[n_in + i], getattr(ua.VariantType, tname), alarm,
                                atype, held))
         i += 2 if al is not None else 1
-    if not cfg.axes:
-        one = axes[0]
-        return _Nodes(ids[:n_in], one.offset, one.offset_type, one.alarm, one.alarm_type,
-                      one.held_um)
-    return _Nodes(ids[:n_in], None, None, axes=tuple(axes))
+    return _Nodes(ids[:n_in], tuple(axes))
+
+
+def _number_or_none(v) -> float | None:
+    """A node's value as a float (finite or not: :func:`take_held` judges it), None
+    where it is not a number."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf
 
 
 def _type_name(ua, dtype, vtype) -> str:
@@ -417,8 +427,30 @@ def _err(exc) -> str:
     return one_line(f"{type(exc).__name__}: {exc}")
 
 
+def _with_alarm(cyc, axis, alarm: str):
+    """``cyc`` with a transport's ``alarm`` on ``axis`` (None: the one axis of a
+    version-1 model, whose alarms are the cycle's)."""
+    if axis is None:
+        return replace(cyc, alarms=cyc.alarms + (alarm,))
+    return cyc.with_axis_alarm(axis, alarm)
+
+
+#: the status line of each event of :func:`arfem.scenarios.live.take_held`
+_EVENT_TEXT = {
+    "held_beyond_clamp": "the controller holds an offset beyond the clamp; NOT written "
+                         "until it holds one inside (set it by hand)",
+    "held_nonfinite": "the controller's offset is not a finite number; NOT written until "
+                      "it holds one inside the clamp (set it by hand)",
+    "held_cleared": "the controller holds an offset inside the clamp again; ramping from it",
+    "external_change": "the offset was changed behind the compensator's back; ramping "
+                       "from the value it holds now"}
+
+
 class _Loop:
-    """The live cycle over OPC UA; :meth:`run` returns the exit status."""
+    """The live cycle over OPC UA; :meth:`run` returns the exit status.
+
+    A version-1 model is one axis (``None``), a version-2 model one per output: every
+    per-axis rule below (read back, adopt, write, refuse) is the same code for both."""
 
     def __init__(self, model, cfg, status=None):
         self.model, self.cfg, self.o = model, cfg, cfg.opcua
@@ -429,11 +461,13 @@ class _Loop:
         self.client = None
         self.nodes = None
         self.clock = Clock()
-        self.accepted = 0.0           # the offset the controller holds (last accepted)
-        self.write_fault = None       # the last write's refusal, until one is accepted
-        # version 2: the same per axis
-        self.accepted_axes = {ax: 0.0 for ax in model.axes}
-        self.axis_faults = {ax: None for ax in model.axes}
+        self.axes = axis_names(model)
+        # per axis: what the controller holds, as last read back or accepted
+        self.accepted = {ax: None for ax in self.axes}
+        self.faults = {ax: None for ax in self.axes}   # a refused write, until one lands
+        self.unread = {ax: None for ax in self.axes}   # this cycle's failed read-back
+        self.pending = []             # event lines for the log, until it is open
+        self.last_total_s = None      # the last cycle: start -> its write answered [s]
         self.backoff = self.o.reconnect_initial_s
         self.next_try = 0.0
         self.stop = None
@@ -441,27 +475,25 @@ class _Loop:
         self.log = None
 
     def _log(self, obj):
-        self.log.write(obj)
+        if self.log is None:
+            self.pending.append(obj)
+        else:
+            self.log.write(obj)
 
-    def _take_controller(self, held_um, event):
-        """The controller's offset, read back: the rate limit counts from it (per axis
-        for a version-2 model: ``held_um`` None, the nodes' values are used)."""
-        if self.model.axes:
-            for j, a in enumerate(self.nodes.axes):
-                v = a.held_um
-                if v is None:
-                    self.status.say(f"{event}: axis {a.axis}: the controller's offset is "
-                                    "not a finite number; ramping from 0")
-                    v = 0.0
-                self.accepted_axes[a.axis] = v
-                self.comp.resume_axis(j, v)
-            return
-        if held_um is None:
-            self.status.say(f"{event}: the controller's offset is not a finite number; "
-                            "ramping from 0")
-            held_um = 0.0
-        self.accepted = held_um
-        self.comp.resume(held_um)
+    def _adopt(self, held: dict, source: str, readback: bool = False) -> None:
+        """What the controller holds, per axis, through the compensator's one rule
+        (:func:`arfem.scenarios.live.take_held`); an axis that enters or leaves the hold
+        or changed behind the compensator's back is an event line and a status line."""
+        self.accepted.update(held)
+        for e in take_held(self.comp, held, source, readback):
+            self._log(e)
+            ax = f"axis {e['axis']}: " if e.get("axis") else ""
+            self.status.say(f"{source}: {ax}{_EVENT_TEXT[e['event']]} "
+                            f"({e.get('value', e['controller_offset_um'])})")
+
+    def _take_controller(self, source):
+        """The controller's offsets, read back on start and on reconnect."""
+        self._adopt({a.axis: a.held_um for a in self.nodes.axes}, source)
 
     async def _lose(self, exc, now):
         self._log({"event": "connection_lost", "wall_time": time.time(),
@@ -487,27 +519,33 @@ class _Loop:
             return
         self.client, self.nodes = c, nodes
         self.backoff = self.o.reconnect_initial_s
-        self._take_controller(nodes.held_um, "reconnected")
-        self._log({"event": "reconnected", "wall_time": time.time(),
-                   **self._held_doc(nodes)})
+        self._take_controller("reconnect")
+        self._log({"event": "reconnected", "wall_time": time.time(), **self._held_doc()})
         self.status.say(f"reconnected; the controller holds {self._held_text()}")
 
-    def _held_doc(self, nodes) -> dict:
-        """What the controller held when read, for a log line."""
+    def _held_doc(self) -> dict:
+        """What the controller holds as last read or accepted, for a log line."""
         if not self.model.axes:
-            return {"controller_offset_um": nodes.held_um}
-        return {"controller_offsets_um": {a.axis: a.held_um for a in nodes.axes}}
+            return {"controller_offset_um": um_or_none(self.accepted[None])}
+        return {"controller_offsets_um": {ax: um_or_none(v)
+                                          for ax, v in self.accepted.items()}}
 
     def _held_text(self) -> str:
+        def um(v):
+            return f"{v:+.3f}" if isinstance(v, float) and math.isfinite(v) else repr(v)
         if not self.model.axes:
-            return f"{self.accepted:+.3f} um"
-        return ", ".join(f"{ax} {v:+.3f}" for ax, v in self.accepted_axes.items()) + " um"
+            return f"{um(self.accepted[None])} um"
+        return ", ".join(f"{ax} {um(v)}" for ax, v in self.accepted.items()) + " um"
 
     async def _read(self, ua, values, transport):
-        """Read the inputs (and the time); returns the machine time or None."""
+        """Read the inputs, the time and every axis's offset (the read-back) in ONE
+        request; adopt the read-back (:meth:`_adopt`, external changes raised); returns
+        the machine time or None."""
+        n = len(self.nodes.ids)
         try:
             dvs = await asyncio.wait_for(self.client.uaclient.read_attributes(
-                self.nodes.ids, ua.AttributeIds.Value), self.o.timeout_s)
+                self.nodes.ids + [a.offset for a in self.nodes.axes],
+                ua.AttributeIds.Value), self.o.timeout_s)
         except Exception as exc:
             await self._lose(exc, asyncio.get_running_loop().time())
             transport.append("connection_lost")
@@ -515,42 +553,29 @@ class _Loop:
         for nm, dv in zip(self.names, dvs):
             if dv.StatusCode.is_good() and dv.Value is not None:
                 values[nm] = dv.Value.Value
+        self._readback(dvs[n:])
         if not self.o.time_node:
             return None
-        dv = dvs[-1]
+        dv = dvs[n - 1]
         v = dv.Value.Value if dv.StatusCode.is_good() and dv.Value is not None else None
         if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
             return float(v)
         transport.append("missing:time_s")
         return None
 
-    async def _write_axes(self, ua, k, cyc):
-        """Send every axis's offset (and alarm) in one request and check each answer: a
-        refused axis goes back to what it last accepted, the others go on."""
-        nodes, vals, where = [], [], []
-        for a, n in zip(cyc.axes, self.nodes.axes):
-            where.append((a, len(nodes)))
-            nodes.append(n.offset)
-            vals.append(ua.DataValue(ua.Variant(a.offset_um, n.offset_type)))
-            if n.alarm is not None:
-                nodes.append(n.alarm)
-                vals.append(ua.DataValue(_alarm_value(ua, n.alarm_type, cyc, a.axis)))
-        res = await self._send(ua, nodes, vals)
-        if res is None:
-            return
-        for j, (a, i) in enumerate(where):
-            if res[i].is_good():
-                self.accepted_axes[a.axis], self.axis_faults[a.axis] = a.offset_um, None
+    def _readback(self, dvs) -> None:
+        """Each axis's offset as read this cycle: adopted (a change behind the
+        compensator's back is ``external_change``); a read that failed
+        (``readback_failed:STATUS``) leaves that axis unwritten this cycle."""
+        held = {}
+        for a, dv in zip(self.nodes.axes, dvs):
+            if dv.StatusCode.is_good():
+                self.unread[a.axis] = None
+                held[a.axis] = _number_or_none(dv.Value.Value if dv.Value is not None
+                                               else None)
             else:
-                self.axis_faults[a.axis] = f"write_refused:{res[i].name}"
-                self.comp.resume_axis(j, self.accepted_axes[a.axis])
-                self._log({"event": "write_refused", "cycle": k, "axis": a.axis,
-                           "status": res[i].name, "offset_um": a.offset_um,
-                           "controller_offset_um": self.accepted_axes[a.axis],
-                           "wall_time": time.time()})
-            if self.nodes.axes[j].alarm is not None and not res[i + 1].is_good():
-                self._log({"event": "alarm_write_refused", "cycle": k, "axis": a.axis,
-                           "status": res[i + 1].name})
+                self.unread[a.axis] = f"readback_failed:{dv.StatusCode.name}"
+        self._adopt(held, "readback", readback=True)
 
     async def _send(self, ua, nodes, vals):
         """Write ``vals`` to ``nodes`` in one request: each one's status, or None when the
@@ -564,32 +589,46 @@ class _Loop:
             return None
 
     async def _write(self, ua, k, cyc):
-        """Send the offset (and alarm) and check the answer."""
-        if self.model.axes:
-            return await self._write_axes(ua, k, cyc)
-        nodes = [self.nodes.offset]
-        vals = [ua.DataValue(ua.Variant(cyc.offset_um, self.nodes.offset_type))]
-        if self.nodes.alarm is not None:
-            nodes.append(self.nodes.alarm)
-            vals.append(ua.DataValue(_alarm_value(ua, self.nodes.alarm_type, cyc)))
-        res = await self._send(ua, nodes, vals)
+        """Send every axis's offset (and alarm) in one request and check each answer. An
+        axis whose offset is not to be written (NaN: the controller holds a value not
+        adopted; its read-back failed) sends its alarm only. A refused axis goes back to
+        what it last accepted, the others go on."""
+        nodes, vals, plan = [], [], []
+        for j, an in enumerate(self.nodes.axes):
+            off = cyc.axes[j].offset_um if cyc.axes else cyc.offset_um
+            i = ial = None
+            if math.isfinite(off) and self.unread[an.axis] is None:
+                i = len(nodes)
+                nodes.append(an.offset)
+                vals.append(ua.DataValue(ua.Variant(off, an.offset_type)))
+            if an.alarm is not None:
+                ial = len(nodes)
+                nodes.append(an.alarm)
+                vals.append(ua.DataValue(_alarm_value(ua, an.alarm_type, cyc, an.axis)))
+            plan.append((j, an.axis, off, i, ial))
+        res = await self._send(ua, nodes, vals) if nodes else []
         if res is None:
             return
-        if res[0].is_good():
-            self.accepted, self.write_fault = cyc.offset_um, None
-        else:
-            self.write_fault = f"write_refused:{res[0].name}"
-            self.comp.resume(self.accepted)     # never run away from what it holds
-            self._log({"event": "write_refused", "cycle": k, "status": res[0].name,
-                       "offset_um": cyc.offset_um, "controller_offset_um": self.accepted,
-                       "wall_time": time.time()})
-        if len(res) > 1 and not res[1].is_good():
-            self._log({"event": "alarm_write_refused", "cycle": k, "status": res[1].name})
+        for j, ax, off, i, ial in plan:
+            if i is not None and res[i].is_good():
+                self.accepted[ax], self.faults[ax] = off, None
+            elif i is not None:
+                self.faults[ax] = f"write_refused:{res[i].name}"
+                self.comp.resume_axis(j, self.accepted[ax])   # never run away from it
+                self._log({"event": "write_refused", "cycle": k,
+                           **({"axis": ax} if ax else {}), "status": res[i].name,
+                           "offset_um": off,
+                           "controller_offset_um": um_or_none(self.accepted[ax]),
+                           "wall_time": time.time()})
+            if ial is not None and not res[ial].is_good():
+                self._log({"event": "alarm_write_refused", "cycle": k,
+                           **({"axis": ax} if ax else {}), "status": res[ial].name})
 
     async def _cycle(self, loop, k, deadline, missed_periods=0):
         ua = _ua()
         start = loop.time()
         transport, values, t = [], {nm: None for nm in self.names}, None
+        self.unread = {ax: None for ax in self.axes}
         if self.client is None and start >= self.next_try:
             await self._reconnect(start)
         if self.client is None:
@@ -605,36 +644,27 @@ class _Loop:
             self.comp, values, t, self.clock, stale_after_s=self.cfg.stale_after_s,
             max_clock_jump_s=self.cfg.max_clock_jump_s, alarms=transport,
             clock_only=bool(self.o.time_node))
-        if self.write_fault:                   # the alarm lasts until a write is accepted;
-            cyc = replace(cyc, alarms=cyc.alarms + (self.write_fault,))  # the inputs still
-        for ax, fault in self.axis_faults.items():     # feed the state (they were read)
-            if fault:
-                cyc = cyc.with_axis_alarm(ax, fault)
+        for j, ax in enumerate(self.axes):     # the inputs still feed the state (read)
+            if self.unread[ax]:                # not written: it still holds what it held
+                self.comp.resume_axis(j, self.accepted[ax])
+            for fault in (self.unread[ax], self.faults[ax]):
+                if fault:
+                    cyc = _with_alarm(cyc, ax, fault)
         send = self.client is not None
         missed = self.clock.missed + missed_periods
         self._log(self._cycle_doc(cyc, k, t, values, transport, send, missed,
                                   start - deadline, loop.time() - start))
         if send:                               # the log line above is ahead of it
             await self._write(ua, k, cyc)
+        self.last_total_s = loop.time() - start
         self.status.cycle(k + 1, t, cyc)
 
     def _cycle_doc(self, cyc, k, t, values, transport, send, missed, late, took) -> dict:
         """A cycle's log line: its offset, or one per axis (version 2)."""
-        if cyc.axes:
-            return {"cycle": k, "wall_time": time.time(), "lateness_s": late,
-                    "cycle_s": took, "inputs": values, "transport_alarms": transport,
-                    **answer(cyc, t), "sent": send,
-                    "controller_offsets_um": dict(self.accepted_axes), "model": self.sha,
-                    "state": self.comp.state(),
-                    **({"missed_intervals": missed} if missed else {})}
-        g = cyc.predicted_growth_um
-        return {"cycle": k, "time_s": t, "wall_time": time.time(),
-                "lateness_s": late, "cycle_s": took,
-                "inputs": values,
-                "transport_alarms": transport, "offset_um": cyc.offset_um,
-                "predicted_growth_um": None if math.isnan(g) else g,
-                "alarms": list(cyc.alarms), "held": cyc.held, "sent": send,
-                "controller_offset_um": self.accepted, "model": self.sha,
+        return {"cycle": k, "time_s": t, "wall_time": time.time(), "lateness_s": late,
+                "cycle_s": took, "last_cycle_total_s": self.last_total_s,
+                "inputs": values, "transport_alarms": transport, **answer(cyc, t),
+                "sent": send, **self._held_doc(), "model": self.sha,
                 "state": self.comp.state(),
                 **({"missed_intervals": missed} if missed else {})}
 
@@ -653,7 +683,7 @@ class _Loop:
         except BaseException:
             await _drop(self.client)
             raise
-        self._take_controller(self.nodes.held_um, "start")
+        self._take_controller("start")
 
     async def _guarded(self, coro):
         """Run one cycle unless a signal comes first (then the cycle is abandoned: its
@@ -686,11 +716,15 @@ class _Loop:
             await self._start()                # refused before any offset is written
             ws = warm_start(self.cfg.log, self.comp, self.sha)
             self.clock = Clock(ws.time_s)
-            self.log = CycleLog(self.cfg.log, self.cfg.fsync)
-            self._log({"event": "started", "model": self.sha, "kind": self.model.kind,
+            log = CycleLog(self.cfg.log, self.cfg.fsync)
+            log.write({"event": "started", "model": self.sha, "kind": self.model.kind,
                        "transport": "opcua", "endpoint": self.o.endpoint,
                        "period_s": period, "start": ws.mode, "start_reason": ws.reason,
-                       **self._held_doc(self.nodes), "wall_time": time.time()})
+                       **self._held_doc(), **limits_doc(self.comp),
+                       "wall_time": time.time()})
+            self.log, pending, self.pending = log, self.pending, []
+            for e in pending:                      # the start's read-back, after "started"
+                self._log(e)
             self.status.say(f"live (OPC UA {self.o.endpoint}), {ws.mode} start "
                             f"({ws.reason}); the controller holds {self._held_text()}; "
                             f"log {self.cfg.log}")
@@ -715,9 +749,7 @@ class _Loop:
                 k += 1
             self._log({"event": "stopped", "cycles": n,
                        "reason": self.reason or "cycles done",
-                       "last_offset_um": self.comp.offset_um,
-                       **({"controller_offsets_um": dict(self.accepted_axes)}
-                          if self.model.axes else {"controller_offset_um": self.accepted}),
+                       **offsets_doc(self.comp, "last_offset_um"), **self._held_doc(),
                        "wall_time": time.time()})
             self.status.say(f"stopped after {n} cycles ({self.reason or 'cycles done'}); "
                             f"the controller holds {self._held_text()}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,7 @@ from arfem.models.compensator import Compensator, StateSpaceModel
 from arfem.params import InputError
 from arfem.scenarios.replay import _check_interval, _record_inputs, scored_from_s
 
-__all__ = ["AxisSummary", "AxesSummary", "AxesSeries", "AxesReplay", "replay_axes",
+__all__ = ["axis_limits", "AxisSummary", "AxesSummary", "AxesSeries", "AxesReplay", "replay_axes",
            "record_columns", "ObserverSummary", "observer_readings"]
 
 
@@ -144,6 +145,8 @@ def _column(ds, name: str, where: str) -> np.ndarray:
     """A carried column of the record as floats: empty cells NaN, anything else that
     is not a finite number refused naming the CSV's line and the column."""
     raw = ds.extra_columns[name]
+    if np.asarray(raw).dtype.kind == "f":      # a contract column: read and checked already
+        return np.asarray(raw, dtype=float)
     out = np.empty(raw.size)
     for i, cell in enumerate(raw):
         text = str(cell).strip()
@@ -259,6 +262,8 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
             clamped[j] += "clamped" in a.alarms
             limited[j] += "rate_limited" in a.alarms
     resid = meas + off
+    if getattr(ds, "displacement_zero", "reference") == "first_row":
+        resid = resid - off[:1]          # zeroed probes: the model minus its first row
     start, basis = scored_from_s(model, t, score_from_s)
     ok = np.all(np.isfinite(meas), axis=1) & (t >= start)
     ok[:first] = False
@@ -294,3 +299,38 @@ def _axis_summary(model, comp, j, g, resid, off, ok, clamped, limited) -> AxisSu
         max_offset_um=lim if math.isfinite(lim) else None,
         max_step_um=step if math.isfinite(step) else None,
         cycles_clamped=clamped, cycles_rate_limited=limited)
+
+
+def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:
+    """(max offsets, max steps) per axis of a version-2 model [µm] from ``--axis-limits
+    AXIS=OFFSET:STEP`` items over the common limits; one line naming a bad item.
+
+    >>> from types import SimpleNamespace as N
+    >>> m = N(outputs=(N(axis="X"), N(axis="Z")))
+    >>> axis_limits(m, ["Z=20:0.5"], 50.0, 1.0)
+    ((50.0, 20.0), (1.0, 0.5))
+    """
+    axes = [o.axis for o in model.outputs]
+    off, step = [max_offset_um] * len(axes), [max_step_um] * len(axes)
+    seen = set()
+    for item in items or ():
+        m = re.fullmatch(r"\s*([A-Za-z][A-Za-z0-9_]*)\s*=\s*([^:]+):(.+)", item)
+        if not axes:
+            raise InputError("is for a model with several axes (model_version 2)",
+                             "--axis-limits")
+        if not m or m.group(1) not in axes:
+            raise InputError(f"must be AXIS=OFFSET:STEP with AXIS one of "
+                             f"{', '.join(axes)}, got {item!r}", "--axis-limits")
+        try:
+            vals = float(m.group(2)), float(m.group(3))
+        except ValueError:
+            vals = (math.nan, math.nan)
+        if not all(math.isfinite(v) and v > 0 for v in vals):
+            raise InputError(f"needs two numbers > 0 [µm], got {item!r}", "--axis-limits")
+        if m.group(1) in seen:             # two limits for one axis: which one is meant?
+            raise InputError(f"axis {m.group(1)} is given more than once, got {item!r}",
+                             "--axis-limits")
+        seen.add(m.group(1))
+        j = axes.index(m.group(1))
+        off[j], step[j] = vals
+    return tuple(off), tuple(step)

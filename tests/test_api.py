@@ -152,13 +152,13 @@ def test_diagnose_of_a_dataframe_writes_and_reads_no_file(captured, monkeypatch)
     """Samples are validated in memory: any temporary folder or CSV reading fails."""
     import tempfile
 
-    from arfem.scenarios import dataset
+    import arfem.io
 
     def refuse(*a, **k):
         raise AssertionError("a file was touched")
     for name in ("mkdtemp", "mkstemp", "TemporaryDirectory", "NamedTemporaryFile"):
         monkeypatch.setattr(tempfile, name, refuse)
-    monkeypatch.setattr(dataset, "read_text_utf8", refuse)
+    monkeypatch.setattr(arfem.io, "_open_input", refuse)     # where every input is opened
     import pandas as pd
     df = pd.DataFrame({"time_s": [0.0, 60.0, 120.0], "growth_um": [0.0, 0.1, 0.2],
                        "speed_rpm": [0.0, 3000.0, 3000.0], "note": ["a", "b", "c"]})

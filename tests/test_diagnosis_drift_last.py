@@ -80,6 +80,8 @@ def test_speed_only_options_on_a_heat_flux_record_are_reported_as_ignored(tmp_pa
                                            "gain_pct": 0.0, "start_s": 0.0,
                                            "how_chosen": "given"}}
     monkeypatch.setattr(d, "run_diagnosis", lambda *a, **k: summary)
+    monkeypatch.chdir(tmp_path)          # the command reads the record's TOML first
+    (tmp_path / "x.toml").write_text("")
     for extra, note in (([], None), (["--drift-last"], "--drift-last apply"),
                         (["--frame-search", "wide", "--drift-last"],
                          "--frame-search and --drift-last apply")):

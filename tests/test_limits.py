@@ -5,6 +5,7 @@ are one line too. (Time and peak memory of each refusal: benchmarks/bench_limits
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import pytest
 
@@ -105,10 +106,12 @@ def test_the_cli_flag_is_passed_as_a_value_not_through_the_environment(tmp_path,
     before = dict(os.environ)
     seen = []
 
-    def reader(path, limits=None):
+    import arfem.io
+
+    def reader(path, limits=None):               # the one read of the scenario
         seen.append((limits, dict(os.environ) == before))
-        return {}
-    monkeypatch.setattr(config, "read_toml", reader)
+        return arfem.io.TomlFile(Path(path), "", {})
+    monkeypatch.setattr(arfem.io, "read_toml_file", reader)
     main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"), "--allow-large"])
     main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o")])
     assert seen == [(Limits(large=True), True), (STRICT, True)]
