@@ -22,7 +22,6 @@ from __future__ import annotations
 import io
 import json
 from dataclasses import replace
-from types import SimpleNamespace
 
 from test_live_axes import CONFIG, box, lines_of, run  # noqa: F401  (box: a fixture)
 
@@ -74,31 +73,29 @@ def test_a_warm_start_restores_the_estimates(box, tmp_path):
     assert first + second == one
 
 
-def test_no_observer_live_is_the_open_loop(box, tmp_path, monkeypatch):
-    from arfem.scenarios import live
+def test_no_observer_live_is_the_open_loop(box, tmp_path):
+    from arfem.scenarios.cli import build_parser
+    from arfem.scenarios.live import run_live
     run_dir, model, ds, inputs = box
     (tmp_path / "c.toml").write_text(CONFIG.format(log="c.log"))
     lines = "".join(lines_of(ds, inputs, stop=20))
-    seen = {}
-
-    def fake(m, cfg):
-        seen["model"] = m
-        out = io.StringIO()
-        run_jsonl(m, cfg, io.StringIO(lines), out, Status(0, io.StringIO()))
-        seen["answers"] = [json.loads(x) for x in out.getvalue().splitlines()]
-        return 0
-    monkeypatch.setattr(live, "run_jsonl", fake)
-    args = SimpleNamespace(model=str(run_dir / "model.json"), live=str(tmp_path / "c.toml"),
-                           no_observer=True)
-    assert live.run_live(args) == 0
-    assert seen["model"].observer is None
+    args = build_parser().parse_args(["compensate", str(run_dir / "model.json"), "--live",
+                                      str(tmp_path / "c.toml"), "--no-observer"])
+    out = io.StringIO()
+    assert run_live(args, io.StringIO(lines), out, Status(0, io.StringIO())) == 0
+    answers = [json.loads(x) for x in out.getvalue().splitlines()]
     ref_model = replace(model, observer=None)
     (tmp_path / "d.toml").write_text(CONFIG.format(log="d.log"))
-    out = io.StringIO()
-    run_jsonl(ref_model, load_config(tmp_path / "d.toml", ref_model), io.StringIO(lines), out,
-              Status(0, io.StringIO()))
-    assert seen["answers"] == [json.loads(x) for x in out.getvalue().splitlines()]
-    assert all("observer" not in a for a in seen["answers"])
+    ref = io.StringIO()
+    run_jsonl(ref_model, load_config(tmp_path / "d.toml", ref_model), io.StringIO(lines),
+              ref, Status(0, io.StringIO()))
+    assert answers == [json.loads(x) for x in ref.getvalue().splitlines()]
+    assert len(answers) == 19 and all("observer" not in a for a in answers)
+    with_obs = io.StringIO()
+    args.no_observer = False
+    (tmp_path / "c.log").unlink()
+    assert run_live(args, io.StringIO(lines), with_obs, Status(0, io.StringIO())) == 0
+    assert all("observer" in json.loads(x) for x in with_obs.getvalue().splitlines())
 
 
 def test_opcua_reads_thermometer_nodes_beside_the_inputs(box):
