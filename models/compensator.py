@@ -52,7 +52,7 @@ from arfem.ranges import RANGES, reading_quantity, reading_range
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
            "fit_speed_ar1_model", "fit_mlr_model",
-           "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind"]
+           "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind", "check_reading"]
 
 #: version of the ``model.json`` layout of a one-output model (the rod's growth)
 MODEL_VERSION = 1
@@ -184,6 +184,10 @@ class StateSpaceModel:
         compensator then steps the matrices of each interval's speed, and A, B, D above
         are the nominal ones (for the plausible ranges; the export's: at the
         time-weighted mean h). None: time-invariant.
+    observer : Observer, optional
+        Version 2: the thermometers' observer (:mod:`arfem.models.observer`, issue 43):
+        the compensator corrects the state from the ``T_<sensor>_C`` readings each
+        cycle. None: open loop.
     """
 
     kind: str
@@ -204,6 +208,7 @@ class StateSpaceModel:
     fit_window_s: tuple | None = None
     outputs: tuple = ()
     schedule: SpeedSchedule | None = None
+    observer: object = None
 
     def matrices(self, speed_rpm: float | None = None) -> tuple:
         """(A, B, D, outside): the matrices of an interval at ``speed_rpm`` (the raw
@@ -283,7 +288,9 @@ class StateSpaceModel:
                 **({"fit_window_s": [float(v) for v in self.fit_window_s]}
                    if self.fit_window_s is not None else {}),
                 **({"speed_schedule": self.schedule.to_dict()}
-                   if self.schedule is not None else {})}
+                   if self.schedule is not None else {}),
+                **({"observer": self.observer.to_dict()} if self.observer is not None
+                   else {})}
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
@@ -323,7 +330,7 @@ MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B
 MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
                   "arfem_version")
 #: version 2 may also hold ``speed_schedule`` (:class:`SpeedSchedule`)
-MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule",)
+MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule", "observer")
 #: version 2: ``outputs`` (several, each with its axis) in place of ``output``
 MODEL_REQUIRED_V2 = tuple("outputs" if k == "output" else k for k in MODEL_REQUIRED)
 #: input names of the measured-data contract (the schema's ``pattern``)
@@ -470,11 +477,16 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
     arfem_version = _string(d.get("arfem_version", ""), k("arfem_version"))
     schedule = (_read_schedule(d["speed_schedule"], k, names, A.shape, B.shape, D.shape,
                                maps) if "speed_schedule" in d else None)
-    return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
-               inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
-               d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
-               input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
-               schedule=schedule)
+    model = cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
+                inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
+                d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
+                input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
+                schedule=schedule)
+    if "observer" in d:                             # version 2's thermometers (issue 43)
+        from arfem.models.observer import observer_from_dict
+        model = _with_fields(model, observer=observer_from_dict(d["observer"],
+                                                                k("observer"), model))
+    return model
 
 
 def _read_inputs(ins, k, pattern: str) -> list:
@@ -716,6 +728,32 @@ def propagate(A: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return rp, rg, rs
 
 
+def check_reading(name: str, v, ranges: Mapping | None) -> tuple[float, str | None]:
+    """A raw reading as a float and what is wrong with it: ``missing:NAME`` (None),
+    ``nonfinite:NAME`` (not a finite number), ``out_of_range:NAME`` (outside
+    ``ranges[name]``, where ``ranges`` has it), or None. The one check of every
+    reading the compensator takes: the model's inputs and the observer's thermometers.
+
+    >>> check_reading("T_a_C", 200.0, {"T_a_C": (-10.0, 150.0)})
+    (200.0, 'out_of_range:T_a_C')
+    >>> check_reading("P_a_W", None, None)
+    (nan, 'missing:P_a_W')
+    """
+    if v is None:
+        return math.nan, f"missing:{name}"
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x):
+        return x, f"nonfinite:{name}"
+    if ranges is not None and name in ranges:
+        lo, hi = ranges[name]
+        if not lo <= x <= hi:
+            return x, f"out_of_range:{name}"
+    return x, None
+
+
 def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None) -> dict:
     """The range [lo, hi] each input's raw reading must lie in to be fed to the state.
 
@@ -750,7 +788,11 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     # one output: its row; several: each input's largest share over the outputs
     dc = dc[0] if not model.outputs else np.max(np.abs(dc), axis=0)
     out = {}
-    for j, spec in enumerate(model.inputs):
+    # the observer's thermometers (issue 43) by the same rules (no growth share)
+    therm = [InputSpec(t, "°C") for t in (model.observer.thermometers
+                                          if model.observer is not None else ())]
+    dc = np.concatenate([np.asarray(dc, float), np.zeros(len(therm))])
+    for j, spec in enumerate(tuple(model.inputs) + tuple(therm)):
         nm, unit = spec.name, spec.unit
         kind = reading_quantity(nm, unit)
         lo, hi = reading_range(nm, unit)
@@ -832,6 +874,10 @@ class Cycle:
         write). A version-2 model's axis held alone says so in its :class:`AxisCycle`.
     axes : tuple of AxisCycle
         Version 2: one per output, in the model's order; () for version 1.
+    observer : Correction, optional
+        What the thermometers' observer corrected this cycle (the disturbance estimates
+        in W and K, the innovations; :class:`arfem.models.observer.Correction`); None
+        without an observer or in a held cycle.
     """
 
     offset_um: float
@@ -839,6 +885,7 @@ class Cycle:
     alarms: tuple = ()
     held: bool = False
     axes: tuple = ()
+    observer: object = None
 
     def axis_alarms(self, axis: str) -> tuple:
         """The alarms that concern ``axis``: every alarm not tagged with an axis (the
@@ -881,6 +928,9 @@ class Compensator:
         Input name → (lo, hi): the plausible range of its raw reading
         (:func:`plausible_ranges`); a reading outside is ``out_of_range:NAME``, held and
         never fed to the state. None (replay's default): no range check.
+    use_observer : bool
+        Run the model's thermometer observer (``model.observer``, issue 43) where it has
+        one (default); False runs it open loop, exactly as a model without one.
 
     Notes
     -----
@@ -903,6 +953,7 @@ class Compensator:
     max_offset_um: float | tuple = math.inf
     max_step_um: float | tuple = math.inf
     ranges: Mapping | None = None
+    use_observer: bool = True
     x: np.ndarray = field(init=False)
     P: np.ndarray = field(init=False)
     offsets_um: np.ndarray = field(init=False)
@@ -913,6 +964,7 @@ class Compensator:
     _known: list = field(init=False)            # per axis: its value set or adopted
     _d0: np.ndarray = field(init=False)
     _lims: tuple = field(init=False)
+    _observer: object = field(init=False, default=None)
 
     def __post_init__(self):
         p = len(self.model.outputs)
@@ -933,6 +985,9 @@ class Compensator:
         self._held = [None] * n_axes
         self._events = [[] for _ in range(n_axes)]
         self._known = [False] * n_axes              # (0 at a cold start is assumed)
+        if self.use_observer and self.model.observer is not None:
+            from arfem.models.observer import ObserverRun
+            self._observer = ObserverRun(self.model.observer)
 
     @property
     def offset_um(self) -> float:
@@ -975,21 +1030,9 @@ class Compensator:
         alarms = list(alarms)
         u = np.empty(len(mdl.inputs))
         for j, spec in enumerate(mdl.inputs):
-            v = inputs.get(spec.name)
-            if v is None:
-                alarms.append(f"missing:{spec.name}")
-                u[j] = np.nan
-            else:
-                try:
-                    u[j] = float(v)
-                except (TypeError, ValueError):
-                    u[j] = np.nan
-                if not math.isfinite(u[j]):
-                    alarms.append(f"nonfinite:{spec.name}")
-                elif self.ranges is not None and spec.name in self.ranges:
-                    lo, hi = self.ranges[spec.name]
-                    if not lo <= u[j] <= hi:
-                        alarms.append(f"out_of_range:{spec.name}")
+            u[j], bad = check_reading(spec.name, inputs.get(spec.name), self.ranges)
+            if bad:
+                alarms.append(bad)
         usable = not alarms and advance
         notes = []
         if usable:
@@ -1013,7 +1056,29 @@ class Compensator:
                 self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)  # skip n³ work
         if not usable:
             return self._axes_cycle(None, alarms)
+        if self._observer is not None:          # the thermometers correct the state
+            return self._observed(inputs, u, B, D, alarms + notes)   # first (issue 43)
         return self._axes_cycle(u, alarms + notes, D)   # notes: informative, not held
+
+    def _observed(self, inputs: Mapping, u: np.ndarray, B: np.ndarray, D: np.ndarray,
+                  alarms: list) -> "Cycle":
+        """A version-2 cycle with the observer's measurement update first
+        (:meth:`ObserverRun.correct <arfem.models.observer.ObserverRun.correct>`): each
+        thermometer is checked as an input is (:func:`check_reading`; a bad one is held
+        -- its correction not made -- and its alarm raised, the offset not held), the
+        state corrected, and the outputs computed with the inputs plus the estimated
+        disturbances (which held cycles and unseen intervals after it also use)."""
+        ob = self._observer.observer
+        readings = []
+        for name in ob.thermometers:
+            v, bad = check_reading(name, inputs.get(name), self.ranges)
+            readings.append(None if bad else v)
+            if bad:
+                alarms.append(bad)
+        self.x, u_eff, corr = self._observer.correct(self.x, u, B, self._speed_last,
+                                                     readings)
+        self._u_last = u_eff
+        return _with_fields(self._axes_cycle(u_eff, alarms, D), observer=corr)
 
     def _schedule_column(self) -> int:
         """The column of the speed schedule's input among the model's inputs."""
@@ -1159,6 +1224,8 @@ class Compensator:
         self.P = np.zeros((self.model.n_states,) * 2)
         self._u_last = None
         self._speed_last = None
+        if self._observer is not None:
+            self._observer.d[:] = 0.0
 
     def resume(self, offset_um) -> tuple:
         """:meth:`resume_axis` for every axis: ``offset_um`` one value per axis (a
@@ -1171,11 +1238,14 @@ class Compensator:
 
     def state(self) -> dict:
         """The state to log (a warm start restores it): ``x`` [µm], ``P`` [µm²] and the
-        last good inputs ``u`` (as the matrices take them), and with a speed schedule the
-        last good speed ``speed_rpm`` (its matrices), JSON-ready."""
+        last good inputs ``u`` (as the matrices take them; with an observer, plus its
+        estimated disturbances), with a speed schedule the last good speed ``speed_rpm``
+        (its matrices), and with an observer its ``disturbances`` (W, K), JSON-ready."""
         return {"x": self.x.tolist(), "P": self.P.tolist(),
                 "u": None if self._u_last is None else self._u_last.tolist(),
                 **({"speed_rpm": self._speed_last} if self.model.schedule is not None
+                   else {}),
+                **({"disturbances": self._observer.state()} if self._observer is not None
                    else {})}
 
     def restore(self, state: Mapping) -> None:
@@ -1194,6 +1264,8 @@ class Compensator:
         if speed is not None and not (isinstance(speed, (int, float))
                                       and math.isfinite(speed)):
             raise ValueError("state's speed is not finite")
+        if self._observer is not None and state.get("disturbances") is not None:
+            self._observer.restore(state["disturbances"])   # ValueError if it does not fit
         self.x, self.P, self._u_last = x, P, u
         self._speed_last = (None if self.model.schedule is None or speed is None
                             else float(speed))

@@ -175,6 +175,10 @@ def add_parser(sub) -> None:
                         "model's fit window (fit_window_s in model.json), or every row for "
                         "a model without one; 0 scores every row. The replay itself "
                         "always starts at the first row (replay only: refused with --live)")
+    p.add_argument("--no-observer", action="store_true",
+                   help="run the model open loop: do not correct its state from the "
+                        "thermometers even where model.json has an observer (by default "
+                        "it is used when the record or stream has its thermometers)")
     p.add_argument("--force", action="store_true", help="write into a non-empty --out "
                    "(replay only: refused with --live)")
     p.set_defaults(func=main)
@@ -189,7 +193,8 @@ def _main_axes(args, model, ds, probe) -> int:
         raise InputError("probe updates need a one-output (version 1) model",
                          "--probe-every")
     res = replay_axes(model, ds, max_offset_um=off, max_step_um=step,
-                      score_from_s=args.score_from, where=str(args.record))
+                      score_from_s=args.score_from, where=str(args.record),
+                      use_observer=not getattr(args, "no_observer", False))
     with staged_out_dir(args.out, args.force) as stage:
         write_axes_replay(res, stage, args.model, args.record)
         write_html_report(stage)

@@ -162,12 +162,34 @@ def _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version):
             "its own A, B, D at the time-weighted mean h: "
             + ", ".join(f"{c.spec.group} {h:.4g}" for c, h in zip(sc.convections, h_ref))
             + " W/m²K")
-    return speed_scheduled_state_space(
+    return base, speed_scheduled_state_space(
         speeds, [table(h) for h in rows], table(h_ref), base.Fk, base.Gk[:, cols],
         dtau_s=sc.output_interval_s, inputs=inputs + [("speed_rpm", "1/min")],
         outputs=[(f"d_{s.name}_um", ax) for s, ax in axes],
         input_offsets={"ambient_C": sc.reference_C}, description=desc,
         arfem_version=arfem_version)
+
+
+def _with_observer(model, gmodel, md, T, noise):
+    """``model`` with the thermometers' observer (issue 43, :mod:`arfem.models.observer`)
+    where the scenario has thermometers: their rows over the state of the basis ``md``
+    (``Gk``, unscaled: K per amplitude) and over the model's inputs (``D`` through the
+    input map ``T``), read at rest as the reference temperature, the state of a uniform
+    1 K rise (Φᵀ M 1), and the steady-state gain for ``noise`` (the scenario's
+    ``[observer]`` table, else the defaults)."""
+    from dataclasses import replace
+
+    from arfem.models.observer import ObserverNoise, design_observer
+    sc = gmodel.scenario
+    tcols = [j for j, s in enumerate(sc.sensors) if s.quantity == "temperature"]
+    if not tcols:
+        return model
+    uniform = md.phi.T @ (gmodel.thermal.M @ np.ones(md.phi.shape[0]))
+    ob = design_observer(model, [f"T_{sc.sensors[j].name}_C" for j in tcols],
+                         md.Gk[:, tcols].T, md.D[tcols] @ T,
+                         np.full(len(tcols), sc.reference_C), uniform,
+                         noise if noise is not None else ObserverNoise())
+    return replace(model, observer=ob)
 
 
 def export_state_space(gmodel, arfem_version: str = "",
@@ -204,9 +226,12 @@ def export_state_space(gmodel, arfem_version: str = "",
     # responses compared from the model's interval on: a discrete model at Δτ never samples
     # sooner after a step), so that at the same h the model and the run agree to round-off
     kinds = [s.kind_index for s in sc.sensors]
+    noise = sc.observer_noise                       # the scenario's [observer] table
     if len(_speed_rows(gmodel)[0]) > 1 and any(c.h[1] != 0.0 for c in sc.convections):
-        return ExportedModel(_scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache,
-                                        arfem_version), tuple(float(h) for h in h_ref))
+        base, model = _scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache, arfem_version)
+        T = np.column_stack([T, np.zeros(T.shape[0])])         # speed: through the matrices
+        return ExportedModel(_with_observer(model, gmodel, base, T, noise),
+                             tuple(float(h) for h in h_ref))
     key = tuple(float(h) for h in h_ref)
     md = (mode_cache[key] if mode_cache and key in mode_cache
           and mode_cache[key].n_blocks > 0
@@ -222,7 +247,8 @@ def export_state_space(gmodel, arfem_version: str = "",
         inputs=inputs, outputs=[(f"d_{s.name}_um", ax) for s, ax in axes],
         input_offsets={"ambient_C": sc.reference_C}, kind="fem_modal",
         description=desc, arfem_version=arfem_version)
-    return ExportedModel(model, tuple(float(h) for h in h_ref))
+    return ExportedModel(_with_observer(model, gmodel, md, T, noise),
+                         tuple(float(h) for h in h_ref))
 
 
 def record_columns(run, model: StateSpaceModel) -> dict:

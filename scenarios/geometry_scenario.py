@@ -103,6 +103,7 @@ __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
         "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
+        "observer",             # the exported observer's noise levels (issue 43)
         "sensor", "fem", "outputs", "check"}   # [check]: arfem check's (scenarios/geometry_check.py)
 _GEOM = {"mesh", "unit", "order", "reference_C"}
 _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "expansion_1_K",
@@ -181,6 +182,9 @@ class GeometryScenario:
     fields: bool
     picture: bool
     field_interval_s: float
+    #: ``[observer]``: the noise levels the exported model's observer is designed for
+    #: (:class:`arfem.models.observer.ObserverNoise`); None: its defaults
+    observer_noise: object = None
 
     @property
     def total_s(self) -> float:
@@ -327,7 +331,16 @@ def _from_dict(data: dict, source: str, base: Path | None) -> GeometryScenario:
         sources=tuple(sources), convections=tuple(convs), support=support,
         support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
         output_interval_s=oi, fields=_bool(out.get("fields", False), "outputs.fields"),
-        picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
+        picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi,
+        observer_noise=_observer_noise(data))
+
+
+def _observer_noise(data: dict):
+    """``[observer]`` (issue 43): noise levels, or None where the table is absent."""
+    if "observer" not in data:
+        return None
+    from arfem.models.observer import noise_from_table
+    return noise_from_table(data["observer"], "observer")
 
 
 def _geometry_table(data: dict) -> tuple:

@@ -81,7 +81,7 @@ if TYPE_CHECKING:                                  # (opcua_live imports this mo
 __all__ = ["LiveConfig", "Clock", "CycleLog", "Status", "load_config", "clocked_step",
            "model_sha", "warm_start", "faults", "resume_from", "take_held", "offsets_text",
            "offsets_doc", "limits_doc", "held_text", "answer", "with_command_line",
-           "run_jsonl", "run_live"]
+           "run_jsonl", "run_live", "observer_doc", "reading_names"]
 
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
          "cycles", "max_clock_jump_s", "fsync", "status_every", "ranges", "axes"}
@@ -261,7 +261,7 @@ def _ranges(table, where: str, model) -> tuple:
     """``[live.ranges]`` merged over the model's defaults: ((name, lo, hi), ...)."""
     if not isinstance(table, dict):
         raise InputError("must be a table of input = [lo, hi]", where)
-    names = [i.name for i in model.inputs] if model is not None else list(table)
+    names = reading_names(model) if model is not None else list(table)
     over = {}
     for nm, v in table.items():
         if nm not in names:
@@ -534,7 +534,28 @@ def answer(cyc, t) -> dict:
                               "predicted_um": um_or_none(a.predicted_um),
                               "alarms": list(a.alarms), "held": a.held}
                      for a in cyc.axes},
-            "alarms": list(cyc.alarms), "held": cyc.held}
+            "alarms": list(cyc.alarms), "held": cyc.held,
+            **({"observer": observer_doc(cyc.observer)} if cyc.observer is not None
+               else {})}
+
+
+def observer_doc(corr) -> dict:
+    """What the thermometers' observer corrected in a cycle (issue 43), for the answer
+    and the log: each disturbance's estimate ``{input: value}`` in its unit (W for a
+    source's power, K for the ambient), the units, each thermometer's innovation
+    (measured − predicted [K], None where held) and the thermometers held."""
+    return {"disturbances": corr.estimates(),
+            "units": {name: unit for name, unit, _ in corr.disturbances},
+            "innovations_K": {t: None if math.isnan(v) else v
+                              for t, v in corr.innovations_K},
+            "held": list(corr.held)}
+
+
+def reading_names(model) -> list:
+    """What a transport reads each cycle: the model's inputs, then its observer's
+    thermometers (issue 43) where it has one."""
+    return [i.name for i in model.inputs] + list(
+        model.observer.thermometers if model.observer is not None else ())
 
 
 class Status:
@@ -578,8 +599,7 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     # what the gateway may have been sent last: adopted inside the clamp only
     from_log = take_held(comp, ({None: ws.offset_um} if ws.offset_um is not None else {})
                          if not model.axes else (ws.offsets_um or {}), "log")
-    run = _JsonRun(comp, [i.name for i in model.inputs], cfg, sha, Clock(ws.time_s),
-                   stdout, status)
+    run = _JsonRun(comp, reading_names(model), cfg, sha, Clock(ws.time_s), stdout, status)
     n = 0
     try:
         run.log = CycleLog(cfg.log, cfg.fsync)
@@ -763,8 +783,15 @@ def run_live(args, stdin=None, stdout=None, status=None) -> int:
     (:func:`with_command_line`)."""
     from arfem.scenarios.model_file import read_model
     model = read_model(args.model, getattr(args, "limits", None))
+    if model.observer is not None and getattr(args, "no_observer", False):
+        model = replace(model, observer=None)      # open loop, exactly as without one
     cfg = with_command_line(load_config(args.live, model), model, args)
     if cfg.transport == "opcua":
+        lack = [] if model.observer is None else [
+            t for t in model.observer.thermometers if t not in dict(cfg.opcua.inputs)]
+        if lack:                                # no node for a thermometer: open loop,
+            model = replace(model, observer=None)      # exactly as without an observer
+            Status(0).say(f"observer off: [opcua.inputs] has no node for {', '.join(lack)}")
         from arfem.scenarios.opcua_live import run_opcua
         return run_opcua(model, cfg)
     return run_jsonl(model, cfg, stdin, stdout, status)

@@ -179,12 +179,13 @@ def parse_config(table, path: str, model=None) -> OpcuaConfig:
         if nm not in ins:
             raise InputError(f"has no node for {nm!r}, which the model reads",
                              f"{where}.inputs")
+    therm = list(getattr(getattr(model, "observer", None), "thermometers", ()))  # issue 43
     for nm in ins:
-        if nm not in names:
+        if nm not in names and nm not in therm:
             raise InputError(f"the model does not read this input (it reads "
-                             f"{', '.join(names)})", f"{where}.inputs.{nm}")
+                             f"{', '.join(names + therm)})", f"{where}.inputs.{nm}")
     inputs = []
-    for nm in names:
+    for nm in names + [t for t in therm if t in ins]:
         v = ins[nm]
         if not isinstance(v, str):
             raise InputError(f"must be a node id string, got {v!r}", f"{where}.inputs.{nm}")
@@ -454,7 +455,7 @@ class _Loop:
     def __init__(self, model, cfg, status=None):
         self.model, self.cfg, self.o = model, cfg, cfg.opcua
         self.comp = cfg.compensator(model)
-        self.names = [i.name for i in model.inputs]
+        self.names = [nm for nm, _ in self.o.inputs]     # inputs, then thermometers
         self.sha = model_sha(model)
         self.status = status or Status(cfg.status_every)
         self.client = None

@@ -25,7 +25,7 @@ from arfem.params import InputError
 from arfem.scenarios.replay import _check_interval, _record_inputs, scored_from_s
 
 __all__ = ["axis_limits", "AxisSummary", "AxesSummary", "AxesSeries", "AxesReplay", "replay_axes",
-           "record_columns"]
+           "record_columns", "ObserverSummary", "observer_readings"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,33 @@ class AxisSummary:
 
 
 @dataclass(frozen=True)
+class ObserverSummary:
+    """What the thermometers' observer did in a replay (issue 43).
+
+    Attributes
+    ----------
+    on : bool
+        Whether it ran.
+    why : str
+        Why it did not run ('' when it did): no observer in the model, ``--no-observer``,
+        or thermometers the record lacks.
+    thermometers : tuple of str
+    disturbances : tuple of dict
+        Per disturbance: ``input``, ``unit`` (W, W/m² or K), its estimate at the last
+        cycle (``final``) and its mean, smallest and largest over the scored rows.
+    cycles_thermometer_held : int
+        Cycles in which at least one thermometer was held (missing, not finite, out of
+        range): its correction was not made.
+    """
+
+    on: bool
+    why: str = ""
+    thermometers: tuple = ()
+    disturbances: tuple = ()
+    cycles_thermometer_held: int = 0
+
+
+@dataclass(frozen=True)
 class AxesSummary:
     """The figures of a several-axes replay (``summary.json``)."""
 
@@ -67,10 +94,15 @@ class AxesSummary:
     axes: tuple
     #: cycles whose speed lay beyond a speed schedule's table (the end's matrices used)
     cycles_outside_schedule: int = 0
+    #: the thermometers' observer (issue 43); None for a model without one
+    observer: ObserverSummary | None = None
 
     def to_dict(self) -> dict:
-        return {"model_version": 2, **dataclasses.asdict(self),
-                "axes": [dataclasses.asdict(a) for a in self.axes]}
+        d = {"model_version": 2, **dataclasses.asdict(self),
+             "axes": [dataclasses.asdict(a) for a in self.axes]}
+        if self.observer is None:               # a model without one: as before
+            del d["observer"]
+        return d
 
 
 @dataclass(frozen=True)
@@ -85,17 +117,22 @@ class AxesSeries:
     predicted_um: np.ndarray     # (n, p)
     offset_um: np.ndarray        # (n, p)
     residual_um: np.ndarray      # (n, p)
+    #: the observer's per-row columns (issue 43): ``estimate_<input>_<unit>`` (each
+    #: disturbance's estimate, W or K) and ``innovation_<thermometer>_K`` (measured −
+    #: predicted, empty where held); {} without an observer
+    observer: dict = dataclasses.field(default_factory=dict)
 
     def columns(self) -> dict:
         """``compensated.csv``: time, inputs, then per axis ``measured_<A>_um``,
-        ``predicted_<A>_um``, ``offset_<A>_um``, ``residual_<A>_um``."""
+        ``predicted_<A>_um``, ``offset_<A>_um``, ``residual_<A>_um``, then the
+        observer's columns."""
         cols = {"time_s": self.time_s, **self.inputs}
         for j, a in enumerate(self.axes):
             cols.update({f"measured_{a}_um": self.measured_um[:, j],
                          f"predicted_{a}_um": self.predicted_um[:, j],
                          f"offset_{a}_um": self.offset_um[:, j],
                          f"residual_{a}_um": self.residual_um[:, j]})
-        return cols
+        return {**cols, **self.observer}
 
 
 @dataclass(frozen=True)
@@ -140,9 +177,43 @@ def record_columns(model: StateSpaceModel, ds, where: str) -> tuple[dict, np.nda
     return inputs, measured
 
 
+def observer_readings(model: StateSpaceModel, ds, use_observer: bool) -> tuple:
+    """(thermometer columns {name: (n,)}, why not): the record's readings of the model's
+    observer's thermometers (issue 43), or ({}, why the replay runs open loop: no
+    observer, ``--no-observer``, or a thermometer the record lacks)."""
+    if model.observer is None:
+        return {}, "the model has no observer"
+    if not use_observer:
+        return {}, "--no-observer"
+    have = dict(getattr(ds, "temperatures", None) or {})
+    missing = [t for t in model.observer.thermometers if t not in have]
+    if missing:
+        return {}, f"the record has no {', '.join(missing)}"
+    return {t: np.asarray(have[t], float) for t in model.observer.thermometers}, ""
+
+
+def _observer_columns(ob, est, innov) -> dict:
+    """The observer's compensated.csv columns from per-row estimates and innovations."""
+    cols = {f"estimate_{d.input}_{'K' if d.unit == 'K' else d.unit.replace('/', '_')}":
+            est[:, i] for i, d in enumerate(ob.disturbances)}
+    cols.update({f"innovation_{t[:-2]}_K": innov[:, i]
+                 for i, t in enumerate(ob.thermometers)})
+    return cols
+
+
+def _observer_summary(ob, est, ok, held) -> ObserverSummary:
+    rows = est[ok]
+    dist = tuple({"input": d.input, "unit": d.unit, "final": float(est[-1, i]),
+                  "mean_scored": float(np.mean(rows[:, i])),
+                  "min_scored": float(np.min(rows[:, i])),
+                  "max_scored": float(np.max(rows[:, i]))}
+                 for i, d in enumerate(ob.disturbances))
+    return ObserverSummary(True, "", tuple(ob.thermometers), dist, int(held))
+
+
 def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
                 max_step_um=math.inf, score_from_s: float | None = None,
-                where: str = "record") -> AxesReplay:
+                where: str = "record", use_observer: bool = True) -> AxesReplay:
     """Step a version-2 ``model`` through the record ``ds`` causally, every axis.
 
     Parameters
@@ -155,18 +226,35 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
         Each axis's clamp and step limit [µm] (one for all, or one per axis).
     score_from_s : float, optional
         As :func:`arfem.scenarios.replay.replay`.
+    use_observer : bool
+        Run the model's observer where it has one and the record has its thermometers
+        (default); False: open loop (``--no-observer``).
     """
     inputs, meas = record_columns(model, ds, where)
     t = np.asarray(ds.time_s, float)
     _check_interval(model, t, where)
-    comp = Compensator(model, max_offset_um=max_offset_um, max_step_um=max_step_um)
+    therm, why = observer_readings(model, ds, use_observer)
+    comp = Compensator(model, max_offset_um=max_offset_um, max_step_um=max_step_um,
+                       use_observer=bool(therm))
     n, p = t.size, len(model.outputs)
     pred, off = np.full((n, p), np.nan), np.zeros((n, p))
     held = outside = 0
     clamped, limited = np.zeros(p, int), np.zeros(p, int)
     first = 1 if t[0] <= 0.0 else 0
+    ob = model.observer if therm else None
+    est = np.full((n, ob.n_disturbances), np.nan) if ob else None
+    innov = np.full((n, len(ob.thermometers)), np.nan) if ob else None
+    t_held = 0
     for k in range(first, n):
-        cyc = comp.step({nm: col[k] for nm, col in inputs.items()})
+        cyc = comp.step({**{nm: col[k] for nm, col in inputs.items()},
+                         **{nm: (None if math.isnan(col[k]) else col[k])
+                            for nm, col in therm.items()}})
+        if cyc.observer is not None:
+            est[k] = [v for _, _, v in cyc.observer.disturbances]
+            innov[k] = [v for _, v in cyc.observer.innovations_K]
+            t_held += bool(cyc.observer.held)
+        elif ob is not None and k > first:          # a held cycle: the estimates stand
+            est[k] = est[k - 1]
         held += cyc.held
         outside += any(x.startswith("outside_schedule") for x in cyc.alarms)
         for j, a in enumerate(cyc.axes):
@@ -184,10 +272,14 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
                          "to score", where)
     axes = tuple(_axis_summary(model, comp, j, meas[:, j], resid[:, j], off[:, j], ok,
                                int(clamped[j]), int(limited[j])) for j in range(p))
+    obs = None if model.observer is None else (
+        _observer_summary(ob, est, ok & np.all(np.isfinite(est), axis=1), t_held) if ob
+        else ObserverSummary(False, why))
     summary = AxesSummary(model.kind, model.description, ds.name, model.dtau_s,
                           int(n - first), start, float(t[ok][-1]), basis, int(ok.sum()),
-                          int(held), axes, int(outside))
-    series = AxesSeries(t, inputs, model.axes, meas, pred, off, resid)
+                          int(held), axes, int(outside), obs)
+    series = AxesSeries(t, inputs, model.axes, meas, pred, off, resid,
+                        _observer_columns(ob, est, innov) if ob else {})
     return AxesReplay(summary, series)
 
 

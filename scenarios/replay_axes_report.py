@@ -7,7 +7,8 @@ from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.scenarios.replay_axes import AxesReplay
 
 __all__ = ["write_axes_replay", "axes_figure", "axes_markdown", "terminal_line",
-           "own_output", "reproduced_to_roundoff", "file_link", "OWN_OUTPUT_REL"]
+           "own_output", "reproduced_to_roundoff", "file_link", "OWN_OUTPUT_REL",
+           "observer_paragraph"]
 
 
 def axes_figure(res: AxesReplay, path) -> None:
@@ -156,9 +157,28 @@ def axes_markdown(res: AxesReplay, model_path=None, record_path=None) -> str:
         L.append(f"| {a.axis} | `{a.output}` | {_g(a.largest_offset_step_um)} | "
                  f"±{a.max_offset_um or '∞'}, ±{a.max_step_um or '∞'} per cycle | "
                  f"{a.cycles_clamped} / {a.cycles_rate_limited} |")
+    L += observer_paragraph(m.observer)
     L += ["", "Files: `compensated.csv` (every cycle, every axis), `summary.json`, "
           "`figure.png`, `report.html`."]
     return "\n".join(L) + "\n"
+
+
+def observer_paragraph(ob) -> list:
+    """summary.md's lines on the thermometers' observer (issue 43): what it corrected
+    (each disturbance's estimate, W or K), or why it did not run; [] without one."""
+    if ob is None:
+        return []
+    if not ob.on:
+        return ["", f"Observer: not run ({ob.why}); the model ran open loop."]
+    est = "; ".join(f"`{d['input']}` {d['final']:+.3g} {d['unit']} at the end (mean "
+                    f"{d['mean_scored']:+.3g}, range {d['min_scored']:+.3g} to "
+                    f"{d['max_scored']:+.3g} over the scored rows)" for d in ob.disturbances)
+    held = (f" A thermometer was held (not used) in {ob.cycles_thermometer_held} cycles."
+            if ob.cycles_thermometer_held else "")
+    return ["", f"Observer: the thermometers {', '.join(f'`{t}`' for t in ob.thermometers)} "
+            f"corrected the model's state every cycle. What it corrected, as disturbances "
+            f"added to the model's inputs: {est}.{held} Per cycle: the `estimate_*` and "
+            "`innovation_*` columns of `compensated.csv`; `--no-observer` runs open loop."]
 
 
 def write_axes_replay(res: AxesReplay, stage, model_path=None, record_path=None) -> None:
@@ -175,4 +195,6 @@ def terminal_line(res: AxesReplay, out) -> str:
     parts = [f"{a.axis} RMS {a.rms_before_um:.3g} -> {a.rms_after_um:.3g} µm"
              for a in m.axes]
     own = " (the record is the model's own output)" if own_output(res) else ""
-    return f"{m.dataset}: {m.model_kind}, " + ", ".join(parts) + f"{own}; wrote {out}"
+    ob = "" if m.observer is None else (", observer on" if m.observer.on else
+                                          f", observer off ({m.observer.why})")
+    return f"{m.dataset}: {m.model_kind}{ob}, " + ", ".join(parts) + f"{own}; wrote {out}"
