@@ -169,3 +169,26 @@ def test_the_gallery_example_runs_the_commands_not_the_internals():
     assert arfem_mods <= {"arfem.scenarios", "arfem.models.bearing"}, arfem_mods
     assert "__dict__" not in src
     assert '"arfem", "run"' in src and '"arfem.scenarios.thermal_test"' in src
+
+
+def test_the_check_gate_fails_this_test_as_the_page_says(tmp_path, capsys):
+    """docs/thermal-test.md says that arfem check fails the ISO scenario (Z beyond the
+    15 % gate, A's tilt missed by most of its peak, X and Y within): the short test's
+    drift is mostly the fast share one time constant per input cannot follow. Held with
+    P1 elements on the same mesh (P2 in the file: 20.2 % on Z; P1 19.3 %, both > 15 %)."""
+    import re
+    from arfem.scenarios.cli import main
+    text = (ISO / "iso230_3_spindle_unit.toml").read_text("utf-8")
+    (tmp_path / "iso.toml").write_text(
+        text.replace('mesh = "../spindle_unit.msh"',
+                     f'mesh = "{(ISO.parent / "spindle_unit.msh").as_posix()}"')
+        .replace("order = 2", "order = 1").replace("picture = true", "picture = false"),
+        encoding="utf-8")
+    assert main(["check", str(tmp_path / "iso.toml")]) == 1
+    out = capsys.readouterr().out
+    pct = {m[0]: float(m[1]) for m in
+           re.findall(r"(?:FAILED )?([XYZAB]): max\|slowest-mode AR - FEM\| = [^=]+= ([\d.]+) %",
+                      out)}
+    assert pct["Z"] > 15.0 and pct["Y"] < 15.0 and pct["X"] < 15.0, pct
+    assert pct["A"] > 50.0, pct
+    assert "FAILED Z" in out and "tilts (reported, not gated" in out
