@@ -49,10 +49,10 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
 
     from arfem.models.diagnosis.dataset import Dataset
     from arfem.models.geodiagnosis.engine import GeoDiagnosis
-    from arfem.scenarios.checking import Criterion
-    from arfem.scenarios.config import Scenario
-    from arfem.scenarios.geometry_check import GeometryCheckCase
-    from arfem.scenarios.geometry_scenario import GeometryScenario
+    from arfem.scenarios.rod.checking import Criterion
+    from arfem.scenarios.rod.scenario import Scenario
+    from arfem.scenarios.geometry.check import GeometryCheckCase
+    from arfem.scenarios.geometry.scenario import GeometryScenario
 
 __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "shipped_scenario", "solve",
            "run", "solve_fem", "FemResult", "ar1", "AR1Result", "compare", "Comparison",
@@ -95,14 +95,14 @@ def shipped_scenario(name: str) -> Path:
     >>> p.name, p.with_suffix(".msh").is_file()
     ('spindle_unit.toml', True)
     """
-    from arfem.scenarios.config import builtin_scenario_path
+    from arfem.scenarios.rod.scenario import builtin_scenario_path
     return builtin_scenario_path(str(name))
 
 
 def _file_or_shipped(path: str | Path) -> Path:
     """``path`` itself, or the shipped file of a bare name that is no file here (the
-    CLI's rule, :func:`arfem.scenarios.config.scenario_file`)."""
-    from arfem.scenarios.config import scenario_file
+    CLI's rule, :func:`arfem.scenarios.rod.scenario.scenario_file`)."""
+    from arfem.scenarios.rod.scenario import scenario_file
     return scenario_file(path)
 
 
@@ -123,9 +123,9 @@ def load_scenario(path: str | Path, *, order: int | None = None) -> Scenario | G
     Returns
     -------
     Scenario or GeometryCheckCase
-        ``kind == "rod"``: :class:`arfem.scenarios.config.Scenario` (``rod``,
+        ``kind == "rod"``: :class:`arfem.scenarios.rod.scenario.Scenario` (``rod``,
         ``schedule``, ``dtau_s`` [s], ``fem``, ``check``). ``kind == "mesh"``:
-        :class:`arfem.scenarios.geometry_check.GeometryCheckCase`: ``scenario`` (the
+        :class:`arfem.scenarios.geometry.check.GeometryCheckCase`: ``scenario`` (the
         validated mesh scenario: ``mesh_path``, ``materials``, ``cycle``, ``sources``,
         ``sensors``, …) and its ``[check]`` values. Both have ``name`` and ``source``.
 
@@ -145,8 +145,8 @@ def load_scenario(path: str | Path, *, order: int | None = None) -> Scenario | G
     ('mesh', 1, ['tcp_x', 'tcp_y', 'tcp_z'])
     """
     from arfem.io import read_toml
-    from arfem.scenarios.config import scenario_from_dict
-    from arfem.scenarios.geometry_check import geometry_case_from_dict
+    from arfem.scenarios.rod.scenario import scenario_from_dict
+    from arfem.scenarios.geometry.check import geometry_case_from_dict
     p = _file_or_shipped(path)
     data = read_toml(p)
     mesh = isinstance(data, dict) and "geometry" in data       # as arfem check tells them
@@ -161,9 +161,9 @@ def load_scenario(path: str | Path, *, order: int | None = None) -> Scenario | G
 
 def _loaded(scenario) -> Scenario | GeometryCheckCase:
     """A scenario argument as :func:`load_scenario` gives it (a path or a name is read)."""
-    from arfem.scenarios.config import Scenario
-    from arfem.scenarios.geometry_check import GeometryCheckCase
-    from arfem.scenarios.geometry_scenario import GeometryScenario
+    from arfem.scenarios.rod.scenario import Scenario
+    from arfem.scenarios.geometry.check import GeometryCheckCase
+    from arfem.scenarios.geometry.scenario import GeometryScenario
     if isinstance(scenario, (Scenario, GeometryCheckCase)):
         return scenario
     if isinstance(scenario, GeometryScenario):
@@ -302,7 +302,7 @@ def _rod_result(times_s, growth_um, *, scenario: str, model: str, solver: str, n
 
 def _mesh_result(run) -> FemResult:
     """The :class:`FemResult` of a solved mesh scenario
-    (:class:`~arfem.scenarios.geometry_scenario.GeometryRun`), in the units and columns
+    (:class:`~arfem.scenarios.geometry.scenario.GeometryRun`), in the units and columns
     of its ``sensors.csv``."""
     sc = run.model.scenario
     series = run.sensor_series()
@@ -381,7 +381,7 @@ def solve(scenario: Scenario | GeometryCheckCase | str | Path, *,
 
     The rod: :func:`solve_fem` with the scenario's rod, cycle, Δτ and ``[fem]``
     settings. A mesh: heat and thermo-elasticity of
-    :mod:`arfem.scenarios.geometry_scenario`, every sensor every
+    :mod:`arfem.scenarios.geometry.scenario`, every sensor every
     ``output_interval_s`` (the numbers ``arfem run`` writes to ``sensors.csv``; the
     fields, which only files hold, are left out: :func:`run` writes them).
 
@@ -420,7 +420,7 @@ def solve(scenario: Scenario | GeometryCheckCase | str | Path, *,
         r = solve_fem(case.rod, case.schedule, dtau_s=case.dtau_s, model=f.model,
                       order=f.order, solver=f.solver, dt_s=f.dt_s, mesh=f.mesh)
         return dataclasses.replace(r, scenario=case.name)
-    from arfem.scenarios.geometry_scenario import build_geometry_model, solve_geometry
+    from arfem.scenarios.geometry.scenario import build_geometry_model, solve_geometry
     sc = dataclasses.replace(case.scenario, fields=False)   # fields: files, arfem.run's
     with _progress_hook(progress, 3, "arfem.solve") as hook:
         return _mesh_result(solve_geometry(build_geometry_model(sc, hook), hook))
@@ -469,8 +469,8 @@ def run(scenario: str | Path, out: str | Path, *, force: bool = False,
     >>> (out / "timeseries.csv").is_file(), round(float(r.growth_um.max()), 2)
     (True, 22.17)
     """
-    from arfem.scenarios.geometry_scenario import is_geometry_scenario, run_geometry
-    from arfem.scenarios.run_outputs import run_scenario
+    from arfem.scenarios.geometry.scenario import is_geometry_scenario, run_geometry
+    from arfem.scenarios.rod.outputs import run_scenario
     if not isinstance(scenario, (str, Path)):
         raise InputError("give the scenario's file or shipped name: arfem.run copies it "
                          "beside its results (arfem.solve takes a loaded scenario)",
@@ -622,10 +622,10 @@ class Comparison:
 
 
 def _mesh_comparison(case) -> Comparison:
-    """:func:`compare` on a mesh: :func:`arfem.scenarios.geometry_check.compare_geometry_ar1`
+    """:func:`compare` on a mesh: :func:`arfem.scenarios.geometry.check.compare_geometry_ar1`
     at the check's Δτ, its errors as ``arfem check`` measures them."""
-    from arfem.scenarios.geometry_check import ar_errors, compare_geometry_ar1
-    from arfem.scenarios.geometry_scenario import build_geometry_model
+    from arfem.scenarios.geometry.check import ar_errors, compare_geometry_ar1
+    from arfem.scenarios.geometry.scenario import build_geometry_model
     sc = dataclasses.replace(case.scenario, fields=False)
     cmp = compare_geometry_ar1(build_geometry_model(sc), case.check_dtau_s)
     scale = {s.name: s.record_scale for s in sc.sensors}          # m -> µm
@@ -682,7 +682,7 @@ def compare(scenario: Scenario | GeometryCheckCase | str | Path) -> Comparison:
     case = _loaded(scenario)
     if case.kind == "mesh":
         return _mesh_comparison(case)
-    from arfem.scenarios.evaluation import evaluate
+    from arfem.scenarios.rod.evaluation import evaluate
     ev = evaluate(case)
     return Comparison("rod", case.name, ev.times_s, {"growth": ev.fem_growth_um},
                       {"growth": ev.ar_growth_um}, {"growth": ev.ar_corrected_growth_um},
@@ -700,7 +700,7 @@ class CheckResult:
         The scenario's name.
     passed : bool
         Every criterion holds.
-    criteria : tuple of arfem.scenarios.checking.Criterion
+    criteria : tuple of arfem.scenarios.rod.checking.Criterion
         Each criterion (frozen): ``name``, ``value`` against ``limit`` (in ``unit``),
         ``passed``, and the ``message`` ``arfem check`` prints. The rod: max|AR − FEM|
         [% of the FEM peak] and the C1 difference (fitted to the FEM, of the AR) [-]; a
@@ -737,7 +737,7 @@ class CheckResult:
     def to_json(self) -> str:
         """The scenario's entry of ``arfem check --json``: ``scenario``, ``file``,
         ``model``, ``biot``, ``passed``, ``notes`` and each criterion's fields."""
-        from arfem.scenarios.checking import ScenarioResult, json_report
+        from arfem.scenarios.rod.checking import ScenarioResult, json_report
         r = ScenarioResult(self.scenario, self.file, self.model, list(self.criteria),
                            biot=self.biot, notes=self.notes)
         return json_text(json_report([r], [])["scenarios"][0])
@@ -762,7 +762,7 @@ def check(scenario: Scenario | GeometryCheckCase | str | Path, *,
         Which AR(1) is held to the limits; default the scenario's ``[check]``, else the
         paper's. On a mesh "corrected" (its default) is the slowest-mode AR(1), "paper"
         the lumped one, held per displacement sensor
-        (:mod:`arfem.scenarios.geometry_check`).
+        (:mod:`arfem.scenarios.geometry.check`).
 
     Returns
     -------
@@ -782,8 +782,8 @@ def check(scenario: Scenario | GeometryCheckCase | str | Path, *,
     >>> m.kind, m.model, m.passed, [c.name for c in m.criteria][-1]
     ('mesh', 'slowest-mode', True, 'max_abs_diff_pct_of_peak[tcp_z]')
     """
-    from arfem.scenarios.checking import check_case
-    from arfem.scenarios.config import CHECK_MODELS, check_limit
+    from arfem.scenarios.rod.checking import check_case
+    from arfem.scenarios.rod.scenario import CHECK_MODELS, check_limit
     from arfem.strict import string
     if max_abs_pct is not None:
         max_abs_pct = check_limit("max_abs_diff_pct_of_peak", max_abs_pct, "max_abs_pct")
@@ -1157,8 +1157,8 @@ def read_record(path: str | Path) -> Record:
     >>> rec.initial, list(rec.data.columns), rec.units["q_W_m2"]
     ('unknown', ['time_s', 'growth_um', 'q_W_m2'], 'W/m²')
     """
-    from arfem.scenarios.dataset import load_dataset, read_record_doc
-    from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
+    from arfem.scenarios.records.dataset import load_dataset, read_record_doc
+    from arfem.scenarios.records.georecord import refuse_mesh_channels, refuse_mesh_record
     doc = read_record_doc(path)          # the TOML, read once
     refuse_mesh_record(doc)              # contract v3: the mesh's diagnosis, not this
     ds = load_dataset(doc)
@@ -1293,14 +1293,14 @@ def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
     CPU); ``tests/test_mesh_run_folder.py`` runs the same on a coarse unit.
 
     >>> import subprocess
-    >>> _ = subprocess.run(["arfem", "run", "scenarios/spindle_unit.toml",
+    >>> _ = subprocess.run(["arfem", "run", "scenarios/data/spindle_unit.toml",
     ...                     "--out", "run"])                     # doctest: +SKIP
     >>> d = diagnose_mesh("run/record.toml")                     # doctest: +SKIP
     >>> d.established                  # the FEM's own record  # doctest: +SKIP
     ()
     """
     from arfem.models.geodiagnosis.engine import diagnose_geometry
-    from arfem.scenarios.geodiagnose import load_mesh_record
+    from arfem.scenarios.diagnosis.mesh import load_mesh_record
     if not callable(progress):
         from arfem.scenarios.progress import Progress
         with Progress(8, "arfem.diagnose_mesh", enabled=bool(progress), tty=True) as bar:
@@ -1317,15 +1317,15 @@ def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
     assumed: a :class:`Record` or TOML path keeps its own ``initial`` (a contradicting
     ``initial`` is refused); samples are read in memory, ``"equilibrium"`` assumed and
     said where ``initial`` is not given."""
-    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    from arfem.scenarios.records.dataset import dataset_from_columns, load_dataset
     if isinstance(data, (str, Path, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
         if isinstance(data, Record):
             ds = data._dataset
         else:
-            from arfem.scenarios.dataset import read_record_doc
-            from arfem.scenarios.georecord import refuse_mesh_channels
+            from arfem.scenarios.records.dataset import read_record_doc
+            from arfem.scenarios.records.georecord import refuse_mesh_channels
             doc = read_record_doc(data)                # the TOML, read once
             if doc.is_mesh:
                 raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
@@ -1375,5 +1375,5 @@ def read_model(path: str | Path) -> StateSpaceModel:
     >>> read_model(p).dtau_s, read_model(p).inputs[0].name
     (30.0, 'q_W_m2')
     """
-    from arfem.scenarios.model_file import read_model as _read
+    from arfem.scenarios.compensation.model_file import read_model as _read
     return _read(path)

@@ -1,9 +1,9 @@
 """The physical ranges of everything a user types or a machine records: one table.
 
 Every reader checks its numbers against :data:`RANGES` and nothing else: the rod's and
-the mesh's scenario readers (``scenarios/config.py``, ``scenarios/geometry_scenario.py``)
+the mesh's scenario readers (``scenarios/rod/scenario.py``, ``scenarios/geometry/scenario.py``)
 for the quantities they share (λ, ρ, c, α, E, h, an ambient, a heat input, a speed), the
-record reader of every contract version (``scenarios/dataset.py``) for each column,
+record reader of every contract version (``scenarios/records/dataset.py``) for each column,
 and the live compensator for each reading (:func:`arfem.models.compensator.plausible_ranges`
 narrows these by its model, never widens them). A value outside its range is in the
 wrong unit or is no reading at all; the message names the unit expected.

@@ -47,7 +47,7 @@ def main() -> int:
     from arfem.models.ar1 import c1_paper, c2_paper
     from arfem.models.compensator import ar1_model
     from arfem.params import Rod
-    from arfem.scenarios.model_file import write_model
+    from arfem.scenarios.compensation.model_file import write_model
 
     d = Path(tempfile.mkdtemp(prefix="arfem-bench-live-"))
     rod = Rod()

@@ -160,8 +160,8 @@ METHODS = ("open_loop", "observer", "extended", "tf", "arx")
 
 def setup():
     """(scenario, diagnosis spec, plant, nominal exported model, diagnosis GeoModel)."""
-    from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
-    from arfem.scenarios.geometry_export import export_state_space
+    from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
+    from arfem.scenarios.geometry.export import export_state_space
     sc, spec = load_diagnosis_scenario(COARSE)
     sc = replace(sc, output_interval_s=DTAU_S)
     plant, gm = plant_of(sc)
@@ -209,7 +209,7 @@ def _own_schedule(rng, t):
 
 def _expansion_plant(sc, plant, rng):
     """The plant with one material's expansion coefficient scaled: (plant, label)."""
-    from arfem.scenarios.geodiagnose_model import plant_of
+    from arfem.scenarios.diagnosis.mesh_model import plant_of
     group = str(rng.choice(["shaft", "housing", "column"]))
     f = float(rng.choice([rng.uniform(0.8, 0.9), rng.uniform(1.1, 1.25)]))
     mat = sc.materials[group]
@@ -267,7 +267,7 @@ def extended_model(cols, y, plant, sc, geo):
     """``arfem diagnose``'s compensator for the record: (model, verdict, causes)."""
     from arfem.models.geodiagnosis.engine import diagnose_geometry
     from arfem.models.geodiagnosis.problem import make_record
-    from arfem.scenarios.geodiagnose_export import diagnosis_models
+    from arfem.scenarios.diagnosis.mesh_export import diagnosis_models
     power = np.column_stack([cols[f"P_{s}_W"] for s in plant.sources])
     rec = make_record("bench", cols["time_s"], y, plant.columns, plant.names, plant.kinds,
                       power, cols["speed_rpm"], cols["ambient_C"], plant.reference_C)
@@ -421,10 +421,10 @@ def batch(seed0: int, n: int | None, batches: int = 1) -> None:
 def cost(shipped: bool) -> None:
     """The observer's CPU per cycle: Compensator.step with and without it, on the
     coarse model (161 states + 4 disturbances) and, with ``shipped``, on the shipped
-    spindle unit's model (``arfem run`` of scenarios/spindle_unit.toml)."""
-    from arfem.scenarios.geometry_export import export_state_space
-    from arfem.scenarios.geometry_scenario import build_geometry_model, load_geometry_scenario
-    cases = [("coarse", COARSE)] + ([("shipped", ROOT / "scenarios" / "spindle_unit.toml")]
+    spindle unit's model (``arfem run`` of scenarios/data/spindle_unit.toml)."""
+    from arfem.scenarios.geometry.export import export_state_space
+    from arfem.scenarios.geometry.scenario import build_geometry_model, load_geometry_scenario
+    cases = [("coarse", COARSE)] + ([("shipped", ROOT / "scenarios" / "data" / "spindle_unit.toml")]
                                     if shipped else [])
     for label, path in cases:
         sc = load_geometry_scenario(path)

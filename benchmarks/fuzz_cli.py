@@ -70,7 +70,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 ROOT = Path(__file__).resolve().parents[1]
-FL = ROOT / "scenarios" / "fl_thermal"
+FL = ROOT / "scenarios" / "data" / "fl_thermal"
 
 BASE = """[scenario]
 name = "coarse"
@@ -115,8 +115,8 @@ def make_inputs(d: Path) -> dict:
     """Valid inputs of every command, written into ``d``; returns their paths/texts."""
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.model_file import write_model
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.compensation.model_file import write_model
+    from arfem.scenarios.records.synth_files import write_case
     (d / "base.toml").write_text(BASE, "utf-8")
     (d / "sw.toml").write_text(SWEEP, "utf-8")
     with open(FL / "fl_thermal_whole.csv", encoding="utf-8") as fh:
@@ -128,7 +128,7 @@ def make_inputs(d: Path) -> dict:
     case = generate("none", 29, duration_h=6.0, interval_s=60, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)
     rec = write_case(case, d / "rec")
-    alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
+    alloc = (ROOT / "scenarios" / "data" / "pallet_changer.toml").read_text("utf-8")
     alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
     if "n_gen" not in alloc:
         alloc = alloc.replace("[optimizer]", "[optimizer]\nn_gen = 50") if "[optimizer]" \
@@ -694,10 +694,10 @@ def main(argv=None) -> int:
     if args.hangs:
         extra += hang_part()
     import arfem.scenarios.cli as cli                        # noqa: F401 - imported once
-    for mod in ("arfem.scenarios.run", "arfem.scenarios.compensate", "arfem.scenarios.sweep.command",
-                "arfem.scenarios.geometry_scenario", "arfem.scenarios.geodiagnose", "meshio",
-                "arfem.scenarios.diagnose", "arfem.scenarios.allocate", "arfem.scenarios.check",
-                "arfem.scenarios.report", "arfem.scenarios.twin", "arfem.scenarios.live",
+    for mod in ("arfem.scenarios.commands.run", "arfem.scenarios.commands.compensate", "arfem.scenarios.commands.sweep",
+                "arfem.scenarios.geometry.scenario", "arfem.scenarios.diagnosis.mesh", "meshio",
+                "arfem.scenarios.commands.diagnose", "arfem.scenarios.commands.allocate", "arfem.scenarios.commands.check",
+                "arfem.scenarios.commands.report", "arfem.scenarios.commands.twin", "arfem.scenarios.live.jsonl",
                 "matplotlib.pyplot"):
         __import__(mod)
     rng = random.Random(args.seed)

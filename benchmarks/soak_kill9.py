@@ -52,7 +52,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FL = ROOT / "scenarios" / "fl_thermal"
+FL = ROOT / "scenarios" / "data" / "fl_thermal"
 
 BASE = """[scenario]
 name = "coarse"
@@ -81,8 +81,8 @@ def inputs(d: Path) -> dict:
     import re
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.model_file import write_model
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.compensation.model_file import write_model
+    from arfem.scenarios.records.synth_files import write_case
     (d / "base.toml").write_text(BASE, "utf-8")
     (d / "soak.toml").write_text(SWEEP, "utf-8")
     with open(FL / "fl_thermal_whole.csv", encoding="utf-8") as fh:
@@ -94,7 +94,7 @@ def inputs(d: Path) -> dict:
     case = generate("none", 46, duration_h=46.3, interval_s=15, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)
     rec = write_case(case, d / "rec")
-    alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
+    alloc = (ROOT / "scenarios" / "data" / "pallet_changer.toml").read_text("utf-8")
     alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
     (d / "alloc.toml").write_text(alloc, "utf-8")
     box = _box_run(d / "box")

@@ -33,7 +33,7 @@ Run:  python benchmarks/soak_live.py [--axes 1|3] [--kills 20] [--seed 1] [--mod
 
 ``--model-dir DIR``: the three-axis soak with the model of a folder ``arfem run`` wrote
 for a mesh scenario, e.g. the shipped spindle unit
-(``arfem run scenarios/spindle_unit.toml --out DIR``: 197 states, inputs the bearings'
+(``arfem run scenarios/data/spindle_unit.toml --out DIR``: 197 states, inputs the bearings'
 and motor's powers, the ambient and the speed), with the limits issue 40 typed (X
 0.01/0.0005, Y 0.3/0.02, Z 3/0.1 µm).
 """
@@ -130,8 +130,8 @@ class ControllerFaults:
 def in_process_jump_times() -> dict:
     """Wall time of one clocked_step over a clock jump [s], median of 25."""
     from arfem.models.compensator import Compensator
-    from arfem.scenarios.live import Clock, clocked_step
-    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.live.jsonl import Clock, clocked_step
+    from arfem.scenarios.compensation.model_file import read_model
     d = Path(tempfile.mkdtemp())
     model = read_model(paper_model(d))
     out = {}
@@ -315,7 +315,7 @@ def main() -> int:
     ap.add_argument("--axes", type=int, choices=(1, 3), default=1)
     ap.add_argument("--model-dir", type=Path, default=None,
                     help="with --axes 3: a folder arfem run wrote for a mesh scenario "
-                         "(model.json, record.toml), e.g. of scenarios/spindle_unit.toml; "
+                         "(model.json, record.toml), e.g. of scenarios/data/spindle_unit.toml; "
                          "limits X 0.01/0.0005, Y 0.3/0.02, Z 3/0.1 um. Default: the "
                          "tests' small box, run here")
     a = ap.parse_args()

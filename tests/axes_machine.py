@@ -146,9 +146,9 @@ def box_run(d, run_dir=None) -> tuple:
     run`` writes for the small box of tests/test_model_v2_export.py (run here, into
     ``d/run``), or ``run_dir`` written before (e.g. for the shipped spindle unit); rows
     are the record's, ``time_s`` and each input the model reads, from row 0."""
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import record_columns
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.compensation.replay_axes import record_columns
     if run_dir is None:
         from test_model_v2_export import box_scenario
 

@@ -2,7 +2,7 @@
 ``arfem compensate --live`` with ``transport = "jsonl"`` (issue 40).
 
 :class:`Gateway` is the standard input and the standard output of
-:func:`arfem.scenarios.live.run_jsonl` at once. Each line it serves is the next
+:func:`arfem.scenarios.live.jsonl.run_jsonl` at once. Each line it serves is the next
 interval's reading, carrying what the controller holds (``controller_offset_um`` for a
 one-axis model, ``controller_offsets_um`` per axis), as a gateway that reads the
 controller back would send it; each answer it receives is written to the controller,

@@ -177,7 +177,7 @@ def paper_model(d: Path) -> Path:
     from arfem.models.ar1 import c1_paper, c2_paper
     from arfem.models.compensator import ar1_model
     from arfem.params import Rod
-    from arfem.scenarios.model_file import write_model
+    from arfem.scenarios.compensation.model_file import write_model
     rod = Rod()
     m = ar1_model(c1_paper(rod, 60.0), c2_paper(rod, 60.0, 1.0) * 1e6, dtau_s=60.0)
     write_model(d / "model.json", m)

@@ -3,7 +3,7 @@ command (``arfem.scenarios.cli.main``, in process, as a user runs it).
 
 What is verified and why (each finding of the issue is one test or one parameter):
 
-* **one record reader** (``scenarios/dataset.py``: every contract version): a record's
+* **one record reader** (``scenarios/records/dataset.py``: every contract version): a record's
   TOML, CSV and a v3 record's scenario are each read once per command (counted at
   ``arfem.io._open_input``, where every input is opened); a CSV named by absolute path
   or ``..`` outside the TOML's folder is refused and never opened, nor quoted; two
@@ -41,7 +41,7 @@ from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
 HERE = Path(__file__).parent
 GEO = HERE / "data" / "geodiag"
-FL = HERE.parent / "scenarios" / "fl_thermal"
+FL = HERE.parent / "scenarios" / "data" / "fl_thermal"
 
 
 def cli(capsys, *argv):
@@ -118,7 +118,7 @@ def test_blank_ambient_in_15_rows_is_filled_by_the_contract_rule_and_replayed(
     """Finding: 15 blank ambient cells gave an SVD traceback. The one reader applies the
     contract's rule for every version: up to 5 % of the ambient filled in time, said in
     the reader's notes; the replay runs (exit 0) on a finite ambient."""
-    from arfem.scenarios.georecord import read_mesh_record
+    from arfem.scenarios.records.georecord import read_mesh_record
     rec = record_copy(run_dir, tmp_path / "r", set_cells("ambient_C", range(100, 115), ""))
     mr = read_mesh_record(rec)
     assert np.isfinite(mr.table.columns["ambient_C"]).all()
@@ -166,7 +166,7 @@ def test_a_row_of_ambient_minus_1e300_refuses_the_replay(run_dir, tmp_path, caps
     loop's range for that input is the same table's."""
     from arfem.models.compensator import plausible_ranges
     from arfem.ranges import reading_range
-    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.compensation.model_file import read_model
     rec = record_copy(run_dir, tmp_path / "r", set_cells("ambient_C", [500], "-1e300"))
     rc, _, err = cli(capsys, "compensate", tmp_path / "r" / "model.json", rec,
                      "--out", tmp_path / "c")
@@ -180,7 +180,7 @@ def test_a_row_of_ambient_minus_1e300_refuses_the_replay(run_dir, tmp_path, caps
 def test_the_rod_record_follows_the_same_rule(tmp_path, capsys):
     """A version-2 record: a row of ambient -1e300 is refused by the same check."""
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.records.synth_files import write_case
     toml = write_case(generate("none", 3, duration_h=3.0, interval_s=60, jitter_s=0.0,
                                n_gaps=0, empty_fraction=0.0, n_outliers=0), tmp_path)
     p = toml.with_suffix(".csv")
@@ -239,7 +239,7 @@ def test_row_and_size_limits_and_allow_large(run_dir, tmp_path, capsys, monkeypa
     """A record beyond the row limit (lowered to 1000 here; 100 000 by default, so a
     647k-row record is refused) or the size limit is refused from a line count or the
     file's size, before parsing, naming --allow-large; with it the replay runs."""
-    import arfem.scenarios.dataset as dsmod
+    import arfem.scenarios.records.dataset as dsmod
     rec = record_copy(run_dir, tmp_path / "r")
     model = tmp_path / "r" / "model.json"
     monkeypatch.setattr(dsmod, "MAX_ROWS", 1000)
@@ -367,7 +367,7 @@ def test_a_mesh_meshio_cannot_parse_is_one_line(tmp_path, capsys):
      ("cycle.phases[1].ambient_C", "[-10, 50]")),
 ])
 def test_the_rod_scenario_uses_the_same_ranges(tmp_path, capsys, edit, needles):
-    from arfem.scenarios.config import builtin_scenario_path
+    from arfem.scenarios.rod.scenario import builtin_scenario_path
     text = builtin_scenario_path("paper_fig2").read_text()
     (tmp_path / "s.toml").write_text(edit(text))
     rc, _, err = cli(capsys, "run", tmp_path / "s.toml", "--out", tmp_path / "o",
@@ -380,7 +380,7 @@ def test_mesh_run_honours_allow_large_and_reads_its_scenario_once(tmp_path, caps
     """Finding: mesh run dropped --allow-large. The sample limit (lowered to 10 here)
     refuses naming the flag; with it the run completes. The scenario file is opened
     once per run (it was read 3 times)."""
-    import arfem.scenarios.geometry_scenario as geo
+    import arfem.scenarios.geometry.scenario as geo
     toml = _box(tmp_path)
     monkeypatch.setattr(geo, "MAX_SAMPLES", 10)
     rc, _, err = cli(capsys, "run", toml, "--out", tmp_path / "o", "--no-progress")

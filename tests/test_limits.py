@@ -12,9 +12,9 @@ import pytest
 from arfem.io import read_toml
 from arfem.limits import STRICT, Limits
 from arfem.params import InputError
-from arfem.scenarios import config
+from arfem.scenarios.rod import scenario as config
 from arfem.scenarios.cli import main
-from arfem.scenarios.config import (builtin_scenario_path, estimate_cost, load_scenario,
+from arfem.scenarios.rod.scenario import (builtin_scenario_path, estimate_cost, load_scenario,
                                     scenario_from_dict)
 
 BASE = read_toml(builtin_scenario_path("paper_fig2"))
@@ -195,7 +195,7 @@ def test_no_module_of_the_package_writes_the_environment():
 def test_estimate_matches_the_built_models():
     """The unknown counts of the estimate are exact for the meshes arfem builds (the
     memory/work figures are built on them), checked against assembled models."""
-    from arfem.scenarios.evaluation import build_model
+    from arfem.scenarios.rod.evaluation import build_model
     for tables in ({"fem.mesh": {"nr": 3, "nz": 10}},
                    {"fem": {"model": "3d", "order": 1},
                     "fem.mesh": {"n_core": 2, "n_ring": 1, "nz": 4}},

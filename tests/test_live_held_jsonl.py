@@ -48,8 +48,8 @@ import pytest
 from jsonl_gateway import Gateway
 from arfem.models.compensator import ar1_model
 from arfem.params import InputError
-from arfem.scenarios.live import Status, load_config, run_jsonl, run_live
-from arfem.scenarios.model_file import write_model
+from arfem.scenarios.live.jsonl import Status, load_config, run_jsonl, run_live
+from arfem.scenarios.compensation.model_file import write_model
 
 ONE = {None: (3.0, 0.1)}                       # one axis: clamp, step [µm]
 AXES = {"X": (15.0, 0.3), "Y": (2.0, 0.2), "Z": (3.0, 0.1)}

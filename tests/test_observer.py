@@ -41,8 +41,8 @@ COARSE = ROOT / "tests" / "data" / "geodiag" / "spindle_coarse.toml"
 @pytest.fixture(scope="module")
 def coarse():
     """(plant, nominal exported model with its observer) at 120 s."""
-    from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of
-    from arfem.scenarios.geometry_export import export_state_space
+    from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of
+    from arfem.scenarios.geometry.export import export_state_space
     sc, _ = load_diagnosis_scenario(COARSE)
     sc = replace(sc, output_interval_s=120.0)
     plant, gm = plant_of(sc)
@@ -328,7 +328,7 @@ def test_the_replay_runs_open_loop_where_the_record_lacks_a_thermometer(coarse):
     the summary says why."""
     from types import SimpleNamespace
 
-    from arfem.scenarios.replay_axes import observer_readings
+    from arfem.scenarios.compensation.replay_axes import observer_readings
     _, m = coarse
     part = SimpleNamespace(temperatures={"T_front_bearing_C": np.zeros(3)})
     assert observer_readings(m, part, True) == ({}, "the record has no T_housing_C, "

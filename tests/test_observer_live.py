@@ -25,7 +25,7 @@ from dataclasses import replace
 
 from test_live_axes import CONFIG, box, lines_of, run  # noqa: F401  (box: a fixture)
 
-from arfem.scenarios.live import Status, load_config, run_jsonl
+from arfem.scenarios.live.jsonl import Status, load_config, run_jsonl
 
 
 def test_live_reads_the_thermometer_and_answers_what_it_corrected(box, tmp_path):
@@ -75,7 +75,7 @@ def test_a_warm_start_restores_the_estimates(box, tmp_path):
 
 def test_no_observer_live_is_the_open_loop(box, tmp_path):
     from arfem.scenarios.cli import build_parser
-    from arfem.scenarios.live import run_live
+    from arfem.scenarios.live.jsonl import run_live
     run_dir, model, ds, inputs = box
     (tmp_path / "c.toml").write_text(CONFIG.format(log="c.log"))
     lines = "".join(lines_of(ds, inputs, stop=20))
@@ -104,7 +104,7 @@ def test_opcua_reads_thermometer_nodes_beside_the_inputs(box):
     import pytest
 
     from arfem.params import InputError
-    from arfem.scenarios.opcua_live import parse_config
+    from arfem.scenarios.live.opcua import parse_config
     run_dir, model, ds, inputs = box
     nodes = {i.name: f"ns=2;s={i.name}" for i in model.inputs}
     table = {"endpoint": "opc.tcp://127.0.0.1:4840", "inputs": {**nodes,

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-ISO = ROOT / "scenarios" / "iso230_3"
+ISO = ROOT / "scenarios" / "data" / "iso230_3"
 
 
 def _csv(path: Path) -> dict:
@@ -36,7 +36,7 @@ def _csv(path: Path) -> dict:
 
 def test_scenario_holds_the_five_quantities_and_volume_heat_from_the_speed():
     from arfem.models.bearing import PalmgrenBearing, PowerLaw
-    from arfem.scenarios.geometry_scenario import load_geometry_scenario
+    from arfem.scenarios.geometry.scenario import load_geometry_scenario
     sc = load_geometry_scenario(ISO / "iso230_3_spindle_unit.toml")
     q = {s.name: s for s in sc.sensors}
     assert [q[n].direction for n in "XYZ"] == [(1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)]
@@ -52,8 +52,8 @@ def test_scenario_holds_the_five_quantities_and_volume_heat_from_the_speed():
 
 def test_shipped_record_is_the_scenarios_test():
     from arfem.models.thermal_test import thermal_test
-    from arfem.scenarios.georecord import read_record_files
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.records.georecord import read_record_files
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     files = read_record_files(ISO / "record.toml")
     assert files.displacement_zero == "first_row"
@@ -73,7 +73,7 @@ def test_shipped_record_is_the_scenarios_test():
 
 
 def test_report_figures_are_the_records(tmp_path):
-    from arfem.scenarios.thermal_test import main
+    from arfem.scenarios.geometry.thermal_test import main
     assert main([str(ISO / "record.toml"), "--out", str(tmp_path / "r")]) == 0
     js = json.loads((tmp_path / "r" / "thermal_test.json").read_text("utf-8"))
     rec = _csv(ISO / "record.csv")
@@ -93,7 +93,7 @@ def test_record_without_quantities_is_one_line(tmp_path):
     (tmp_path / "r.csv").write_text("time_s,speed_rpm,T_housing_C\n0,0,20\n60,0,20\n")
     (tmp_path / "r.toml").write_text('[dataset]\ncsv = "r.csv"\n[model]\nscenario = '
                                      f'"{(ISO / "iso230_3_spindle_unit.toml").as_posix()}"\n')
-    r = subprocess.run([sys.executable, "-m", "arfem.scenarios.thermal_test",
+    r = subprocess.run([sys.executable, "-m", "arfem.scenarios.geometry.thermal_test",
                         str(tmp_path / "r.toml"), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     err = r.stderr.strip().splitlines()
@@ -117,7 +117,7 @@ def test_a_test_cut_while_the_spindle_runs_has_no_stop(tmp_path):
     """A record that ends while the spindle still runs (every row at 8000 rpm) has no
     stop: the report said 'the spindle stopped at 3.30 h', the last reading's time, and
     gave an 'at the stop' column equal to the end's."""
-    from arfem.scenarios.thermal_test import main
+    from arfem.scenarios.geometry.thermal_test import main
     rec = _cut_record(tmp_path, 199)                  # 0 ... 3.30 h, all at 8000 rpm
     assert main([str(rec), "--out", str(tmp_path / "r")]) == 0
     js = json.loads((tmp_path / "r" / "thermal_test.json").read_text("utf-8"))
@@ -134,7 +134,7 @@ def test_report_names_its_record_and_writes_a_page(tmp_path):
     writes report.html with that record as its input and its title once (it was written
     only by a separate ``arfem report``, titled by the folder's name, 'No input file is
     recorded')."""
-    from arfem.scenarios.thermal_test import main
+    from arfem.scenarios.geometry.thermal_test import main
     out = tmp_path / "deep" / "r"
     assert main([str(ISO / "record.toml"), "--out", str(out)]) == 0
     js = json.loads((out / "thermal_test.json").read_text("utf-8"))
@@ -168,7 +168,7 @@ def test_the_gallery_example_runs_the_commands_not_the_internals():
     arfem_mods = {m for m in mods if m and m.startswith("arfem")}
     assert arfem_mods <= {"arfem.scenarios", "arfem.models.bearing"}, arfem_mods
     assert "__dict__" not in src
-    assert '"arfem", "run"' in src and '"arfem.scenarios.thermal_test"' in src
+    assert '"arfem", "run"' in src and '"arfem.scenarios.geometry.thermal_test"' in src
 
 
 def test_the_check_gate_fails_this_test_as_the_page_says(tmp_path, capsys):

@@ -49,9 +49,9 @@ def read_csv(path):
 
 def test_twin_serves_a_geometry_scenario_per_axis(tmp_path):
     from arfem.scenarios.cli import main
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import replay_axes
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.compensation.replay_axes import replay_axes
     toml = box_scenario(tmp_path, 0.01)
     assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
     model = read_model(tmp_path / "run" / "model.json")

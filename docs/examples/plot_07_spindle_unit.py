@@ -3,7 +3,7 @@ A spindle unit from a Gmsh mesh: the tool-centre point's drift in X, Y and Z
 ============================================================================
 
 The rod of the seed paper is not your machine. This example runs the spindle unit
-shipped with arfem (``scenarios/spindle_unit.toml`` and its mesh) as a user does: the
+shipped with arfem (``scenarios/data/spindle_unit.toml`` and its mesh) as a user does: the
 scenario file, :func:`arfem.run` (``arfem run`` from Python), its result and the files
 it writes. The unit is a steel shaft in two
 bearing sets and a built-in motor, in a cast-iron housing on a column stub clamped at
@@ -14,7 +14,7 @@ would read, and the fields.
 From the command line, the same in one go (with the shipped P2 elements; this page uses
 P1 on the same mesh so that it builds in seconds)::
 
-    arfem run scenarios/spindle_unit.toml --out out/spindle
+    arfem run scenarios/data/spindle_unit.toml --out out/spindle
 """
 # %%
 # The scenario file
@@ -134,9 +134,9 @@ _ = ax.set_title(f"t = {t_s / 3600:g} h: temperature on the half x < 0, deformed
 # %%
 # Next steps
 # ----------
-# * ``arfem run scenarios/spindle_unit.toml --out out/spindle``: the shipped P2 run,
+# * ``arfem run scenarios/data/spindle_unit.toml --out out/spindle``: the shipped P2 run,
 #   with ``report.html`` and ``model.json``.
-# * ``arfem sweep scenarios/sweep_spindle_unit.toml --out out/sweep``: the TCP drift per
+# * ``arfem sweep scenarios/data/sweep_spindle_unit.toml --out out/sweep``: the TCP drift per
 #   axis for other housing h and motor losses
 #   (:doc:`../commands/sweep`, "Sweeping a mesh scenario").
 # * Replace the mesh by your own: name its groups in Gmsh, keep the units declared.

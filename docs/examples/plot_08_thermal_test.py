@@ -6,7 +6,7 @@ ISO 230-3 measures a spindle's thermal drift as a machine shop records it: the s
 runs at a constant speed, then stands still, while five quantities are read at a test
 mandrel, all zeroed at the start: the displacements X, Y and Z and the tilts A (about
 X) and B (about Y), each tilt from two probes. This example runs that test on the
-shipped spindle unit (``scenarios/iso230_3/iso230_3_spindle_unit.toml``): the bearings'
+shipped spindle unit (``scenarios/data/iso230_3/iso230_3_spindle_unit.toml``): the bearings'
 friction heat follows the speed through Palmgren's friction moment and is generated in
 the rings' volumes, the motor's losses in the stator's volume. It ends with the
 standard's figures: each quantity's drift over time and its maxima over the test.
@@ -14,8 +14,8 @@ standard's figures: each quantity's drift over time and its maxima over the test
 From the command line, the same (with the shipped P2 elements; this page uses P1 on the
 same mesh so that it builds in seconds)::
 
-    arfem run scenarios/iso230_3/iso230_3_spindle_unit.toml --out out/iso
-    python -m arfem.scenarios.thermal_test out/iso/record.toml --out out/iso_report
+    arfem run scenarios/data/iso230_3/iso230_3_spindle_unit.toml --out out/iso
+    python -m arfem.scenarios.geometry.thermal_test out/iso/record.toml --out out/iso_report
 
 :doc:`../thermal-test` explains every key.
 """
@@ -81,7 +81,7 @@ mesh = (shipped.parent.parent / "spindle_unit.msh").as_posix()
                                .replace("picture = true", "picture = false"), encoding="utf-8")
 for cmd in (["-m", "arfem", "run", str(work / "iso.toml"), "--out", str(work / "run"),
              "--no-progress"],
-            ["-m", "arfem.scenarios.thermal_test", str(work / "run" / "record.toml"),
+            ["-m", "arfem.scenarios.geometry.thermal_test", str(work / "run" / "record.toml"),
              "--out", str(work / "report")]):
     done = subprocess.run([sys.executable, *cmd], capture_output=True, text=True, check=True)
     print(done.stdout)

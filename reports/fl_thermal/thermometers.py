@@ -100,7 +100,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parents[1] / "scenarios" / "fl_thermal"
+DATA = HERE.parents[1] / "scenarios" / "data" / "fl_thermal"
 #: development origins: the speed steps from 8 h to before the first scored origin
 DEV_FROM_S, DEV_TO_S = 8 * 3600.0, 16 * 3600.0
 DEV_CACHE = Path(os.environ.get("ARFEM_DEV_CACHE", "/tmp/i43fl_dev_cache"))
@@ -110,7 +110,7 @@ def dev_splits():
     """(origin, block end) [s] of the development origins: 8.13 h → 12.13 h and
     12.13 h → 16.13 h (the speed steps; never scored)."""
     from arfem.models.diagnosis.rolling import speed_step_origins
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     ds = load_dataset(DATA / "fl_thermal_ch1.toml")
     org = speed_step_origins(ds.time_s, ds.speed_rpm, DEV_FROM_S, 3600.0)
     return [(o, e) for o, e in zip(org, org[1:]) if o < DEV_TO_S]
@@ -124,8 +124,8 @@ def base_models(ch: int, split_s: float):
     from regenerate import origin_dataset
 
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.diagnosis_run import compensator_models
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.diagnosis.run import compensator_models
     ds = load_dataset(DATA / f"fl_thermal_ch{ch}.toml")
     t = np.asarray(ds.time_s, float)
     g = np.asarray(ds.growth_um, float)
@@ -174,7 +174,7 @@ def thermometer_model(ds_o, n_train: int, models: dict, base_rule: str = "extend
     from arfem import __version__
     from arfem.models.residual import (fit_thermometer_residual, parallel_state_space,
                                        residual_state_space)
-    from arfem.scenarios.replay import replay
+    from arfem.scenarios.compensation.replay import replay
     base_key = next((k for k in ("model_extended.json", "model.json") if k in models), None)
     base = models.get(base_key)
     # every model here shares each thermometer's reference (the extended model's where
@@ -230,7 +230,7 @@ def score_all(job, base, rules: dict):
     rules' choices."""
     from peers import _score
 
-    from arfem.scenarios.replay import replay
+    from arfem.scenarios.compensation.replay import replay
     ch, split, end = job
     ds, ds_o, n_train, models, peers, info, cause = base
     t = np.asarray(ds.time_s, float)
