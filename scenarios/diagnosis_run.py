@@ -155,6 +155,10 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
     subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
     if s["verdict"] == "explained" and not s.get("causes"):
         subject = None
+    if s["verdict"] == "not_explained" and s["verdict_detail"].get("best_candidate_beaten_by_mlr"):
+        # named by the selection rules, not explained only because a regression beats it
+        # (issue 41): its stability is still that of the cause the rules named
+        subject = vd.named_cause(s)
     st = verdict_stability(at, origins, subject, mapper)
     s["verdict_detail"]["stability"] = st
     s["verdict_detail"]["text"] = vd.text(s)

@@ -32,11 +32,6 @@ __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
           "channels.png", "model_extended.json", "model_nominal.json")
 
-#: A displacement channel whose spread is under this fraction of the nominal model's is
-#: taken for mm declared as µm (a factor of 1000; a real misfit is rarely 100x).
-UNITS_RATIO = 0.01
-
-
 def _map_columns(cols: dict, sc, where: str):
     """(channel columns, source power columns, speed, ambient) of a v3 table; refusals
     name the column and what the scenario has."""
@@ -127,8 +122,10 @@ def load_mesh_record(path, progress=None):
 
 
 def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
-    """Refuse displacement channels whose spread is under :data:`UNITS_RATIO` of the
-    nominal model's where the model moves them by more than 1 µm."""
+    """Refuse displacement channels whose spread is out of proportion to the nominal
+    model's (:func:`arfem.models.diagnosis.verdict.units_suspect`: mm or nm declared
+    as µm) where the model moves them by more than 1 µm."""
+    from arfem.models.diagnosis.verdict import units_suspect
     from arfem.models.geodiagnosis.problem import responses
     s = Setting(np.ones(len(model.convections)), np.ones(len(model.interfaces)))
     R, _ = responses(model, rec, s, np.zeros(rec.time_s.size))
@@ -139,9 +136,10 @@ def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
         y = rec.data[:, j]
         sn = float(np.std(nom[:, j]))
         sm = float(np.nanstd(y))
-        if sn > 1.0 and sm < UNITS_RATIO * sn:
+        if sn > 1.0 and units_suspect(sm, sn):
+            slip = "mm" if sm < sn else "nm"
             raise InputError(f"spread {sm:.3g} µm against the model's {sn:.3g} µm: "
-                             f"displacements in mm declared as µm?", f"{where}: column "
+                             f"displacements in {slip} declared as µm?", f"{where}: column "
                              f"{c.column}")
 
 
@@ -169,9 +167,14 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
          "noise_sigma": d.sigma, "nominal_ljung_box_p_neff": d.within_noise,
          "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": h}
                      for n, b, p, h in d.ranking],
+         "below_resolution": d.below_resolution,
+         "best_candidate_beaten_by_mlr": d.beaten_by_mlr,
+         "not_searched": list(d.unsearched),
          "reduced_model": rom_statement}
+    s["alternatives"] = list(d.alternatives)
     if not est and d.named is not None:
-        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes),
+        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes)
+                               + "".join(f" or {a}" for a in d.alternatives),
                                "causes": ent, "named_by_selection_rules": True,
                                "not_established_because": list(d.failed)}
     return s

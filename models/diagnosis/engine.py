@@ -873,12 +873,16 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
     return summary
 
 
-def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None) -> None:
+def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None,
+                resolution_um: float = 0.0) -> None:
     """The verdict (:mod:`arfem.models.diagnosis.verdict`) written into ``summary``:
     ``verdict``, ``verdict_detail`` and, for a cause that is not established,
-    ``best_candidate`` in place of ``cause``/``causes``/``parameters``."""
+    ``best_candidate`` in place of ``cause``/``causes``/``parameters``.
+    ``resolution_um``: the growth sensor's quantum [µm], 0 where the record is not
+    quantised (the verdict's default resolution then)."""
     from arfem.models.diagnosis import verdict as vd
-    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K))
+    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K,
+                                resolution_um or vd.DEFAULT_RESOLUTION))
 
 
 @one_blas_thread
@@ -941,7 +945,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in r.signals.items() if k not in series})
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
-    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
+    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
+                getattr(ds, "growth_resolution_um", 0.0))
     models = {"extended": ext, "causes": tuple(branch.causes),
               "physics": branch.physics, "speed": branch.speed_inputs}
     return Diagnosis(summary, series, text, models)
