@@ -23,6 +23,10 @@ file formats, the physics) is in the repository's docs/ folder.
 
 import arfem is fast: the FEM, the diagnosis engine and matplotlib load when a function
 first needs them.
+
+Subpackages: arfem.fem (meshes, heat, thermo-elasticity, reduced models), arfem.models
+(plants, AR(1) and its extensions, the diagnosis, the compensator: pure functions) and
+arfem.scenarios (files, the commands, the writers).
 """
 from importlib import metadata as _metadata
 from pathlib import Path as _Path
@@ -31,9 +35,28 @@ from pathlib import Path as _Path
 # (arfem/) before the installed package, and the subpackages arfem.fem, arfem.models and
 # arfem.scenarios sit beside it (fem/, models/, scenarios/; pyproject's package-dir), not
 # inside it: so that the README's example runs from the root after `pip install .` too,
-# the root joins the package's path there, and only there.
-if (_Path(__file__).resolve().parent.parent / "models" / "compensator.py").is_file():
-    __path__.append(str(_Path(__file__).resolve().parent.parent))  # noqa: F821
+# those three folders (and only they: not the root, whose conftest.py and arfem/ would
+# then be listed by help(arfem) as modules of the package) are found there.
+_ROOT = _Path(__file__).resolve().parent.parent
+if (_ROOT / "models" / "compensator.py").is_file():
+    import sys as _sys
+    from importlib.machinery import PathFinder as _PathFinder
+
+    class _CheckoutSubpackages:
+        """Finds arfem.fem, arfem.models and arfem.scenarios in the checkout's root."""
+
+        names = {f"arfem.{n}" for n in ("fem", "models", "scenarios")}
+
+        @classmethod
+        def find_spec(cls, fullname, path=None, target=None):
+            if fullname not in cls.names:
+                return None
+            return _PathFinder.find_spec(fullname, [str(_ROOT)], target)
+
+    if not any(getattr(f, "names", None) == _CheckoutSubpackages.names
+               for f in _sys.meta_path):
+        _sys.meta_path.append(_CheckoutSubpackages)
+    del _sys
 del _Path
 
 try:

@@ -3,14 +3,17 @@
 The problem on a :class:`arfem.fem.gmsh_io.GroupedMesh` (θ = T − T_ref, T_ref the
 uniform start and stress-free temperature):
 
-    ρc ∂θ/∂t − ∇·(λ∇θ) = 0                          in each volume group (own ρ, c, λ)
-    λ ∂θ/∂n = q_s(t)                                 on each heat-source group s
+    ρc ∂θ/∂t − ∇·(λ∇θ) = Σ_v P_v(t)/V_v · 1_v       in each volume group (own ρ, c, λ)
+    λ ∂θ/∂n = q_s(t)                                 on each heat-source surface group s
     λ ∂θ/∂n = −h_g(t) (θ − θ_amb,g(t))               on each convection group g
     ∂θ/∂n = 0                                        elsewhere
 
 semi-discretised as M θ' + (K + Σ_g h_g B_g) θ = F u(t) with the input vector
 u = (q_1 … q_S, h_1θ_amb,1 … h_Gθ_amb,G): a source given as a total power P [W] has
-the column ∫v dS / A_s, so that its input is P itself.
+the column ∫v dS / A_s on a surface group, or ∫_{Ω_v} v dΩ / V_v on a volume group
+(the power spread uniformly over the group's volume, a heat generation P/V [W/m³]:
+a motor's losses in its stator, a bearing's friction in its rings), so that its input
+is P itself (:func:`power_column`).
 
 Quasi-static thermo-elasticity (small strain, isotropic per group):
 
@@ -28,7 +31,7 @@ element-wise constants.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,11 +43,11 @@ from arfem.fem.gmsh_io import ELASTIC_DIRECT_MAX_DOFS, ELASTIC_FACTOR_MAX_DOFS, 
 from arfem.fem.linsolve import factorize_spd
 from arfem.params import InputError
 
-__all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec",
+__all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec", "SENSOR_QUANTITIES",
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
            "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
            "LumpedGeometry", "group_volumes_m3", "lumped_geometry", "assemble_elastic_stiffness",
-           "assemble_thermal_coupling"]
+           "assemble_thermal_coupling", "power_column", "is_volume_source"]
 
 
 # -- weak forms -------------------------------------------------------------------------------
@@ -233,7 +236,9 @@ class Material:
 
 @dataclass(frozen=True)
 class SourceSpec:
-    """A heat source on a surface group: its input is a flux [W/m²] or a power [W]."""
+    """A heat source on a surface group (its input a flux [W/m²] or a power [W]) or on
+    a volume group (its input a power [W], spread uniformly over the group's volume).
+    A name that is both a surface and a volume group of the mesh means the surface."""
 
     name: str
     group: str
@@ -259,16 +264,71 @@ class Support:
     points: tuple = ()
 
 
+#: Per sensor quantity: (column prefix, column unit suffix, output → record unit factor,
+#: unit shown, kind index for the Krylov tolerance's per-kind floor).
+SENSOR_QUANTITIES = {
+    "temperature": ("T", "C", 1.0, "°C", 0),
+    "displacement": ("d", "um", 1e6, "µm", 1),
+    "tilt": ("tilt", "urad", 1e6, "µrad", 2),
+}
+
+
 @dataclass(frozen=True)
 class SensorSpec:
-    """A named sensor: a temperature at a point, or a displacement along ``direction``
-    (a unit vector) at a point or averaged over a surface group."""
+    """A named sensor: a temperature at a point; a displacement along ``direction``
+    (a unit vector) at a point or averaged over a surface group; or a tilt [rad]: the
+    difference of the displacements along ``direction`` at the two ``points`` over
+    their distance, (d(p₂) − d(p₁))/|p₂ − p₁| (two probes on a test mandrel, ISO 230-3's
+    A and B). A rigid rotation ω gives the tilt ω·(t × e), t the unit vector p₁→p₂ and
+    e the direction: the rotation about :attr:`about`."""
 
     name: str
-    quantity: str                # "temperature" | "displacement"
+    quantity: str                # "temperature" | "displacement" | "tilt"
     point: tuple | None = None   # [m]
     group: str | None = None     # displacement averaged over this surface group
     direction: tuple = (0.0, 0.0, 1.0)
+    points: tuple = ()           # a tilt's two points ((x, y, z), (x, y, z)) [m]
+
+    @property
+    def elastic(self) -> bool:
+        """True when the sensor reads the displacement field (an elastic adjoint)."""
+        return self.quantity != "temperature"
+
+    @property
+    def column(self) -> str:
+        """Its record column: ``T_<name>_C``, ``d_<name>_um`` or ``tilt_<name>_urad``."""
+        pre, unit = SENSOR_QUANTITIES[self.quantity][:2]
+        return f"{pre}_{self.name}_{unit}"
+
+    @property
+    def record_scale(self) -> float:
+        """Model output (K above reference, m, rad) → record unit (°C offset, µm, µrad)."""
+        return SENSOR_QUANTITIES[self.quantity][2]
+
+    @property
+    def unit(self) -> str:
+        return SENSOR_QUANTITIES[self.quantity][3]
+
+    @property
+    def kind_index(self) -> int:
+        """0 temperature, 1 displacement, 2 tilt (the reduced solve's per-kind floor)."""
+        return SENSOR_QUANTITIES[self.quantity][4]
+
+    @property
+    def about(self) -> tuple | None:
+        """A tilt's rotation axis t × e (unit vector), None for other sensors."""
+        if self.quantity != "tilt":
+            return None
+        t = np.subtract(self.points[1], self.points[0])
+        a = np.cross(t / np.linalg.norm(t), np.asarray(self.direction, float))
+        return tuple(float(v) for v in a / np.linalg.norm(a))
+
+    @property
+    def base_m(self) -> float | None:
+        """A tilt's base |p₂ − p₁| [m], None for other sensors."""
+        if self.quantity != "tilt":
+            return None
+        return float(np.linalg.norm(np.subtract(self.points[1], self.points[0])))
 
 
 def element_for(gmesh: GroupedMesh, order: int):
@@ -334,6 +394,8 @@ class ThermalBody:
     volume : ndarray, ∫v dV [m³]
     props : dict
         Element-wise material arrays (``k``, ``rhoc``, ``alpha``, ``lam``, ``mu``, ``beta``).
+    source_volumes_m3 : dict
+        Discrete volume [m³] of every volume group a source heats.
     """
 
     gmesh: GroupedMesh
@@ -348,6 +410,7 @@ class ThermalBody:
     volume: np.ndarray = field(repr=False)
     props: dict = field(repr=False)
     order: int = 2
+    source_volumes_m3: dict = field(default_factory=dict)
 
     @property
     def ndofs(self) -> int:
@@ -390,13 +453,16 @@ class ThermalBody:
         M = capacity.assemble(basis, rhoc=_per_element(basis, props["rhoc"])).tocsr()
         K = conduction.assemble(basis, k=_per_element(basis, props["k"])).tocsr()
         volume = unit_load.assemble(basis)
-        areas, cols, Bs = {}, [], []
+        areas, cols, Bs, vols = {}, [], [], {}
         for i, s in enumerate(sources):
-            fac = gmesh.surface_group(s.group, f"heat_source[{i}].group")
-            fb = FacetBasis(mesh, elem, facets=fac, intorder=io)
-            f = unit_load.assemble(fb)
-            areas[s.group] = float(f.sum())
-            cols.append(f / areas[s.group] if s.kind == "power" else f)
+            f, measure, in_volume = _unit_source(gmesh, basis, s.group, io,
+                                                 f"heat_source[{i}].group")
+            if in_volume and s.kind != "power":
+                raise InputError(f"{s.group!r} is a volume group: a volume source takes "
+                                 "power_W [W] (spread over its volume), not flux_W_m2",
+                                 f"heat_source[{i}]")
+            (vols if in_volume else areas)[s.group] = measure
+            cols.append(f / measure if s.kind == "power" else f)
         for i, c in enumerate(convections):
             fac = gmesh.surface_group(c.group, f"convection[{i}].group")
             fb = FacetBasis(mesh, elem, facets=fac, intorder=io)
@@ -407,7 +473,7 @@ class ThermalBody:
         F = np.column_stack(cols) if cols else np.zeros((basis.N, 0))
         return cls(gmesh=gmesh, basis=basis, M=M, K=K, B=tuple(Bs), F=F,
                    sources=tuple(sources), convections=tuple(convections), areas_m2=areas,
-                   volume=volume, props=props, order=order)
+                   volume=volume, props=props, order=order, source_volumes_m3=vols)
 
     def probe(self, points_m: np.ndarray, names) -> sp.csr_matrix:
         """Interpolation rows (npoints, ndofs) at ``points_m`` (3, npoints) [m], each in
@@ -421,6 +487,48 @@ class ThermalBody:
             rows.append(sp.csr_matrix((vals, (np.zeros(dofs.size, int), dofs)),
                                       shape=(1, self.basis.N)))
         return sp.vstack(rows).tocsr()
+
+
+def is_volume_source(gmesh: GroupedMesh, group: str) -> bool:
+    """True when a source on ``group`` heats a volume: the name is a volume group and
+    not also a surface group (a name that is both means the surface, as before volume
+    sources existed)."""
+    return group in gmesh.volumes and group not in gmesh.surfaces
+
+
+def _unit_source(gmesh: GroupedMesh, basis: Basis, group: str, intorder: int,
+                 where: str) -> tuple:
+    """(∫v over the group [m² or m³ per dof], the group's area [m²] or volume [m³],
+    whether it is a volume): the load of a unit flux on a surface group, or of a unit
+    heat generation [W/m³] on a volume group's cells."""
+    if is_volume_source(gmesh, group):
+        vb = Basis(gmesh.mesh, basis.elem, elements=gmesh.volume_group(group, where),
+                   intorder=intorder)
+        f = unit_load.assemble(vb)
+        return f, float(f.sum()), True
+    if group not in gmesh.surfaces:
+        raise InputError(f"the mesh has no surface or volume group {group!r} (it has "
+                         f"{gmesh.describe_groups()})", where)
+    fb = FacetBasis(gmesh.mesh, basis.elem, facets=gmesh.surfaces[group], intorder=intorder)
+    f = unit_load.assemble(fb)
+    return f, float(f.sum()), False
+
+
+def power_column(thermal: "ThermalBody", group: str, where: str) -> np.ndarray:
+    """The load column of 1 W spread evenly over a surface group (per area) or a volume
+    group (per volume, ∫_{Ω_g} v dΩ / V_g) of ``thermal``'s mesh [W per W].
+
+    Its entries sum to 1 (all of the watt enters the body), whichever the group.
+    """
+    io = _intorder(thermal)
+    f, measure, _ = _unit_source(thermal.gmesh, thermal.basis, group, io, where)
+    return f / measure
+
+
+def _intorder(thermal: "ThermalBody") -> int:
+    """The quadrature order the body was assembled with (2·order, + 1 on curved cells)."""
+    return 2 * thermal.order + (1 if thermal.gmesh.mesh.__class__.__name__.endswith("2")
+                                else 0)
 
 
 def _inverse_map(mapping, x: np.ndarray, e: int, tet: bool):
@@ -777,7 +885,13 @@ class ElasticBody:
         return G[:, 0] if np.ndim(w) == 1 else G
 
     def sensor_weight(self, sensor: SensorSpec, where: str) -> np.ndarray:
-        """w with wᵀu = the sensor's displacement [m] (point value or group average)."""
+        """w with wᵀu = the sensor's displacement [m] (point value or group average), or
+        its tilt [rad]: (w(p₂) − w(p₁))/|p₂ − p₁| of the point displacements."""
+        if sensor.quantity == "tilt":
+            w1, w2 = (self.sensor_weight(replace(sensor, quantity="displacement", point=p,
+                                                 points=()), f"{where}.points[{k}]")
+                      for k, p in enumerate(sensor.points))
+            return (w2 - w1) / sensor.base_m
         d = np.asarray(sensor.direction, float)
         d = d / np.linalg.norm(d)
         gm = self.thermal.gmesh

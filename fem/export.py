@@ -33,6 +33,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from arfem.fem.heat import HeatFEM, HeatResult
@@ -40,7 +42,8 @@ from arfem.io import atomic_path, atomic_write_text
 from arfem.params import InputError
 
 __all__ = ["vertex_grid", "node_grid", "write_fields", "read_fields", "picture_figure",
-           "render_png", "write_scenario_fields"]
+           "render_png", "write_scenario_fields", "ParallelView", "draw_scale_bar",
+           "draw_axis_triad"]
 
 
 def vertex_grid(model: HeatFEM):
@@ -693,3 +696,66 @@ def write_scenario_fields(model: HeatFEM, result: HeatResult, out_dir, elastic=N
         png = render_png(model, np.asarray(result.fields[k]), out / picture_png,
                          elastic=el, title=cap, heat_flux_W_m2=heat_flux_W_m2)
     return {"fields_xdmf": xdmf, "picture_png": png, "picture_time_s": t}
+
+
+# -- annotations of an orthographic 3D picture (the geometry picture of a mesh scenario) ----
+
+@dataclass(frozen=True)
+class ParallelView:
+    """An orthographic camera as the picture sees it: the screen's right and up
+    directions in the model's axes (unit vectors) and the scale [px per m]."""
+
+    right: tuple
+    up: tuple
+    px_per_m: float
+
+    @classmethod
+    def of(cls, position, focal_point, view_up, parallel_scale_m: float,
+           height_px: int) -> "ParallelView":
+        """From a VTK camera: ``parallel_scale_m`` is half the viewport's height [m]."""
+        d = np.asarray(focal_point, float) - np.asarray(position, float)
+        d /= np.linalg.norm(d)
+        right = np.cross(d, np.asarray(view_up, float))
+        right /= np.linalg.norm(right)
+        up = np.cross(right, d)
+        return cls(tuple(right), tuple(up), height_px / (2.0 * parallel_scale_m))
+
+
+def draw_scale_bar(ax, view: ParallelView, shape: tuple) -> float:
+    """A scale bar of a round length (1, 2 or 5 × 10^k mm, at most 20 % of the image's
+    width) in the bottom right corner of an image of ``shape`` shown in ``ax`` (pixel
+    coordinates). Returns its length [m]. True at every depth: the view is orthographic.
+    """
+    L = _nice_factor(0.2 * shape[1] / view.px_per_m * 1e3) * 1e-3
+    w = L * view.px_per_m
+    x1, y = shape[1] * 0.97, shape[0] * 0.96
+    tick = 0.012 * shape[0]
+    ax.plot([x1 - w, x1], [y, y], color="black", lw=4, solid_capstyle="butt")
+    for x in (x1 - w, x1):
+        ax.plot([x, x], [y - tick, y + tick], color="black", lw=2)
+    ax.text(x1 - w / 2, y - 1.6 * tick, f"{L * 1e3:g} mm", ha="center", va="bottom",
+            fontsize=13, color="black")
+    return L
+
+
+def draw_axis_triad(ax, view: ParallelView, origin_px: tuple, length_px: float) -> None:
+    """The model's x, y and z axes as arrows from ``origin_px`` (image pixels), each as
+    long as it appears in the view (foreshortened), with large labels."""
+    colours = {"x": "#d62728", "y": "#2ca02c", "z": "#1f77b4"}
+    for k, name in enumerate("xyz"):
+        e = np.eye(3)[k]
+        dx, dy = float(e @ view.right), -float(e @ view.up)     # image y runs down
+        if np.hypot(dx, dy) < 0.15:                               # along the view: a dot
+            ax.plot(*origin_px, "o", color=colours[name], ms=8)
+            ax.text(origin_px[0] + 0.1 * length_px, origin_px[1] - 0.1 * length_px, name,
+                    color=colours[name],
+                    fontsize=15, fontweight="bold")
+            continue
+        tip = (origin_px[0] + length_px * dx, origin_px[1] + length_px * dy)
+        ax.annotate("", xy=tip, xytext=origin_px,
+                    arrowprops=dict(arrowstyle="-|>", color=colours[name], lw=2.5,
+                                    mutation_scale=18))
+        pad = 0.2 * length_px / np.hypot(dx, dy)
+        ax.text(tip[0] + pad * dx, tip[1] + pad * dy,
+                name, color=colours[name], fontsize=15, fontweight="bold", ha="center",
+                va="center")

@@ -42,6 +42,8 @@ class AxesRecord:
     line_numbers : tuple of int, the CSV line of each row
     csv_path : Path
     scenario : Path, the mesh scenario the record names
+    displacement_zero : str, ``"reference"`` or ``"first_row"`` (the record's
+        ``[dataset] displacement_zero``)
     """
 
     name: str
@@ -54,6 +56,7 @@ class AxesRecord:
     csv_path: Path
     scenario: Path
     q_W_m2: None = field(default=None)
+    displacement_zero: str = "reference"     # or "first_row": probes zeroed at the start
 
 
 def _cells(v: np.ndarray) -> np.ndarray:
@@ -76,8 +79,31 @@ def load_axes_record(path) -> AxesRecord:
     temps = {k: cols.pop(k) for k in list(cols) if k.startswith("T_") and k.endswith("_C")}
     speed = cols.pop("speed_rpm", None)
     amb = cols.pop("ambient_C", None)
+    if speed is not None:
+        cols.update(_powers_from_speed(files, cols, speed))
     return AxesRecord(files.name, t, speed, amb, temps, {k: _cells(v) for k, v in cols.items()},
-                      tuple(range(2, t.size + 2)), files.csv, files.scenario)
+                      tuple(range(2, t.size + 2)), files.csv, files.scenario,
+                      displacement_zero=files.displacement_zero)
+
+
+def _powers_from_speed(files, cols: dict, speed: np.ndarray) -> dict:
+    """``P_<source>_W`` for every source of the record's scenario that has no column,
+    from the recorded speed (its speed law or its (speed, power) pairs:
+    :func:`arfem.scenarios.geometry_scenario.source_power_at_speed`), so that a record of
+    the speed alone drives every source; a source whose power the speed does not give
+    is left out (the replay then names its missing column)."""
+    from arfem.scenarios.geometry_scenario import load_geometry_scenario, source_power_at_speed
+    sc = load_geometry_scenario(files.scenario)
+    out = {}
+    for src in sc.sources:
+        name = f"P_{src.spec.name}_W"
+        if name in cols or src.spec.kind != "power":
+            continue
+        try:
+            out[name] = source_power_at_speed(sc, src, speed, str(files.csv))
+        except InputError:
+            continue
+    return out
 
 
 def require_axes_model(model, record: AxesRecord, where: str) -> None:

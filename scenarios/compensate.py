@@ -65,9 +65,9 @@ def _figure(res: Replay, path) -> None:
                         gridspec_kw={"height_ratios": [2.2] + [1.4] * len(panels)})[:, 0]
     ax = axes[0]
     ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
-            label="without compensation\n(measured growth)")
+            label="without compensation\n(the record's growth_um)")
     ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
-            label="with compensation\n(measured + offset)")
+            label="with compensation\n(record + offset)")
     ax.axhline(0.0, color="0.5", lw=0.8)
     ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
                  f"{m.rms_after_um:.3g} µm\n" + textwrap.fill(m.score_window_text(), 95),
@@ -86,7 +86,7 @@ def _figure(res: Replay, path) -> None:
         if names is temps:
             bx.set_ylabel("temperature [°C]")
         else:
-            units = {"speed_rpm": "speed [1/min]", "q_W_m2": "heat flux [W/m²]"}
+            units = {"speed_rpm": "speed [rpm]", "q_W_m2": "heat flux [W/m²]"}
             bx.set_ylabel(units.get(names[0], "input") if len(names) == 1 else "inputs")
         bx.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
                   ncol=1 + len(names) // 9)
@@ -94,15 +94,26 @@ def _figure(res: Replay, path) -> None:
     fig.savefig(path)
 
 
-def _markdown(res: Replay) -> str:
+def _markdown(res: Replay, model_path=None, record_path=None) -> str:
+    """``summary.md``: the verdict (saying when the record is the model's own output),
+    the figures, then the model and the record by name and the replay's limits."""
+    from arfem.scenarios.replay_axes_report import file_link, reproduced_to_roundoff
     m = res.summary
     rate = m.compensation_rate_rms_pct
-    text = (f"Compensating with `{m.model_kind}` {'reduces' if rate and rate > 0 else 'does not reduce'} "
-            f"the thermal error of `{m.dataset}` ({m.score_window_text()}): RMS "
-            f"{m.rms_before_um:.3g} → "
-            f"{m.rms_after_um:.3g} µm ({rate:.0f} %), peak to peak "
-            f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
-            "replayed strictly causally.")
+    rates = f" ({rate:.0f} %)" if rate is not None else ""
+    if reproduced_to_roundoff([(m.rms_before_um, m.rms_after_um)]):
+        text = (f"**The record is the model's own output.** `{m.model_kind}` reproduces "
+                f"{file_link(record_path, m.dataset)} to round-off (residual "
+                f"{m.rms_after_um:.1g} µm RMS), so the figures below say that the replay "
+                "is exact, not how well the model compensates a machine: replay a record "
+                "measured on the machine to judge that.")
+    else:
+        text = (f"Compensating with `{m.model_kind}` "
+                f"{'reduces' if rate and rate > 0 else 'does not reduce'} the thermal "
+                f"error of `{m.dataset}` ({m.score_window_text()}): RMS "
+                f"{m.rms_before_um:.3g} → {m.rms_after_um:.3g} µm{rates}, peak to peak "
+                f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
+                "replayed strictly causally.")
     if m.cycles_held:
         text += f" The offset was held in {m.cycles_held} cycles (an input was not usable)."
     L = [f"# Compensation replay: `{m.dataset}`", "", "## Verdict", "", text, "",
@@ -111,7 +122,9 @@ def _markdown(res: Replay) -> str:
          f"| RMS [µm] | {m.rms_before_um:.4g} | {m.rms_after_um:.4g} |",
          f"| peak to peak [µm] | {m.peak_to_peak_before_um:.4g} | "
          f"{m.peak_to_peak_after_um:.4g} |", "", "## The replay", "",
-         f"Model: {m.model_description or m.model_kind}; Δτ = {m.dtau_s:g} s; "
+         f"Model {file_link(model_path, 'model.json')}: "
+         f"{m.model_description or m.model_kind}. Record {file_link(record_path, m.dataset)} "
+         f"(`{m.dataset}`). Δτ = {m.dtau_s:g} s; "
          f"{m.n_cycles} cycles. Largest offset step {m.largest_offset_step_um:.4g} µm; "
          f"clamped in {m.cycles_clamped} and rate-limited in {m.cycles_rate_limited} "
          f"cycles (limits: ±{m.max_offset_um or '∞'} µm, "
@@ -206,7 +219,7 @@ def _main_axes(args, model, ds, probe) -> int:
     res = replay_axes(model, ds, max_offset_um=off, max_step_um=step,
                       score_from_s=args.score_from, where=str(args.record))
     with staged_out_dir(args.out, args.force) as stage:
-        write_axes_replay(res, stage)
+        write_axes_replay(res, stage, args.model, args.record)
         write_html_report(stage)
     print(terminal_line(res, args.out))
     return 0
@@ -265,7 +278,7 @@ def _main(args) -> int:
     with staged_out_dir(args.out, args.force) as stage:
         write_csv(stage / "compensated.csv", res.series.columns())
         write_json(stage / "summary.json", res.summary.to_dict())
-        atomic_write_text(stage / "summary.md", _markdown(res))
+        atomic_write_text(stage / "summary.md", _markdown(res, args.model, args.record))
         _figure(res, stage / "figure.png")
         write_html_report(stage)
     m = res.summary

@@ -26,7 +26,14 @@ another machine with the same package versions, leaves ``git diff`` clean:
   at most 4e-11 µm (mean 1.4e-11), so the expected number of flipped digits among the
   17 000 FEM-derived numbers of the two timeseries.csv files is 0.2 at 6 decimals (one
   was seen) and 0.02 at 5, the precision used;
-* wall times and host facts are printed, never written into committed files.
+* wall times and host facts are printed, never written into committed files;
+* a regenerated picture that matches the committed one within one grey level in every
+  pixel and channel (:func:`same_picture`) keeps the committed bytes: another FreeType
+  or libpng, or another CPU's rounding of an anti-aliased edge, moves a few pixels by
+  one level, which no reader can see, and the clone stays clean. The comparison is on
+  the decoded pixels, not on the bytes (a PNG's compressed bytes change with any
+  pixel); a picture of another size, or one pixel off by two levels or more, is a real
+  change and is written.
 
 :func:`compare_summary` and :func:`compare_timeseries` (used by
 :func:`arfem.scenarios.run_outputs.check_reproduction`) compare recomputed numbers with committed ones
@@ -44,7 +51,8 @@ import numpy as np
 
 __all__ = ["blas_threads", "CSV_DECIMALS", "WALL_KEYS", "json_decimals", "fixed_metrics", "csv_formats",
            "fixed_columns",
-           "compare_summary", "compare_timeseries", "TOLERANCE_UNITS"]
+           "compare_summary", "compare_timeseries", "TOLERANCE_UNITS",
+           "same_picture", "PICTURE_GREY_LEVELS"]
 
 def blas_threads(n: int = 1):
     """Hold the BLAS/OpenMP thread count of this process at ``n`` (threadpoolctl; a
@@ -199,3 +207,41 @@ def compare_timeseries(rel: str, committed_path: Path, columns: dict) -> list[st
                           f"(committed {data[i, j]:.{dec}f}, recomputed {exp[i]:.{dec}f}, tolerance "
                           f"{tol[i]:.2g})")
     return drifts
+
+
+#: Largest difference [grey levels of 255, per channel] between a regenerated picture and
+#: the committed one for which the committed bytes are kept (:func:`same_picture`).
+PICTURE_GREY_LEVELS = 1
+
+
+def _pixels(path: Path) -> np.ndarray | None:
+    from PIL import Image
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGBA"), dtype=np.int16)
+    except (OSError, ValueError):
+        return None
+
+
+def same_picture(new: Path, old: Path, grey_levels: int = PICTURE_GREY_LEVELS) -> bool:
+    """True when the PNGs ``new`` and ``old`` have the same size and no pixel differs
+    by more than ``grey_levels`` (of 255) in any channel (red, green, blue, alpha).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from PIL import Image
+    >>> a = np.full((4, 4, 3), 200, np.uint8)
+    >>> b = a.copy(); b[1, 2, 0] = 201
+    >>> c = a.copy(); c[1, 2, 0] = 202
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     for n, x in zip("abc", (a, b, c)):
+    ...         Image.fromarray(x).save(f"{d}/{n}.png")
+    ...     print(same_picture(Path(d, "b.png"), Path(d, "a.png")),
+    ...           same_picture(Path(d, "c.png"), Path(d, "a.png")))
+    True False
+    """
+    a, b = _pixels(Path(new)), _pixels(Path(old))
+    if a is None or b is None or a.shape != b.shape:
+        return False
+    return int(np.abs(a - b).max(initial=0)) <= grey_levels

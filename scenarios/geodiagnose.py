@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from arfem.fem.body import SENSOR_QUANTITIES
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
@@ -37,9 +38,16 @@ def _map_columns(cols: dict, sc, where: str):
     name the column and what the scenario has."""
     disp = [s.name for s in sc.sensors if s.quantity == "displacement"]
     temp = [s.name for s in sc.sensors if s.quantity == "temperature"]
+    tilts = [s.name for s in sc.sensors if s.quantity == "tilt"]
     srcs = [s.spec.name for s in sc.sources]
     chans, power = [], {}
     for c in cols:
+        if c.startswith("tilt_") and c.endswith("_urad"):      # a tilt: evidence
+            if c[5:-5] not in tilts:
+                raise InputError(f"names no tilt sensor of {sc.source} (its tilts: "
+                                 f"{', '.join(tilts) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+            continue
         if c.startswith("d_") and c.endswith("_um"):
             if c[2:-3] not in disp:
                 raise InputError(f"names no displacement sensor of {sc.source} (it has "
@@ -66,17 +74,10 @@ def _map_columns(cols: dict, sc, where: str):
 
 
 def _speed_power(sc, src, speed, where: str) -> np.ndarray:
-    """A source's power at each speed, linear between its scenario's (speed, power)
-    pairs (its values on the cycle's phases)."""
-    if src.edges_s.shape != sc.cycle.edges_s.shape or not np.allclose(src.edges_s,
-                                                                        sc.cycle.edges_s):
-        raise InputError(f"source {src.spec.name!r} follows its own schedule in the scenario, "
-                         f"so speed_rpm does not give its power: add a column "
-                         f"P_{src.spec.name}_W", where)
-    n = np.concatenate([[0.0], sc.cycle.speed_rpm])
-    p = np.concatenate([[0.0], src.values])
-    o = np.argsort(n, kind="stable")
-    return np.interp(speed, n[o], p[o])
+    """A source's power at each speed (its speed law, else linear between its
+    scenario's (speed, power) pairs): :func:`arfem.scenarios.geometry_scenario.source_power_at_speed`."""
+    from arfem.scenarios.geometry_scenario import source_power_at_speed
+    return source_power_at_speed(sc, src, speed, where)
 
 
 def load_mesh_record(path, progress=None):
@@ -116,7 +117,7 @@ def load_mesh_record(path, progress=None):
     data = np.column_stack([tab.columns[c] for c in chans])
     rec = make_record(files.name, tab.columns["time_s"], data, chans, plant.names, plant.kinds,
                       np.column_stack(P) if P else np.zeros((data.shape[0], 0)), speed, amb,
-                      sc.reference_C)
+                      sc.reference_C, files.displacement_zero)
     _check_units(model, rec, where)
     return rec, model, plant, sc, tm
 
@@ -212,7 +213,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     hist = InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K)
     t0 = time.perf_counter()
     full = solve_reduced(plant.body, hist, plant.G, t,
-                         kinds=[int(k == "displacement") for k in plant.kinds]).outputs
+                         kinds=[SENSOR_QUANTITIES[k][4] for k in plant.kinds]).outputs
     t_full = time.perf_counter() - t0
     tr0 = type(tr)(tr.durations_s, tr.h_W_m2K, tr.kappa,
                    np.column_stack([tr.inputs[:, :S + G],
@@ -221,12 +222,12 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     red = simulate(model.rb, tr0, columns=False)
     err = np.max(np.abs(red - full), axis=0)
     scale = np.max(np.abs(full), axis=0)
-    unit = [1e6 if k == "displacement" else 1.0 for k in plant.kinds]
+    unit = [1.0 if k == "temperature" else 1e6 for k in plant.kinds]
     return {"basis_vectors": model.rb.k, "krylov_blocks": model.rb.n_blocks,
             "max_abs_error": {n: float(e * u) for n, e, u in zip(plant.names, err, unit)},
             "max_rel_error": {n: float(e / s) if s > 0 else 0.0
                               for n, e, s in zip(plant.names, err, scale)},
-            "units": "µm for displacements, K for temperatures",
+            "units": "µm for displacements, µrad for tilts, K for temperatures",
             "reference": "arfem.fem.thermal3d.solve_reduced at the nominal h (own basis)",
             "reference_solve_s": t_full}
 

@@ -5,8 +5,8 @@ search uses.
 The scenario may carry (and ``arfem run`` ignores)::
 
     [diagnosis]
-    candidate_groups = ["spindle_bore", "housing_outer"]   # surface groups where a
-                                                           # source may be missing
+    candidate_groups = ["spindle_bore", "housing_outer"]   # surface (or volume) groups
+                                                           # where a source may be missing
     interface_groups = ["front_bearing", "rear_bearing"]   # thin volume groups whose
                                                            # conductivity stands for a
                                                            # contact resistance

@@ -203,7 +203,7 @@ def export_state_space(gmodel, arfem_version: str = "",
     # the space the run's reduced solve grows (every sensor, the same tolerance, step
     # responses compared from the model's interval on: a discrete model at Δτ never samples
     # sooner after a step), so that at the same h the model and the run agree to round-off
-    kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+    kinds = [s.kind_index for s in sc.sensors]
     if len(_speed_rows(gmodel)[0]) > 1 and any(c.h[1] != 0.0 for c in sc.convections):
         return ExportedModel(_scheduled(gmodel, kinds, cols, axes, h_ref, mode_cache,
                                         arfem_version), tuple(float(h) for h in h_ref))
@@ -252,8 +252,8 @@ def record_columns(run, model: StateSpaceModel) -> dict:
             cols[f"P_{sc.sources[j].spec.name}_W"] = hist.u[seg, j]
     for o in model.outputs:
         cols[o.name] = ser[o.name]
-    for name, v in ser.items():          # the thermometers: evidence for arfem diagnose
-        if name.startswith("T_"):
+    for name, v in ser.items():          # thermometers and tilts: evidence for arfem
+        if name.startswith(("T_", "tilt_")):      # diagnose (a tilt is not compensated)
             cols[name] = v
     return cols
 

@@ -28,14 +28,21 @@ unit; lengths in the file are in the mesh's ``unit``)::
     # or: csv = "duty.csv"  (columns time_s = start of each interval, speed_rpm,
     #      ambient_C, any source columns) and total_h = 24.0
 
-    [[heat_source]]               # one per heated surface group
+    [[heat_source]]               # one per heated surface or volume group
     name = "front_bearing"
-    group = "front_bearing_seat"
+    group = "front_bearing_seat"  # a surface group (power spread over its area) or a
+                                  # volume group (spread over its volume: P/V [W/m³])
     power_W = 150.0               # a constant, or a list (one value per cycle phase),
                                   # or a CSV column name: power_W = "P_front_W";
-                                  # flux_W_m2 instead of power_W for a flux
+                                  # flux_W_m2 instead of power_W for a flux (surfaces)
     # phases = [ { duration_h = 1.0, power_W = 80.0 }, ... ]   its own schedule instead
+    # power_W = { a = 0.0, b = 0.003, m = 1.0 }   from the cycle's speed n [rpm]:
+    #                               P = a + b·n^m [W]
+    # bearing = { f0 = 2.0, nu_mm2_s = 22.0, dm_mm = 90.0, f1 = 3.2e-4, P1_N = 1000.0,
+    #             count = 2 }       Palmgren's friction moment × ω from the speed
+    #                               (arfem.models.bearing: coefficients and units)
     # scale = 1.0               optional factor on every value of the schedule [-]
+    #                           (e.g. the part of the friction heat the structure takes)
 
     [[convection]]                # one per cooled surface group
     group = "housing_outer"
@@ -59,8 +66,9 @@ unit; lengths in the file are in the mesh's ``unit``)::
     output_interval_s = 60.0      # sensor sampling
 
     [outputs]
-    fields = true                 # XDMF 3 time series of θ and u for ParaView
-    picture = true                # geometry.png: the mesh and its groups
+    fields = false                # XDMF 3 time series of θ and u for ParaView; default
+                                  # false (it factors the stiffness: about 2x the memory)
+    picture = true                # geometry.png: the mesh and its groups (default true)
     field_interval_s = 3600.0
 
 Every refusal is one line naming the file and the key (exit 2).
@@ -89,7 +97,7 @@ from arfem.strict import table as _table
 __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
            "geometry_scenario_from_dict", "GeometryModel", "build_geometry_model",
            "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES",
-           "check_geometry_scenario"]
+           "check_geometry_scenario", "source_power_at_speed"]
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
         "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
@@ -99,10 +107,11 @@ _MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "e
         "youngs_modulus_Pa", "poisson_ratio"}
 _CYCLE = {"phases", "csv", "total_h", "total_s"}
 _PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
-_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale"}
+_SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale", "bearing"}
+_BEARING = {"f0", "nu_mm2_s", "dm_mm", "f1", "P1_N", "count"}
 _CONV = {"name", "group", "h_W_m2K", "ambient_C"}
 _SUP = {"type", "group", "points"}
-_SENS = {"name", "point", "direction", "quantity", "group"}
+_SENS = {"name", "point", "direction", "quantity", "group", "points"}
 _FEM = {"solver", "dt_s", "output_interval_s"}
 _OUT = {"fields", "picture", "field_interval_s"}
 _SOLVERS = {"reduced": None, "crank-nicolson": 0.5, "backward-euler": 1.0}
@@ -128,6 +137,15 @@ class SourceSetting:
     spec: SourceSpec
     edges_s: np.ndarray          # own schedule's edges (or the cycle's)
     values: np.ndarray           # power [W] or flux [W/m²] per segment of edges_s
+    law: object = None           # PowerLaw / PalmgrenBearing: power from the speed [W]
+    scale: float = 1.0           # the source's ``scale`` (already in ``values``)
+
+    def power_at_speed_W(self, speed_rpm) -> np.ndarray | None:
+        """The power [W] its speed law gives at ``speed_rpm`` (times ``scale``), or None
+        for a source without one."""
+        if self.law is None:
+            return None
+        return self.scale * self.law.power_W(speed_rpm)
 
 
 @dataclass(frozen=True)
@@ -293,7 +311,7 @@ def geometry_scenario_from_dict(data: dict, source: str = "<scenario>",
         order=order, reference_C=ref, materials=materials, cycle=cycle,
         sources=tuple(sources), convections=tuple(convs), support=support,
         support_names=names, sensors=tuple(sensors), solver=solver, dt_s=dt,
-        output_interval_s=oi, fields=_bool(out.get("fields", True), "outputs.fields"),
+        output_interval_s=oi, fields=_bool(out.get("fields", False), "outputs.fields"),
         picture=_bool(out.get("picture", True), "outputs.picture"), field_interval_s=fi)
 
 
@@ -365,16 +383,77 @@ def _sources(data: dict, cycle: Schedule3D) -> list:
         _unknown(s, _SRC, w)
         grp = _string(s.get("group"), f"{w}.group")
         name = _string(s.get("name", grp), f"{w}.name")
-        if "phases" in s:
+        law = _speed_law(s, w)
+        if law is not None:
+            edges, values, kind = cycle.edges_s, law.power_W(cycle.speed_rpm), "power_W"
+        elif "phases" in s:
             edges, values, kind = _source_own_phases(s["phases"], w, cycle)
         else:
             edges, values, kind = _source_on_cycle(s, w, cycle)
+        scale = 1.0
         if "scale" in s:          # a factor on the whole schedule (e.g. swept: 0.5, 1, 2)
-            values = values * _number(s["scale"], f"{w}.scale", positive=True,
-                                      allow_zero=True)
+            scale = _number(s["scale"], f"{w}.scale", positive=True, allow_zero=True)
+            values = values * scale
         spec = SourceSpec(name=name, group=grp, kind="power" if kind == "power_W" else "flux")
-        sources.append(SourceSetting(spec, edges, values))
+        sources.append(SourceSetting(spec, edges, values, law, scale))
     return sources
+
+
+def _speed_law(s: dict, w: str):
+    """A source's power as a function of the cycle's speed (:mod:`arfem.models.bearing`):
+    ``power_W = {a, b, m}`` (P = a + b·n^m [W]) or ``bearing = {f0, nu_mm2_s, dm_mm, f1,
+    P1_N, count}`` (Palmgren's friction moment × ω); None for a source without one.
+    Every value range-checked (:data:`arfem.models.bearing.RANGES`)."""
+    from arfem.models.bearing import PalmgrenBearing, PowerLaw, check_range
+    if "bearing" in s:
+        others = [k for k in ("power_W", "flux_W_m2", "phases") if k in s]
+        if others:
+            raise InputError(f"gives both bearing and {others[0]}: the bearing model gives "
+                             "the power from the speed", w)
+        b = s["bearing"]
+        if not isinstance(b, dict):
+            raise InputError("must be a table { f0, nu_mm2_s, dm_mm, f1, P1_N, count }",
+                             f"{w}.bearing")
+        _unknown(b, _BEARING, f"{w}.bearing")
+        missing = sorted({"f0", "nu_mm2_s", "dm_mm"} - set(b))
+        if missing:
+            raise InputError(f"missing {', '.join(missing)} (Palmgren's M0 = 1e-7·f0·"
+                             "(ν·n)^(2/3)·dm³ needs them)", f"{w}.bearing")
+        kw = {k: check_range(k, _number(b[k], f"{w}.bearing.{k}", integer=k == "count"),
+                             f"{w}.bearing.{k}") for k in _BEARING if k in b}
+        if "count" in kw:
+            kw["count"] = int(kw["count"])
+        return PalmgrenBearing(**kw)
+    p = s.get("power_W")
+    if isinstance(p, dict):
+        if "phases" in s:
+            raise InputError("gives both power_W = {a, b, m} (from the speed) and phases",
+                             w)
+        _unknown(p, {"a", "b", "m"}, f"{w}.power_W")
+        abm = {k: check_range(k, _number(p.get(k, d), f"{w}.power_W.{k}"), f"{w}.power_W.{k}")
+               for k, d in (("a", 0.0), ("b", 0.0), ("m", 1.0))}
+        return PowerLaw(**abm)
+    return None
+
+
+def source_power_at_speed(sc: "GeometryScenario", src: SourceSetting, speed_rpm,
+                          where: str) -> np.ndarray:
+    """A source's power [W] at each recorded speed: its speed law where it has one
+    (``bearing`` or ``power_W = {a, b, m}``), else linear between its scenario's
+    (speed, power) pairs on the cycle's phases; a source on its own schedule is refused
+    (its power does not follow the speed): one line naming ``where``."""
+    own = src.power_at_speed_W(speed_rpm)
+    if own is not None:
+        return own
+    if src.edges_s.shape != sc.cycle.edges_s.shape or not np.allclose(src.edges_s,
+                                                                        sc.cycle.edges_s):
+        raise InputError(f"source {src.spec.name!r} follows its own schedule in the scenario, "
+                         f"so speed_rpm does not give its power: add a column "
+                         f"P_{src.spec.name}_W", where)
+    n = np.concatenate([[0.0], sc.cycle.speed_rpm])
+    p = np.concatenate([[0.0], src.values])
+    o = np.argsort(n, kind="stable")
+    return np.interp(speed_rpm, n[o], p[o])
 
 
 def _source_own_phases(ph, w: str, cycle: Schedule3D) -> tuple:
@@ -510,7 +589,12 @@ def _sensor(s, w: str, scale: float, seen: set) -> SensorSpec:
                          f"{name!r}", f"{w}.name")
     seen.add(name)
     q = _string(s.get("quantity", "displacement"), f"{w}.quantity",
-                choices=("displacement", "temperature"))
+                choices=("displacement", "temperature", "tilt"))
+    if q == "tilt":
+        return _tilt_sensor(s, w, name, scale)
+    if "points" in s:
+        raise InputError("points (two of them) belong to a quantity = \"tilt\" sensor; a "
+                         "displacement or a thermometer has one point", f"{w}.points")
     if q == "temperature" and name.startswith("T_"):
         raise InputError(f"a thermometer's column is T_<name>_C (the measured-data "
                          f"contract); name it without \"T_\" ({name[2:]!r}), or its "
@@ -519,15 +603,43 @@ def _sensor(s, w: str, scale: float, seen: set) -> SensorSpec:
     grp = _string(s["group"], f"{w}.group") if "group" in s else None
     if (point is None) == (grp is None) or (q == "temperature" and point is None):
         raise InputError("needs a point (or, for a displacement, a surface group)", w)
-    d = s.get("direction", "z")
+    return SensorSpec(name, q, point, grp, _direction(s.get("direction", "z"), w))
+
+
+def _direction(d, w: str) -> tuple:
+    """A sensor's ``direction``: ``"x"``, ``"y"``, ``"z"`` or a vector, as a unit vector."""
     if isinstance(d, str):
-        d = _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
-    else:
-        d = _point(d, 1.0, f"{w}.direction")
-        if np.linalg.norm(d) == 0:
-            raise InputError("must not be zero", f"{w}.direction")
-        d = tuple(np.asarray(d) / np.linalg.norm(d))
-    return SensorSpec(name, q, point, grp, tuple(d))
+        return _DIRS.get(_string(d, f"{w}.direction", choices=tuple(_DIRS)))
+    d = _point(d, 1.0, f"{w}.direction")
+    if np.linalg.norm(d) == 0:
+        raise InputError("must not be zero", f"{w}.direction")
+    return tuple(float(v) for v in np.asarray(d) / np.linalg.norm(d))
+
+
+def _tilt_sensor(s: dict, w: str, name: str, scale: float) -> SensorSpec:
+    """A ``quantity = "tilt"`` sensor: ``points = [p1, p2]`` (mesh unit) and the
+    ``direction`` both probes read; the tilt (d(p2) − d(p1))/|p2 − p1| [rad, reported in
+    µrad]. The direction must be across the line p1→p2 (along it the difference is a
+    strain, not a tilt)."""
+    pts = s.get("points")
+    if not isinstance(pts, list) or len(pts) != 2:
+        raise InputError("a tilt needs points = [[x1, y1, z1], [x2, y2, z2]] (the two "
+                         "probes, mesh unit)", f"{w}.points")
+    if "point" in s or "group" in s:
+        raise InputError("a tilt is read at its two points, not at point or group", w)
+    if "direction" not in s:
+        raise InputError("a tilt needs the direction its two probes read (e.g. \"y\" "
+                         "for A, the tilt about X of a spindle along Z)", w)
+    p = tuple(_point(v, scale, f"{w}.points[{k}]") for k, v in enumerate(pts))
+    d = _direction(s["direction"], w)
+    line = np.subtract(p[1], p[0])
+    base = float(np.linalg.norm(line))
+    if base == 0.0:
+        raise InputError("the two points coincide: a tilt needs a base", f"{w}.points")
+    if abs(float(np.dot(line / base, d))) > 0.01:
+        raise InputError("direction must be across the line between the two points (a "
+                         "difference along it is a strain, not a tilt)", f"{w}.direction")
+    return SensorSpec(name, "tilt", direction=d, points=p)
 
 
 def _fem_and_outputs(data: dict, cycle: Schedule3D) -> tuple:
@@ -640,8 +752,9 @@ def check_geometry_scenario(sc: GeometryScenario) -> None:
         for s in sc.sensors:
             if s.group is not None:
                 gm.surface_group(s.group, f"sensor {s.name!r}.group")
-            else:
-                locate(th.basis, s.point, f"sensor {s.name!r}.point", gm.source)
+            for k, p in enumerate([s.point] if s.point is not None else s.points):
+                locate(th.basis, p, f"sensor {s.name!r}.point" + (f"s[{k}]" if s.points
+                                                                   else ""), gm.source)
         if support.kind == "clamped":
             gm.surface_group(support.group, "support.group")
     except InputError as exc:
@@ -669,7 +782,7 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         if temp:
             P = th.probe(np.array([s.point for s in temp]).T, [s.name for s in temp])
         t0 = time.perf_counter()
-        disp = [s for s in sc.sensors if s.quantity == "displacement"]
+        disp = [s for s in sc.sensors if s.elastic]
         el = None
         if disp or sc.fields:
             progress("assembling and factoring elasticity")
@@ -679,7 +792,7 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         t0 = time.perf_counter()
         W = []
         for i, s in enumerate(sc.sensors):
-            if s.quantity == "displacement":
+            if s.elastic:
                 W.append(el.sensor_weight(s, f"sensor {s.name!r}"))
         Gd = el.functional(np.column_stack(W)) if W else None
         k_t = k_d = 0
@@ -708,15 +821,14 @@ class GeometryRun:
     timings_s: dict
 
     def sensor_series(self) -> dict:
-        """{column name: values}: ``T_<name>_C`` [°C] and ``d_<name>_um`` [µm]."""
+        """{column name: values}: ``T_<name>_C`` [°C], ``d_<name>_um`` [µm] and
+        ``tilt_<name>_urad`` [µrad]."""
         out = {}
         sc = self.model.scenario
         for j, s in enumerate(sc.sensors):
             y = self.result.outputs[:, j]
-            if s.quantity == "temperature":
-                out[f"T_{s.name}_C"] = y + sc.reference_C
-            else:
-                out[f"d_{s.name}_um"] = y * 1e6
+            out[s.column] = (y + sc.reference_C if s.quantity == "temperature"
+                             else y * s.record_scale)
         return out
 
 
@@ -737,7 +849,7 @@ def solve_geometry(model: GeometryModel, progress=None,
     progress("transient heat")
     theta = _SOLVERS[sc.solver]
     if theta is None:
-        kinds = [int(s.quantity == "displacement") for s in sc.sensors]
+        kinds = [s.kind_index for s in sc.sensors]
         res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
                             mode_cache=mode_cache)
     else:
@@ -818,10 +930,12 @@ def _sensor_labels(sensors) -> list:
     a thermometer's name carries ``(°C)``."""
     at: dict = {}
     for s in sensors:
-        if s.point is None:
-            continue
-        key = tuple(round(float(c), 12) for c in s.point)
-        at.setdefault(key, []).append(s.name + (" (°C)" if s.quantity == "temperature" else ""))
+        pts = [s.point] if s.point is not None else list(s.points)
+        for k, p in enumerate(pts):
+            key = tuple(round(float(c), 12) for c in p)
+            at.setdefault(key, []).append(
+                s.name + (" (°C)" if s.quantity == "temperature" else "")
+                + (f" (tilt, probe {k + 1})" if s.quantity == "tilt" else ""))
     return [(np.array(k), ", ".join(v)) for k, v in at.items()]
 
 
@@ -873,20 +987,31 @@ def geometry_picture(gm: GroupedMesh, path: Path, sensors=(), title: str = "",
         pl.add_point_labels(point[None, :], [label], font_size=20, point_size=1,
                             shape_opacity=0.85, shape_color="white", text_color="black",
                             always_visible=True, margin=4)
-    pl.add_axes()
     # from the front (−y), to the side (+x) and a little from below: a spindle unit's
-    # nose and the TCP face the viewer, the column stub (+y) stays behind
+    # nose and the TCP face the viewer, the column stub (+y) stays behind; orthographic,
+    # so that one scale bar holds at every depth
     c = 0.5 * (P.min(axis=0) + P.max(axis=0))
     r = float(np.linalg.norm(np.ptp(P, axis=0)))
+    from arfem.fem.export import ParallelView
+    pl.enable_parallel_projection()
     pl.camera_position = [tuple(c + r * np.array([1.2, -2.0, -0.6])), tuple(c), (0, 0, 1)]
-    pl.camera.zoom(1.5)
+    cam = pl.camera
+    view = ParallelView.of(cam.position, cam.focal_point, cam.up, 1.0, 2)
+    w, h = pl.window_size
+    half_w = float(np.ptp((P - c) @ np.asarray(view.right))) / 2
+    half_h = float(np.ptp((P - c) @ np.asarray(view.up))) / 2
+    cam.parallel_scale = 1.12 * max(half_h, half_w * h / w)    # the body fills the view
     img = pl.screenshot(None, return_img=True)
+    view = ParallelView.of(cam.position, cam.focal_point, cam.up, cam.parallel_scale,
+                           img.shape[0])
     pl.close()
-    _picture_with_legend(img, entries, title, path)
+    _picture_with_legend(img, entries, title, path, view)
 
 
-def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path) -> None:
-    """The rendered view with the groups' legend beside it (never over the geometry)."""
+def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path,
+                         view=None) -> None:
+    """The rendered view with the groups' legend beside it (never over the geometry), a
+    scale bar and the model's axes (``view``: :class:`arfem.fem.export.ParallelView`)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -895,6 +1020,11 @@ def _picture_with_legend(img: np.ndarray, entries: list, title: str, path: Path)
     ax = fig.add_axes([0.30, 0.0, 0.70, 0.94])
     ax.imshow(img)
     ax.set_axis_off()
+    if view is not None:
+        from arfem.fem.export import draw_axis_triad, draw_scale_bar
+        draw_scale_bar(ax, view, img.shape)
+        draw_axis_triad(ax, view, (0.06 * img.shape[1], 0.9 * img.shape[0]),
+                        0.07 * img.shape[1])
     handles = [Patch(facecolor=col, edgecolor="black", label=lab) for lab, col in entries]
     if handles:
         fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.01, 0.92),
@@ -914,10 +1044,12 @@ def _sensor_figure(run: GeometryRun, path: Path) -> None:
     t_h = run.result.times_s / 3600.0
     d = {k: v for k, v in ser.items() if k.startswith("d_")}
     T = {k: v for k, v in ser.items() if k.startswith("T_")}
-    n = int(bool(d)) + int(bool(T))
+    a = {k: v for k, v in ser.items() if k.startswith("tilt_")}
+    n = int(bool(d)) + int(bool(T)) + int(bool(a))
     fig, axes = plt.subplots(n, 1, figsize=(9, 3.2 * n), sharex=True, squeeze=False)
     i = 0
-    for group, unit in ((d, "displacement [µm]"), (T, "temperature [°C]")):
+    for group, unit in ((d, "displacement [µm]"), (a, "tilt [µrad]"),
+                        (T, "temperature [°C]")):
         if not group:
             continue
         ax = axes[i, 0]
@@ -982,14 +1114,12 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
     write_csv(out_dir / "sensors.csv", {"time_s": t, "time_h": t / 3600.0, **ser})
     write_json(out_dir / "sensors.json", {
         "scenario": sc.name, "time_s": t.tolist(),
-        "sensors": [{"name": s.name, "quantity": s.quantity,
-                     "column": (f"T_{s.name}_C" if s.quantity == "temperature"
-                                else f"d_{s.name}_um"),
-                     "unit": "°C" if s.quantity == "temperature" else "µm",
-                     "point_m": s.point, "group": s.group,
-                     "direction": s.direction if s.quantity == "displacement" else None,
-                     "values": ser[f"T_{s.name}_C" if s.quantity == "temperature"
-                                   else f"d_{s.name}_um"].tolist()}
+        "sensors": [{"name": s.name, "quantity": s.quantity, "column": s.column,
+                     "unit": s.unit, "point_m": s.point, "group": s.group,
+                     "direction": s.direction if s.elastic else None,
+                     **({"points_m": list(s.points), "about": s.about, "base_m": s.base_m}
+                        if s.quantity == "tilt" else {}),
+                     "values": ser[s.column].tolist()}
                     for s in sc.sensors]})
     s = summary(run)
     write_json(out_dir / "summary.json", s)
@@ -997,9 +1127,12 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
     _sensor_figure(run, out_dir / "sensors.png")
     if sc.picture:
         progress("geometry picture")
+        vols = [f"{s.spec.name} in {s.spec.group}" for s in sc.sources
+                if s.spec.group in run.model.thermal.source_volumes_m3]
         geometry_picture(run.model.gmesh, out_dir / "geometry.png", sc.sensors,
-                         title=f"{sc.name}: physical groups and sensors",
-                         roles=group_roles(sc))
+                         title=f"{sc.name}: physical groups and sensors" + (
+                             "\nheat generated in volume groups: " + ", ".join(vols)
+                             if vols else ""), roles=group_roles(sc))
     if sc.fields and run.result.fields is not None:
         progress("fields.xdmf3")
         write_fields_xdmf(run, out_dir / "fields" / "fields.xdmf3")

@@ -12,7 +12,13 @@ sources:
   takes the power its scenario gives at that speed (linear between the scenario's
   (speed, power) pairs of its cycle phases) and every speed-dependent h its value;
 * ``ambient_C`` (optional): the ambient air, driving every convection group without an
-  ambient of its own.
+  ambient of its own;
+* ``tilt_<sensor>_urad``: a tilt sensor of the scenario [µrad] (evidence).
+
+``[dataset] displacement_zero`` says what the displacement and tilt channels are read
+from: ``"reference"`` (the stress-free state at the reference temperature; the
+default) or ``"first_row"`` (the probes zeroed at the start, as ISO 230-3 does); the
+diagnosis and the replay then compare the model minus its first-row value.
 
 Bad input is refused in one line (exit 2), before anything is written: a missing
 scenario; a column naming a sensor or source the scenario lacks; a thermometer column
@@ -31,7 +37,7 @@ from arfem.params import InputError
 from arfem.strict import check_keys
 
 __all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
-           "read_record_files", "record_toml_of",
+           "read_record_files", "record_toml_of", "DISPLACEMENT_ZERO", "displacement_zero",
            "RecordTable", "read_table", "write_record"]
 
 _TOP = ("dataset", "model", "columns", "sensors")
@@ -46,6 +52,7 @@ class RecordFiles:
     scenario: Path
     name: str
     renames: dict
+    displacement_zero: str = "reference"
 
 
 def record_toml_of(path) -> Path:
@@ -105,7 +112,8 @@ def read_record_files(path) -> RecordFiles:
     ds = doc.get("dataset", {})
     if not isinstance(ds, dict):
         raise InputError("must be a table", f"{p}: dataset")
-    check_keys(ds, ("name", "csv", "initial"), f"{p}: dataset")
+    check_keys(ds, ("name", "csv", "initial", "displacement_zero"), f"{p}: dataset")
+    zero = displacement_zero(ds, f"{p}: dataset.displacement_zero")
     m = doc.get("model")
     if not isinstance(m, dict) or "scenario" not in m:
         raise InputError("needs scenario = \"<mesh scenario>.toml\"", f"{p}: model")
@@ -126,7 +134,23 @@ def read_record_files(path) -> RecordFiles:
     ren = doc.get("columns", {})
     if not isinstance(ren, dict) or not all(isinstance(v, str) for v in ren.values()):
         raise InputError("must map contract names to the CSV's column names", f"{p}: columns")
-    return RecordFiles(p, csv, sc, str(ds.get("name", p.stem)), dict(ren))
+    return RecordFiles(p, csv, sc, str(ds.get("name", p.stem)), dict(ren), zero)
+
+
+#: ``[dataset] displacement_zero``: where the displacement (and tilt) channels are read
+#: from: the stress-free reference state (the default), or the first row (probes
+#: zeroed at the start of the test, as ISO 230-3 does).
+DISPLACEMENT_ZERO = ("reference", "first_row")
+
+
+def displacement_zero(ds: dict, where: str) -> str:
+    """The record's ``displacement_zero`` (:data:`DISPLACEMENT_ZERO`; default
+    ``"reference"``), or one line naming ``where``."""
+    v = ds.get("displacement_zero", "reference")
+    if not isinstance(v, str) or v not in DISPLACEMENT_ZERO:
+        raise InputError(f"must be \"reference\" (read from the stress-free state) or "
+                         f"\"first_row\" (probes zeroed at the start), got {v!r}", where)
+    return v
 
 
 @dataclass(frozen=True)
@@ -165,12 +189,16 @@ def read_table(files: RecordFiles) -> RecordTable:
     return RecordTable(cols, str(files.csv))
 
 
-def write_record(toml_path, scenario: str, columns: dict, name: str | None = None) -> Path:
+def write_record(toml_path, scenario: str, columns: dict, name: str | None = None,
+                 displacement_zero: str = "reference") -> Path:
     """Write a v3 record: ``<stem>.csv`` with ``columns`` ({contract name: values}) and
-    ``<stem>.toml`` naming ``scenario`` (relative to the TOML). Returns the TOML's path."""
+    ``<stem>.toml`` naming ``scenario`` (relative to the TOML); ``displacement_zero``
+    written where it is not the default. Returns the TOML's path."""
     from arfem.io import atomic_write_text, write_csv
     p = Path(toml_path)
     write_csv(p.with_suffix(".csv"), {k: np.asarray(v, float) for k, v in columns.items()})
+    zero = ("" if displacement_zero == "reference"
+            else f'\ndisplacement_zero = "{displacement_zero}"')
     atomic_write_text(p, f'[dataset]\nname = "{name or p.stem}"\ncsv = "{p.with_suffix(".csv").name}"'
-                         f'\n\n[model]\nscenario = "{scenario}"\n')
+                         f'{zero}\n\n[model]\nscenario = "{scenario}"\n')
     return p

@@ -7,14 +7,18 @@ about which command wrote the directory:
 
 * every PNG is embedded as a ``data:`` URI (the page needs no other file to show
   its figures);
-* every JSON file becomes tables of the same numbers (floats written with
-  ``repr``, exactly as in the JSON); a folder with many JSON files (a sweep's
-  ``points/``) is listed, not tabulated;
+* every JSON file becomes tables of its numbers, rounded for reading (6 significant
+  digits; the JSON file has every digit); a list of more than
+  :data:`MAX_LIST_SHOWN` numbers (a sensor's history) is summarised by its count,
+  first and last values and range rather than printed; a folder with many JSON files
+  (a sweep's ``points/``) is listed, not tabulated;
 * the inputs: TOML files in the directory (``scenario.toml``, a copied dataset
   description) are shown verbatim, and any ``.toml`` / ``.csv`` file a JSON file
   names (``"source"``, ``"dataset"``, ...) that exists is linked;
 * Markdown files (``summary.md``, ``README.md``) are rendered (headings, lists, pipe
-  tables; links only to files that exist), open for the top folder, collapsed below;
+  tables; links only to files that exist), open for the top folder (its title, which
+  is the page's, not repeated; its pictures shown where it places them), collapsed
+  below;
 * every other file (CSV, JSON, XDMF, HDF5) is linked by its relative path with its
   size, so the links work wherever the directory is moved;
 * the versions of the software that wrote the report.
@@ -30,6 +34,7 @@ import html
 import json
 import os
 import platform
+import re
 from pathlib import Path
 from urllib.parse import quote, unquote
 
@@ -49,6 +54,12 @@ MAX_ROWS = 60
 MAX_EMBED = 8_000_000
 #: JSON files above this size are linked, not tabulated [bytes]
 MAX_JSON = 2_000_000
+#: a list of numbers longer than this is summarised (count, first, last, range)
+MAX_LIST_SHOWN = 8
+#: significant digits of the numbers shown (the JSON files keep every digit)
+DIGITS = 6
+#: a list of at most half this many records with more keys than this is transposed
+MAX_COLUMNS = 8
 _PACKAGES = ("arfem", "numpy", "scipy", "scikit-fem", "matplotlib", "meshio", "h5py",
              "pyvista", "vtk", "statsmodels", "pymoo", "dask", "tqdm")
 _INPUT_KEYS = (".toml", ".csv")
@@ -64,7 +75,7 @@ padding:.2em 1em .6em;margin:1em 0 2em}.verdict h2{margin-top:.6em;border:0}h2{f
 margin-top:2em}h3{font-size:1.05em;margin-top:1.4em}
 table{border-collapse:collapse;margin:.5em 0 1em;font-size:.88em}
 th,td{border:1px solid #ccc;padding:.2em .5em;text-align:left;vertical-align:top}
-td code,th code{overflow-wrap:anywhere}
+td code,th code{overflow-wrap:anywhere}table.records td{white-space:nowrap}
 th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
 figure{margin:1em 0}figure img,.verdict img{max-width:100%;height:auto;border:1px solid #ddd}
 figcaption{font-size:.85em;color:#555}pre{background:#f7f7f7;padding:.6em;overflow-x:auto;
@@ -89,14 +100,59 @@ def _size(n: int) -> str:
 
 
 def _scalar(v) -> str:
-    """A JSON value as text: floats by repr (the JSON's own digits)."""
-    if isinstance(v, bool) or v is None:
+    """A JSON value as text: a float to :data:`DIGITS` significant digits.
+
+    >>> _scalar(-27.713338249561137), _scalar(1.2e-11), _scalar(86400.0), _scalar(3)
+    ('-27.7133', '1.2e-11', '86400', '3')
+    """
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
         return json.dumps(v)
     if isinstance(v, float):
-        return repr(v)
+        return f"{v:.{DIGITS}g}"
     if isinstance(v, (int, str)):
         return str(v)
+    if isinstance(v, list) and all(_is_number(x) for x in v):
+        return _numbers(v)
+    if isinstance(v, list) and v and all(isinstance(x, list) for x in v):
+        return _matrix(v)
     return json.dumps(v, ensure_ascii=False)
+
+
+def _matrix(v: list) -> str:
+    """A nested list of numbers (a model's matrix) as its shape and range.
+
+    >>> _matrix([[0.99195, 0.0025], [-0.0006, 0.98]])
+    '2 × 2 values (min -0.0006, max 0.99195)'
+    """
+    import numpy as np
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):               # ragged, or not numbers
+        return json.dumps(v, ensure_ascii=False)[:300]
+    if a.size == 0:
+        return " × ".join(map(str, a.shape)) + " values"
+    return (" × ".join(map(str, a.shape)) + f" values (min {_scalar(float(a.min()))}, "
+            f"max {_scalar(float(a.max()))})")
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _numbers(v: list) -> str:
+    """A list of numbers, rounded; a long one as its count, ends and range.
+
+    >>> _numbers([0.0, 0.0, -0.08])
+    '[0, 0, -0.08]'
+    >>> _numbers([float(i) * 60 for i in range(1441)])
+    '1441 values, 0 … 86400 (min 0, max 86400)'
+    """
+    if len(v) <= MAX_LIST_SHOWN:
+        return "[" + ", ".join(_scalar(x) for x in v) + "]"
+    return (f"{len(v)} values, {_scalar(v[0])} … {_scalar(v[-1])} "
+            f"(min {_scalar(min(v))}, max {_scalar(max(v))})")
 
 
 def _is_scalar(v) -> bool:
@@ -104,7 +160,7 @@ def _is_scalar(v) -> bool:
 
 
 def _cell(v) -> str:
-    cls = ' class="num"' if isinstance(v, (int, float)) and not isinstance(v, bool) else ""
+    cls = ' class="num"' if _is_number(v) else ""
     return f"<td{cls}>{_e(_scalar(v))}</td>"
 
 
@@ -121,6 +177,9 @@ def _flatten(obj: dict, prefix: str = "") -> tuple[list, list]:
             tables += t
         elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
             tables.append((key, v))
+        elif isinstance(v, list) and v and (all(_is_number(x) for x in v)
+                                            or all(isinstance(x, list) for x in v)):
+            rows.append((key, _scalar(v)))
         elif isinstance(v, list) and all(_is_scalar(x) for x in v):
             shown = ", ".join(_scalar(x) for x in v[:MAX_ROWS])
             more = f" … ({len(v)} values in all)" if len(v) > MAX_ROWS else ""
@@ -136,21 +195,29 @@ def _kv_table(rows) -> str:
 
 
 def _records_table(records: list) -> str:
+    """A list of records as a table: one row per record; a few records with many keys
+    (a replay's axes) transposed, one column per record, so that the table fits a
+    laptop's width instead of scrolling sideways."""
     cols: list = []
     for r in records[:MAX_ROWS]:
         for k in r:
             if k not in cols:
                 cols.append(k)
+
+    def cell(r, c):
+        if c not in r:
+            return "<td></td>"
+        return _cell(r[c]) if _is_scalar(r[c]) else f"<td>{_e(_scalar(r[c])[:300])}</td>"
+    if len(cols) > MAX_COLUMNS and len(records) <= MAX_COLUMNS // 2:
+        body = "".join(f"<tr><th>{_e(c)}</th>" + "".join(cell(r, c) for r in records)
+                       + "</tr>" for c in cols)
+        return f'<table class="records">{body}</table>'
     head = "".join(f"<th>{_e(c)}</th>" for c in cols)
-    body = ""
-    for r in records[:MAX_ROWS]:
-        cells = "".join("<td></td>" if c not in r else _cell(r[c]) if _is_scalar(r[c]) else
-                        f"<td>{_e(json.dumps(r[c], ensure_ascii=False)[:300])}</td>"
-                        for c in cols)
-        body += f"<tr>{cells}</tr>"
+    body = "".join("<tr>" + "".join(cell(r, c) for c in cols) + "</tr>"
+                   for r in records[:MAX_ROWS])
     more = (f'<p class="note">first {MAX_ROWS} of {len(records)} rows; the JSON file '
             "has all</p>" if len(records) > MAX_ROWS else "")
-    return f"<table><tr>{head}</tr>{body}</table>{more}"
+    return f'<table class="records"><tr>{head}</tr>{body}</table>{more}'
 
 
 def _json_section(path: Path, rel: Path, inputs: dict, root: Path) -> str:
@@ -196,6 +263,35 @@ def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> N
                 continue
 
 
+def _final_dir(root: Path) -> Path:
+    """Where the folder ``root`` will be read: ``root`` itself, or, when it is a staging
+    directory of :func:`arfem.scenarios.outdir.staged_out_dir` (``<out>/.arfem-staging-
+    .../new`` inside an existing ``--out``, ``<parent>/.arfem-staging-<hash>-.../new``
+    beside a new one), a folder at the depth of ``--out``, for links to files outside it.
+
+    >>> _final_dir(Path("/a/out/.arfem-staging-k2j4_x9q/new")).as_posix()
+    '/a/out'
+    >>> _final_dir(Path("/a/.arfem-staging-0123456789ab-k2j4_x9q/new")).parent.as_posix()
+    '/a'
+    """
+    from arfem.scenarios.outdir import _NEW, _STAGE
+    root = Path(root).resolve()
+    txn = root.parent
+    if root.name != _NEW or not txn.name.startswith(_STAGE):
+        return root
+    if re.match(re.escape(_STAGE) + r"[0-9a-f]{12}-", txn.name):   # beside a new --out
+        return txn.parent / "out"
+    return txn.parent
+
+
+def _rel(dest: Path, root: Path) -> Path:
+    """``dest`` relative to the report in ``root``: a file outside the folder relative
+    to where the folder ends up (:func:`_final_dir`), not to its staging directory."""
+    dest, root = Path(dest).resolve(), Path(root).resolve()
+    base = root if dest.is_relative_to(root) else _final_dir(root)
+    return Path(os.path.relpath(dest, base))
+
+
 def _png_uri(p: Path) -> str | None:
     """A PNG file as a ``data:`` URI, or None if it is not a PNG or too large to embed."""
     if not p.is_file():
@@ -227,8 +323,7 @@ def _markdown(text: str, base: Path, root: Path, embed: set | None = None) -> st
             embed.add(Path(os.path.relpath(dest.resolve(), root.resolve())))
             return f'<img src="{uri}" alt="{_e(alt)}">'
         if "://" not in src and dest.is_file():
-            rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
-            return f'<a href="{_href(rel)}">{_e(alt)}</a>'
+            return f'<a href="{_href(_rel(dest, root))}">{_e(alt)}</a>'
         return _e(alt)
 
     md.add_render_rule("image", image)
@@ -237,8 +332,7 @@ def _markdown(text: str, base: Path, root: Path, embed: set | None = None) -> st
         href = tokens[idx].attrGet("href") or ""
         dest = base / unquote(href)
         if "://" not in href and not href.startswith("#") and dest.is_file():
-            rel = Path(os.path.relpath(dest.resolve(), root.resolve()))
-            tokens[idx].attrSet("href", _href(rel))
+            tokens[idx].attrSet("href", _href(_rel(dest, root)))
             return renderer.renderToken(tokens, idx, options, env)
         env["dropped_link"] = True
         return ""
@@ -331,7 +425,8 @@ def _title(root: Path, files: list[Path]) -> str:
     return root.resolve().name
 
 
-def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True) -> Path:
+def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True,
+                      versions: bool = True) -> Path:
     """Write ``out_dir/report.html`` from whatever arfem outputs ``out_dir`` holds.
 
     Parameters
@@ -345,6 +440,10 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
         List each file's size. ``arfem reproduce`` passes False: its report must be
         byte-identical on a rerun, and the size of the compressed field file depends
         on the last digits of the values, which depend on the CPU's BLAS kernels.
+    versions : bool
+        List the versions of the installed packages. ``arfem reproduce`` passes False:
+        its report is committed, and a fresh clone must stay clean on a machine with
+        other package versions (only arfem's own version is then given).
 
     Returns
     -------
@@ -381,13 +480,13 @@ def write_html_report(out_dir, title: str | None = None, file_sizes: bool = True
     toc = []
     for d in sorted(by_dir, key=lambda p: (len(p.parts), p.as_posix())):
         name = "outputs" if d == Path(".") else d.as_posix()
-        body = _folder_body(root, d, by_dir[d], shown, inputs, verdict_from)
+        body = _folder_body(root, d, by_dir[d], shown, inputs, verdict_from, title)
         if body:
             sid = "d-" + _anchor(d)
             toc.append(f'<li><a href="#{_e(sid)}">{_e(name)}</a></li>')
             sections.append(f'<h2 id="{_e(sid)}">{_e(name)}</h2>' + "".join(body))
     page = _page(title, lead, toc, sections, _external_inputs(inputs, root), root, files,
-                 file_sizes)
+                 file_sizes, versions)
     path = root / REPORT_NAME
     atomic_write_text(path, _scroll_tables(page))
     return path
@@ -407,17 +506,33 @@ def _figure(root: Path, r: Path) -> str:
 
 
 def _folder_body(root: Path, d: Path, rels: list[Path], shown: set, inputs: dict,
-                 verdict_from) -> list[str]:
+                 verdict_from, title: str = "") -> list[str]:
     """The HTML blocks of one folder ``d`` of the output directory: its Markdown files
     first (the top folder's README open, the others collapsed), then its figures, JSON
     tables and TOML inputs; ``inputs`` collects the input files the JSON names."""
     name = "outputs" if d == Path(".") else d.as_posix()
     body = []
+    # the top folder's README (else its first Markdown file) is the page's lead text,
+    # open, its pictures in place and its title (the page's) not repeated; every other
+    # Markdown file is collapsed
+    mds = sorted((r for r in rels if r.suffix.lower() == ".md"),
+                 key=lambda r: (r.name != "README.md", r.name))
+    for k, r in enumerate(mds):
+        text = (root / r).read_text("utf-8", errors="replace")
+        if verdict_from is not None and r == Path(verdict_from):
+            text = _without_verdict(text)
+        _linked_inputs(text, (root / r).parent, root, inputs)
+        lead = d == Path(".") and k == 0
+        if lead:
+            text = _without_title(text, title)
+        body.append(f'<details{" open" if lead else ""}><summary><a href="{_href(r)}">'
+                    f"{_e(r.as_posix())}</a></summary>"
+                    f"{_markdown(text, (root / r).parent, root, shown if lead else None)}"
+                    "</details>")
     pngs = [r for r in rels if r.suffix.lower() == ".png" and r not in shown]
-    body += [f'<p class="note">{_e(r.as_posix())}: shown in the verdict above '
+    body += [f'<p class="note">{_e(r.as_posix())}: shown above '
              f'(<a href="{_href(r)}">file</a>).</p>' for r in rels if r in shown]
     jsons = [r for r in rels if r.suffix.lower() == ".json"]
-    mds = [r for r in rels if r.suffix.lower() == ".md"]
     tomls = [r for r in rels if r.suffix.lower() == ".toml"]
     body += [_figure(root, r) for r in pngs]
     if len(jsons) > MAX_JSON_TABLES:
@@ -430,18 +545,29 @@ def _folder_body(root: Path, d: Path, rels: list[Path], shown: set, inputs: dict
         text = (root / r).read_text("utf-8", errors="replace")
         body.append(f'<h3>input: <a href="{_href(r)}">{_e(r.as_posix())}</a></h3>'
                     f"<pre>{_e(text)}</pre>")
-    # the top folder's README (else its first Markdown file) is the page's lead text,
-    # open; every other Markdown file is collapsed
-    mds.sort(key=lambda r: (r.name != "README.md", r.name))
-    for k, r in enumerate(mds):
-        text = (root / r).read_text("utf-8", errors="replace")
-        if verdict_from is not None and r == Path(verdict_from):
-            text = _without_verdict(text)
-        opened = " open" if d == Path(".") and k == 0 else ""
-        body.insert(k, f'<details{opened}><summary><a href="{_href(r)}">'
-                       f"{_e(r.as_posix())}</a></summary>"
-                       f"{_markdown(text, (root / r).parent, root)}</details>")
     return body
+
+
+def _linked_inputs(text: str, base: Path, root: Path, inputs: dict) -> None:
+    """Record the files outside ``root`` that a Markdown file links (the model and the
+    record a replay names): they are the folder's inputs."""
+    for href in re.findall(r"\]\(([^)\s]+)\)", text):
+        if "://" in href or href.startswith("#"):
+            continue
+        dest = (base / unquote(href)).resolve()
+        if dest.is_file() and not dest.is_relative_to(root.resolve()):
+            inputs.setdefault(str(dest), dest)
+
+
+def _without_title(text: str, title: str) -> str:
+    r"""``text`` (Markdown) without its first line when that is the page's title.
+
+    >>> _without_title("# `run`: a unit\n\nbody", "run: a unit")
+    '\nbody'
+    """
+    first, _, rest = text.partition("\n")
+    return rest if first.startswith("# ") and \
+        first[2:].strip().replace("`", "") == title else text
 
 
 def _external_inputs(inputs: dict, root: Path) -> list[str]:
@@ -451,20 +577,24 @@ def _external_inputs(inputs: dict, root: Path) -> list[str]:
     for p in sorted(inputs.values()):
         if p.is_relative_to(root.resolve()):
             continue                                   # shown or listed with the outputs
-        rel = Path(os.path.relpath(p, root.resolve()))
+        rel = _rel(p, root)
         ext.append(f'<li><a href="{_href(rel)}">{_e(rel.as_posix())}</a></li>')
     return ext
 
 
 def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[str],
-          root: Path, files: list[Path], file_sizes: bool) -> str:
+          root: Path, files: list[Path], file_sizes: bool, versions: bool = True) -> str:
     """The whole page: title, verdict, contents, the folders' sections, the inputs, the
     file listing and the software versions."""
     listing = "".join(
         f'<tr><td><a href="{_href(r)}">{_e(r.as_posix())}</a></td>'
         + (f'<td class="num">{_e(_size((root / r).stat().st_size))}</td>' if file_sizes else "")
         + "</tr>" for r in files)
-    versions = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in _versions())
+    rows = _versions() if versions else [r for r in _versions() if r[0] == "arfem"]
+    software = "".join(f"<tr><th>{_e(k)}</th><td>{_e(v)}</td></tr>" for k, v in rows)
+    said = ("Versions installed where this report was written." if versions else
+            "The arfem version that wrote this report (the other packages' versions are "
+            "left out: the page is committed and must not change with them).")
     return (
         '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
@@ -472,8 +602,9 @@ def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[
         f"<h1>{_e(title)}</h1>"
         + lead +
         f'<p class="note">Generated by <code>arfem report</code> from the files in this '
-        "directory; the numbers are those of its JSON files, the figures are embedded, the "
-        "links are relative.</p>"
+        "directory; the numbers are those of its JSON files, rounded to "
+        f"{DIGITS} significant digits (the files have every digit), the figures are "
+        "embedded, the links are relative.</p>"
         f'<ul>{"".join(toc)}<li><a href="#inputs">inputs</a></li>'
         '<li><a href="#files">files</a></li><li><a href="#versions">software</a></li></ul>'
         + "".join(sections)
@@ -485,6 +616,6 @@ def _page(title: str, lead: str, toc: list[str], sections: list[str], ext: list[
            '<p class="note">No input file is recorded in this directory.</p>')
         + '<h2 id="files">files</h2><table><tr><th>file</th>'
         + ("<th>size</th>" if file_sizes else "") + f"</tr>{listing}</table>"
-        + '<h2 id="versions">software</h2><p class="note">Versions installed where this '
-        f"report was written.</p><table>{versions}</table>"
+        + f'<h2 id="versions">software</h2><p class="note">{said}</p>'
+        f"<table>{software}</table>"
         "</body></html>\n")

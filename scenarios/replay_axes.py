@@ -171,6 +171,8 @@ def replay_axes(model: StateSpaceModel, ds, *, max_offset_um=math.inf,
             clamped[j] += "clamped" in a.alarms
             limited[j] += "rate_limited" in a.alarms
     resid = meas + off
+    if getattr(ds, "displacement_zero", "reference") == "first_row":
+        resid = resid - off[:1]          # zeroed probes: the model minus its first row
     start, basis = scored_from_s(model, t, score_from_s)
     ok = np.all(np.isfinite(meas), axis=1) & (t >= start)
     ok[:first] = False

@@ -63,15 +63,24 @@ def _main_reproduce(args) -> int:
 
 def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run one scenario: FEM vs AR(1), all outputs",
-                       description="Run one scenario file: FEM against the paper's AR(1) and "
-                                   "the corrected AR(1); writes timeseries.csv, summary.json, "
-                                   "figure.png, summary.md and FEM fields into --out. A mesh "
-                                   "scenario ([geometry], e.g. scenarios/spindle_unit.toml) "
-                                   "writes each sensor's history (sensors.csv), geometry.png, "
-                                   "the fields, model.json (version 2), the run as a "
-                                   "contract-v3 record (record.toml + record.csv, for arfem "
-                                   "compensate and arfem diagnose) and scenario.toml with its "
-                                   "mesh beside it (re-runnable from any directory).")
+                       description="Run one scenario file into --out. The paper's rod "
+                                   "([rod]): the FEM against the paper's AR(1) and the "
+                                   "corrected AR(1); writes timeseries.csv, summary.json, "
+                                   "summary.md, figure.png, model.json, "
+                                   "model_corrected.json, scenario.toml, report.html and, "
+                                   "as [outputs] asks, temperature_3d.png and the fields "
+                                   "(fields/fields.xdmf3, fields/fields.h5, "
+                                   "fields/peak.xdmf). A mesh scenario ([geometry], e.g. "
+                                   "scenarios/spindle_unit.toml): each sensor's history; "
+                                   "writes sensors.csv, sensors.json, summary.json, "
+                                   "summary.md, sensors.png, model.json (version 2), "
+                                   "record.toml + record.csv (the run as a contract-v3 "
+                                   "record, for arfem compensate and arfem diagnose), "
+                                   "scenario.toml with a copy of its mesh (re-runnable from "
+                                   "any directory), report.html and, as [outputs] asks, "
+                                   "geometry.png (on by default) and the fields "
+                                   "(fields/fields.xdmf3, fields/fields.h5; off by "
+                                   "default).")
     p.add_argument("scenario", help="scenario TOML file (or a built-in name: paper_fig2, paper_fig3)")
     p.add_argument("--out", required=True, help="output directory (must be new or empty)")
     p.add_argument("--force", action="store_true", help="replace files in a non-empty --out")

@@ -42,3 +42,25 @@ def test_roles_and_picture_of_the_box(tmp_path):
                for c in _GROUP_COLOURS[:len(gm.surfaces)]}
     for c in colours:       # each group's colour appears (its legend patch at least)
         assert np.any(np.all(np.abs(img - np.array(c)) <= 2, axis=-1)), c
+
+
+def test_the_scale_bar_is_true_in_the_orthographic_view():
+    """The scale bar of the geometry picture: a round length (1, 2 or 5 × 10^k mm) drawn
+    over exactly length × pixels per metre of the view, at most a fifth of the image;
+    the view's right and up are orthonormal and perpendicular to the line of sight."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from arfem.fem.export import ParallelView, draw_scale_bar
+    v = ParallelView.of((1.2, -2.0, -0.6), (0, 0, 0), (0, 0, 1), 0.35, 860)
+    r, u = np.array(v.right), np.array(v.up)
+    d = -np.array([1.2, -2.0, -0.6]) / np.linalg.norm([1.2, -2.0, -0.6])
+    assert abs(r @ u) < 1e-12 and abs(r @ d) < 1e-12 and abs(u @ d) < 1e-12
+    assert v.px_per_m == 860 / 0.7
+    fig, ax = plt.subplots()
+    L = draw_scale_bar(ax, v, (860, 1000, 3))
+    bar = ax.lines[0].get_xdata()
+    plt.close(fig)
+    assert round(L * 1e3) in (100, 200, 50) and L * v.px_per_m <= 200
+    assert abs(bar[1] - bar[0] - L * v.px_per_m) < 1e-9

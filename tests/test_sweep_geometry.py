@@ -188,3 +188,38 @@ def test_a_dask_cluster_gives_the_in_process_table(tmp_path):
     ra, rb = _rows(tmp_path / "local"), _rows(tmp_path / "dask")
     assert [{k: v for k, v in r.items() if k not in skip} for r in ra] == \
         [{k: v for k, v in r.items() if k not in skip} for r in rb]
+
+
+def test_on_workers_each_task_builds_its_model_once(tmp_path):
+    """A 3-point sweep on 2 workers: two tasks of adjacent points, so one point reuses
+    the model its worker built for the point before it (it used to be three builds:
+    nothing reused); the table equals the in-process one apart from timing and reuse."""
+    sw = _files(tmp_path, '"convection.right.h_W_m2K.a" = [5.0, 10.0, 20.0]\n')
+    sweep = load_sweep(sw)
+    run_sweep(sweep, tmp_path / "one", workers=1, progress=False)
+    rep = run_sweep(sweep, tmp_path / "two", workers=2, progress=False)
+    assert rep.n_computed == 3 and rep.n_failed == 0
+    assert "2 tasks of adjacent points" in rep.executor, rep.executor
+    reused = [r["reused"] for r in _rows(tmp_path / "two")]
+    assert sum(r.startswith("nothing (first point") for r in reused) == 2, reused
+    assert sum(r.startswith("mesh, heat and elasticity assembly") for r in reused) == 1
+    skip = {"run_time_s", "reused"}
+    assert [{k: v for k, v in r.items() if k not in skip} for r in _rows(tmp_path / "one")] \
+        == [{k: v for k, v in r.items() if k not in skip} for r in _rows(tmp_path / "two")]
+
+
+def test_by_default_the_rest_stays_where_the_model_is_when_workers_cost_more(
+        tmp_path, monkeypatch):
+    """The default path: the first point in this process, then the plan on its costs. A
+    worker start-up that never pays (monkeypatched, so no timing decides) keeps every
+    point here, each after the first reusing the model this process built."""
+    from arfem.scenarios.sweep import runner
+    monkeypatch.setattr(runner, "WORKER_START_S", 1e9)
+    monkeypatch.setattr(runner, "usable_cores", lambda: 2)
+    clear_geometry_cache()
+    sw = _files(tmp_path, '"heat_source.heater.scale" = [1.0, 2.0, 3.0]\n')
+    rep = run_sweep(load_sweep(sw), tmp_path / "o", progress=False)
+    assert rep.executor.startswith("local, in-process (the points share a model"), rep.executor
+    reused = [r["reused"] for r in _rows(tmp_path / "o")]
+    assert sum(r.startswith("nothing") for r in reused) == 1, reused
+    assert sum("reduced modes" in r for r in reused) == 2

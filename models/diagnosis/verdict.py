@@ -99,8 +99,9 @@ UNITS_RATIO = 0.05
 #: quantised), per record unit: 0.01 µm for a displacement probe (a capacitive or
 #: eddy-current probe of a thermal test resolves 1-10 nm; ISO 230-3 asks for a
 #: resolution well under the error measured) and 0.01 K for a thermometer (a Pt100
-#: behind a 16-bit converter). A residual below it on every channel is "explained"
-RESOLUTION_DEFAULTS = {"um": 0.01, "K": 0.01}
+#: behind a 16-bit converter), and 0.1 µrad for a tilt channel (an electronic level).
+#: A residual below it on every channel is "explained"
+RESOLUTION_DEFAULTS = {"um": 0.01, "K": 0.01, "urad": 0.1}
 
 #: the default resolution of a growth record on the rod [µm] (:data:`RESOLUTION_DEFAULTS`)
 DEFAULT_RESOLUTION = RESOLUTION_DEFAULTS["um"]

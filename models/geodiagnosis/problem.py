@@ -30,10 +30,10 @@ class Channel:
     ----------
     column : str, e.g. ``d_tcp_z_um`` or ``T_housing_C``
     sensor : str, the scenario's sensor name
-    kind : str, ``"displacement"`` or ``"temperature"``
+    kind : str, ``"displacement"``, ``"temperature"`` or ``"tilt"``
     output : int, the sensor's column in the model's outputs
-    scale : float, model unit → record unit (1e6 m → µm; 1 K → K)
-    unit : str, ``"um"`` or ``"K"``
+    scale : float, model unit → record unit (1e6 m → µm, rad → µrad; 1 K → K)
+    unit : str, ``"um"``, ``"urad"`` or ``"K"``
     """
 
     column: str
@@ -57,6 +57,11 @@ class GeoRecord:
     power_W : ndarray (N, S), each source's input (its power [W] or flux [W/m²])
     speed_rpm : ndarray (N,), zeros where the record has none
     ambient_C : ndarray (N,) or None
+    displacement_zero : str
+        ``"reference"``: the displacement (and tilt) channels read from the stress-free
+        reference state; ``"first_row"``: the probes were zeroed at the first row (ISO
+        230-3): those channels are held as deviations from their mean over the record,
+        and every prediction is compared the same way (:func:`_zeroed`).
     """
 
     name: str
@@ -66,6 +71,7 @@ class GeoRecord:
     power_W: np.ndarray
     speed_rpm: np.ndarray
     ambient_C: np.ndarray | None
+    displacement_zero: str = "reference"
 
 
 @dataclass(frozen=True)
@@ -198,11 +204,30 @@ def responses(model: GeoModel, rec: GeoRecord, s: Setting, shape: np.ndarray,
     if warm:
         w = simulate(model.rb, tr, z0=model.rb.ones)[off:]
         Rw = w[:, idx] * sc[None, :]
+    if rec.displacement_zero == "first_row":        # like with like: zeroed probes
+        for j in _zeroed(rec):
+            ok = np.isfinite(rec.data[:, j])
+            R[:, j, :] -= R[ok, j, :].mean(axis=0)
+            if Rw is not None:
+                Rw[:, j] -= Rw[ok, j].mean()
     return R, Rw
 
 
+def _zeroed(rec: GeoRecord) -> list:
+    """The channels a ``first_row`` record zeroed at its start (displacements, tilts).
+
+    Zeroed probes read y_t = m_t − m_0 + e_t − e_0: the zeroing reading's own noise e_0
+    sits on every row. Data and model are therefore both compared as deviations from
+    their mean over the record's readings (:func:`make_record` centres the data,
+    :func:`responses` the model): the same as zeroing the model at its first row, with
+    e_0 gone (a free constant per channel, projected out), one datum per channel spent.
+    """
+    return [j for j, c in enumerate(rec.channels) if c.kind != "temperature"]
+
+
 def make_record(name: str, time_s, readings, columns, sensor_names, sensor_kinds,
-                power_W, speed_rpm=None, ambient_C=None, reference_C: float = 20.0) -> GeoRecord:
+                power_W, speed_rpm=None, ambient_C=None, reference_C: float = 20.0,
+                displacement_zero: str = "reference") -> GeoRecord:
     """A :class:`GeoRecord` from readings in record units (µm; °C), columns named
     ``d_<sensor>_um`` / ``T_<sensor>_C``; thermometers are kept as θ = T − reference [K],
     the model's own variable.
@@ -213,12 +238,15 @@ def make_record(name: str, time_s, readings, columns, sensor_names, sensor_kinds
     columns : sequence of str, one per column of ``readings``
     sensor_names, sensor_kinds : the scenario's sensors in output order
     power_W : ndarray (N, S)
+    displacement_zero : ``"reference"`` | ``"first_row"`` (:class:`GeoRecord`)
     """
     chans = []
     data = np.array(readings, float, copy=True)
     for j, col in enumerate(columns):
         if col.startswith("d_") and col.endswith("_um"):
             s, kind, scale, unit = col[2:-3], "displacement", 1e6, "um"
+        elif col.startswith("tilt_") and col.endswith("_urad"):     # evidence, in µrad
+            s, kind, scale, unit = col[5:-5], "tilt", 1e6, "urad"
         else:
             s, kind, scale, unit = col[2:-2], "temperature", 1.0, "K"
             data[:, j] -= reference_C
@@ -228,5 +256,10 @@ def make_record(name: str, time_s, readings, columns, sensor_names, sensor_kinds
         chans.append(Channel(col, s, kind, k, scale, unit))
     t = np.asarray(time_s, float)
     speed = np.zeros_like(t) if speed_rpm is None else np.asarray(speed_rpm, float)
-    return GeoRecord(name, t, data, tuple(chans), np.asarray(power_W, float).reshape(t.size, -1),
-                     speed, None if ambient_C is None else np.asarray(ambient_C, float))
+    rec = GeoRecord(name, t, data, tuple(chans), np.asarray(power_W, float).reshape(t.size, -1),
+                    speed, None if ambient_C is None else np.asarray(ambient_C, float),
+                    displacement_zero)
+    if displacement_zero == "first_row":
+        for j in _zeroed(rec):
+            data[:, j] -= np.nanmean(data[:, j])
+    return rec

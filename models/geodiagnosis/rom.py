@@ -31,9 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from skfem import FacetBasis
 
-from arfem.fem.body import _per_element, conduction, unit_load
+from arfem.fem.body import _per_element, conduction
 from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.fem.reduced import _m_orthonormal
 
@@ -113,12 +112,11 @@ def interface_layers(body, ratio: float = THIN_LAYER_RATIO) -> tuple:
 
 
 def surface_power_column(body, group: str, where: str) -> np.ndarray:
-    """The load column of 1 W spread evenly over a surface group [1/m² · m² = 1]."""
-    fac = body.gmesh.surface_group(group, where)
-    fb = FacetBasis(body.gmesh.mesh, body.basis.elem, facets=fac,
-                    intorder=body.basis.quadrature[0].shape[0] + 1)
-    f = unit_load.assemble(fb)
-    return f / float(f.sum())
+    """The load column of 1 W spread evenly over a surface group [1/m² · m² = 1], or
+    over a volume group's volume (:func:`arfem.fem.body.power_column`, the heat sources'
+    own rule): a missing source may sit in a volume (a motor's stator)."""
+    from arfem.fem.body import power_column
+    return power_column(body, group, where)
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,10 @@ is the SHA-256 of that dict (the mesh by its SHA-256, names and outputs left out
 an interrupted sweep resumes as the rod's does.
 
 What is reused between points (per process: in-process, per local worker, per Dask
-worker), and why it gives the same numbers as a run of each point on its own:
+worker), and why it gives the same numbers as a run of each point on its own (on
+workers, each worker gets one task of adjacent points, in the order that shares the
+most, so that it builds the model once for its task:
+:func:`arfem.scenarios.sweep.geometry_run.plan_tasks`):
 
 - the mesh read, the heat assembly (M, K, the convection matrices B_g, the input
   matrix F), the elasticity's factored stiffness and the sensors' rows G: none depends
@@ -300,6 +303,9 @@ def metric_columns(sensors) -> list:
     for name, q in sensors:
         if q == "temperature":
             cols += [f"T_{name}_peak_C", f"T_{name}_peak_time_h", f"T_{name}_final_C"]
+        elif q == "tilt":
+            cols += [f"tilt_{name}_peak_urad", f"tilt_{name}_peak_time_h",
+                     f"tilt_{name}_final_urad"]
         else:
             cols += [f"d_{name}_peak_um", f"d_{name}_peak_time_h", f"d_{name}_final_um"]
     return cols
@@ -319,7 +325,8 @@ def sensor_metrics(run) -> dict:
         else:
             v = run.result.outputs[:, list(sc.sensors).index(s)] * 1e6
             j = int(np.argmax(np.abs(v)))
-            pre, unit = f"d_{s.name}", "um"
+            pre, unit = ((f"tilt_{s.name}", "urad") if s.quantity == "tilt"
+                         else (f"d_{s.name}", "um"))
         out[f"{pre}_peak_{unit}"] = float(v[j])
         out[f"{pre}_peak_time_h"] = float(t_h[j])
         out[f"{pre}_final_{unit}"] = float(v[-1])
@@ -371,7 +378,7 @@ def _adjoint(entry: _Entry) -> np.ndarray:
         m = entry.base
         el = m.elastic
         W = np.column_stack([el.sensor_weight(s, f"sensor {s.name!r}")
-                             for s in m.scenario.sensors if s.quantity == "displacement"])
+                             for s in m.scenario.sensors if s.elastic])
         Y = np.zeros_like(W)
         Y[el.free] = el.factor.solve(np.ascontiguousarray(W[el.free]))
         entry.adjoint = Y
@@ -405,7 +412,7 @@ def _variant(entry: _Entry, sc) -> tuple:
         T = thermal_coupling.assemble(th.basis, el.basis,
                                       beta=_per_element(th.basis, props["beta"])).tocsr()
         el2 = replace(el, thermal=th2, T=T)
-        cols = [j for j, s in enumerate(base.scenario.sensors) if s.quantity == "displacement"]
+        cols = [j for j, s in enumerate(base.scenario.sensors) if s.elastic]
         G = G.copy()
         G[:, cols] = np.asarray(T.T @ _adjoint(entry))
         redone.append("T and G = Tᵀ(K⁻¹w)")
@@ -446,7 +453,9 @@ def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=No
     t0 = time.perf_counter()
     sc = geometry_scenario_from_dict(data, source, Path(data["geometry"]["mesh"]).parent)
     sc = replace(sc, fields=False, picture=False)
+    t_model = time.perf_counter()
     model, mkey, reused = _model_for(sc)
+    model_s = time.perf_counter() - t_model
     modes = None
     if sc.solver == "reduced":
         h = model.history.h_W_m2K
@@ -462,5 +471,5 @@ def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=No
                     "n_samples": int(run.result.times_s.size),
                     "reference_C": float(sc.reference_C),
                     "total_h": float(sc.total_s / 3600.0), "reused": reused})
-    return {"metrics": metrics, "run_time_s": time.perf_counter() - t0,
+    return {"metrics": metrics, "run_time_s": time.perf_counter() - t0, "model_s": model_s,
             "worker": f"{socket.gethostname()}:{os.getpid()}"}

@@ -15,7 +15,7 @@ from arfem.scenarios.sweep.geometry import (GeometrySweep, evaluate_geometry_poi
 from arfem.scenarios.sweep.spec import canonical
 from arfem.scenarios.sweep.store import PointStore, record_header_problem
 
-__all__ = ["GeometryPointStore", "geometry_record_problem", "run_geometry_sweep",
+__all__ = ["GeometryPointStore", "geometry_record_problem", "run_geometry_sweep", "plan_tasks",
            "geometry_rows", "write_geometry_sweep_outputs", "FIGURE"]
 
 FIGURE = "sensor_peaks.png"
@@ -82,6 +82,47 @@ def _unique_in_order(todo) -> list:
     return _order({p.key: p for p in todo}.values())
 
 
+def plan_tasks(points: list, first: dict | None, n_workers: int,
+               start_s: float | None = None) -> list | None:
+    """How the points after the first go to ``n_workers`` workers: ``n`` runs of
+    adjacent points (each worker then builds the model once and reuses it, and the modes
+    where h repeats, across its run), or None to compute them in this process.
+
+    ``first``: the first point's result, computed in this process (None when the
+    workers were asked for: always the workers). Its ``model_s`` (building the model:
+    mesh, assembly, elasticity) and the rest of its ``run_time_s`` (the solve) give the
+    two costs: the rest here takes n·solve (the model is held), on w workers
+    start + model + ⌈n/w⌉·solve, with ``start_s`` a worker's start-up
+    (:data:`arfem.scenarios.sweep.runner.WORKER_START_S`). The workers get the points
+    only when they finish sooner.
+
+    Examples
+    --------
+    >>> plan_tasks(list("ab"), {"run_time_s": 11.0, "model_s": 6.0}, 2) is None
+    True
+    >>> plan_tasks(list("abcdefg"), {"run_time_s": 11.0, "model_s": 6.0}, 2)
+    [['a', 'b', 'c', 'd'], ['e', 'f', 'g']]
+    >>> plan_tasks(list("abc"), None, 2)
+    [['a', 'b'], ['c']]
+    """
+    from arfem.scenarios.sweep.runner import WORKER_START_S
+    n = len(points)
+    w = max(1, min(n_workers, n))
+    if first is not None:
+        start = WORKER_START_S if start_s is None else start_s
+        build = float(first.get("model_s", 0.0))
+        solve = max(float(first["run_time_s"]) - build, 0.0)
+        if n * solve <= start + build + math.ceil(n / w) * solve:
+            return None
+    size, extra = divmod(n, w)
+    out, i = [], 0
+    for k in range(w):
+        j = i + size + (k < extra)
+        out.append(list(points[i:j]))
+        i = j
+    return out
+
+
 def run_geometry_sweep(sweep: GeometrySweep, out, *, workers=None, scheduler=None,
                        force: bool = False, progress: bool = True, timeout_s: float = 5.0,
                        worker_wait_s: float = 60.0, point_fn=evaluate_geometry_point,
@@ -93,7 +134,7 @@ def run_geometry_sweep(sweep: GeometrySweep, out, *, workers=None, scheduler=Non
                         write=write_geometry_sweep_outputs, workers=workers,
                         scheduler=scheduler, force=force, progress=progress,
                         timeout_s=timeout_s, worker_wait_s=worker_wait_s, point_fn=point_fn,
-                        warn=warn or note, limits=limits)
+                        warn=warn or note, limits=limits, plan=plan_tasks)
 
 
 def _ready_store(out: Path, sweep: GeometrySweep, mode: str) -> "GeometryPointStore":

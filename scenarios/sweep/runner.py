@@ -153,7 +153,8 @@ def run_sweep(sweep: Sweep, out, *, workers: int | None = None, scheduler: str |
 def run_in_store(sweep, out, *, ready_store: Callable, order: Callable, write: Callable,
                  workers: int | None, scheduler: str | None, force: bool, progress: bool,
                  timeout_s: float, worker_wait_s: float, point_fn: Callable,
-                 warn: Callable, limits: Limits | None) -> RunReport:
+                 warn: Callable, limits: Limits | None,
+                 plan: Callable | None = None) -> RunReport:
     """The one loop of a sweep over its store, shared by the rod's and the mesh's sweep:
     open (or resume) the store under its lock, compute the points it lacks (in process,
     on local workers or on Dask), log the run and write the outputs.
@@ -161,7 +162,11 @@ def run_in_store(sweep, out, *, ready_store: Callable, order: Callable, write: C
     ``ready_store(out, sweep, mode)`` gives the store ready to take points,
     ``order(todo)`` the points to compute in the order that shares the most work, and
     ``write(sweep, out, store, report, runs)`` the outputs (see :func:`run_sweep` for
-    the other parameters)."""
+    the other parameters). ``plan(points, first, n_workers)``, where points share work
+    that only the process holding it can reuse (a mesh sweep's model), splits the
+    points into runs of adjacent points, each sent to a worker as one task, or returns
+    None to compute them in this process; ``first`` is the result of the point computed
+    in this process to measure the costs (None when the workers were asked for)."""
     out = Path(out)
     mode = open_store(out, sweep, force)
     timeout_s = check_wait(timeout_s, "--connect-timeout", warn, MAX_CONNECT_S)
@@ -189,7 +194,8 @@ def run_in_store(sweep, out, *, ready_store: Callable, order: Callable, write: C
                 # by default, start workers only for what the first seconds in-process
                 # did not finish (issue 30: the shipped sweep was slower on 2 workers)
                 first_s = IN_PROCESS_FIRST_S if workers is None and scheduler is None else 0.0
-                _compute(sweep, unique, store, executor, fn, rep, run_id, progress, first_s)
+                _compute(sweep, unique, store, executor, fn, rep, run_id, progress, first_s,
+                         plan)
             else:
                 rep.executor = "nothing to compute"
                 if executor is not None:
@@ -277,8 +283,33 @@ WORKER_START_S = 1.5
 IN_PROCESS_FIRST_S = 2.0 * WORKER_START_S
 
 
+class PointFailed(Exception):
+    """A point that failed inside a task of several points (its message as the worker
+    wrote it: ``Type: message``)."""
+
+
+def evaluate_points(point_fn: Callable, items: list) -> list:
+    """Evaluate ``[(data, source), ...]`` one after the other in one process (a worker
+    task of a planned sweep, whose points share what the process caches); per point
+    ``(True, result)`` or ``(False, "Type: message")``: one failure does not lose the
+    task's other points."""
+    out = []
+    for data, source in items:
+        try:
+            out.append((True, point_fn(data, source)))
+        except Exception as exc:                        # reported per point, as alone
+            out.append((False, f"{type(exc).__name__}: {' '.join(str(exc).split())}"))
+    return out
+
+
+def _n_workers(executor) -> int:
+    if isinstance(executor, LocalExecutor):
+        return executor.workers
+    return max(1, executor.n_workers())
+
+
 def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress,
-             in_process_first_s: float = 0.0):
+             in_process_first_s: float = 0.0, plan: Callable | None = None):
     from tqdm import tqdm
     bar = tqdm(total=rep.n_points, initial=rep.n_points - len(points), desc=f"sweep {sweep.name}",
                unit="pt", file=sys.stderr, disable=not progress, dynamic_ncols=True,
@@ -292,14 +323,18 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress,
 
     def failed(p: Point, exc: BaseException):
         rep.n_failed += 1
+        if isinstance(exc, PointFailed):
+            rep.failures.append({"inputs": p.inputs, "error": str(exc)})
+            return
         msg = " ".join(str(exc).split())
         if "deserializ" in msg:
             msg += (" [the Dask scheduler and every worker must be able to import arfem: "
                     "pip install -e <repo> there, or start them with PYTHONPATH=<repo>]")
         rep.failures.append({"inputs": p.inputs, "error": f"{type(exc).__name__}: {msg}"})
 
-    def settle(p: Point, get_result) -> None:
+    def settle(p: Point, get_result) -> dict | None:
         """Store one finished point as soon as it completes, or record its failure."""
+        res = None
         try:
             res = get_result()
         except Exception as exc:
@@ -308,11 +343,16 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress,
             store.put(record(p, res))
             rep.n_computed += 1
         bar.update(1)
+        return res
 
     try:
         if executor is None:
             with blas_threads(1):
                 _serial(sweep, points, point_fn, settle)
+            return
+        if plan is not None:
+            _planned(sweep, points, executor, point_fn, rep, settle, plan,
+                     in_process_first_s > 0 and isinstance(executor, LocalExecutor))
             return
         if in_process_first_s > 0 and isinstance(executor, LocalExecutor):
             t0 = time.perf_counter()
@@ -339,3 +379,48 @@ def _compute(sweep, points, store, executor, point_fn, rep, run_id, progress,
 def _serial(sweep, points, point_fn, settle):
     for p in points:
         settle(p, lambda p=p: point_fn(p.data, f"{sweep.source} point {p.index}"))
+
+
+def _raise(exc: BaseException):
+    raise exc
+
+
+def _planned(sweep, points, executor, point_fn, rep, settle, plan, measure_first: bool):
+    """A planned sweep (see :func:`run_in_store`): with the default workers, the first
+    point in this process and then ``plan`` on its costs; the runs of points it makes go
+    to the workers one task each, so that each worker builds what they share once."""
+    first = None
+    if measure_first:
+        p = points[0]
+        with blas_threads(1):
+            first = settle(p, lambda: point_fn(p.data, f"{sweep.source} point {p.index}"))
+        points = points[1:]
+        if not points:
+            rep.executor = "local, in-process (one point)"
+            return
+    chunks = plan(points, first, _n_workers(executor))
+    if chunks is None:                 # cheaper here, where the first point left its model
+        with blas_threads(1):
+            _serial(sweep, points, point_fn, settle)
+        rep.executor = ("local, in-process (the points share a model this process holds; "
+                        "workers would not finish sooner)")
+        return
+    if measure_first:
+        rep.executor = f"local, in-process for 1 point, then {executor.label}"
+    rep.executor += (f", {len(chunks)} task{'s' if len(chunks) > 1 else ''} of adjacent "
+                     "points (each worker reuses its model across its task)")
+    with executor:
+        futs = {executor.submit(evaluate_points, point_fn,
+                                [(p.data, f"{sweep.source} point {p.index}") for p in c]): c
+                for c in chunks}
+        for fut in executor.as_completed(list(futs)):
+            try:
+                results = fut.result()
+            except Exception as exc:              # the whole task: each of its points failed
+                results = [(False, exc)] * len(futs[fut])
+            for p, (ok, res) in zip(futs[fut], results):
+                if ok:
+                    settle(p, lambda res=res: res)
+                else:
+                    err = res if isinstance(res, BaseException) else PointFailed(res)
+                    settle(p, lambda err=err: _raise(err))
