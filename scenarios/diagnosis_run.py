@@ -15,7 +15,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "compensator_models", "diagnose_file", "add_stability",
-           "run_diagnosis", "terminal_line"]
+           "run_diagnosis", "rod_terminal_line"]
 
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
@@ -190,12 +190,12 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     return diag.summary
 
 
-def terminal_line(s: dict) -> str:
+def rod_terminal_line(s: dict) -> str:
     """The command's first line, from diagnosis.json's content: the verdict, the cause
     only where it is established (else the best candidate, marked as such), and the
     hold-out scores.
 
-    >>> terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
+    >>> rod_terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
     ...                "best_candidate": {"cause": "frame_expansion",
     ...                                   "causes": [{"cause": "frame_expansion"}]},
     ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,

@@ -27,7 +27,7 @@ from arfem.scenarios.georecord import is_mesh_record, read_record_files, read_ta
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
-           "summary_of", "terminal_line", "main_geodiagnose"]
+           "summary_of", "mesh_terminal_line", "main_geodiagnose"]
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
@@ -181,10 +181,10 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
     return s
 
 
-def terminal_line(s: dict) -> str:
+def mesh_terminal_line(s: dict) -> str:
     """The command's first line.
 
-    >>> terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
+    >>> mesh_terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
     ...                "holdout": {"gain_pct": 0.0}})
     'r: verdict = explained; cause = none; hold-out gain 0.0 %'
     """
@@ -288,6 +288,6 @@ def main_geodiagnose(args) -> int:
     from arfem.scenarios.progress import Progress
     with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
         s = run_geodiagnosis(args.case, args.out, args.holdout_start, args.force, progress)
-    print(terminal_line(s) + f"; wrote {args.out}")
+    print(mesh_terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")
     return 0

@@ -16,7 +16,7 @@ import pytest
 from arfem.models.diagnosis import verdict as vd
 from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.diagnosis_run import add_stability, run_diagnosis, terminal_line
+from arfem.scenarios.diagnosis_run import add_stability, run_diagnosis, rod_terminal_line
 from arfem.scenarios.diagnosis_report import verdict as report_verdict
 from arfem.scenarios.synth_files import write_case
 
@@ -153,7 +153,7 @@ def test_terminal_line_and_report_carry_the_json_verdict():
     ``cause = none`` for an unconfirmed cause (the best candidate marked as such), and
     report.md opens with diagnosis.json's own verdict text."""
     s = _verdict(_summary(ci=(-0.1, 0.6)), MISFIT)
-    line = terminal_line(s)
+    line = rod_terminal_line(s)
     assert "verdict = unconfirmed" in line and "cause = none" in line
     assert "best candidate frame_expansion, not established" in line
     head = "\n".join(report_verdict(s))

@@ -499,8 +499,8 @@ def test_channel_far_from_white_is_not_within_the_noise():
 def test_terminal_line_names_the_gain_the_verdict_uses():
     """The first line shows the raw hold-out gain and the whitened one the verdict
     requires, labelled (an audit found the raw one alone, unlabelled)."""
-    from arfem.scenarios.geodiagnose import terminal_line
-    line = terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
+    from arfem.scenarios.geodiagnose import mesh_terminal_line
+    line = mesh_terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
                           "causes": [{"name": "warm_start"}],
                           "holdout": {"gain_pct": -10.8, "gain_whitened_pct": 0.5}})
     assert "hold-out gain -10.8 % (whitened 0.5 %, the one the verdict uses)" in line

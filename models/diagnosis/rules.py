@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
-from arfem.models.diagnosis.candidates import CandidateFit, compatible, fit_causes
+from arfem.models.diagnosis.candidates import CandidateFit, compatible, fit_rod_causes
 from arfem.models.diagnosis.speed_select import drift_last as _drift_last
 from arfem.models.diagnosis.speed_select import median_block_ratio
 from arfem.models.diagnosis.verdict import ALPHA, naming_level, units_suspect
@@ -318,7 +318,7 @@ def _second_cause(cause, fits, phys, args, refused):
             if f is not None and not f.at_bound:
                 start.update(f.theta)
         start.update(extra_start or {})
-        return fit_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
+        return fit_rod_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
 
     pairs = [(cause, c) for c in _PARTNERS
              if c != cause and fits.get(c) is not None and compatible((cause, c))]
@@ -441,7 +441,7 @@ def _pair_parsimony(pair, fits, phys, args):
                  if m == "speed_dependent_convection" else th["log_h_ref"])
         start = {k: v for k, v in th.items() if not k.startswith("log_h") and k != "exponent"}
         start["log_h"] = log_h
-        g = fit_causes((other, "convection_mismatch"), phys, t, q, y, rows, initial_known,
+        g = fit_rod_causes((other, "convection_mismatch"), phys, t, q, y, rows, initial_known,
                        amb_K, frame, start=start)
         if g is None or _implausible(g) is not None:
             continue

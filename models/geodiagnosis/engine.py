@@ -11,9 +11,11 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    (every candidate at once, :func:`.fit.with_noise`); every fit below is generalised
    least squares on it (the Kalman innovations whiten the rows), every interval the
    GLS covariance on the whitened residual's own variance.
-1. The hold-out is the last third of the record (moved back to the last change of the
-   inputs before it when the last third holds none), or from ``holdout_start_s``; every
-   fit uses the rows before it only.
+1. The hold-out is the rod's default (:func:`arfem.models.diagnosis.holdout.default_holdout`:
+   the last third of the record if it holds a change of the input seen for an hour,
+   else the last such change that leaves 40 % to fit; one rule since issue 41, the mesh
+   had moved back to any last change), or from ``holdout_start_s``; every fit uses the
+   rows before it only.
 2. Every single cause of :func:`.fit.candidate_causes` is fitted. A cause passes when
    its nested F test against the nominal model, on the pooled effective sample size of
    its whitened residual (Σ_c N_eff,c, :func:`arfem.models.diagnosis.stats.noise_n_eff`),
@@ -75,6 +77,7 @@ import numpy as np
 
 from dataclasses import replace as with_fields
 
+from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff, xcorr
 from arfem.models.diagnosis.verdict import (EQUIVALENCE_P, beaten_text, NO_EFFECT, RESOLUTION_DEFAULTS,
                                             below_resolution, better, channels_white,
@@ -82,12 +85,12 @@ from arfem.models.diagnosis.verdict import (EQUIVALENCE_P, beaten_text, NO_EFFEC
                                             holdout_tells_apart_p, naming_level, outcome,
                                             reaches_edge, whiteness_p)
 from arfem.models.geodiagnosis.fit import (BOUNDS, PLAUSIBLE, Fit, FitContext,
-                                           candidate_causes, channel_rows, fit_causes,
+                                           candidate_causes, channel_rows, fit_mesh_causes,
                                            implausible,
                                            make_context, whitened, with_noise)
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 
-__all__ = ["GeoDiagnosis", "diagnose_geometry", "default_holdout", "mlr_holdout",
+__all__ = ["GeoDiagnosis", "diagnose_geometry", "mlr_holdout",
            "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
@@ -154,22 +157,6 @@ class GeoDiagnosis:
     def established(self) -> tuple:
         """The established causes (empty unless the verdict is ``established``)."""
         return self.named.causes if self.verdict == "established" and self.named else ()
-
-
-def _last_third(time_s: np.ndarray) -> float:
-    """The start of the record's last third [s]."""
-    return float(time_s[0] + (time_s[-1] - time_s[0]) * 2.0 / 3.0)
-
-
-def default_holdout(time_s: np.ndarray, shape: np.ndarray) -> float:
-    """The start of the last third, moved back to the last change of the input before
-    it if the last third holds none [s]."""
-    t0 = _last_third(time_s)
-    tail = shape[time_s >= t0]
-    if tail.size and np.ptp(tail) > 0:
-        return t0
-    ch = np.flatnonzero(np.diff(shape) != 0)
-    return float(time_s[ch[-1]]) if ch.size else t0
 
 
 def _weighted_rms(ctx: FitContext, pred, rows) -> float:
@@ -291,28 +278,29 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
 
 
 def mlr_holdout(rec: GeoRecord, rows: np.ndarray, ref: np.ndarray | None = None) -> dict:
-    """The MLR of paper eq. 18 per displacement channel on the thermometers (and the
-    ambient): fitted on ``rows``, its prediction on every row, {column: (N,)}; empty
-    where the record has no thermometer. With ``ref`` (N, C), a model's prediction, the
-    regression is of the residual ``data − ref`` and the prediction is ``ref`` plus it:
-    the model with what the thermometers can add to it (a grey-box baseline)."""
-    T = [j for j, c in enumerate(rec.channels) if c.kind == "temperature"]
-    X = [rec.data[:, j] for j in T]
+    """The MLR of paper eq. 18 per displacement channel on the thermometers and the
+    ambient -- the rod's own (:func:`arfem.models.diagnosis.speed.mlr`: one MLR baseline
+    for every plant; a thermometer with an empty cell is left out) -- fitted on
+    ``rows``, its prediction on every row, {column: (N,)}; empty where the record has no
+    thermometer. With ``ref`` (N, C), a model's prediction, the regression is of the
+    residual ``data − ref`` and the prediction is ``ref`` plus it: the model with what
+    the thermometers can add to it (a grey-box baseline)."""
+    from arfem.models.diagnosis.speed import mlr
+    temps = {c.column: rec.data[:, j] for j, c in enumerate(rec.channels)
+             if c.kind == "temperature"}
     if rec.ambient_C is not None:
-        X.append(rec.ambient_C)
-    if not X:
-        return {}
-    X = np.column_stack([np.ones(rec.time_s.size)] + X)
+        temps["ambient_C"] = rec.ambient_C
     out = {}
     for j, c in enumerate(rec.channels):
-        if c.kind != "displacement":
+        if c.kind != "displacement" or not temps:
             continue
         y = rec.data[:, j] - (0.0 if ref is None else ref[:, j])
-        ok = rows & np.all(np.isfinite(X), axis=1) & np.isfinite(y)
-        if ok.sum() < X.shape[1] + 2:
+        ok = rows & np.isfinite(y)
+        if ok.sum() < len(temps) + 3:
             continue
-        b, *_ = np.linalg.lstsq(X[ok], y[ok], rcond=None)
-        out[c.column] = X @ b + (0.0 if ref is None else ref[:, j])
+        pred, names = mlr(np.where(np.isfinite(y), y, 0.0), temps, ok)
+        if pred is not None:
+            out[c.column] = pred + (0.0 if ref is None else ref[:, j])
     return out
 
 
@@ -323,7 +311,7 @@ def _screen(ctx, singles, train, hold, base, n_tests):
     rows = []
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
-        f = fit_causes(ctx, (c,), train, intervals=False)
+        f = fit_mesh_causes(ctx, (c,), train, intervals=False)
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(base.sse_w, f.sse_w, f.n_params, ne)
         rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
@@ -354,7 +342,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
         if c == lead or (c.nonlinear and c.nonlinear == lead.nonlinear and c.kind == lead.kind
                          and c.target == lead.target):
             continue
-        f = fit_causes(ctx, (lead, c), train, intervals=False, fixed=held)
+        f = fit_mesh_causes(ctx, (lead, c), train, intervals=False, fixed=held)
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
         b = bic(f.sse_w, N, ne, f.n_params)
@@ -369,7 +357,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
     # tried)
     first_score = _holdout_score(ctx, first.prediction, hold)
     for _, f in sorted(passing, key=lambda r: r[0]):
-        pair = fit_causes(ctx, f.causes, train, intervals=False)
+        pair = fit_mesh_causes(ctx, f.causes, train, intervals=False)
         if _holdout_score(ctx, pair.prediction, hold) < first_score and \
                 walk_profiled_p(ctx, first.prediction, pair.prediction, train,
                                 pair.n_params - first.n_params) < naming_level(n_tests):
@@ -402,7 +390,7 @@ def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
     for lead in leads:
         if lead.causes == first.causes:
             continue
-        p = _second(ctx, fit_causes(ctx, lead.causes, train, intervals=False), singles,
+        p = _second(ctx, fit_mesh_causes(ctx, lead.causes, train, intervals=False), singles,
                     train, hold, n_tests)
         if p is not None:
             pairs.append((bic(p.sse_w, N, _n_eff(ctx, p.prediction, train), p.n_params), p))
@@ -416,7 +404,7 @@ def _swap_one(ctx, pair: Fit, keep: int, singles, train, hold, n_tests) -> Fit:
     """The pair's cause ``keep`` (0 or 1) held, its partner re-screened (:func:`_swap`)."""
     N = int((ctx.valid & train[:, None]).sum())
     kept, dropped = pair.causes[keep], pair.causes[1 - keep]
-    alone = fit_causes(ctx, (kept,), train, intervals=False)
+    alone = fit_mesh_causes(ctx, (kept,), train, intervals=False)
     # the kept cause's parameter is NOT held at its single fit: alone it stands in for
     # the sum as well (a front contact fitted at 0.51 alone, 0.22 beside the right partner)
     other = _second(ctx, alone, [c for c in singles if c != dropped], train, hold,
@@ -479,7 +467,7 @@ def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
     ne = _n_eff(ctx, pair.prediction, train)
     for k in range(len(pair.causes)):
         rest = tuple(c for i, c in enumerate(pair.causes) if i != k)
-        sub = fit_causes(ctx, rest, train, intervals=False)
+        sub = fit_mesh_causes(ctx, rest, train, intervals=False)
         df = pair.n_params - sub.n_params
         p = max(f_test_p(sub.sse_w, pair.sse_w, df, ne),
                 walk_profiled_p(ctx, sub.prediction, pair.prediction, train, df))
@@ -608,23 +596,21 @@ def _regrown(ctx: FitContext, model: GeoModel, s, train):
     """(``ctx`` on the reduced model regrown at setting ``s``, its nominal fit)."""
     regrown = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
     ctx = with_fields(ctx, model=regrown, cache={})
-    return ctx, fit_causes(ctx, (), train)
+    return ctx, fit_mesh_causes(ctx, (), train)
 
 
 def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     progress = progress or (lambda s: None)
     ctx = make_context(model, rec)
-    h0 = default_holdout(rec.time_s, ctx.shape) if holdout_start_s is None else holdout_start_s
-    how = ("given by the caller (--holdout-start); the fits saw only the rows before it"
-           if holdout_start_s is not None else
-           "the last third of the record (fit window before it)"
-           if h0 == _last_third(rec.time_s) else
-           "the last change of the inputs before the last third (the last third holds "
-           "none); the fits saw only the rows before it")
+    if holdout_start_s is None:
+        h0, how = default_holdout(rec.time_s, ctx.shape)
+    else:
+        h0, how = holdout_start_s, ("given by the caller (--holdout-start); the fits saw "
+                                    "only the rows before it")
     train, hold = rec.time_s < h0, rec.time_s >= h0
     progress("fitting each channel's noise (white plus a random walk)")
     ctx = with_noise(ctx, train)
-    base = fit_causes(ctx, (), train)
+    base = fit_mesh_causes(ctx, (), train)
     singles = candidate_causes(ctx)
     n_tests = max(len(singles), 1)
     progress(f"fitting {len(singles)} single causes")
@@ -636,14 +622,14 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
             # second cause is screened: else the second soaks up that bias
             progress("regrowing the reduced basis at the first cause's setting")
             ctx, base = _regrown(ctx, model, first.setting, train)
-            first = fit_causes(ctx, first.causes, train, intervals=False)
+            first = fit_mesh_causes(ctx, first.causes, train, intervals=False)
         progress("screening a second cause")
         pair, near_pairs = _best_pair(ctx, first, leads, singles, train, hold, n_tests)
         if pair is not None:
             near = near_pairs
             progress("re-screening the first cause beside the second")
             pair = _swap(ctx, pair, singles, train, hold, n_tests)
-        named = fit_causes(ctx, (pair or first).causes, train, intervals=False)
+        named = fit_mesh_causes(ctx, (pair or first).causes, train, intervals=False)
         if pair is not None:
             progress("testing each cause of the pair beside the other")
             named = _prune(ctx, named, train, n_tests)
@@ -651,7 +637,7 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
                 c.nonlinear for c in named.causes):
             progress("regrowing the reduced basis at the named setting")
             ctx, base = _regrown(ctx, model, named.setting, train)
-        named = fit_causes(ctx, named.causes, train)
+        named = fit_mesh_causes(ctx, named.causes, train)
     ext = named if named is not None else base
     wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
     gain = 100.0 * (1.0 - we / wb) if wb > 0 else 0.0
@@ -706,7 +692,7 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
     for causes in near:
         if frozenset(c.name for c in causes) == key:
             continue
-        f = fit_causes(ctx, causes, train, intervals=False)
+        f = fit_mesh_causes(ctx, causes, train, intervals=False)
         db = bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params) - b0
         p = holdout_tells_apart_p(e0, _holdout_errors(ctx, f.prediction, hold))
         if db <= DELTA_BIC and p >= EQUIVALENCE_P:

@@ -53,7 +53,7 @@ from arfem.models.diagnosis.verdict import NO_EFFECT, reaches_edge
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
-           "candidate_causes", "channel_rows", "fit_causes",
+           "candidate_causes", "channel_rows", "fit_mesh_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
@@ -461,7 +461,7 @@ def _predict(ctx: FitContext, causes, nl: dict, beta) -> np.ndarray:
     return out
 
 
-def fit_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True,
+def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True,
                fixed: dict | None = None) -> Fit:
     """Fit ``causes`` (a tuple, ``()`` for the nominal model) on ``rows`` (N,) bool.
 
