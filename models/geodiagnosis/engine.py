@@ -679,8 +679,9 @@ def _whitened_rms(ctx: FitContext, pred, j: int, ok) -> float:
 def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
     """The causes that fit the data as well as ``named`` (rule 1 of
     :mod:`arfem.models.diagnosis.verdict`): of the near-equivalent ones the search met
-    (``near``: cause tuples within ``DELTA_BIC`` on the fit window), each refitted on
-    ``ctx``, those still within ``DELTA_BIC`` of ``named``'s BIC on N_eff whose
+    (``near``: cause tuples within ``DELTA_BIC`` on the fit window) that are not the
+    named causes with one more or one fewer, each refitted on ``ctx``, those still
+    within ``DELTA_BIC`` of ``named``'s BIC on N_eff (either side) whose
     whitened hold-out errors a paired test does not tell from ``named``'s
     (:func:`arfem.models.diagnosis.verdict.holdout_tells_apart_p` >= EQUIVALENCE_P).
     Returns ((cause names, ΔBIC, p), ...)."""
@@ -690,12 +691,15 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
     e0 = _holdout_errors(ctx, named.prediction, hold)
     out = []
     for causes in near:
-        if frozenset(c.name for c in causes) == key:
+        other = frozenset(c.name for c in causes)
+        if other <= key or key <= other:
+            # the named causes with one more or one fewer: not another explanation but
+            # the same one, which the naming and pruning tests (steps 2-4) decided on
             continue
         f = fit_mesh_causes(ctx, causes, train, intervals=False)
         db = bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params) - b0
         p = holdout_tells_apart_p(e0, _holdout_errors(ctx, f.prediction, hold))
-        if db <= DELTA_BIC and p >= EQUIVALENCE_P:
+        if abs(db) <= DELTA_BIC and p >= EQUIVALENCE_P:
             out.append((" + ".join(c.name for c in causes), float(db), float(p)))
     return tuple(out)
 
@@ -774,7 +778,7 @@ def _judge(ctx: FitContext, rec: GeoRecord, base: Fit, named, train, hold,
     floor = below_resolution(worst, res)
     beyond = _thermometers_beyond(ctx, rec, base)
     failed = establishment_failures(named, gain_w) if named is not None else ()
-    failed += tuple(f"{a} fits the data as well (BIC {db:+.1f} on N_eff, within "
+    failed += tuple(f"{a} fits the data as well (BIC {db:+.1f} on N_eff, within ±"
                     f"{DELTA_BIC:g}; the whitened hold-out does not tell them apart, paired "
                     f"test p = {p:.2g} >= {EQUIVALENCE_P:g}): the alternatives are not "
                     "excluded" for a, db, p in alternatives)
