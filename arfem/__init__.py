@@ -14,9 +14,12 @@ Start here::
     ar = arfem.ar1(rod, cycle, dtau_s=30.0)                # the paper's AR(1)
     record = arfem.read_record("my_record.toml")           # a measured record
     diagnosis = arfem.diagnose(record)                     # what the simulation gets wrong
+    unit = arfem.load_scenario("spindle_unit")             # a spindle unit on a Gmsh mesh
+    drift = arfem.solve(unit)                              # its TCP drift [µm] per sensor
 
-What else there is: compare, check and sweep (the FEM against the AR(1) on a scenario
-file), read_model and Compensator (run a compensator), and the result classes; dir(arfem)
+What else there is: run (every file arfem run writes), compare, check and sweep (the FEM
+against the AR(1) on a scenario file, the rod's or a mesh's), read_model and Compensator
+(run a compensator), and the result classes; dir(arfem)
 lists them, and help(arfem.diagnose) and the others give each one's units and an
 example. The same work from the shell: arfem --help. The documentation (command pages,
 file formats, the physics) is in the repository's docs/ folder.
@@ -66,10 +69,11 @@ except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uni
 
 #: The promised API (:mod:`arfem.api`), loaded on first use so that ``import arfem`` stays
 #: fast (the FEM, the diagnosis engine and matplotlib load only when a function runs).
-_API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult", "ar1",
-        "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep", "diagnose",
-        "DiagnosisResult", "diagnose_mesh", "read_record", "Record", "Compensator", "StateSpaceModel",
-        "ar1_model", "read_model", "InputError")
+_API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "shipped_scenario", "solve", "run",
+        "solve_fem", "FemResult", "ar1", "AR1Result", "compare", "Comparison", "check",
+        "CheckResult", "sweep", "SweepResult", "diagnose", "DiagnosisResult", "diagnose_mesh",
+        "read_record", "Record", "Compensator", "StateSpaceModel", "ar1_model", "read_model",
+        "InputError")
 
 __all__ = ["__version__", *_API]
 

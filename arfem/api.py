@@ -7,6 +7,11 @@ and ``to_json()`` where that helps. It is re-exported lazily by ``import arfem``
 engine and matplotlib load only when used. Everything else stays importable from its
 module but is not promised.
 
+The paper's rod and a user's mesh are two kinds of one scenario: :func:`load_scenario`
+reads either, and :func:`solve`, :func:`run`, :func:`compare`, :func:`check` and
+:func:`sweep` take either and give one result type each (:class:`FemResult`,
+:class:`Comparison`, :class:`CheckResult`, :class:`SweepResult`).
+
 This module sits above every layer (ground → fem → models → scenarios → api): it
 composes them, nothing imports it.
 
@@ -22,6 +27,7 @@ Quick start (the FEM and the paper's AR(1) on your own rod in a few lines):
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from collections.abc import Callable, Mapping
@@ -43,12 +49,14 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
 
     from arfem.models.diagnosis.dataset import Dataset
     from arfem.models.geodiagnosis.engine import GeoDiagnosis
-    from arfem.scenarios.checking import Criterion
-    from arfem.scenarios.config import Scenario
-    from arfem.scenarios.sweep.runner import RunReport
+    from arfem.scenarios.rod.checking import Criterion
+    from arfem.scenarios.rod.scenario import Scenario
+    from arfem.scenarios.geometry.check import GeometryCheckCase
+    from arfem.scenarios.geometry.scenario import GeometryScenario
 
-__all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "solve_fem", "FemResult",
-           "ar1", "AR1Result", "compare", "Comparison", "check", "CheckResult", "sweep",
+__all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "shipped_scenario", "solve",
+           "run", "solve_fem", "FemResult", "ar1", "AR1Result", "compare", "Comparison",
+           "check", "CheckResult", "sweep", "SweepResult",
            "diagnose", "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model",
            "read_model", "read_record", "Record", "InputError", "__version__"]
 
@@ -58,78 +66,251 @@ def _frame(columns: dict) -> pandas.DataFrame:
     return pd.DataFrame(columns)
 
 
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario TOML (or a built-in name such as ``"paper_fig2"``).
+# -- scenarios: the rod's and a mesh's --------------------------------------------------------
+
+def shipped_scenario(name: str) -> Path:
+    """The file of a scenario shipped with arfem, by its name.
 
     Parameters
     ----------
-    path : str or path-like
-        A scenario file (see the documentation's "Scenario files" page) or the name of a
-        built-in paper scenario: ``"paper_fig2"`` (q = 2000 W/m²), ``"paper_fig3"``
-        (3000 W/m²).
+    name : str
+        ``"paper_fig2"``, ``"paper_fig3"`` (the paper's rod at q = 2000 and 3000 W/m²),
+        ``"spindle_unit"`` (a spindle unit on a Gmsh mesh, its ``.msh`` beside it), or
+        a shipped sweep (``"sweep_dtau_h"``, ``"sweep_spindle_unit"``); ``.toml`` may
+        be given or left out.
 
     Returns
     -------
-    arfem.scenarios.config.Scenario
-        Validated: ``rod``, ``schedule``, ``dtau_s`` [s], ``fem`` settings, outputs.
+    pathlib.Path
+        The installed file (read it, or copy it to edit it).
 
     Raises
     ------
     InputError
-        Malformed file, unknown key or impossible value; the message names the file
-        and the key.
+        No shipped file of that name; the message lists the names there are.
+
+    Examples
+    --------
+    >>> p = shipped_scenario("spindle_unit")
+    >>> p.name, p.with_suffix(".msh").is_file()
+    ('spindle_unit.toml', True)
+    """
+    from arfem.scenarios.rod.scenario import builtin_scenario_path
+    return builtin_scenario_path(str(name))
+
+
+def _file_or_shipped(path: str | Path) -> Path:
+    """``path`` itself, or the shipped file of a bare name that is no file here (the
+    CLI's rule, :func:`arfem.scenarios.rod.scenario.scenario_file`)."""
+    from arfem.scenarios.rod.scenario import scenario_file
+    return scenario_file(path)
+
+
+def load_scenario(path: str | Path, *, order: int | None = None) -> Scenario | GeometryCheckCase:
+    """Read and validate a scenario TOML: the paper's rod, or a mesh (``[geometry]``).
+
+    Parameters
+    ----------
+    path : str or path-like
+        A scenario file (the documentation's "Scenario files" and "Your own geometry"
+        pages) or the name of a shipped one (:func:`shipped_scenario`):
+        ``"paper_fig2"``, ``"paper_fig3"``, ``"spindle_unit"``.
+    order : {1, 2}, optional
+        Element order instead of the file's (``[fem] order`` of a rod, ``[geometry]
+        order`` of a mesh): 1 for a quick look (seconds on the shipped unit, where 2
+        takes about a minute). Validated as the file's value would be.
+
+    Returns
+    -------
+    Scenario or GeometryCheckCase
+        ``kind == "rod"``: :class:`arfem.scenarios.rod.scenario.Scenario` (``rod``,
+        ``schedule``, ``dtau_s`` [s], ``fem``, ``check``). ``kind == "mesh"``:
+        :class:`arfem.scenarios.geometry.check.GeometryCheckCase`: ``scenario`` (the
+        validated mesh scenario: ``mesh_path``, ``materials``, ``cycle``, ``sources``,
+        ``sensors``, …) and its ``[check]`` values. Both have ``name`` and ``source``.
+
+    Raises
+    ------
+    InputError
+        Malformed file, unknown key or impossible value; the message is the one line
+        ``arfem`` prints: the file, the key and what is wrong.
 
     Examples
     --------
     >>> sc = load_scenario("paper_fig2")
-    >>> sc.dtau_s, sc.schedule.total_s / 3600
-    (30.0, 24.0)
+    >>> sc.kind, sc.dtau_s, sc.schedule.total_s / 3600
+    ('rod', 30.0, 24.0)
+    >>> unit = load_scenario("spindle_unit", order=1)
+    >>> unit.kind, unit.scenario.order, [s.name for s in unit.scenario.sensors][:3]
+    ('mesh', 1, ['tcp_x', 'tcp_y', 'tcp_z'])
     """
-    from arfem.scenarios.config import load_scenario as _load
-    return _load(path)
+    from arfem.io import read_toml
+    from arfem.scenarios.rod.scenario import scenario_from_dict
+    from arfem.scenarios.geometry.check import geometry_case_from_dict
+    p = _file_or_shipped(path)
+    data = read_toml(p)
+    mesh = isinstance(data, dict) and "geometry" in data       # as arfem check tells them
+    if order is not None:
+        key = "geometry" if mesh else "fem"
+        if isinstance(data.get(key, {}), dict):   # else the reader names the bad table
+            data = {**data, key: {**data.get(key, {}), "order": order}}
+    if mesh:
+        return geometry_case_from_dict(data, str(p), p.parent)
+    return scenario_from_dict(data, str(p))
+
+
+def _loaded(scenario) -> Scenario | GeometryCheckCase:
+    """A scenario argument as :func:`load_scenario` gives it (a path or a name is read)."""
+    from arfem.scenarios.rod.scenario import Scenario
+    from arfem.scenarios.geometry.check import GeometryCheckCase
+    from arfem.scenarios.geometry.scenario import GeometryScenario
+    if isinstance(scenario, (Scenario, GeometryCheckCase)):
+        return scenario
+    if isinstance(scenario, GeometryScenario):
+        return GeometryCheckCase(scenario)
+    if isinstance(scenario, (str, Path)):
+        return load_scenario(scenario)
+    raise InputError("must be a scenario from arfem.load_scenario, a scenario file or a "
+                     f"shipped scenario's name, got {type(scenario).__name__}", "scenario")
+
+
+def _progress_hook(progress: bool | Callable[[str], None], steps: int, desc: str):
+    """A context giving the step hook of ``progress``: the callable itself, or a
+    :class:`~arfem.scenarios.progress.Progress` shown on stderr (asked for: shown even
+    where stderr is no terminal, a notebook's) or silent."""
+    if callable(progress):
+        return contextlib.nullcontext(progress)
+    from arfem.scenarios.progress import Progress
+    return Progress(steps, desc, enabled=bool(progress), tty=True)
 
 
 # -- the FEM -------------------------------------------------------------------------------
 
+class Channel(NamedTuple):
+    """One output of a FEM solve: a sensor of a mesh scenario, or the rod's growth.
+
+    Attributes
+    ----------
+    name : str
+        The sensor's name (``"tcp_z"``); the rod's one channel is ``"growth"``.
+    quantity : str
+        ``"displacement"`` [µm], ``"tilt"`` [µrad] or ``"temperature"`` [°C].
+    column : str
+        Its column in the files arfem writes and in :meth:`FemResult.to_dataframe`:
+        ``d_<name>_um``, ``tilt_<name>_urad``, ``T_<name>_C`` (``sensors.csv`` of a
+        mesh run, contract v3); the rod's ``growth_um`` (contract v1).
+    unit : str
+        ``"µm"``, ``"µrad"`` or ``"°C"``.
+    """
+
+    name: str
+    quantity: str
+    column: str
+    unit: str
+
+
+#: The rod's one output: the axial growth α∫θ dV / A of the free rod [µm].
+_ROD_GROWTH = Channel("growth", "displacement", "growth_um", "µm")
+
+
 @dataclass(frozen=True)
 class FemResult:
-    """Axial growth of the FEM rod at the AR sample times.
+    """A FEM solve of the rod or of a mesh: every output channel at the output times.
 
     Attributes
     ----------
     times_s : ndarray
-        0, Δτ, 2Δτ, … [s].
-    growth_um : ndarray
-        Axial growth α∫θ dV / A [µm] (the far-face growth of a free rod).
-    heat_J : ndarray
-        Heat stored in the rod relative to the ambient state [J].
+        Output times [s]: 0, Δτ, 2Δτ, … (the rod), every ``output_interval_s`` (a mesh).
+    displacement_um : dict of str to ndarray
+        Each displacement channel [µm] by name: the rod's ``"growth"`` (α∫θ dV / A, the
+        far-face growth of a free rod), a mesh's sensors along their directions.
+    tilt_urad : dict of str to ndarray
+        Each tilt sensor [µrad] (a mesh's; empty for the rod).
+    temperature_C : dict of str to ndarray
+        Each thermometer [°C] (a mesh's; empty for the rod).
+    channels : tuple of Channel
+        Every channel in the scenario's order: name, quantity, file column, unit.
+    kind : str
+        ``"rod"`` or ``"mesh"``.
+    scenario : str
+        The scenario's name (empty for :func:`solve_fem` on a bare rod).
     model : str
-        ``"axisymmetric"`` or ``"3d"``.
+        The rod's ``"axisymmetric"`` or ``"3d"``; ``"mesh"``.
     solver : str
-        ``"modal"`` (exact in time; reduced-modal on 3D), ``"crank-nicolson"`` or
-        ``"backward-euler"``.
+        The rod's ``"modal"``, ``"crank-nicolson"`` or ``"backward-euler"``; a mesh's
+        ``"reduced"``, ``"crank-nicolson"`` or ``"backward-euler"``.
     ndofs : int
-        FEM unknowns.
+        Temperature unknowns.
+    heat_J : ndarray or None
+        Heat stored in the rod relative to the ambient state [J] (the rod, by
+        :func:`solve` and :func:`solve_fem`; else None).
     error_estimate_um : ndarray or None
-        The reduced-modal solve's stated error [µm] (3D modal only).
+        The rod's reduced-modal solve's stated error [µm] (3D modal only).
     """
 
     times_s: np.ndarray
-    growth_um: np.ndarray
-    heat_J: np.ndarray
+    displacement_um: dict
+    tilt_urad: dict
+    temperature_C: dict
+    channels: tuple
+    kind: str
+    scenario: str
     model: str
     solver: str
     ndofs: int
+    heat_J: np.ndarray | None = None
     error_estimate_um: np.ndarray | None = None
 
+    @property
+    def growth_um(self) -> np.ndarray:
+        """The rod's axial growth [µm] (``displacement_um["growth"]``); a mesh has one
+        displacement per sensor instead (AttributeError)."""
+        if self.kind != "rod":
+            raise AttributeError("a mesh has no one growth: read displacement_um[<sensor>] "
+                                 f"(sensors {sorted(self.displacement_um)})")
+        return self.displacement_um["growth"]
+
+    def _values(self, c: Channel) -> np.ndarray:
+        by = {"displacement": self.displacement_um, "tilt": self.tilt_urad,
+              "temperature": self.temperature_C}
+        return by[c.quantity][c.name]
+
     def to_dataframe(self) -> pandas.DataFrame:
-        """``time_s``, ``growth_um``, ``heat_J`` as a pandas DataFrame."""
-        return _frame({"time_s": self.times_s, "growth_um": self.growth_um,
-                       "heat_J": self.heat_J})
+        """``time_s``, then each channel under its file column (``d_tcp_z_um``,
+        ``T_housing_C``, …; the rod's ``growth_um``), and the rod's ``heat_J``."""
+        cols = {"time_s": self.times_s}
+        cols.update({c.column: self._values(c) for c in self.channels})
+        if self.heat_J is not None:
+            cols["heat_J"] = self.heat_J
+        return _frame(cols)
 
     def to_json(self) -> str:
-        """The result as a JSON document (arrays as lists)."""
-        return json_text(self.__dict__)
+        """The result as a JSON document: its attributes, each channel with its name,
+        quantity, column, unit and values."""
+        return json_text({
+            "kind": self.kind, "scenario": self.scenario, "model": self.model,
+            "solver": self.solver, "ndofs": self.ndofs, "time_s": self.times_s,
+            "channels": [{**c._asdict(), "values": self._values(c)} for c in self.channels],
+            "heat_J": self.heat_J, "error_estimate_um": self.error_estimate_um})
+
+
+def _rod_result(times_s, growth_um, *, scenario: str, model: str, solver: str, ndofs: int,
+                heat_J=None, error_estimate_um=None) -> FemResult:
+    return FemResult(times_s, {"growth": growth_um}, {}, {}, (_ROD_GROWTH,), "rod", scenario,
+                     model, solver, ndofs, heat_J, error_estimate_um)
+
+
+def _mesh_result(run) -> FemResult:
+    """The :class:`FemResult` of a solved mesh scenario
+    (:class:`~arfem.scenarios.geometry.scenario.GeometryRun`), in the units and columns
+    of its ``sensors.csv``."""
+    sc = run.model.scenario
+    series = run.sensor_series()
+    channels = tuple(Channel(s.name, s.quantity, s.column, s.unit) for s in sc.sensors)
+    by = {q: {c.name: series[c.column] for c in channels if c.quantity == q}
+          for q in ("displacement", "tilt", "temperature")}
+    return FemResult(run.result.times_s, by["displacement"], by["tilt"], by["temperature"],
+                     channels, "mesh", sc.name, "mesh", sc.solver, run.model.thermal.ndofs)
 
 
 def solve_fem(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
@@ -160,6 +341,8 @@ def solve_fem(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
     Returns
     -------
     FemResult
+        ``kind == "rod"``; ``growth_um`` (= ``displacement_um["growth"]``) and
+        ``heat_J``.
 
     Examples
     --------
@@ -176,19 +359,130 @@ def solve_fem(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
     build = build_axisymmetric if model == "axisymmetric" else build_3d
     fem = build(rod, order=order, **(mesh or {}))
     fine = schedule.subdivided(dtau_s)
+    about = dict(scenario="", model=model, solver=solver, ndofs=fem.ndofs)
     if thetas[solver] is None:
         res = solve_modal(fem, fine)
         est = getattr(res, "error_estimate_m", None)
-        return FemResult(res.times_s, res.growth_um, res.heat_J, model, solver, fem.ndofs,
-                         None if est is None else est * 1e6)
+        return _rod_result(res.times_s, res.growth_um, heat_J=res.heat_J,
+                           error_estimate_um=None if est is None else est * 1e6, **about)
     dt = dtau_s if dt_s is None else float(dt_s)
     k = dtau_s / dt
     if abs(k - round(k)) > 1e-9:
         raise InputError(f"must divide dtau_s = {dtau_s:g} s, got {dt:g}", "dt_s")
     res = solve_theta(fem, fine.subdivided(dt), dt, theta=thetas[solver])
     pick = slice(None, None, int(round(k)))
-    return FemResult(res.times_s[pick], res.growth_um[pick], res.heat_J[pick], model,
-                     solver, fem.ndofs)
+    return _rod_result(res.times_s[pick], res.growth_um[pick], heat_J=res.heat_J[pick],
+                       **about)
+
+
+def solve(scenario: Scenario | GeometryCheckCase | str | Path, *,
+          progress: bool | Callable[[str], None] = False) -> FemResult:
+    """Run a scenario's FEM, the rod's or a mesh's, without writing a file.
+
+    The rod: :func:`solve_fem` with the scenario's rod, cycle, Δτ and ``[fem]``
+    settings. A mesh: heat and thermo-elasticity of
+    :mod:`arfem.scenarios.geometry.scenario`, every sensor every
+    ``output_interval_s`` (the numbers ``arfem run`` writes to ``sensors.csv``; the
+    fields, which only files hold, are left out: :func:`run` writes them).
+
+    Parameters
+    ----------
+    scenario : Scenario, GeometryCheckCase, str or path-like
+        From :func:`load_scenario`, or a file or a shipped scenario's name (read here).
+    progress : bool or callable
+        True: show the step under way on stderr (a mesh at P2 takes a minute); a
+        callable is called with each step's name instead.
+
+    Returns
+    -------
+    FemResult
+        ``displacement_um``, ``tilt_urad`` and ``temperature_C`` by sensor.
+
+    Raises
+    ------
+    InputError
+        A scenario file that is malformed (see :func:`load_scenario`), a mesh that
+        cannot be read or is too large, a sensor outside the mesh.
+
+    Examples
+    --------
+    >>> r = solve(load_scenario("spindle_unit", order=1))     # P1: seconds
+    >>> r.kind, [c.column for c in r.channels][:4]
+    ('mesh', ['d_tcp_x_um', 'd_tcp_y_um', 'd_tcp_z_um', 'T_front_bearing_C'])
+    >>> round(float(r.displacement_um["tcp_z"].min()), 1), float(r.times_s[-1]) / 3600
+    (-28.1, 24.0)
+    >>> round(float(solve("paper_fig2").growth_um.max()), 2)
+    22.17
+    """
+    case = _loaded(scenario)
+    if case.kind == "rod":
+        f = case.fem
+        r = solve_fem(case.rod, case.schedule, dtau_s=case.dtau_s, model=f.model,
+                      order=f.order, solver=f.solver, dt_s=f.dt_s, mesh=f.mesh)
+        return dataclasses.replace(r, scenario=case.name)
+    from arfem.scenarios.geometry.scenario import build_geometry_model, solve_geometry
+    sc = dataclasses.replace(case.scenario, fields=False)   # fields: files, arfem.run's
+    with _progress_hook(progress, 3, "arfem.solve") as hook:
+        return _mesh_result(solve_geometry(build_geometry_model(sc, hook), hook))
+
+
+def run(scenario: str | Path, out: str | Path, *, force: bool = False,
+        progress: bool | Callable[[str], None] = False) -> FemResult:
+    """Run a scenario file and write every file ``arfem run`` writes into ``out``.
+
+    The rod: ``timeseries.csv``, ``summary.json``, ``figure.png``, ``model.json``, the
+    fields where asked, ``report.html``. A mesh: ``sensors.csv``, ``summary.json``,
+    ``geometry.png``, ``sensors.png``, ``model.json``, ``record.toml``, the fields
+    where asked (``fields/fields.xdmf3``), ``report.html``. The files are written
+    atomically; a file in ``out`` that arfem did not write is never replaced.
+
+    Parameters
+    ----------
+    scenario : str or path-like
+        The scenario file, or a shipped scenario's name; a file, not a loaded scenario,
+        since the run copies it beside its results (so that they can be run again).
+    out : str or path-like
+        The output folder (``--out``).
+    force : bool
+        Allow a non-empty ``out`` that holds something else (``--force``).
+    progress : bool or callable
+        True: show the step under way on stderr; a callable is called with each
+        step's name instead.
+
+    Returns
+    -------
+    FemResult
+        What the files hold: the FEM's channels at the output times (the rod's
+        ``growth_um`` as ``timeseries.csv``'s ``fem_growth_um``, without ``heat_J``).
+
+    Raises
+    ------
+    InputError
+        A malformed scenario (see :func:`load_scenario`) or an ``out`` that cannot be
+        written; nothing is written then.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "fig2"
+    >>> r = run("paper_fig2", out)
+    >>> (out / "timeseries.csv").is_file(), round(float(r.growth_um.max()), 2)
+    (True, 22.17)
+    """
+    from arfem.scenarios.geometry.scenario import is_geometry_scenario, run_geometry
+    from arfem.scenarios.rod.outputs import run_scenario
+    if not isinstance(scenario, (str, Path)):
+        raise InputError("give the scenario's file or shipped name: arfem.run copies it "
+                         "beside its results (arfem.solve takes a loaded scenario)",
+                         "scenario")
+    p = _file_or_shipped(scenario)
+    with _progress_hook(progress, 8, "arfem.run") as hook:
+        if is_geometry_scenario(p):
+            return _mesh_result(run_geometry(p, out, force, hook))
+        ev = run_scenario(p, out, force, progress=hook)
+    sc = ev.scenario
+    return _rod_result(ev.times_s, ev.fem_growth_um, scenario=sc.name, model=sc.fem.model,
+                       solver=sc.fem.solver, ndofs=ev.model.ndofs)
 
 
 # -- the AR(1) ------------------------------------------------------------------------------
@@ -272,68 +566,133 @@ def ar1(rod: Rod, schedule: Schedule, *, dtau_s: float = 30.0,
 
 @dataclass(frozen=True)
 class Comparison:
-    """FEM, paper AR(1) and corrected AR(1) on one scenario (what ``arfem run`` computes).
+    """The FEM and both AR(1) models on one scenario, the rod's or a mesh's, per
+    displacement channel (what ``arfem run`` compares on the rod, ``arfem check`` on a
+    mesh).
 
     Attributes
     ----------
+    kind : str
+        ``"rod"`` or ``"mesh"``.
+    scenario : str
+        The scenario's name.
     times_s : ndarray
-        Sample times [s].
-    fem_um, ar_um, ar_corrected_um : ndarray
-        Growths [µm].
+        Sample times 0, Δτ, 2Δτ, … [s] (a mesh: its ``[check] dtau_s``, else its
+        ``output_interval_s``).
+    fem_um : dict of str to ndarray
+        The FEM's displacement per channel [µm]: the rod's ``"growth"``, a mesh's
+        displacement sensors by name (tilts and temperatures: :func:`solve`).
+    ar_um : dict of str to ndarray
+        The paper's AR(1) [µm]: eqs. 12–14 on the rod; on a mesh their lumped
+        generalisation (b = Σh·A / Σρc·V), superposed over every input.
+    ar_corrected_um : dict of str to ndarray
+        The corrected AR(1) [µm]: the rod's radial-mode one; on a mesh the
+        slowest-mode one (C1 from the reduced model's slowest eigenvalue, the FEM's
+        static gain per input).
     metrics : dict
-        Every figure of ``summary.json`` (C1, C2, max|AR − FEM| in µm and % of the peak,
-        the fitted C1, …), units in the keys.
+        The rod: every figure of ``summary.json`` (C1, C2, max|AR − FEM| in µm and in %
+        of the peak, the fitted C1, …). A mesh: ``dtau_s``, the ``inputs``
+        superposed, the C1 range of each AR(1) (``C1``, ``corrected_C1``: [low,
+        high]), ``fem_peak_um`` (the largest drift) and per sensor ``fem_peak_um``,
+        ``max_abs_diff_um`` and ``max_abs_diff_pct_of_peak`` of each AR (% of the
+        largest drift: ``arfem check``'s measure). Units in the keys.
     """
 
+    kind: str
+    scenario: str
     times_s: np.ndarray
-    fem_um: np.ndarray
-    ar_um: np.ndarray
-    ar_corrected_um: np.ndarray
+    fem_um: dict
+    ar_um: dict
+    ar_corrected_um: dict
     metrics: dict = field(repr=False)
 
     def to_dataframe(self) -> pandas.DataFrame:
-        """``time_s``, ``fem_um``, ``ar_um``, ``ar_corrected_um`` as a DataFrame."""
-        return _frame({"time_s": self.times_s, "fem_um": self.fem_um, "ar_um": self.ar_um,
-                       "ar_corrected_um": self.ar_corrected_um})
+        """``time_s``, then per channel ``fem_<name>_um``, ``ar_<name>_um`` and
+        ``ar_corrected_<name>_um`` (the rod's are ``timeseries.csv``'s
+        ``fem_growth_um``, ``ar_growth_um``, ``ar_corrected_growth_um``)."""
+        cols = {"time_s": self.times_s}
+        for name in self.fem_um:
+            cols.update({f"fem_{name}_um": self.fem_um[name], f"ar_{name}_um": self.ar_um[name],
+                         f"ar_corrected_{name}_um": self.ar_corrected_um[name]})
+        return _frame(cols)
 
     def to_json(self) -> str:
         """The metrics as a JSON document (the series are in :meth:`to_dataframe`)."""
-        return json_text(self.metrics)
+        return json_text({"kind": self.kind, "scenario": self.scenario, **self.metrics})
 
 
-def _scenario(scenario: Scenario | str | Path) -> Scenario:
-    from arfem.scenarios.config import Scenario
-    return scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+def _mesh_comparison(case) -> Comparison:
+    """:func:`compare` on a mesh: :func:`arfem.scenarios.geometry.check.compare_geometry_ar1`
+    at the check's Δτ, its errors as ``arfem check`` measures them."""
+    from arfem.scenarios.geometry.check import ar_errors, compare_geometry_ar1
+    from arfem.scenarios.geometry.scenario import build_geometry_model
+    sc = dataclasses.replace(case.scenario, fields=False)
+    cmp = compare_geometry_ar1(build_geometry_model(sc), case.check_dtau_s)
+    scale = {s.name: s.record_scale for s in sc.sensors}          # m -> µm
+    disp = [(i, cmp.sensors[i]) for i in np.flatnonzero(cmp.displacement)]
+
+    def per_sensor(y):
+        return {n: y[:, i] * scale[n] for i, n in disp}
+    sensors: dict = {n: {} for _, n in disp}
+    peak = 0.0
+    for pre, model in (("", "lumped"), ("corrected_", "slowest-mode")):
+        rows, peak = ar_errors(cmp, model)
+        for n, err, own in rows:
+            sensors[n].update({"fem_peak_um": own * scale[n],
+                               f"{pre}max_abs_diff_um": err * scale[n],
+                               f"{pre}max_abs_diff_pct_of_peak":
+                                   100.0 * err / peak if peak > 0 else float("nan")})
+    metrics = {"dtau_s": case.check_dtau_s, "inputs": list(cmp.inputs),
+               "C1": [float(cmp.lumped.c1.min()), float(cmp.lumped.c1.max())],
+               "corrected_C1": [float(cmp.slowest_mode.c1.min()),
+                                float(cmp.slowest_mode.c1.max())],
+               "fem_peak_um": peak * 1e6, "sensors": sensors}
+    return Comparison("mesh", sc.name, cmp.times_s, per_sensor(cmp.fem),
+                      per_sensor(cmp.prediction("lumped")),
+                      per_sensor(cmp.prediction("slowest-mode")), metrics)
 
 
-def compare(scenario: Scenario | str | Path) -> Comparison:
-    """Run the FEM and both AR(1) models on a scenario and compare them (``arfem run``,
-    without writing files).
+def compare(scenario: Scenario | GeometryCheckCase | str | Path) -> Comparison:
+    """Run the FEM and both AR(1) models on a scenario and compare them, the rod's or a
+    mesh's, without writing files.
 
     Parameters
     ----------
-    scenario : Scenario, str or path-like
-        A loaded scenario, a scenario file, or ``"paper_fig2"``/``"paper_fig3"``.
+    scenario : Scenario, GeometryCheckCase, str or path-like
+        From :func:`load_scenario`, or a file or a shipped scenario's name (read here).
 
     Returns
     -------
     Comparison
 
+    Raises
+    ------
+    InputError
+        As :func:`load_scenario` and :func:`solve`.
+
     Examples
     --------
     >>> c = compare("paper_fig2")
-    >>> round(c.metrics["max_abs_diff_pct_of_peak"], 2)
-    2.57
+    >>> round(c.metrics["max_abs_diff_pct_of_peak"], 2), list(c.fem_um)
+    (2.57, ['growth'])
+    >>> m = compare(load_scenario("spindle_unit", order=1))
+    >>> list(m.fem_um), round(m.metrics["sensors"]["tcp_z"]["corrected_max_abs_diff_um"], 1)
+    (['tcp_x', 'tcp_y', 'tcp_z'], 3.4)
     """
-    from arfem.scenarios.evaluation import evaluate
-    ev = evaluate(_scenario(scenario))
-    return Comparison(ev.times_s, ev.fem_growth_um, ev.ar_growth_um,
-                      ev.ar_corrected_growth_um, dict(ev.metrics))
+    case = _loaded(scenario)
+    if case.kind == "mesh":
+        return _mesh_comparison(case)
+    from arfem.scenarios.rod.evaluation import evaluate
+    ev = evaluate(case)
+    return Comparison("rod", case.name, ev.times_s, {"growth": ev.fem_growth_um},
+                      {"growth": ev.ar_growth_um}, {"growth": ev.ar_corrected_growth_um},
+                      dict(ev.metrics))
 
 
 @dataclass(frozen=True)
 class CheckResult:
-    """``arfem check`` on one scenario: each criterion with its value and limit.
+    """``arfem check`` on one scenario, the rod's or a mesh's: each criterion with its
+    value and limit.
 
     Attributes
     ----------
@@ -341,89 +700,205 @@ class CheckResult:
         The scenario's name.
     passed : bool
         Every criterion holds.
-    criteria : tuple of arfem.scenarios.checking.Criterion
+    criteria : tuple of arfem.scenarios.rod.checking.Criterion
         Each criterion (frozen): ``name``, ``value`` against ``limit`` (in ``unit``),
-        ``passed``, and the ``message`` ``arfem check`` prints.
+        ``passed``, and the ``message`` ``arfem check`` prints. The rod: max|AR − FEM|
+        [% of the FEM peak] and the C1 difference (fitted to the FEM, of the AR) [-]; a
+        mesh: max|AR − FEM| per displacement sensor [% of the largest FEM drift].
+    kind : str
+        ``"rod"`` or ``"mesh"``.
+    file : str
+        The scenario's file.
+    model : str
+        The AR(1) held to the limits: the rod's ``"paper"`` or ``"corrected"``; a
+        mesh's ``"lumped"`` or ``"slowest-mode"``.
+    notes : tuple of str
+        Reported, not gated (a mesh: the other AR's errors, the C1 range, tilts).
+    biot : float
+        hR/λ of the rod (NaN for a mesh).
     """
 
     scenario: str
     passed: bool
     criteria: tuple[Criterion, ...]
+    kind: str = "rod"
+    file: str = ""
+    model: str = ""
+    notes: tuple[str, ...] = ()
+    biot: float = float("nan")
+
+    def to_dataframe(self) -> pandas.DataFrame:
+        """One row per criterion: ``name``, ``value``, ``limit``, ``unit``, ``passed``,
+        ``message``."""
+        import pandas as pd
+        return pd.DataFrame([dataclasses.asdict(c) for c in self.criteria],
+                            columns=["name", "value", "limit", "unit", "passed", "message"])
 
     def to_json(self) -> str:
-        """The result as a JSON document: ``scenario``, ``passed`` and each criterion's
-        fields, as in ``arfem check --json``)."""
-        return json_text({"scenario": self.scenario, "passed": self.passed,
-                          "criteria": [dataclasses.asdict(c) for c in self.criteria]})
+        """The scenario's entry of ``arfem check --json``: ``scenario``, ``file``,
+        ``model``, ``biot``, ``passed``, ``notes`` and each criterion's fields."""
+        from arfem.scenarios.rod.checking import ScenarioResult, json_report
+        r = ScenarioResult(self.scenario, self.file, self.model, list(self.criteria),
+                           biot=self.biot, notes=self.notes)
+        return json_text(json_report([r], [])["scenarios"][0])
 
 
-def check(scenario: Scenario | str | Path, *, max_abs_pct: float | None = None, max_c1_diff: float | None = None,
+def check(scenario: Scenario | GeometryCheckCase | str | Path, *,
+          max_abs_pct: float | None = None, max_c1_diff: float | None = None,
           model: str | None = None) -> CheckResult:
     """Does the AR(1) track the FEM on this scenario? (``arfem check``, one scenario.)
 
     Parameters
     ----------
-    scenario : Scenario, str or path-like
+    scenario : Scenario, GeometryCheckCase, str or path-like
+        From :func:`load_scenario`, or a file or a shipped scenario's name (read here).
     max_abs_pct : float, optional
-        Limit on max|AR − FEM| [% of the FEM peak]; default the scenario's ``[check]``
-        value, else 3 %.
+        Limit on max|AR − FEM| [% of the FEM peak; on a mesh, of the largest FEM
+        drift]; default the scenario's ``[check]`` value, else 3 % (a mesh: 15 %).
     max_c1_diff : float, optional
         Limit on the absolute difference of C1 fitted to the FEM and the AR's C1 [-];
-        default 5e-4.
+        default 5e-4. The rod's only (a mesh's result notes that it does not apply).
     model : {"paper", "corrected"}, optional
-        Which AR(1) is held to the limits; default the paper's. On a mesh scenario
-        (a file with ``[geometry]``): "corrected" (default) is the slowest-mode AR(1),
-        "paper" the lumped one, held per displacement sensor
-        (:mod:`arfem.scenarios.geometry_check`; the C1 limit does not apply).
+        Which AR(1) is held to the limits; default the scenario's ``[check]``, else the
+        paper's. On a mesh "corrected" (its default) is the slowest-mode AR(1), "paper"
+        the lumped one, held per displacement sensor
+        (:mod:`arfem.scenarios.geometry.check`).
 
     Returns
     -------
     CheckResult
+
+    Raises
+    ------
+    InputError
+        A malformed scenario or limit; the message names the file or the parameter.
 
     Examples
     --------
     >>> r = check("paper_fig2")
     >>> r.passed, [c.name for c in r.criteria]
     (True, ['max_abs_diff_pct_of_peak', 'C1_abs_diff'])
+    >>> m = check(load_scenario("spindle_unit", order=1))
+    >>> m.kind, m.model, m.passed, [c.name for c in m.criteria][-1]
+    ('mesh', 'slowest-mode', True, 'max_abs_diff_pct_of_peak[tcp_z]')
     """
-    from arfem.scenarios.checking import check_scenario
-    from arfem.scenarios.config import check_limit
+    from arfem.scenarios.rod.checking import check_case
+    from arfem.scenarios.rod.scenario import CHECK_MODELS, check_limit
+    from arfem.strict import string
     if max_abs_pct is not None:
         max_abs_pct = check_limit("max_abs_diff_pct_of_peak", max_abs_pct, "max_abs_pct")
     if max_c1_diff is not None:
         max_c1_diff = check_limit("max_C1_abs_diff", max_c1_diff, "max_c1_diff")
-    from arfem.scenarios.geometry_scenario import is_geometry_scenario
-    if isinstance(scenario, (str, Path)) and is_geometry_scenario(scenario):
-        # a mesh scenario (issue 32 item 4): the AR(1)s of any geometry, per sensor
-        from arfem.scenarios.geometry_check import check_geometry_case, load_geometry_case
-        r = check_geometry_case(load_geometry_case(scenario), max_abs_pct, model)
-    else:
-        r = check_scenario(_scenario(scenario), max_abs_pct, max_c1_diff, model)
-    return CheckResult(r.scenario, r.passed, tuple(r.criteria))
+    if model is not None:
+        model = string(model, "model", CHECK_MODELS)
+    case = _loaded(scenario)
+    r = check_case(case, max_abs_pct, max_c1_diff, model)
+    return CheckResult(r.scenario, r.passed, tuple(r.criteria), case.kind, r.file, r.model,
+                       tuple(r.notes), r.biot)
+
+
+# -- sweeps ------------------------------------------------------------------------------------
+
+class SweepFailure(NamedTuple):
+    """A point of a sweep that failed: its ``inputs`` (swept key → value) and the
+    ``error`` (one line). The same command computes it again."""
+
+    inputs: dict
+    error: str
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """What :func:`sweep` did, and the table it wrote (``results.csv``).
+
+    Attributes
+    ----------
+    name : str
+        ``[sweep] name``.
+    kind : str
+        ``"rod"`` or ``"mesh"``: the base scenario's.
+    out : pathlib.Path
+        The output folder (``results.csv``, ``summary.json``, figures, ``report.html``,
+        the point store).
+    n_points, n_stored_before, n_computed, n_failed : int
+        The grid's points; those already stored by an earlier run; computed now; failed.
+    wall_s : float
+        This run's wall time [s].
+    executor : str
+        Where the points ran.
+    failures : tuple of SweepFailure
+        The points that failed.
+    rows : tuple of dict
+        ``results.csv``: one row per stored point, the swept keys and then the metrics,
+        units in the names (the rod: C1, C2, FEM peak, max|AR − FEM| …; a mesh: per
+        sensor its ``*_peak_*``, ``*_peak_time_h`` and ``*_final_*``).
+    """
+
+    name: str
+    kind: str
+    out: Path
+    n_points: int
+    n_stored_before: int
+    n_computed: int
+    n_failed: int
+    wall_s: float
+    executor: str
+    failures: tuple[SweepFailure, ...]
+    rows: tuple = field(repr=False)
+
+    def to_dataframe(self) -> pandas.DataFrame:
+        """:attr:`rows` as a DataFrame, the columns of ``results.csv``."""
+        return _frame(list(self.rows))
+
+    def to_json(self) -> str:
+        """The report and the rows as a JSON document."""
+        return json_text({**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                             if f.name not in ("out", "failures", "rows")},
+                          "out": str(self.out),
+                          "failures": [f._asdict() for f in self.failures],
+                          "rows": list(self.rows)})
+
+
+def _sweep_rows(sw, out: Path) -> tuple:
+    """The rows ``results.csv`` holds, from the sweep's store in ``out``."""
+    if getattr(sw, "kind", None) == "geometry":           # a mesh sweep (run_sweep's rule)
+        from arfem.scenarios.sweep.geometry_run import GeometryPointStore, geometry_rows
+        return tuple(geometry_rows(sw, GeometryPointStore(out, sw.sensors)))
+    from arfem.scenarios.sweep import PointStore, results_rows
+    return tuple(results_rows(sw, PointStore(out)))
 
 
 def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None,
-          force: bool = False, progress: bool = False) -> RunReport:
-    """Run a parameter sweep file into ``out`` (``arfem sweep``; resumable).
+          force: bool = False, progress: bool = False) -> SweepResult:
+    """Run a parameter sweep file into ``out`` (``arfem sweep``; resumable), on the rod
+    or on a mesh.
 
     Parameters
     ----------
     sweep_toml : str or path-like
-        A sweep file (``[sweep]`` with ``base`` and a ``[sweep.grid]`` of scenario keys).
+        A sweep file (``[sweep]`` with ``base``, a rod or a mesh scenario, and a
+        ``[sweep.grid]`` of scenario keys), or a shipped one's name
+        (``"sweep_dtau_h"``, ``"sweep_spindle_unit"``).
     out : str or path-like
         Output folder (``results.csv``, figures, ``report.html``); the ``--out`` rules
-        apply: arfem never replaces a file it did not write.
+        apply: arfem never replaces a file it did not write. A folder holding the same
+        sweep is resumed: only the missing points are computed.
     workers : int, optional
         Local processes (default: the cores, 1 = in-process).
     force : bool
-        Recompute every point.
+        Allow a non-empty ``out`` that holds something else.
     progress : bool
         Show a progress bar.
 
     Returns
     -------
-    arfem.scenarios.sweep.runner.RunReport
-        ``n_points``, ``n_computed``, ``n_failed``, ``wall_s``, …
+    SweepResult
+
+    Raises
+    ------
+    InputError
+        A malformed sweep file or base scenario, a key the base lacks, a point that
+        would be refused; nothing is computed or written then.
 
     Examples
     --------
@@ -433,12 +908,17 @@ def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None
     ...     '[sweep]\\nname = "demo"\\nbase = "paper_fig2"\\n'
     ...     '[sweep.grid]\\nh_W_m2K = [35, 55]\\n')
     >>> rep = sweep(d / "s.toml", d / "out", workers=1)
-    >>> rep.n_points, rep.n_failed
-    (2, 0)
+    >>> rep.kind, rep.n_points, rep.n_failed, list(rep.to_dataframe()["h_W_m2K"])
+    ('rod', 2, 0, [35, 55])
     """
     from arfem.scenarios.sweep import load_sweep, run_sweep
-    return run_sweep(load_sweep(sweep_toml), out, workers=workers, force=force,
-                     progress=progress)
+    sw = load_sweep(_file_or_shipped(sweep_toml))
+    rep = run_sweep(sw, out, workers=workers, force=force, progress=progress)
+    return SweepResult(sw.name, "mesh" if getattr(sw, "kind", None) == "geometry" else "rod",
+                       Path(out), rep.n_points, rep.n_stored_before, rep.n_computed,
+                       rep.n_failed, rep.wall_s, rep.executor,
+                       tuple(SweepFailure(f["inputs"], f["error"]) for f in rep.failures),
+                       _sweep_rows(sw, Path(out)))
 
 
 # -- diagnosis of measured data ---------------------------------------------------------------
@@ -677,14 +1157,14 @@ def read_record(path: str | Path) -> Record:
     >>> rec.initial, list(rec.data.columns), rec.units["q_W_m2"]
     ('unknown', ['time_s', 'growth_um', 'q_W_m2'], 'W/m²')
     """
-    from arfem.io import read_toml
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.georecord import refuse_mesh_channels, refuse_mesh_record
-    refuse_mesh_record(path)             # contract v3: the mesh's diagnosis, not this
-    ds = load_dataset(path)
+    from arfem.scenarios.records.dataset import load_dataset, read_record_doc
+    from arfem.scenarios.records.georecord import refuse_mesh_channels, refuse_mesh_record
+    doc = read_record_doc(path)          # the TOML, read once
+    refuse_mesh_record(doc)              # contract v3: the mesh's diagnosis, not this
+    ds = load_dataset(doc)
     refuse_mesh_channels(ds)
     frame = _record_frame(ds)
-    mapping = read_toml(Path(path)).get("columns", {})
+    mapping = doc.mapping
     columns = {c: mapping.get(c, c) for c in frame.columns}
     units = {c: _UNITS.get(c, "°C") for c in frame.columns}
     return Record(frame, ds.name, "equilibrium" if ds.initial_known else "unknown", units,
@@ -813,14 +1293,14 @@ def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
     CPU); ``tests/test_mesh_run_folder.py`` runs the same on a coarse unit.
 
     >>> import subprocess
-    >>> _ = subprocess.run(["arfem", "run", "scenarios/spindle_unit.toml",
+    >>> _ = subprocess.run(["arfem", "run", "scenarios/data/spindle_unit.toml",
     ...                     "--out", "run"])                     # doctest: +SKIP
     >>> d = diagnose_mesh("run/record.toml")                     # doctest: +SKIP
     >>> d.established                  # the FEM's own record  # doctest: +SKIP
     ()
     """
     from arfem.models.geodiagnosis.engine import diagnose_geometry
-    from arfem.scenarios.geodiagnose import load_mesh_record
+    from arfem.scenarios.diagnosis.mesh import load_mesh_record
     if not callable(progress):
         from arfem.scenarios.progress import Progress
         with Progress(8, "arfem.diagnose_mesh", enabled=bool(progress), tty=True) as bar:
@@ -837,22 +1317,22 @@ def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
     assumed: a :class:`Record` or TOML path keeps its own ``initial`` (a contradicting
     ``initial`` is refused); samples are read in memory, ``"equilibrium"`` assumed and
     said where ``initial`` is not given."""
-    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    from arfem.scenarios.records.dataset import dataset_from_columns, load_dataset
     if isinstance(data, (str, Path, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
         if isinstance(data, Record):
             ds = data._dataset
         else:
-            from arfem.scenarios.georecord import (
-                is_mesh_record, refuse_mesh_channels, refuse_mesh_record)
-            if is_mesh_record(data):
+            from arfem.scenarios.records.dataset import read_record_doc
+            from arfem.scenarios.records.georecord import refuse_mesh_channels
+            doc = read_record_doc(data)                # the TOML, read once
+            if doc.is_mesh:
                 raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
                                  "diagnosed by arfem.diagnose_mesh(path), not by the rod's "
                                  "diagnosis",
                                  str(data))
-            refuse_mesh_record(data)
-            ds = load_dataset(data)
+            ds = load_dataset(doc)
             refuse_mesh_channels(ds)
         recorded = "equilibrium" if ds.initial_known else "unknown"
         _initial_of(initial, recorded, str(ds.source))
@@ -895,5 +1375,5 @@ def read_model(path: str | Path) -> StateSpaceModel:
     >>> read_model(p).dtau_s, read_model(p).inputs[0].name
     (30.0, 'q_W_m2')
     """
-    from arfem.scenarios.model_file import read_model as _read
+    from arfem.scenarios.compensation.model_file import read_model as _read
     return _read(path)

@@ -74,7 +74,9 @@ class InputError(ValueError):
 
 
 #: Plausible ranges [lo, hi] of the quantities a user types or records, with the unit
-#: they must be in: a value outside is almost certainly in the wrong unit.
+#: they must be in: a value outside is almost certainly in the wrong unit, or no reading.
+#: The readings' ranges (ambient, temperature, speed, heat, growth) are the live
+#: compensator's: a record is judged as the machine's readings are judged live.
 PLAUSIBLE_RANGES = {
     "radius_m": (1e-4, 5.0, "metres (a radius in mm?)"),
     "length_m": (1e-3, 50.0, "metres (a length in mm?)"),
@@ -84,10 +86,22 @@ PLAUSIBLE_RANGES = {
     "expansion_1_K": (1e-8, 1e-3, "1/K (a value in µm/(m·K) or ppm/K?)"),
     "youngs_modulus_Pa": (1e6, 2e12, "Pa (a modulus in GPa?)"),
     "convection_W_m2K": (1.0, 2000.0, "W/(m²·K) (a value in kW/(m²·K)?)"),
-    "ambient_C": (-60.0, 150.0, "°C (a temperature in K?)"),
+    # the air around a machine tool (also a scenario's reference temperature); the live
+    # loop's range for an ambient reading
+    "ambient_C": (-10.0, 50.0, "°C (a temperature in K?)"),
+    # any other temperature a machine's thermometer reads (a bearing, a motor, a frame)
+    "temperature_C": (-10.0, 150.0, "°C (a temperature in K?)"),
     "q_W_m2": (0.0, 1e7, "W/m²"),
+    # the heat a source puts into a machine-tool structure (a bearing set, a motor's
+    # losses): well under a megawatt
+    "power_W": (0.0, 1e6, "W (a power in mW?)"),
     "h_W_m2K": (0.01, 1e5, "W/(m²·K)"),
-    "speed_rpm": (0.0, 1e6, "1/min (a speed in rad/s or Hz?)"),
+    "speed_rpm": (0.0, 1e5, "1/min (a speed in rad/s or Hz?)"),
+    # a scenario's cycle, a phase of it [s]: a century at most (a duration in ms?)
+    "duration_s": (0.0, 3.2e9, "s (a duration in ms?)"),
+    # a coordinate of a mesh or a sensor, in metres once the declared unit is applied
+    # (the unit's tell-tale sizes are judged by the mesh's bounding box, fem/gmsh_io.py)
+    "coordinate_m": (-1e6, 1e6, "metres (no machine part lies this far)"),
     # fitted magnitudes of the diagnosis (arfem.models.diagnosis): outside these the fit
     # points at wrong units or a wrong [rod], not at a physical cause
     "heat_input_scale": (0.2, 5.0, "times the nominal heat input (growth_um in mm, or a "
@@ -95,15 +109,19 @@ PLAUSIBLE_RANGES = {
     "fitted_h_W_m2K": (1.0, 2000.0, "W/(m²·K) (a [rod] value in the wrong unit?)"),
     "ambient_gain_um_per_K": (0.05, 500.0, "µm/K (growth_um in mm?)"),
     "drift_um_per_h": (-100.0, 100.0, "µm/h (growth_um in nm?)"),
-    # measured thermal growth of a spindle: tens of µm; 5 mm would be a value in nm or
-    # a broken sensor, and 1e300 ends in inf/nan scores
-    "growth_um": (-5000.0, 5000.0, "µm (a growth in nm?)"),
+    # measured thermal growth of a spindle: tens of µm, never 1 mm (the live loop's
+    # bound on an input's share of the growth); 5 mm would be a value in nm or a broken
+    # sensor, and 1e300 ends in inf/nan scores
+    "growth_um": (-1000.0, 1000.0, "µm (a growth in nm?)"),
+    # a spindle's thermal tilt (ISO 230-3's A, B): tens of µrad; 10 mrad is a tilt in
+    # nrad or a broken probe
+    "tilt_urad": (-1e4, 1e4, "µrad (a tilt in nrad?)"),
 }
 
 
 def check_plausible(key: str, value: float, where: str) -> float:
-    """``value`` if it lies in ``PLAUSIBLE_RANGES[key]`` (or ``key`` has no range), else an
-    :class:`InputError` at ``where`` that names the unit expected.
+    """``value`` if it is finite and lies in ``PLAUSIBLE_RANGES[key]`` (or ``key`` has no range),
+    else one :class:`InputError` line at ``where`` naming the unit expected.
 
     Examples
     --------
@@ -113,12 +131,16 @@ def check_plausible(key: str, value: float, where: str) -> float:
     ...     check_plausible("ambient_C", 293.15, "case.toml: rod.ambient_C")
     ... except InputError as e:
     ...     print(e)
-    case.toml: rod.ambient_C: 293.15 is outside the plausible range [-60, 150] for a value in °C (a temperature in K?)
+    case.toml: rod.ambient_C: 293.15 is outside the plausible range [-10, 50] for a value in °C (a temperature in K?)
     """
     if key in PLAUSIBLE_RANGES:
         lo, hi, unit = PLAUSIBLE_RANGES[key]
-        if not lo <= value <= hi:
-            raise InputError(f"{value:g} is outside the plausible range [{lo:g}, {hi:g}] "
+        if not lo <= value <= hi:             # NaN fails too
+            shown = f"{value:g}" if math.isfinite(value) else repr(value)
+            if lo == 0.0 and value < 0:
+                raise InputError(f"{shown} is negative; a value in {unit} is >= 0 (the "
+                                 f"plausible range is [0, {hi:g}])", where)
+            raise InputError(f"{shown} is outside the plausible range [{lo:g}, {hi:g}] "
                              f"for a value in {unit}", where)
     return value
 

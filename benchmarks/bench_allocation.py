@@ -24,7 +24,7 @@ from arfem.models.allocation import tolerance
 from arfem.models.allocation.problem import allocate, unit_values, with_settings
 from arfem.models.allocation.scenario import UnitSpec, build_chain, chain_maps
 from arfem.models.allocation import screw
-from arfem.scenarios.allocation_file import load_allocation_scenario
+from arfem.scenarios.allocation.file import load_allocation_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -66,7 +66,7 @@ def old_design_as_tolerances():
 
 def main() -> None:
     print(f"load average (1 min) {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    sc = load_allocation_scenario(ROOT / "scenarios" / "pallet_changer.toml")
+    sc = load_allocation_scenario(ROOT / "scenarios" / "data" / "pallet_changer.toml")
     chain, _ = build_chain(sc)
     st = sc.settings
     r, w, c = _timed(lambda: allocate(chain, st))

@@ -1,4 +1,4 @@
-"""Benchmark: `arfem check scenarios/` and `arfem reproduce --check` as a CI job runs them.
+"""Benchmark: `arfem check scenarios/data/` and `arfem reproduce --check` as a CI job runs them.
 
 Target (issue 12): `arfem check` on the shipped rod scenarios (paper_fig2, paper_fig3)
 <= 5 s wall on the 2-core reference machine. Since issue 32 item 4, `arfem check
@@ -52,7 +52,7 @@ def main() -> int:
     ap.add_argument("--no-mesh", action="store_true",
                     help="skip the spindle unit's check (a mesh scenario)")
     args = ap.parse_args()
-    rods = ["scenarios/paper_fig2.toml", "scenarios/paper_fig3.toml"]
+    rods = ["scenarios/data/paper_fig2.toml", "scenarios/data/paper_fig3.toml"]
     arfem: list[str] = []
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
@@ -62,8 +62,8 @@ def main() -> int:
                  ("arfem reproduce --check", arfem + ["reproduce", "--check"], None,
                   args.repeat)]
         if not args.no_mesh:
-            cases.append(("arfem check scenarios/spindle_unit.toml",
-                          arfem + ["check", "scenarios/spindle_unit.toml"], None, 1))
+            cases.append(("arfem check scenarios/data/spindle_unit.toml",
+                          arfem + ["check", "scenarios/data/spindle_unit.toml"], None, 1))
         for label, argv, target, repeat in cases:
             runs = [_timed(argv) for _ in range(repeat)]
             best = min(r[0] for r in runs)
@@ -77,7 +77,7 @@ def main() -> int:
             print(f"    -> {last}")
             ok &= rc == 0 and (target is None or best <= target)
     # in-process: the check without interpreter start-up and imports
-    from arfem.scenarios.checking import run_checks
+    from arfem.scenarios.rod.checking import run_checks
     t0 = time.perf_counter()
     results, skipped = run_checks([str(ROOT / r) for r in rods], echo=lambda s: None)
     inproc = time.perf_counter() - t0

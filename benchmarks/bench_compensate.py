@@ -21,9 +21,9 @@ def main() -> int:
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.compensator import Compensator
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.records.synth_files import write_case
 
     print(f"load average {os.getloadavg()[0]:.2f}")
     a = ar1(Rod(), paper_cycle(2000.0), dtau_s=15.0)

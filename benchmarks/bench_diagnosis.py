@@ -42,8 +42,8 @@ import numpy as np
 from arfem.models.diagnosis.synth import CAUSES, generate
 from arfem.models.diagnosis.verdict import selected_causes
 from arfem.params import InputError, Rod
-from arfem.scenarios.diagnosis_run import diagnose_file
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.records.synth_files import write_case
 
 PAIRS = ("ambient_drift+sensor_drift", "heat_input_scale+sensor_drift",
          "convection_mismatch+ambient_drift", "heat_input_scale+frame_expansion",

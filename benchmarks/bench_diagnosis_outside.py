@@ -158,8 +158,8 @@ _MODEL = None
 def _one(job):
     global _MODEL
     from arfem.fem.heat import build_3d
-    from arfem.scenarios.diagnosis_run import diagnose_file
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.diagnosis.run import diagnose_file
+    from arfem.scenarios.records.synth_files import write_case
     kind, noise, seed, tmp = job
     if _MODEL is None:
         _MODEL = build_3d(Rod(), **MESH)

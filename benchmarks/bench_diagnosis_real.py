@@ -1,6 +1,6 @@
 """Diagnosis benchmark on the real record (issue 30): ``arfem diagnose`` of FL_THERMAL
 channels at the default split, timed as whole processes beside ``arfem run
-scenarios/paper_fig2.toml`` in the same run, in turn (run, diagnose, run, diagnose...),
+scenarios/data/paper_fig2.toml`` in the same run, in turn (run, diagnose, run, diagnose...),
 so that the CPU ratio -- the robust figure on a shared machine -- compares like with
 like.
 
@@ -70,24 +70,24 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(a.repeat):
             for ch in a.channels:
-                w, c, _ = timed(ARFEM + ["run", "scenarios/paper_fig2.toml", "--out",
+                w, c, _ = timed(ARFEM + ["run", "scenarios/data/paper_fig2.toml", "--out",
                                          f"{tmp}/fig2_{ch}_{i}"])
                 ref_wall.append(w)
                 ref_cpu.append(c)
-                w, c, _ = timed(ARFEM + ["diagnose", f"scenarios/fl_thermal/fl_thermal_ch{ch}.toml",
+                w, c, _ = timed(ARFEM + ["diagnose", f"scenarios/data/fl_thermal/fl_thermal_ch{ch}.toml",
                                          "--out", f"{tmp}/ch{ch}_{i}", "--no-progress"])
                 rows.setdefault(ch, []).append((w, c))
         peaks = {}
         if not a.no_peak:
-            peaks["fig2"] = peak_of(ARFEM + ["run", "scenarios/paper_fig2.toml", "--out",
+            peaks["fig2"] = peak_of(ARFEM + ["run", "scenarios/data/paper_fig2.toml", "--out",
                                              f"{tmp}/fig2_peak"])
             for ch in a.channels:
                 peaks[ch] = peak_of(ARFEM + ["diagnose",
-                                             f"scenarios/fl_thermal/fl_thermal_ch{ch}.toml",
+                                             f"scenarios/data/fl_thermal/fl_thermal_ch{ch}.toml",
                                              "--out", f"{tmp}/ch{ch}_peak", "--no-progress"])
     load1 = os.getloadavg()
     ref = statistics.median(ref_cpu)
-    print(f"\narfem run scenarios/paper_fig2.toml: CPU {ref:.2f} s (median of {len(ref_cpu)}), "
+    print(f"\narfem run scenarios/data/paper_fig2.toml: CPU {ref:.2f} s (median of {len(ref_cpu)}), "
           f"wall {statistics.median(ref_wall):.1f} s"
           + (f", peak {peaks['fig2']:.0f} MB" if "fig2" in peaks else ""))
     print(f"{'channel':8s} {'wall [s]':>9s} {'CPU [s]':>8s} {'peak [MB]':>10s} "

@@ -110,7 +110,7 @@ vectorised update per step instead of one lfilter call per mode, outputs equal t
 -- wall steps: assembly 30.5 s, reduced model 3.8 s, diagnosis 29.9 s, the error
 statement's reference solve ~12.5 s, writing ~2.4 s. The process's peak RSS is 4.9 GB
 (the benchmark also generates the 48 h record with the full-order model). The error
-statement's full reference solve was left as it is (scenarios/geodiagnose.py); the
+statement's full reference solve was left as it is (scenarios/diagnosis/mesh.py); the
 reduced model's largest error against it is 0.0019 µm (TCP), 0.003 K.
 
 THIRD PRE-REGISTRATION (committed 2026-11-26 00:20 UTC, before any record of it was
@@ -395,7 +395,7 @@ from arfem.models.geodiagnosis.engine import diagnose_geometry, mlr_holdout
 from arfem.models.geodiagnosis.problem import make_record
 from arfem.models.geodiagnosis.synth import (NOISE_KINDS, Hidden, add_noise, covers,
                                              duty_cycle, generate, signal)
-from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
+from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
 
 ROOT = Path(__file__).resolve().parents[1]
 COARSE = ROOT / "tests" / "data" / "geodiag" / "spindle_coarse.toml"
@@ -514,12 +514,12 @@ def batch(n_noise: int, seed0: int = 70000) -> None:
 def speed() -> None:
     """48 h at 1 min on the shipped spindle unit, end to end through the command's
     library function."""
-    from arfem.scenarios.geodiagnose import run_geodiagnosis
-    from arfem.scenarios.georecord import write_record
+    from arfem.scenarios.diagnosis.mesh import run_geodiagnosis
+    from arfem.scenarios.records.georecord import write_record
     tmp = Path(tempfile.mkdtemp(prefix="bench_geodiag_"))
     try:
-        shutil.copy(ROOT / "scenarios" / "spindle_unit.msh", tmp)
-        text = (ROOT / "scenarios" / "spindle_unit.toml").read_text()
+        shutil.copy(ROOT / "scenarios" / "data" / "spindle_unit.msh", tmp)
+        text = (ROOT / "scenarios" / "data" / "spindle_unit.toml").read_text()
         (tmp / "spindle_unit.toml").write_text(
             text + '\n[diagnosis]\ncandidate_groups = ["spindle_bore", "housing_outer"]\n'
                    'interface_groups = ["front_bearing", "rear_bearing"]\n')

@@ -7,7 +7,7 @@ the reduced solve against Crank–Nicolson at Δt = 60 s on the same model (max 
 per sensor); with ``--cn30`` also CN at 30 s, i.e. CN's own Δt error, and the reduced
 solve against the Richardson extrapolation of the two.
 
-    python benchmarks/bench_geometry.py [--scenario scenarios/spindle_unit.toml] [--no-cn]
+    python benchmarks/bench_geometry.py [--scenario scenarios/data/spindle_unit.toml] [--no-cn]
                                         [--cn30]
 
 Targets (issue 32): ≤ 20 s and ≤ 4 GB for read + assembly + 24 h reduced solve on a
@@ -27,14 +27,14 @@ import numpy as np
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenario", default=str(Path(__file__).resolve().parents[1]
-                                              / "scenarios" / "spindle_unit.toml"))
+                                              / "scenarios" / "data" / "spindle_unit.toml"))
     ap.add_argument("--no-cn", action="store_true", help="skip the Crank–Nicolson comparison")
     ap.add_argument("--cn30", action="store_true",
                     help="also Crank–Nicolson at dt = 30 s: CN's own dt error, and the reduced "
                          "solve against the Richardson extrapolation (4 CN30 − CN60)/3")
     args = ap.parse_args()
     from arfem.fem.thermal3d import solve_theta
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     print("load:", os.getloadavg())
     c0, w0 = time.process_time(), time.perf_counter()

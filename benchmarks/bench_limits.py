@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PAPER = (ROOT / "scenarios" / "paper_fig2.toml").read_text()
+PAPER = (ROOT / "scenarios" / "data" / "paper_fig2.toml").read_text()
 
 
 def scenario(extra: str) -> str:

@@ -39,7 +39,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SCEN = REPO / "scenarios" / "spindle_unit.toml"
+SCEN = REPO / "scenarios" / "data" / "spindle_unit.toml"
 
 
 def _peak_mb() -> float:
@@ -77,7 +77,7 @@ def _scenario(mesh: Path) -> Path:
 
 def case_arfem(mesh: Path, dt_s: float) -> dict:
     import numpy as np
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     clock = _Clock()
     names = {"reading the mesh": "read", "assembling heat": "assembly",
@@ -138,7 +138,7 @@ def _netgen_mesh(path: Path):
 def case_ngsolve(mesh_path: Path, dt_s: float) -> dict:
     import numpy as np
     import ngsolve as ng
-    from arfem.scenarios.geometry_scenario import _history, load_geometry_scenario
+    from arfem.scenarios.geometry.scenario import _history, load_geometry_scenario
     ng.SetNumThreads(1)
     clock = _Clock()
     sc = load_geometry_scenario(_scenario(mesh_path))
@@ -243,8 +243,8 @@ def case_ngsolve(mesh_path: Path, dt_s: float) -> dict:
 
 def _mesh_for(size: float, work: Path) -> Path:
     if size == 24.0:
-        return REPO / "scenarios" / "spindle_unit.msh"
-    from arfem.scenarios.gmsh_models import SpindleUnit, spindle_unit_mesh
+        return REPO / "scenarios" / "data" / "spindle_unit.msh"
+    from arfem.scenarios.geometry.gmsh_models import SpindleUnit, spindle_unit_mesh
     out = work / f"spindle_unit_{size:g}.msh"
     if not out.exists():
         spindle_unit_mesh(out, SpindleUnit(size=size, size_min=max(5.0, size / 3)))

@@ -91,8 +91,8 @@ def peers_for(ds, hs):
 def score_record(ds):
     """RMS after compensation [µm] of every model on the hold-out of ``ds``."""
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.diagnosis_run import compensator_models
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.diagnosis.run import compensator_models
     from arfem.params import InputError
     d = diagnose(ds, None, intervals=False)
     hs = float(d.summary["holdout"]["start_s"])
@@ -122,8 +122,8 @@ _MODEL = None
 def _one(job):
     warnings.simplefilter("ignore")
     source, kind, label, seed, ov, tmp = job
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.records.synth_files import write_case
     c0 = time.process_time()
     if source == "inside":
         from arfem.models.diagnosis.synth import generate

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 
-from arfem.scenarios.run_outputs import reproduce
+from arfem.scenarios.rod.outputs import reproduce
 
 
 def main() -> int:

@@ -2,7 +2,7 @@
 
 Prints
 1. wall time, points per second and peak memory of the shipped sweep
-   (``scenarios/sweep_dtau_h.toml``) on local worker processes (all cores),
+   (``scenarios/data/sweep_dtau_h.toml``) on local worker processes (all cores),
    then of a resume of the finished store (0 points to compute);
 2. time per point against FEM dofs (mesh refinement) at Δτ = 30 s, cold (model
    assembly + dense eigen-decomposition) and warm (eigen-decomposition cached,
@@ -23,7 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-from arfem.scenarios.config import apply_override, builtin_scenario_path
+from arfem.scenarios.rod.scenario import apply_override, builtin_scenario_path
 from arfem.io import read_toml
 from arfem.scenarios.sweep import (blas_threads, clear_worker_cache, evaluate_point,
                                   load_sweep, run_sweep)
@@ -57,7 +57,7 @@ def main(argv=None) -> int:
     print(f"machine: {ncpu} cores, load average {os.getloadavg()[0]:.1f}")
 
     # 1. the shipped sweep
-    sweep = load_sweep(ROOT / "scenarios" / "sweep_dtau_h.toml")
+    sweep = load_sweep(ROOT / "scenarios" / "data" / "sweep_dtau_h.toml")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "sweep"
         t0 = time.perf_counter()

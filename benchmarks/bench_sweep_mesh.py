@@ -1,6 +1,6 @@
 """Benchmark of ``arfem sweep`` on a mesh scenario: what reuse between points saves.
 
-Evaluates points of the shipped spindle unit (``scenarios/spindle_unit.toml``, P2 unless
+Evaluates points of the shipped spindle unit (``scenarios/data/spindle_unit.toml``, P2 unless
 ``--order 1``) one after the other in this process, as a sweep does, and prints each
 point's CPU time (user + system of this process) and what it reused:
 
@@ -24,9 +24,9 @@ import os
 import time
 
 from arfem.io import read_toml
-from arfem.scenarios.config import builtin_scenario_path
-from arfem.scenarios.deterministic import blas_threads
-from arfem.scenarios.geometry_scenario import (build_geometry_model, geometry_scenario_from_dict,
+from arfem.scenarios.rod.scenario import builtin_scenario_path
+from arfem.scenarios.rod.deterministic import blas_threads
+from arfem.scenarios.geometry.scenario import (build_geometry_model, geometry_scenario_from_dict,
                                                solve_geometry)
 from arfem.scenarios.sweep.geometry import (clear_geometry_cache, evaluate_geometry_point,
                                             geometry_override, sensor_metrics)

@@ -15,9 +15,9 @@ import time
 import numpy as np
 
 
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.records.dataset import load_dataset
 from arfem.models.diagnosis.synth import CAUSES, generate
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.records.synth_files import write_case
 
 
 def main():

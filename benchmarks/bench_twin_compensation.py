@@ -75,7 +75,7 @@ def run_live(d: Path, model: Path, steps: int) -> dict:
 
 def main() -> int:
     from arfem.models.twin import SpindleTwin, TwinProgram
-    from arfem.scenarios.twin_record import write_record
+    from arfem.scenarios.live.twin_record import write_record
     print(f"load average {os.getloadavg()[0]:.2f}; {os.cpu_count()} cores")
     d = Path(tempfile.mkdtemp(prefix="arfem-bench-twin-"))
     tw = SpindleTwin(TwinProgram())                      # the twin's defaults, seed 0

@@ -18,7 +18,13 @@ stderr in files, killed at the bound. Commands and what is mutated:
 - ``report``: folders arfem did or did not write, with and without a user's
   ``report.html``, a deleted or corrupted manifest, a missing folder, a file;
 - ``twin``: every flag (2 intervals at 10 ms, port 0);
-- ``reproduce``: an ``--out`` that is a file, a user's folder, a check.
+- ``reproduce``: an ``--out`` that is a file, a user's folder, a check;
+- ``meshrun`` (issue 41): ``arfem run`` on a mesh scenario (the box of
+  ``tests/geometry_meshes.py``): a value of its TOML, or its ``.msh`` (text meshio
+  cannot parse, cut short, a node at 1e308);
+- ``meshrec`` (issue 41): a mesh run's contract-v3 record (the coarse spindle unit's,
+  1441 rows), a cell or the header of its CSV or a value of its TOML, replayed by
+  ``arfem compensate`` (and, one run in six, diagnosed by ``arfem diagnose``).
 
 Counted and printed (targets: all 0):
 
@@ -64,7 +70,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 ROOT = Path(__file__).resolve().parents[1]
-FL = ROOT / "scenarios" / "fl_thermal"
+FL = ROOT / "scenarios" / "data" / "fl_thermal"
 
 BASE = """[scenario]
 name = "coarse"
@@ -109,8 +115,8 @@ def make_inputs(d: Path) -> dict:
     """Valid inputs of every command, written into ``d``; returns their paths/texts."""
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.model_file import write_model
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.compensation.model_file import write_model
+    from arfem.scenarios.records.synth_files import write_case
     (d / "base.toml").write_text(BASE, "utf-8")
     (d / "sw.toml").write_text(SWEEP, "utf-8")
     with open(FL / "fl_thermal_whole.csv", encoding="utf-8") as fh:
@@ -122,18 +128,62 @@ def make_inputs(d: Path) -> dict:
     case = generate("none", 29, duration_h=6.0, interval_s=60, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)
     rec = write_case(case, d / "rec")
-    alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
+    alloc = (ROOT / "scenarios" / "data" / "pallet_changer.toml").read_text("utf-8")
     alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
     if "n_gen" not in alloc:
         alloc = alloc.replace("[optimizer]", "[optimizer]\nn_gen = 50") if "[optimizer]" \
             in alloc else alloc + "\n[optimizer]\nn_gen = 50\npop_size = 20\n"
     (d / "alloc.toml").write_text(alloc, "utf-8")
     (d / "live.toml").write_text(LIVE, "utf-8")
-    return {"model": json.loads((d / "model.json").read_text("utf-8")), "record": rec,
+    mesh = make_mesh_inputs(d)
+    return {**mesh, "model": json.loads((d / "model.json").read_text("utf-8")), "record": rec,
             "record_csv": rec.with_suffix(".csv").read_text("utf-8"),
             "base": BASE, "sweep": SWEEP, "alloc": alloc, "live": LIVE,
             "case_toml": (d / "case.toml").read_text("utf-8"),
             "case_csv": (d / "fl_thermal_whole.csv").read_text("utf-8")}
+
+
+def make_mesh_inputs(d: Path) -> dict:
+    """The box scenario and its mesh (``meshrun``), and a mesh run's v3 record with its
+    scenario, mesh and model.json (``meshrec``), written into ``d``."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("geometry_meshes",
+                                                  ROOT / "tests" / "geometry_meshes.py")
+    gm = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gm)
+    BOX_TOML, box_meshio, write_msh = gm.BOX_TOML, gm.box_meshio, gm.write_msh
+    from arfem.scenarios.cli import main as cli_main
+    write_msh(box_meshio(), d / "box.msh")
+    geo = ROOT / "tests" / "data" / "geodiag"
+    (d / "unit").mkdir()
+    shutil.copy(geo / "spindle_coarse.msh", d / "unit")
+    (d / "unit" / "unit.toml").write_text(
+        (geo / "spindle_coarse.toml").read_text("utf-8").replace("picture = true",
+                                                                 "picture = false"), "utf-8")
+    rc = cli_main(["run", str(d / "unit" / "unit.toml"), "--out", str(d / "unit" / "run"),
+                   "--no-progress"])
+    assert rc == 0, "the mesh run of the fuzz's inputs failed"
+    r = d / "unit" / "run"
+    return {"box": BOX_TOML, "box_msh": (d / "box.msh").read_text("utf-8"),
+            "v3_toml": (r / "record.toml").read_text("utf-8"),
+            "v3_csv": (r / "record.csv").read_text("utf-8"),
+            "v3_files": {n: (r / n).read_bytes() for n in ("scenario.toml",
+                                                          "spindle_coarse.msh", "model.json")}}
+
+
+def mutate_msh(text: str, rng: random.Random) -> str:
+    """A mesh file meshio cannot parse, cut short, or with a node far away."""
+    op = rng.random()
+    if op < 0.3:
+        return rng.choice(["hello\n", "", "$MeshFormat\n9.9 0 8\n$EndMeshFormat\n"])
+    if op < 0.5:
+        return text[:rng.randrange(len(text))]
+    lines = text.splitlines()
+    i = lines.index("$Nodes") + 2 + rng.randrange(10)
+    parts = lines[i].split()
+    parts[1 + rng.randrange(3)] = rng.choice(["1e308", "-1e308", "nan", "inf", "1e6", "x"])
+    lines[i] = " ".join(parts)
+    return "\n".join(lines) + "\n"
 
 
 def mutate_toml(text: str, rng: random.Random) -> str:
@@ -283,6 +333,28 @@ def case_for(cmd: str, i: int, d: Path, inp: dict, rng: random.Random) -> dict:
         argv = ["diagnose", str(w / "case.toml"), "--out", str(out)]
         if r >= 0.85:
             argv += ["--holdout-start", weird_flag(rng)]
+        protect = list(files)
+    elif cmd == "meshrun":
+        files["box.toml"] = mutate_toml(inp["box"], rng) if rng.random() < 0.85 else inp["box"]
+        files["box.msh"] = (mutate_msh(inp["box_msh"], rng) if rng.random() < 0.15
+                            else inp["box_msh"])
+        argv = ["run", str(w / "box.toml"), "--out", str(out), "--no-progress"]
+        protect = list(files)
+    elif cmd == "meshrec":
+        ct, cc = inp["v3_toml"], inp["v3_csv"]
+        r = rng.random()
+        if r < 0.2:
+            ct = mutate_toml(ct, rng)
+        else:
+            cc = mutate_csv(cc, rng)
+        files["record.toml"], files["record.csv"] = ct, cc
+        for name, data in inp["v3_files"].items():
+            (w / name).write_bytes(data)
+        if rng.random() < 1 / 6:
+            argv = ["diagnose", str(w / "record.toml"), "--out", str(out), "--no-progress"]
+        else:
+            argv = ["compensate", str(w / "model.json"), str(w / "record.toml"),
+                    "--out", str(out)]
         protect = list(files)
     elif cmd == "allocate":
         files["a.toml"] = mutate_toml(inp["alloc"], rng) if rng.random() < 0.85 else inp["alloc"]
@@ -470,8 +542,9 @@ def nonfinite(case: dict, stdout: str) -> str | None:
             # compensated.csv echoes the record's inputs (a missing reading stays missing)
             # and marks a held cycle's prediction NaN (docs/commands/compensate); the
             # number sent to the machine, offset_um, must always be finite
-            cols = ([hdr.index("offset_um")] if p.name == "compensated.csv"
-                    and "offset_um" in hdr else
+            # (per axis offset_<A>_um for a version-2 model on a v3 record)
+            offs = [j for j, h in enumerate(hdr) if re.match(r"^offset(_[A-Za-z]+)?_um$", h)]
+            cols = (offs if p.name == "compensated.csv" and offs else
                     [j for j, h in enumerate(hdr) if h not in echoed
                      and h not in ("growth_um", "q_W_m2", "speed_rpm", "ambient_C")
                      and not re.match(r"^T_.+_C$", h)])
@@ -494,7 +567,9 @@ def _raise(tok):
 
 # -- issue 16's parts (optional: --hypothesis, --hangs) -------------------------------------
 
-HYP_BASE = (ROOT / "tests" / "test_fuzz.py").read_text("utf-8").split('BASE = """', 1)[1] \
+#: the coarse base scenario of the sweep tests (tests/sweep_fakes.py, which test_fuzz.py
+#: imports), read as text: a module-level read failed once that file moved
+HYP_BASE = (ROOT / "tests" / "sweep_fakes.py").read_text("utf-8").split('BASE = """', 1)[1] \
     .split('"""', 1)[0]
 
 
@@ -594,10 +669,12 @@ def hang_part() -> int:
 
 #: share of the runs per command (every command gets some)
 WEIGHTS = {"compensate": 26, "report": 14, "run": 10, "check": 8, "diagnose": 9, "live": 8,
-           "allocate": 8, "sweep": 8, "twin": 7, "reproduce": 2}
+           "allocate": 8, "sweep": 8, "twin": 7, "reproduce": 2, "meshrun": 10,
+           "meshrec": 10}
 #: bound per command [s]: a run still going then counts as a hang
 BOUND_S = {"compensate": 120, "live": 60, "run": 300, "check": 300, "sweep": 600,
-           "diagnose": 600, "allocate": 600, "report": 60, "twin": 120, "reproduce": 60}
+           "diagnose": 600, "allocate": 600, "report": 60, "twin": 120, "reproduce": 60,
+           "meshrun": 300, "meshrec": 600}
 
 
 def main(argv=None) -> int:
@@ -617,9 +694,10 @@ def main(argv=None) -> int:
     if args.hangs:
         extra += hang_part()
     import arfem.scenarios.cli as cli                        # noqa: F401 - imported once
-    for mod in ("arfem.scenarios.run", "arfem.scenarios.compensate", "arfem.scenarios.sweep.command",
-                "arfem.scenarios.diagnose", "arfem.scenarios.allocate", "arfem.scenarios.check",
-                "arfem.scenarios.report", "arfem.scenarios.twin", "arfem.scenarios.live",
+    for mod in ("arfem.scenarios.commands.run", "arfem.scenarios.commands.compensate", "arfem.scenarios.commands.sweep",
+                "arfem.scenarios.geometry.scenario", "arfem.scenarios.diagnosis.mesh", "meshio",
+                "arfem.scenarios.commands.diagnose", "arfem.scenarios.commands.allocate", "arfem.scenarios.commands.check",
+                "arfem.scenarios.commands.report", "arfem.scenarios.commands.twin", "arfem.scenarios.live.jsonl",
                 "matplotlib.pyplot"):
         __import__(mod)
     rng = random.Random(args.seed)

@@ -2,7 +2,9 @@
 ``arfem report`` on what the kill left, then the command again; nothing may be lost,
 duplicated, half-written or left behind, and no folder made unresumable.
 
-Commands: ``run``, ``sweep``, ``compensate``, ``allocate`` and ``diagnose``. For each, one
+Commands: ``run``, ``sweep``, ``compensate``, ``compensate_axes`` (a three-axis replay:
+the version-2 model ``arfem run`` writes for the tests' small box, on its record, with
+``--axis-limits`` per axis; issue 40), ``allocate`` and ``diagnose``. For each, one
 clean run into a reference folder (its wall time bounds the kill times); then rounds of
 
 1. a fresh start (the soak folder removed) or a ``--force`` re-run into the finished
@@ -14,7 +16,8 @@ clean run into a reference folder (its wall time bounds the kill times); then ro
    appear); never a traceback;
 4. the command again (``--force`` except for the sweep, which resumes) to the end,
 
-until each command has been killed ``--kills`` times (default 10: 50 kills). After every
+until each command has been killed ``--kills`` times (default 10: 60 kills;
+``--commands compensate,compensate_axes`` soaks only those). After every
 re-run the soak folder is checked against the clean one:
 
 - exit 0; the same files (relative paths); no staging folder ``.arfem-staging-*`` left
@@ -28,7 +31,7 @@ re-run the soak folder is checked against the clean one:
 Prints kills per command, fresh/force rounds, report exits, failures (with what failed),
 staging folders left after the re-run, orphans left after a kill, and time.
 
-Run:  nice -n 10 python benchmarks/soak_kill9.py [--kills 10] [--seed 1]
+Run:  nice -n 10 python benchmarks/soak_kill9.py [--kills 10] [--seed 1] [--commands a,b]
 """
 from __future__ import annotations
 
@@ -49,7 +52,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-FL = ROOT / "scenarios" / "fl_thermal"
+FL = ROOT / "scenarios" / "data" / "fl_thermal"
 
 BASE = """[scenario]
 name = "coarse"
@@ -78,8 +81,8 @@ def inputs(d: Path) -> dict:
     import re
     from arfem.api import Rod, ar1, ar1_model, paper_cycle
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.model_file import write_model
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.compensation.model_file import write_model
+    from arfem.scenarios.records.synth_files import write_case
     (d / "base.toml").write_text(BASE, "utf-8")
     (d / "soak.toml").write_text(SWEEP, "utf-8")
     with open(FL / "fl_thermal_whole.csv", encoding="utf-8") as fh:
@@ -91,15 +94,35 @@ def inputs(d: Path) -> dict:
     case = generate("none", 46, duration_h=46.3, interval_s=15, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)
     rec = write_case(case, d / "rec")
-    alloc = (ROOT / "scenarios" / "pallet_changer.toml").read_text("utf-8")
+    alloc = (ROOT / "scenarios" / "data" / "pallet_changer.toml").read_text("utf-8")
     alloc = re.sub(r"n_gen\s*=\s*\d+", "n_gen = 50", alloc)
     (d / "alloc.toml").write_text(alloc, "utf-8")
+    box = _box_run(d / "box")
     return {"run": ["run", str(d / "base.toml")],
             "sweep": ["sweep", str(d / "soak.toml"), "--workers", "2", "--no-progress"],
             "compensate": ["compensate", str(d / "model.json"), str(rec), "--probe-every",
                            "1h"],
+            "compensate_axes": ["compensate", str(box / "model.json"),
+                                str(box / "record.toml"), "--axis-limits", "X=15:0.3",
+                                "--axis-limits", "Y=2:0.2", "--axis-limits", "Z=3:0.1"],
             "allocate": ["allocate", str(d / "alloc.toml")],
             "diagnose": ["diagnose", str(d / "case.toml")]}
+
+
+def _box_run(d: Path) -> Path:
+    """The folder ``arfem run`` writes for the tests' small box (three axes), written into
+    ``d`` (the tests' box scenario, loaded from its file)."""
+    import importlib.util
+    for name in ("geometry_meshes", "test_model_v2_export"):
+        spec = importlib.util.spec_from_file_location(name, ROOT / "tests" / f"{name}.py")
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    d.mkdir()
+    scen = sys.modules["test_model_v2_export"].box_scenario(d, 0.0)
+    subprocess.run([sys.executable, "-m", "arfem", "run", str(scen), "--out",
+                    str(d / "run")], check=True, capture_output=True, timeout=900)
+    return d / "run"
 
 
 def run(argv, out: Path, timeout=900) -> tuple[int, float, str]:
@@ -224,8 +247,10 @@ def sweep_errors(d: Path, clean: Path) -> list[str]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--kills", type=int, default=10, help="kills per command (5 commands)")
+    ap.add_argument("--kills", type=int, default=10, help="kills per command (6 commands)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--commands", default=None,
+                    help="comma-separated: soak only these (e.g. compensate_axes)")
     args = ap.parse_args(argv)
     rng = random.Random(args.seed)
     t_start = time.perf_counter()
@@ -233,6 +258,12 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="arfem-soak-") as tmp:
         d = Path(tmp)
         cmds = inputs(d)
+        if args.commands:
+            keep = args.commands.split(",")
+            unknown = sorted(set(keep) - set(cmds))
+            if unknown:
+                ap.error(f"--commands: unknown {unknown}; the commands are {sorted(cmds)}")
+            cmds = {k: v for k, v in cmds.items() if k in keep}
         clean_s = {}
         print("clean runs:")
         for name, argv_ in cmds.items():

@@ -140,12 +140,16 @@ def read_grouped_mesh(path, unit: str, where: str | None = None) -> GroupedMesh:
     log = logging.getLogger("meshio")
     level = log.level
     log.setLevel(logging.ERROR)
-    chatter = io.StringIO()      # meshio's Gmsh reader prints a bare newline to stdout
+    chatter = io.StringIO()      # meshio's Gmsh reader prints a bare newline to stdout,
+    # and where it cannot read a file, the reason (stdout) and an error (stderr)
     try:
-        with contextlib.redirect_stdout(chatter):
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
             m = meshio.read(str(p))
-    except Exception as exc:      # meshio raises many kinds (ReadError, KeyError, ...)
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    except (Exception, SystemExit) as exc:   # meshio raises many kinds (ReadError,
+        # KeyError, ...) and on a file none of its readers takes calls sys.exit(1)
+        text = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
+        lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+        msg = lines[0].removeprefix("Error: ") if lines else type(exc).__name__
         raise InputError(f"cannot be read as a mesh ({msg})", where) from None
     finally:
         log.setLevel(level)
@@ -207,6 +211,10 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
     ncorner = 8 if ctype == "hexahedron" else 4
     corners = cells[:, :ncorner]
     used = np.unique(corners)
+    if used.size and (used[0] < 0 or used[-1] >= pts.shape[0]):
+        raise InputError(f"a cell names node {int(used[-1] if used[-1] >= pts.shape[0] else used[0])}"
+                         f", which the file does not have ({pts.shape[0]} nodes)", where)
+    _check_nodes(pts[used], used, unit, where)
     _check_extent(pts[used], unit, where)
     renum = -np.ones(pts.shape[0], np.int64)
     renum[used] = np.arange(used.size)
@@ -245,6 +253,21 @@ def _volume_cell_type(m, where: str) -> str:
         raise InputError(f"mixes {' and '.join(sorted(vol_types))} cells; arfem needs one "
                          "kind of volume cell per mesh", where)
     return vol_types.pop()
+
+
+def _check_nodes(pts_m: np.ndarray, ids: np.ndarray, unit: str, where: str) -> None:
+    """Every node the cells use at a finite place a machine's part can have
+    (:data:`arfem.ranges.RANGES` ``coordinate_m``), before any arithmetic on them: one
+    line naming the first node that is not."""
+    from arfem.ranges import RANGES
+    lo, hi, _ = RANGES["coordinate_m"]
+    bad = ~np.all(np.isfinite(pts_m) & (pts_m >= lo) & (pts_m <= hi), axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        x = pts_m[k] / UNITS[unit]
+        raise InputError(f"node {int(ids[k])} at ({', '.join(f'{v:g}' for v in x)}) {unit} is "
+                         f"not a point of a machine part (every coordinate must be finite and "
+                         f"within [{lo / UNITS[unit]:g}, {hi / UNITS[unit]:g}] {unit})", where)
 
 
 def _check_extent(pts_m: np.ndarray, unit: str, where: str) -> None:

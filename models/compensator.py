@@ -24,8 +24,18 @@ centre point's drift in X, Y, Z of a spindle unit from a mesh): C is p × n, D p
 d0 a p-vector, and each output carries the axis its offset is written to. The cycle is
 the same, per axis: offset_j = clamp(−ŷ_j, ±max_offset_j), rate-limited to
 ±max_step_j; an unusable input holds every axis (they share the inputs), a clamp or a
-rate limit is that axis's alarm (``clamped@X``). Version 1 is read and run exactly as
-before.
+rate limit is that axis's alarm (``clamped@X``). A version-1 model is one axis: the
+same per-axis clamp and rate limit run it (the same floats as before), its alarms
+untagged.
+
+What the controller holds (issue 40): the rate limit of each axis counts from the value
+that axis of the controller holds, given by a transport to
+:meth:`Compensator.resume_axis`, the one rule every transport calls: a value inside
+the axis's clamp is adopted; one beyond it, or not a finite number, is not -- the axis
+is held (``held_beyond_clamp`` / ``held_nonfinite``, offset NaN: not to be written) until
+the controller is seen holding a value inside; a read-back that differs from what was
+last set is ``external_change`` and the ramp starts from it. No offset beyond the clamp
+is ever produced, nor one more than a step from a value the controller was seen holding.
 """
 from __future__ import annotations
 
@@ -37,11 +47,12 @@ from typing import Mapping
 import numpy as np
 
 from arfem.params import InputError
+from arfem.ranges import RANGES, reading_quantity, reading_range
 
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
            "fit_speed_ar1_model", "fit_mlr_model",
-           "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind"]
+           "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind", "check_reading"]
 
 #: version of the ``model.json`` layout of a one-output model (the rod's growth)
 MODEL_VERSION = 1
@@ -173,6 +184,10 @@ class StateSpaceModel:
         compensator then steps the matrices of each interval's speed, and A, B, D above
         are the nominal ones (for the plausible ranges; the export's: at the
         time-weighted mean h). None: time-invariant.
+    observer : Observer, optional
+        Version 2: the thermometers' observer (:mod:`arfem.models.observer`, issue 43):
+        the compensator corrects the state from the ``T_<sensor>_C`` readings each
+        cycle. None: open loop.
     """
 
     kind: str
@@ -193,6 +208,7 @@ class StateSpaceModel:
     fit_window_s: tuple | None = None
     outputs: tuple = ()
     schedule: SpeedSchedule | None = None
+    observer: object = None
 
     def matrices(self, speed_rpm: float | None = None) -> tuple:
         """(A, B, D, outside): the matrices of an interval at ``speed_rpm`` (the raw
@@ -272,7 +288,9 @@ class StateSpaceModel:
                 **({"fit_window_s": [float(v) for v in self.fit_window_s]}
                    if self.fit_window_s is not None else {}),
                 **({"speed_schedule": self.schedule.to_dict()}
-                   if self.schedule is not None else {})}
+                   if self.schedule is not None else {}),
+                **({"observer": self.observer.to_dict()} if self.observer is not None
+                   else {})}
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
@@ -312,7 +330,7 @@ MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B
 MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
                   "arfem_version")
 #: version 2 may also hold ``speed_schedule`` (:class:`SpeedSchedule`)
-MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule",)
+MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule", "observer")
 #: version 2: ``outputs`` (several, each with its axis) in place of ``output``
 MODEL_REQUIRED_V2 = tuple("outputs" if k == "output" else k for k in MODEL_REQUIRED)
 #: input names of the measured-data contract (the schema's ``pattern``)
@@ -459,11 +477,16 @@ def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
     arfem_version = _string(d.get("arfem_version", ""), k("arfem_version"))
     schedule = (_read_schedule(d["speed_schedule"], k, names, A.shape, B.shape, D.shape,
                                maps) if "speed_schedule" in d else None)
-    return cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
-               inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
-               d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
-               input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
-               schedule=schedule)
+    model = cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
+                inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
+                d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
+                input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
+                schedule=schedule)
+    if "observer" in d:                             # version 2's thermometers (issue 43)
+        from arfem.models.observer import observer_from_dict
+        model = _with_fields(model, observer=observer_from_dict(d["observer"],
+                                                                k("observer"), model))
+    return model
 
 
 def _read_inputs(ins, k, pattern: str) -> list:
@@ -655,9 +678,15 @@ def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "p
 #: a fault the operator must see
 INFORMATIVE = frozenset({"clamped", "rate_limited", "extrapolated", "outside_schedule"})
 
+#: a value read back from the controller that differs from the one this compensator
+#: last set by more than this, relative to max(1 µm, |value|), is an external change (a
+#: Float node rounds a Double to about 6e-8 relative; anything more was done by someone)
+READBACK_TOLERANCE = 1e-6
+
 #: no spindle's thermal growth reaches 1 mm: an input whose steady-state share of the
-#: predicted growth would exceed this is not a reading [µm]
-PLAUSIBLE_GROWTH_UM = 1000.0
+#: predicted growth would exceed this is not a reading [µm] (the growth's range in the
+#: one table of ranges, :data:`arfem.ranges.RANGES`)
+PLAUSIBLE_GROWTH_UM = RANGES["growth_um"][1]
 
 #: missed intervals up to this many are stepped one by one (the same floats as a replay
 #: that saw them); more are stepped in closed form (:func:`propagate`)
@@ -699,19 +728,48 @@ def propagate(A: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return rp, rg, rs
 
 
+def check_reading(name: str, v, ranges: Mapping | None) -> tuple[float, str | None]:
+    """A raw reading as a float and what is wrong with it: ``missing:NAME`` (None),
+    ``nonfinite:NAME`` (not a finite number), ``out_of_range:NAME`` (outside
+    ``ranges[name]``, where ``ranges`` has it), or None. The one check of every
+    reading the compensator takes: the model's inputs and the observer's thermometers.
+
+    >>> check_reading("T_a_C", 200.0, {"T_a_C": (-10.0, 150.0)})
+    (200.0, 'out_of_range:T_a_C')
+    >>> check_reading("P_a_W", None, None)
+    (nan, 'missing:P_a_W')
+    """
+    if v is None:
+        return math.nan, f"missing:{name}"
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x):
+        return x, f"nonfinite:{name}"
+    if ranges is not None and name in ranges:
+        lo, hi = ranges[name]
+        if not lo <= x <= hi:
+            return x, f"out_of_range:{name}"
+    return x, None
+
+
 def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None) -> dict:
     """The range [lo, hi] each input's raw reading must lie in to be fed to the state.
 
     A reading outside is a bad reading (``out_of_range:NAME``: the offset is held, the
-    state never sees it; issue 28). Defaults, by the input's name and unit:
+    state never sees it; issue 28). The ranges are the one table's
+    (:func:`arfem.ranges.reading_range`, which the record reader applies to every
+    record replayed or diagnosed), narrowed by the model:
 
-    * a heat input (``q_*`` or a unit in W): >= 0;
+    * a heat input (``q_*`` or a unit in W/m²: 0 to 1e7 W/m²; ``P_*_W`` or a unit in
+      W: 0 to 1 MW);
     * a speed (``*_rpm``): 0 to twice the fastest speed of its map or speed schedule (or
-      100 000 /min);
+      the table's 100 000 /min);
     * an ambient temperature (``ambient*``): -10 to 50 °C; any other ``*_C``: -10 to
       150 °C;
-    * every input whose share of the steady-state growth, C (I − A)⁻¹ B + D per unit,
-      is known: no more than :data:`PLAUSIBLE_GROWTH_UM` (1 mm) of growth.
+    * every other input whose share of the steady-state growth, C (I − A)⁻¹ B + D per
+      unit, is known: no more than :data:`PLAUSIBLE_GROWTH_UM` (1 mm) of growth.
 
     ``overrides`` maps an input name to ``(lo, hi)`` (the config's ``[live.ranges]``).
 
@@ -730,22 +788,25 @@ def plausible_ranges(model: "StateSpaceModel", overrides: Mapping | None = None)
     # one output: its row; several: each input's largest share over the outputs
     dc = dc[0] if not model.outputs else np.max(np.abs(dc), axis=0)
     out = {}
-    for j, spec in enumerate(model.inputs):
+    # the observer's thermometers (issue 43) by the same rules (no growth share)
+    therm = [InputSpec(t, "°C") for t in (model.observer.thermometers
+                                          if model.observer is not None else ())]
+    dc = np.concatenate([np.asarray(dc, float), np.zeros(len(therm))])
+    for j, spec in enumerate(tuple(model.inputs) + tuple(therm)):
         nm, unit = spec.name, spec.unit
-        lo, hi = -math.inf, math.inf
-        if nm.startswith("q_") or unit.startswith("W"):
-            lo = 0.0
-        if nm.endswith("_rpm"):
+        kind = reading_quantity(nm, unit)
+        lo, hi = reading_range(nm, unit)
+        if kind == "speed_rpm":
             m = model.input_maps.get(nm)
             if m is None and model.schedule is not None and model.schedule.input == nm:
                 m = (model.schedule.speeds_rpm,)        # its tabulated speeds
-            lo, hi = 0.0, (2.0 * max(float(m[0][-1]), 1.0) if m is not None else 1e5)
-        elif nm.endswith("_C") or unit in ("°C", "degC", "C"):
-            lo, hi = (-10.0, 50.0) if "ambient" in nm else (-10.0, 150.0)
-        elif nm not in model.input_maps and abs(dc[j]) > 0:
+            if m is not None:
+                hi = 2.0 * max(float(m[0][-1]), 1.0)
+        elif kind not in ("ambient_C", "temperature_C") and nm not in model.input_maps \
+                and abs(dc[j]) > 0:
             ref = model.input_offsets.get(nm, 0.0)
             half = PLAUSIBLE_GROWTH_UM / abs(float(dc[j]))
-            lo, hi = max(lo, ref - half), ref + half
+            lo, hi = max(lo, ref - half), min(hi, ref + half)
         out[nm] = (float(lo), float(hi))
     for nm, (lo, hi) in (overrides or {}).items():
         out[nm] = (float(lo), float(hi))
@@ -768,8 +829,15 @@ class AxisCycle:
     predicted_um : float
         The model's output [µm] (NaN where the inputs were not usable).
     alarms : tuple of str
-        This axis's own alarms: ``clamped``, ``rate_limited`` (informative), and any a
-        transport adds for it (``write_refused:STATUS``).
+        This axis's own alarms: ``clamped``, ``rate_limited`` (informative),
+        ``held_beyond_clamp`` / ``held_nonfinite`` (the controller holds a value this
+        compensator does not adopt: the axis is not written), ``external_change`` (a
+        read-back differed from what this compensator last set), and any a transport adds
+        for it (``write_refused:STATUS``).
+    held : bool
+        True when this axis is not to be written this cycle: its ``offset_um`` is then
+        what it holds (an input fault, every axis), or NaN where the controller holds a
+        value beyond the clamp or not a number (:meth:`Compensator.resume_axis`).
     """
 
     axis: str
@@ -777,6 +845,7 @@ class AxisCycle:
     offset_um: float
     predicted_um: float
     alarms: tuple = ()
+    held: bool = False
 
 
 @dataclass(frozen=True)
@@ -787,7 +856,8 @@ class Cycle:
     ----------
     offset_um : float
         The correction to write [µm] (−predicted growth, clamped and rate-limited).
-        NaN for a version-2 model: its offsets are per axis, in ``axes``.
+        NaN for a version-2 model (its offsets are per axis, in ``axes``), and where the
+        controller holds a value beyond the clamp or not a number (nothing is written).
     predicted_growth_um : float
         The model's growth [µm] (NaN where the inputs were not usable, and for a
         version-2 model).
@@ -799,9 +869,15 @@ class Cycle:
         too, tagged with their axis (``clamped@X``, ``write_refused@Y:BadNotWritable``).
     held : bool
         True when the last offset was kept because an input was not usable (every axis
-        is held: they share the inputs).
+        is held: they share the inputs); for a version-1 model also while the controller
+        holds a value beyond the clamp or not a number (``offset_um`` NaN: nothing to
+        write). A version-2 model's axis held alone says so in its :class:`AxisCycle`.
     axes : tuple of AxisCycle
         Version 2: one per output, in the model's order; () for version 1.
+    observer : Correction, optional
+        What the thermometers' observer corrected this cycle (the disturbance estimates
+        in W and K, the innovations; :class:`arfem.models.observer.Correction`); None
+        without an observer or in a held cycle.
     """
 
     offset_um: float
@@ -809,6 +885,7 @@ class Cycle:
     alarms: tuple = ()
     held: bool = False
     axes: tuple = ()
+    observer: object = None
 
     def axis_alarms(self, axis: str) -> tuple:
         """The alarms that concern ``axis``: every alarm not tagged with an axis (the
@@ -851,26 +928,43 @@ class Compensator:
         Input name → (lo, hi): the plausible range of its raw reading
         (:func:`plausible_ranges`); a reading outside is ``out_of_range:NAME``, held and
         never fed to the state. None (replay's default): no range check.
+    use_observer : bool
+        Run the model's thermometer observer (``model.observer``, issue 43) where it has
+        one (default); False runs it open loop, exactly as a model without one.
 
     Notes
     -----
-    :attr:`offset_um` is the offset the controller holds: the rate limit counts from
-    it. A transport that reads the controller's value back (on start, on reconnect, after
-    a refused write) sets it with :meth:`resume`, so that the next offset is at most
-    ``max_step_um`` from what the machine actually has. A version-2 model keeps one such
-    value per axis, :attr:`offsets_um` (:meth:`resume_axis`).
+    A version-1 model is one axis: both versions go through the same clamp and rate
+    limit (:meth:`_axis_offset`), per axis. :attr:`offsets_um` holds, per axis, the
+    offset the controller holds -- the rate limit counts from it -- and
+    :attr:`offset_um` is the one axis of a version-1 model. A transport that reads the
+    controller's value back (on start, on reconnect, every cycle, after a refused write)
+    or is told it (a JSON line, the log's warm start) passes it to :meth:`resume_axis`
+    (:meth:`resume` for every axis), the one rule for adopting it: a value inside the
+    axis's clamp is adopted and the next offset is at most the axis's step from it; a
+    value beyond the clamp or not a finite number is NOT adopted: the axis raises
+    ``held_beyond_clamp`` or ``held_nonfinite`` and is not written (its offset is NaN)
+    until the controller is seen holding a value inside the clamp (the operator brings it
+    there; ``docs/safety.md``). No offset beyond the clamp is ever produced, and none more
+    than a step from a value the controller was seen holding.
     """
 
     model: StateSpaceModel
     max_offset_um: float | tuple = math.inf
     max_step_um: float | tuple = math.inf
     ranges: Mapping | None = None
+    use_observer: bool = True
     x: np.ndarray = field(init=False)
     P: np.ndarray = field(init=False)
-    offset_um: float = field(init=False, default=0.0)
     offsets_um: np.ndarray = field(init=False)
     _u_last: np.ndarray | None = field(init=False, default=None)
     _speed_last: float | None = field(init=False, default=None)
+    _held: list = field(init=False)             # per axis: None, or why it is not written
+    _events: list = field(init=False)           # per axis: alarms for the next cycle
+    _known: list = field(init=False)            # per axis: its value set or adopted
+    _d0: np.ndarray = field(init=False)
+    _lims: tuple = field(init=False)
+    _observer: object = field(init=False, default=None)
 
     def __post_init__(self):
         p = len(self.model.outputs)
@@ -884,15 +978,39 @@ class Compensator:
                     raise InputError(f"must be > 0, got {x!r}", name)
         self.x = self.model.x0.astype(float).copy()
         self.P = np.zeros((self.model.n_states,) * 2)
-        self.offsets_um = np.zeros(p)
+        n_axes = max(p, 1)                          # version 1: one axis
+        self._d0 = self.model.d0_vector()           # (the model is frozen)
+        self._lims = (None, [])                     # (limits' fields, per axis), cached
+        self.offsets_um = np.zeros(n_axes)
+        self._held = [None] * n_axes
+        self._events = [[] for _ in range(n_axes)]
+        self._known = [False] * n_axes              # (0 at a cold start is assumed)
+        if self.use_observer and self.model.observer is not None:
+            from arfem.models.observer import ObserverRun
+            self._observer = ObserverRun(self.model.observer)
+
+    @property
+    def offset_um(self) -> float:
+        """The offset the controller holds [µm], of a version-1 model's one axis (NaN
+        while it holds a value that is not adopted)."""
+        return float(self.offsets_um[0])
+
+    def held_reason(self, j: int) -> str | None:
+        """Why axis ``j`` is not written (``held_beyond_clamp``, ``held_nonfinite``:
+        the controller holds a value :meth:`resume_axis` did not adopt), or None."""
+        return self._held[j]
 
     def limits(self, j: int) -> tuple[float, float]:
-        """(max_offset_um, max_step_um) of axis ``j`` [µm] (version 2)."""
-        out = []
-        for v in (self.max_offset_um, self.max_step_um):
-            vals = v if isinstance(v, (tuple, list)) else (v,)
-            out.append(float(vals[j] if len(vals) > 1 else vals[0]))
-        return out[0], out[1]
+        """(max_offset_um, max_step_um) of axis ``j`` [µm] (0 for a version-1 model)."""
+        key = (self.max_offset_um, self.max_step_um)
+        if self._lims[0] != key:                    # computed once per value of the fields
+            per = []
+            for v in key:
+                vals = v if isinstance(v, (tuple, list)) else (v,)
+                per.append([float(vals[i] if len(vals) > 1 else vals[0])
+                            for i in range(len(self.offsets_um))])
+            self._lims = (key, list(zip(*per)))
+        return self._lims[1][j]
 
     def step(self, inputs: Mapping[str, float | None], alarms=(), advance: bool = True) -> Cycle:
         """One cycle: read the inputs of interval k, advance the state, set the offset.
@@ -912,21 +1030,9 @@ class Compensator:
         alarms = list(alarms)
         u = np.empty(len(mdl.inputs))
         for j, spec in enumerate(mdl.inputs):
-            v = inputs.get(spec.name)
-            if v is None:
-                alarms.append(f"missing:{spec.name}")
-                u[j] = np.nan
-            else:
-                try:
-                    u[j] = float(v)
-                except (TypeError, ValueError):
-                    u[j] = np.nan
-                if not math.isfinite(u[j]):
-                    alarms.append(f"nonfinite:{spec.name}")
-                elif self.ranges is not None and spec.name in self.ranges:
-                    lo, hi = self.ranges[spec.name]
-                    if not lo <= u[j] <= hi:
-                        alarms.append(f"out_of_range:{spec.name}")
+            u[j], bad = check_reading(spec.name, inputs.get(spec.name), self.ranges)
+            if bad:
+                alarms.append(bad)
         usable = not alarms and advance
         notes = []
         if usable:
@@ -949,59 +1055,145 @@ class Compensator:
             if mdl.Q or self.P.any():             # P = 0 stays 0 with Q = 0 (exactly):
                 self.P = A @ self.P @ A.T + mdl.Q * np.eye(mdl.n_states)  # skip n³ work
         if not usable:
-            if mdl.outputs:
-                return self._axes_cycle(None, alarms)
-            return Cycle(self.offset_um, float("nan"), tuple(alarms), True)
-        alarms += notes                           # informative: the offset is not held
-        if mdl.outputs:
-            return self._axes_cycle(u, alarms, D)
-        y = float((mdl.C @ self.x + mdl.D @ u)[0] + mdl.d0_um)
-        want = -y
-        if abs(want) > self.max_offset_um:
-            want = math.copysign(self.max_offset_um, want)
-            alarms.append("clamped")
-        if abs(want - self.offset_um) > self.max_step_um:
-            want = self.offset_um + math.copysign(self.max_step_um, want - self.offset_um)
-            alarms.append("rate_limited")
-        self.offset_um = float(want)
-        return Cycle(self.offset_um, y, tuple(alarms), False)
+            return self._axes_cycle(None, alarms)
+        if self._observer is not None:          # the thermometers correct the state
+            return self._observed(inputs, u, B, D, alarms + notes)   # first (issue 43)
+        return self._axes_cycle(u, alarms + notes, D)   # notes: informative, not held
+
+    def _observed(self, inputs: Mapping, u: np.ndarray, B: np.ndarray, D: np.ndarray,
+                  alarms: list) -> "Cycle":
+        """A version-2 cycle with the observer's measurement update first
+        (:meth:`ObserverRun.correct <arfem.models.observer.ObserverRun.correct>`): each
+        thermometer is checked as an input is (:func:`check_reading`; a bad one is held
+        -- its correction not made -- and its alarm raised, the offset not held), the
+        state corrected, and the outputs computed with the inputs plus the estimated
+        disturbances (which held cycles and unseen intervals after it also use)."""
+        ob = self._observer.observer
+        readings = []
+        for name in ob.thermometers:
+            v, bad = check_reading(name, inputs.get(name), self.ranges)
+            readings.append(None if bad else v)
+            if bad:
+                alarms.append(bad)
+        self.x, u_eff, corr = self._observer.correct(self.x, u, B, self._speed_last,
+                                                     readings)
+        self._u_last = u_eff
+        return _with_fields(self._axes_cycle(u_eff, alarms, D), observer=corr)
 
     def _schedule_column(self) -> int:
         """The column of the speed schedule's input among the model's inputs."""
         return [i.name for i in self.model.inputs].index(self.model.schedule.input)
 
     def _axes_cycle(self, u, alarms: list, D=None) -> Cycle:
-        """A version-2 cycle: each axis's offset from its output, clamped and
-        rate-limited by its own limits, counted from what that axis holds; ``u`` None:
-        every axis held. ``D``: the interval's (a speed schedule's), else the model's."""
+        """A cycle: each axis's offset from its output (:meth:`_axis_offset`), counted
+        from what that axis holds; ``u`` None: every axis held. A version-1 model is one
+        axis whose alarms are not tagged and whose offset is the cycle's; a version-2
+        model tags each axis's alarms (``clamped@X``). ``D``: the interval's (a speed
+        schedule's), else the model's."""
         mdl = self.model
-        D = mdl.D if D is None else D
-        if u is None:
-            axes = tuple(AxisCycle(o.axis, o.name, float(self.offsets_um[j]), float("nan"))
-                         for j, o in enumerate(mdl.outputs))
-            return Cycle(float("nan"), float("nan"), tuple(alarms), True, axes)
-        y = mdl.C @ self.x + D @ u + mdl.d0_vector()
+        y = None
+        if u is not None:
+            y = mdl.C @ self.x + (mdl.D if D is None else D) @ u + self._d0
+        if not mdl.outputs:                         # version 1: the cycle is the axis
+            off, own = self._axis_result(0, None if y is None else -float(y[0]))
+            return Cycle(off, math.nan if y is None else float(y[0]),
+                         tuple(alarms + own) if own else tuple(alarms),
+                         y is None or math.isnan(off))
         axes = []
         for j, o in enumerate(mdl.outputs):
-            lim, step = self.limits(j)
-            own = []
-            want = -float(y[j])
-            if abs(want) > lim:
-                want = math.copysign(lim, want)
-                own.append("clamped")
-            held = float(self.offsets_um[j])
-            if abs(want - held) > step:
-                want = held + math.copysign(step, want - held)
-                own.append("rate_limited")
-            self.offsets_um[j] = want
-            alarms += [f"{a}@{o.axis}" for a in own]
-            axes.append(AxisCycle(o.axis, o.name, float(want), float(y[j]), tuple(own)))
-        return Cycle(float("nan"), float("nan"), tuple(alarms), False, tuple(axes))
+            off, own = self._axis_result(j, None if y is None else -float(y[j]))
+            alarms += [f"{a.split(':')[0]}@{o.axis}" + (":" + a.split(":", 1)[1]
+                                                         if ":" in a else "") for a in own]
+            axes.append(AxisCycle(o.axis, o.name, off, math.nan if y is None else float(y[j]),
+                                  tuple(own), y is None or math.isnan(off)))
+        return Cycle(math.nan, math.nan, tuple(alarms), y is None, tuple(axes))
 
-    def resume_axis(self, j: int, offset_um: float) -> None:
-        """Count axis ``j``'s rate limit from ``offset_um`` [µm], the value that axis of
-        the controller holds (version 2; :meth:`resume` for all axes at once)."""
-        self.offsets_um[j] = float(offset_um)
+    def _axis_result(self, j: int, want: float | None) -> tuple[float, list]:
+        """Axis ``j``'s offset and own alarms this cycle: :meth:`_axis_offset` of the
+        wanted correction, or (``want`` None: the inputs were not usable) what it holds,
+        with its hold's alarm; then the events seen since the last cycle
+        (``external_change``)."""
+        if want is not None:
+            off, own = self._axis_offset(j, want)
+        else:
+            off, own = float(self.offsets_um[j]), ([] if self._held[j] is None
+                                                   else [self._held[j]])
+        if self._events[j]:
+            own += self._events[j]
+            self._events[j] = []
+        return off, own
+
+    def _axis_offset(self, j: int, want: float) -> tuple[float, list]:
+        """Axis ``j``'s offset for the wanted correction ``want`` [µm] and its own
+        alarms: clamped to ±max_offset_um (``clamped``), then limited to ±max_step_um
+        from what the axis holds (``rate_limited``). The one clamp and rate limit of
+        every model, transport and replay. An axis whose controller holds a value not
+        adopted (:meth:`resume_axis`) is not written: NaN and its alarm; so is a
+        prediction that is not finite (``nonfinite:prediction``, the held value kept)."""
+        if self._held[j] is not None:
+            return float("nan"), [self._held[j]]
+        held = float(self.offsets_um[j])
+        if not math.isfinite(want):
+            return held, ["nonfinite:prediction"]
+        lim, step = self.limits(j)
+        own = []
+        if abs(want) > lim:
+            want = math.copysign(lim, want)
+            own.append("clamped")
+        if abs(want - held) > step:
+            want = held + math.copysign(step, want - held)
+            own.append("rate_limited")
+        self.offsets_um[j] = want
+        self._known[j] = True
+        return float(want), own
+
+    def resume_axis(self, j: int, offset_um, readback: bool = False) -> str | None:
+        """Take ``offset_um`` [µm] as the value axis ``j`` of the controller holds (read
+        back on start, on reconnect or each cycle; a JSON line's; the log's warm start;
+        the last accepted value after a refused write). The one rule for every transport:
+
+        * inside the axis's clamp (|v| <= max_offset_um): adopted; the next offset is at
+          most the axis's step from it. With ``readback`` (a value read again while
+          running), a value that differs from what this compensator last set or took
+          (by more than :data:`READBACK_TOLERANCE` relative; not the 0 a cold start
+          assumes) raises ``external_change`` on the next cycle: someone else changed
+          it; the ramp starts from it;
+        * beyond the clamp, or not a finite number (None, NaN, ±inf, not a number):
+          NOT adopted; the axis raises ``held_beyond_clamp`` or ``held_nonfinite`` on
+          every cycle and is not written (NaN) until a value inside the clamp is taken.
+
+        Returns the alarm kind raised (``held_beyond_clamp``, ``held_nonfinite``,
+        ``external_change``) or None.
+
+        Examples
+        --------
+        >>> c = Compensator(ar1_model(0.9, 1e-3, dtau_s=60.0), max_offset_um=3.0,
+        ...                 max_step_um=0.1)
+        >>> c.resume_axis(0, 50.0), c.step({"q_W_m2": 100.0}).offset_um
+        ('held_beyond_clamp', nan)
+        >>> c.resume_axis(0, 2.5), c.step({"q_W_m2": 100.0}).offset_um
+        (None, 2.4)
+        """
+        try:
+            v = float(offset_um) if _is_number(offset_um) else math.nan
+        except OverflowError:                       # an int beyond the float range
+            v = math.inf
+        lim, _ = self.limits(j)
+        kind = ("held_nonfinite" if not math.isfinite(v) else
+                "held_beyond_clamp" if abs(v) > lim else None)
+        if kind is not None:
+            self._held[j] = kind
+            self.offsets_um[j] = math.nan
+            return kind
+        known = float(self.offsets_um[j])
+        changed = (readback and self._known[j] and self._held[j] is None
+                   and abs(v - known) > READBACK_TOLERANCE * max(1.0, abs(known)))
+        self._held[j], self._known[j] = None, True
+        self.offsets_um[j] = float(v)
+        if changed:
+            self._events[j].append("external_change")
+            return "external_change"
+        return None
 
     def advance_idle(self, k: int) -> None:
         """Advance the state through ``k`` intervals not seen, with the last good inputs
@@ -1032,25 +1224,28 @@ class Compensator:
         self.P = np.zeros((self.model.n_states,) * 2)
         self._u_last = None
         self._speed_last = None
+        if self._observer is not None:
+            self._observer.d[:] = 0.0
 
-    def resume(self, offset_um: float) -> None:
-        """Count the rate limit from ``offset_um`` [µm], the value the controller holds
-        (read back on start or reconnect, or the last accepted one after a refused
-        write): the next offset is at most ``max_step_um`` from it. A version-2 model
-        takes one value per axis (a sequence) or one for all."""
-        if self.model.outputs:
-            self.offsets_um[:] = np.broadcast_to(np.asarray(offset_um, float),
-                                                 self.offsets_um.shape)
-            return
-        self.offset_um = float(offset_um)
+    def resume(self, offset_um) -> tuple:
+        """:meth:`resume_axis` for every axis: ``offset_um`` one value per axis (a
+        sequence, version 2) or one for all; returns each axis's alarm kind or None."""
+        vals = offset_um if isinstance(offset_um, (tuple, list, np.ndarray)) else \
+            [offset_um] * len(self.offsets_um)
+        if len(vals) != len(self.offsets_um):
+            raise ValueError(f"needs one value per axis ({len(self.offsets_um)})")
+        return tuple(self.resume_axis(j, v) for j, v in enumerate(vals))
 
     def state(self) -> dict:
         """The state to log (a warm start restores it): ``x`` [µm], ``P`` [µm²] and the
-        last good inputs ``u`` (as the matrices take them), and with a speed schedule the
-        last good speed ``speed_rpm`` (its matrices), JSON-ready."""
+        last good inputs ``u`` (as the matrices take them; with an observer, plus its
+        estimated disturbances), with a speed schedule the last good speed ``speed_rpm``
+        (its matrices), and with an observer its ``disturbances`` (W, K), JSON-ready."""
         return {"x": self.x.tolist(), "P": self.P.tolist(),
                 "u": None if self._u_last is None else self._u_last.tolist(),
                 **({"speed_rpm": self._speed_last} if self.model.schedule is not None
+                   else {}),
+                **({"disturbances": self._observer.state()} if self._observer is not None
                    else {})}
 
     def restore(self, state: Mapping) -> None:
@@ -1069,6 +1264,8 @@ class Compensator:
         if speed is not None and not (isinstance(speed, (int, float))
                                       and math.isfinite(speed)):
             raise ValueError("state's speed is not finite")
+        if self._observer is not None and state.get("disturbances") is not None:
+            self._observer.restore(state["disturbances"])   # ValueError if it does not fit
         self.x, self.P, self._u_last = x, P, u
         self._speed_last = (None if self.model.schedule is None or speed is None
                             else float(speed))

@@ -13,8 +13,10 @@ Here, per quantity (a record column ``d_<name>_um`` or ``tilt_<name>_urad``):
 * the drift δ(t) = v(t) − v(t₀), from the first row (the probes' zero);
 * ``max_abs`` the largest |δ| over the test and when it occurred;
 * ``range`` max δ − min δ over the test (the band the quantity moved in);
-* ``at_stop`` δ when the spindle stopped (the end of the running phase) and ``final``
-  δ at the end of the record.
+* ``at_stop`` δ when the spindle stopped (the last row at n > 0 that a row at n = 0
+  follows: the end of the running phase) and ``final`` δ at the end of the record. A
+  record whose spindle never stops (it runs on its last row) or never runs has no
+  stop: ``at_stop`` and ``stop_s`` are then None.
 
 Pure (arrays in, frozen dataclasses out; layer ``models``).
 """
@@ -51,7 +53,9 @@ class ThermalTest:
     speed_rpm : ndarray (n,) or None
     drift : dict, column → δ (n,) from the first row
     quantities : tuple of QuantityDrift, in column order (displacements, then tilts)
-    stop_s : float or None, when the spindle stopped (the last running row's time)
+    stop_s : float or None, when the spindle stopped (the last running row's time, where
+        a stopped row follows it); None without a speed, or when the spindle never
+        runs or still runs on the last row
     """
 
     time_s: np.ndarray
@@ -89,7 +93,8 @@ def thermal_test(time_s, columns: dict, speed_rpm=None) -> ThermalTest:
         Column name → values (n,), µm (``d_*_um``) or µrad (``tilt_*_urad``); other
         columns are ignored; empty cells (NaN) are skipped.
     speed_rpm : array_like (n,), optional
-        The spindle speed per row; the stop is the last row with n > 0.
+        The spindle speed per row; the stop is the last row with n > 0, provided a
+        row with n = 0 follows it (a spindle still running at the end has not stopped).
 
     Examples
     --------
@@ -99,11 +104,17 @@ def thermal_test(time_s, columns: dict, speed_rpm=None) -> ThermalTest:
     >>> q = tt.quantities[0]
     >>> (q.name, q.max_abs, q.max_abs_time_h, q.range, q.at_stop, q.final)
     ('Z', -11.0, 2.0, 11.0, -11.0, -6.0)
+
+    A test cut short while the spindle still runs has no stop:
+
+    >>> thermal_test(t[:3], {"d_Z_um": np.array([0.0, -5.0, -9.0])},
+    ...              speed_rpm=np.array([8000.0, 8000.0, 8000.0])).stop_s is None
+    True
     """
     t = np.asarray(time_s, float)
     n = None if speed_rpm is None else np.asarray(speed_rpm, float)
     running = np.flatnonzero(n > 0) if n is not None else np.zeros(0, int)
-    stop = int(running[-1]) if running.size else None
+    stop = int(running[-1]) if running.size and running[-1] < t.size - 1 else None
     drift, out = {}, []
     for c in quantity_columns(columns):
         v = np.asarray(columns[c], float)

@@ -25,15 +25,15 @@ from arfem.params import InputError, one_line
 
 #: subcommand -> module that defines ``add_parser(subparsers)`` and ``main(args)``
 COMMANDS = {
-    "run": "arfem.scenarios.run",
-    "reproduce": "arfem.scenarios.run",
-    "sweep": "arfem.scenarios.sweep.command",
-    "diagnose": "arfem.scenarios.diagnose",
-    "allocate": "arfem.scenarios.allocate",
-    "check": "arfem.scenarios.check",
-    "report": "arfem.scenarios.report",
-    "compensate": "arfem.scenarios.compensate",
-    "twin": "arfem.scenarios.twin",
+    "run": "arfem.scenarios.commands.run",
+    "reproduce": "arfem.scenarios.commands.run",
+    "sweep": "arfem.scenarios.commands.sweep",
+    "diagnose": "arfem.scenarios.commands.diagnose",
+    "allocate": "arfem.scenarios.commands.allocate",
+    "check": "arfem.scenarios.commands.check",
+    "report": "arfem.scenarios.commands.report",
+    "compensate": "arfem.scenarios.commands.compensate",
+    "twin": "arfem.scenarios.commands.twin",
 }
 
 

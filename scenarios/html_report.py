@@ -1,5 +1,5 @@
 """One self-contained ``report.html`` for any arfem output directory: the library behind
-``arfem report DIR`` (:mod:`arfem.scenarios.report`) and every command that writes a folder.
+``arfem report DIR`` (:mod:`arfem.scenarios.commands.report`) and every command that writes a folder.
 
 Data flow: an output directory (of ``run``, ``reproduce``, ``diagnose``, ``sweep`` or
 ``allocate``) → discovery of what is in it → ``DIR/report.html``. Nothing is assumed

@@ -6,8 +6,11 @@ Nodes (namespace ``urn:arfem:axes``, ids ``ns=2;s=M.<name>``): the model's input
 ``time_s`` (the machine's clock) are read by the compensator; ``offset_<A>_um``
 (Double) and ``alarm_<A>`` (String) for A in X, Y, Z are written by it.
 
-Lockstep: the clock advances one Δτ per write request that names an offset node, so a
-test sees every interval exactly once whatever the load. The inputs of interval n are
+Lockstep: the clock advances one Δτ per write request that names an offset or an alarm
+node (a request may carry an axis's alarm without its offset: the compensator does not
+write an axis whose controller holds a value beyond the clamp), so a test sees every
+interval exactly once whatever the load. ``alarms`` keeps each request's alarm text per
+axis; ``set_held`` changes an axis's offset behind the compensator's back. The inputs of interval n are
 taken from ``rows`` (the record the model was made from); ``on_advance(machine, n)``
 injects a fault after write n (e.g. an axis's offset node made read-only).
 """
@@ -45,6 +48,7 @@ class AxesMachine:
         self.held = dict(held or {ax: 0.0 for ax in AXES})
         self.on_advance = on_advance
         self.writes: list[AxisWrite] = []
+        self.alarms: list[dict] = []               # per request: axis -> alarm text
         self.requests = 0
         self.server = None
         self.nodes = {}
@@ -85,6 +89,14 @@ class AxesMachine:
         s.subscribe_server_callback(CallbackType.PostWrite, self._on_write)
         await s.start()
 
+    async def set_held(self, axis: str, value: float) -> None:
+        """An axis's offset changes behind the compensator's back (by hand)."""
+        from asyncua import ua
+        self.held[axis] = float(value)
+        await self.server.write_attribute_value(
+            self.nodes[f"offset_{axis}_um"].nodeid,
+            ua.DataValue(ua.Variant(float(value), ua.VariantType.Double)))
+
     async def set_writable(self, axis: str, writable: bool) -> None:
         await self.nodes[f"offset_{axis}_um"].set_writable(writable)
 
@@ -110,10 +122,11 @@ class AxesMachine:
         alarms = {self.nodes[f"alarm_{ax}"].nodeid: ax for ax in AXES}
         got = [(ids[w.NodeId], w, r) for w, r in zip(req, res)
                if w.NodeId in ids and w.AttributeId == ua.AttributeIds.Value]
-        if not got:
+        text = {alarms[w.NodeId]: w.Value.Value.Value for w in req if w.NodeId in alarms}
+        if not got and not text:
             return
         self.requests += 1
-        text = {alarms[w.NodeId]: w.Value.Value.Value for w in req if w.NodeId in alarms}
+        self.alarms.append(text)
         for ax, w, r in got:
             v = w.Value.Value.Value
             self.writes.append(AxisWrite(self.requests, ax,
@@ -126,6 +139,28 @@ class AxesMachine:
         if self.on_advance is not None:
             await self.on_advance(self, self.requests)
         await self.publish()
+
+
+def box_run(d, run_dir=None) -> tuple:
+    """(run folder, version-2 model, rows) for the machine to serve: the folder ``arfem
+    run`` writes for the small box of tests/test_model_v2_export.py (run here, into
+    ``d/run``), or ``run_dir`` written before (e.g. for the shipped spindle unit); rows
+    are the record's, ``time_s`` and each input the model reads, from row 0."""
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.compensation.replay_axes import record_columns
+    if run_dir is None:
+        from test_model_v2_export import box_scenario
+
+        from arfem.scenarios.cli import main
+        assert main(["run", str(box_scenario(d, 0.0)), "--out", str(d / "run")]) == 0
+        run_dir = d / "run"
+    model = read_model(run_dir / "model.json")
+    ds = load_dataset(run_dir / "record.toml")
+    inputs, _ = record_columns(model, ds, "record")
+    rows = [{"time_s": float(ds.time_s[k]), **{nm: float(v[k]) for nm, v in inputs.items()}}
+            for k in range(ds.time_s.size)]
+    return run_dir, model, rows
 
 
 def write_config(d, endpoint: str, inputs, *, log="live.log", name="live.toml",

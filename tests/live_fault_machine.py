@@ -7,10 +7,13 @@ Nodes (namespace ``urn:arfem:faults``, ids ``ns=2;s=M.<name>``): ``q_W_m2`` and
 another type for the start-up test) and ``alarm`` (String) are written by it.
 
 Lockstep: the machine's clock advances one Δτ per write request that names the offset
-node, accepted or refused, so a test sees every interval exactly once and nothing
-depends on timing. ``on_advance(machine, n)`` is called after the n-th write (n from 1)
-to change the next interval's inputs or to inject a fault. Used by
-``tests/test_live_faults.py`` and ``benchmarks/soak_live.py``.
+node or the alarm node, accepted or refused (a request with the alarm only: the
+compensator did not write the offset, e.g. while the controller holds a value beyond
+the clamp), so a test sees every interval exactly once and nothing depends on timing.
+``on_advance(machine, n)`` is called after the n-th request (n from 1) to change the
+next interval's inputs or to inject a fault. ``writes`` records every request that
+wrote the offset, ``requests`` every request. Used by ``tests/test_live_faults.py`` and
+``benchmarks/soak_live.py``.
 """
 from __future__ import annotations
 
@@ -37,7 +40,7 @@ def free_port() -> int:
 class Write:
     """One write request that named the offset node, as the machine saw it."""
 
-    n: int                    # 1, 2, ... in the order received
+    n: int                    # the request's number, 1, 2, ... in the order received
     value: float              # the offset requested [µm]
     accepted: bool            # whether the machine took it
     held_before_um: float     # what the machine held when it came
@@ -55,6 +58,7 @@ class FaultMachine:
         self.offset_type = offset_type
         self.on_advance = on_advance
         self.writes: list[Write] = []
+        self.requests: list[tuple] = []     # per request: (offset value or None, alarm)
         self.reads = 0
         self.read_delay_s = 0.0              # slow server: each read waits this long
         self.stalled = asyncio.Event()       # set: reads hang until cleared
@@ -136,26 +140,29 @@ class FaultMachine:
             await self.release.wait()
 
     async def _on_write(self, event, dispatcher) -> None:
+        from asyncua import ua
         req = event.request_params.NodesToWrite
         res = event.response_params
         oid, aid = self.nodes["offset_um"].nodeid, self.nodes["alarm"].nodeid
-        from asyncua import ua
         off = [(w, r) for w, r in zip(req, res)
                if w.NodeId == oid and w.AttributeId == ua.AttributeIds.Value]
-        if not off:
-            return
-        w, r = off[0]
         alarm = [x.Value.Value.Value for x in req if x.NodeId == aid]
-        before = self.held
-        if r.is_good():
-            self.held = float(w.Value.Value.Value)
-        v = w.Value.Value.Value
-        self.writes.append(Write(len(self.writes) + 1, float(v) if v is not None else math.nan,
-                                 r.is_good(), before, alarm[0] if alarm else None,
-                                 self.time_s))
+        if not off and not alarm:
+            return
+        value = None
+        if off:
+            w, r = off[0]
+            before = self.held
+            if r.is_good():
+                self.held = float(w.Value.Value.Value)
+            v = w.Value.Value.Value
+            value = float(v) if v is not None else math.nan
+            self.writes.append(Write(len(self.requests) + 1, value, r.is_good(), before,
+                                     alarm[0] if alarm else None, self.time_s))
+        self.requests.append((value, alarm[0] if alarm else None))
         self.time_s += self.dtau_s               # lockstep: the interval ends
         if self.on_advance is not None:
-            await self.on_advance(self, len(self.writes))
+            await self.on_advance(self, len(self.requests))
         await self.publish()
 
 
@@ -170,18 +177,19 @@ def paper_model(d: Path) -> Path:
     from arfem.models.ar1 import c1_paper, c2_paper
     from arfem.models.compensator import ar1_model
     from arfem.params import Rod
-    from arfem.scenarios.model_file import write_model
+    from arfem.scenarios.compensation.model_file import write_model
     rod = Rod()
     m = ar1_model(c1_paper(rod, 60.0), c2_paper(rod, 60.0, 1.0) * 1e6, dtau_s=60.0)
     write_model(d / "model.json", m)
     return d / "model.json"
 
 
-def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name="live.toml"):
+def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name="live.toml",
+                 cycles=0):
     (d / name).write_text(
         f'[live]\ntransport = "opcua"\nmax_offset_um = {CLAMP}\nmax_step_um = {STEP}\n'
         f'period_s = 0.05\nstale_after_s = 1000\nmax_clock_jump_s = 3600\n'
-        f'status_every = 0\nlog = "{log}"\n'
+        f'status_every = 0\ncycles = {cycles}\nlog = "{log}"\n'
         f'[opcua]\nendpoint = "{endpoint}"\noffset_node = "{NODE.format("offset_um")}"\n'
         f'alarm_node = "{NODE.format("alarm")}"\ntime_node = "{NODE.format("time_s")}"\n'
         f'timeout_s = {timeout_s}\nreconnect_initial_s = 0.1\nreconnect_max_s = 0.4\n'
@@ -189,12 +197,14 @@ def write_config(d: Path, endpoint: str, *, log="live.log", timeout_s=2.0, name=
     return d / name
 
 
-async def start_compensator(d: Path, cfg: Path, tag: str):
+async def start_compensator(d: Path, cfg: Path, tag: str, extra=(), model=None):
+    """``arfem compensate MODEL --live CFG [extra...]`` as a process (MODEL: d/model.json
+    unless given)."""
     out = open(d / f"{tag}.stdout", "w")
     err = open(d / f"{tag}.stderr", "w")
     p = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "arfem", "compensate", str(d / "model.json"), "--live",
-        str(cfg), stdout=out, stderr=err)
+        sys.executable, "-m", "arfem", "compensate", str(model or d / "model.json"),
+        "--live", str(cfg), *extra, stdout=out, stderr=err)
     out.close()
     err.close()
     return p

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from arfem.models.allocation import paper
-from arfem.scenarios import allocation_run
+from arfem.scenarios.allocation import run as allocation_run
 from arfem.scenarios.cli import main
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "pallet_changer_paper.toml"
+SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "data" / "pallet_changer_paper.toml"
 
 
 def test_first_order_terms_are_the_truncated_chain_product():

@@ -10,10 +10,10 @@ from arfem.models.allocation.problem import (allocate, evaluate_design, knee_ind
                                              unit_values, with_settings)
 from arfem.models.allocation.scenario import build_chain
 from arfem.params import InputError
-from arfem.scenarios.allocation_file import load_allocation_scenario
+from arfem.scenarios.allocation.file import load_allocation_scenario
 from arfem.scenarios.cli import main
 
-SCEN = Path(__file__).resolve().parents[1] / "scenarios"
+SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "data"
 SCENARIO = SCEN / "pallet_changer.toml"
 SMALL = {"pop_size": 40, "n_gen": 40}
 

@@ -8,9 +8,9 @@ from arfem.models.allocation.problem import evaluate_design, worst_case_over_cyc
 from arfem.models.allocation.scenario import build_chain
 from arfem.models.allocation.thermal import growth_on_paper_cycle_m, spindle_series
 from arfem.params import Rod
-from arfem.scenarios.allocation_file import load_allocation_scenario
+from arfem.scenarios.allocation.file import load_allocation_scenario
 
-SCEN = Path(__file__).resolve().parents[1] / "scenarios"
+SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "data"
 
 
 @pytest.fixture(scope="module")

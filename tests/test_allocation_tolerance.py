@@ -90,9 +90,9 @@ def test_yield_constraint_agrees_with_an_independent_monte_carlo():
 
     from arfem.models.allocation.problem import evaluate_design, unit_values, with_settings
     from arfem.models.allocation.scenario import build_chain
-    from arfem.scenarios.allocation_file import load_allocation_scenario
+    from arfem.scenarios.allocation.file import load_allocation_scenario
 
-    sc = load_allocation_scenario(Path(__file__).resolve().parents[1] / "scenarios"
+    sc = load_allocation_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "data"
                                   / "pallet_changer.toml")
     chain, _ = build_chain(sc)
     st = with_settings(sc.settings, constraint="yield", target_yield=0.9, yield_dist="normal")

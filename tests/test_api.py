@@ -91,13 +91,13 @@ def test_check_limits_are_validated():
 # -- read_record and diagnose's inputs (issue 30 item 5, issue 31 item 6) -------------------
 
 REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
-CH2 = REPO / "scenarios" / "fl_thermal" / "fl_thermal_ch2.toml"
+CH2 = REPO / "scenarios" / "data" / "fl_thermal" / "fl_thermal_ch2.toml"
 
 
 def test_read_record_gives_the_contract_names_and_the_tomls_metadata():
     """The shipped record's CSV has foreign names (``ch2(um)``); read_record maps them
     onto the contract's and carries initial = "unknown" from the TOML."""
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     rec = arfem.read_record(CH2)
     ds = load_dataset(CH2)
     assert rec.initial == "unknown" and rec.name == "fl_thermal_ch2"
@@ -152,13 +152,13 @@ def test_diagnose_of_a_dataframe_writes_and_reads_no_file(captured, monkeypatch)
     """Samples are validated in memory: any temporary folder or CSV reading fails."""
     import tempfile
 
-    from arfem.scenarios import dataset
+    import arfem.io
 
     def refuse(*a, **k):
         raise AssertionError("a file was touched")
     for name in ("mkdtemp", "mkstemp", "TemporaryDirectory", "NamedTemporaryFile"):
         monkeypatch.setattr(tempfile, name, refuse)
-    monkeypatch.setattr(dataset, "read_text_utf8", refuse)
+    monkeypatch.setattr(arfem.io, "_open_input", refuse)     # where every input is opened
     import pandas as pd
     df = pd.DataFrame({"time_s": [0.0, 60.0, 120.0], "growth_um": [0.0, 0.1, 0.2],
                        "speed_rpm": [0.0, 3000.0, 3000.0], "note": ["a", "b", "c"]})
@@ -170,7 +170,7 @@ def test_diagnose_of_a_dataframe_writes_and_reads_no_file(captured, monkeypatch)
 
 def test_in_memory_samples_get_the_file_readers_checks_row_by_row():
     import pandas as pd
-    from arfem.scenarios.dataset import dataset_from_columns
+    from arfem.scenarios.records.dataset import dataset_from_columns
     bad = pd.DataFrame({"time_s": [0.0, 60.0, 30.0], "growth_um": [0.0, 0.1, 0.2],
                         "q_W_m2": [0.0, 1.0, 1.0]})
     with pytest.raises(arfem.InputError, match=r"<DataFrame>: row 2, column 'time_s'"):
@@ -186,7 +186,7 @@ def test_in_memory_samples_get_the_file_readers_checks_row_by_row():
 def test_samples_in_memory_and_the_same_record_from_its_files_agree():
     """One validation: the shipped record through read_record's DataFrame gives the
     engine the same arrays, outlier flags and gaps as the file reader."""
-    from arfem.scenarios.dataset import dataset_from_columns, load_dataset
+    from arfem.scenarios.records.dataset import dataset_from_columns, load_dataset
     rec = arfem.read_record(CH2)
     mem = dataset_from_columns(rec.data, initial=rec.initial)
     ds = load_dataset(CH2)

@@ -61,7 +61,7 @@ def _scenario(tmp_path: Path, source: str, **kw) -> Path:
 def test_scenario_source_is_the_law_at_each_phase_speed(tmp_path):
     """The bearing source's values per phase are scale × the pair's power at 4000,
     12 000 and 0 rpm; a power law's likewise."""
-    from arfem.scenarios.geometry_scenario import load_geometry_scenario
+    from arfem.scenarios.geometry.scenario import load_geometry_scenario
     sc = load_geometry_scenario(_scenario(tmp_path, BEARING))
     src = sc.sources[0]
     b = PalmgrenBearing(2.0, 22.0, 90.0, 3.2e-4, 1000.0, 2)
@@ -112,9 +112,9 @@ def test_record_of_the_speed_alone_drives_the_source(speed_run):
     1e-12), where the linear interpolation between the phases' pairs is off by more
     than 1 % at 8000 rpm; the replay of the run's own record without its P column
     equals the replay with it (same residual per axis to 1e-9 µm)."""
-    from arfem.scenarios.axes_record import load_axes_record
+    from arfem.scenarios.records.axes_record import load_axes_record
     from arfem.scenarios.cli import main
-    from arfem.scenarios.geometry_scenario import load_geometry_scenario, source_power_at_speed
+    from arfem.scenarios.geometry.scenario import load_geometry_scenario, source_power_at_speed
     d = speed_run
     rows = list(csv.DictReader(open(d / "run" / "record.csv", newline="")))
     keep = [k for k in rows[0] if k != "P_heater_W"]
@@ -145,8 +145,8 @@ def test_record_of_the_speed_alone_drives_the_source(speed_run):
 
 def test_diagnosis_reader_takes_the_law(speed_run):
     """``load_mesh_record``'s power for a source without a column is the law's."""
-    from arfem.scenarios.geodiagnose import _speed_power
-    from arfem.scenarios.geometry_scenario import load_geometry_scenario
+    from arfem.scenarios.diagnosis.mesh import _speed_power
+    from arfem.scenarios.geometry.scenario import load_geometry_scenario
     sc = load_geometry_scenario(speed_run / "run" / "scenario.toml")
     n = np.array([0.0, 3000.0, 8000.0, 15000.0])
     np.testing.assert_allclose(_speed_power(sc, sc.sources[0], n, "x"),

@@ -18,7 +18,7 @@ import pytest
 from arfem.scenarios.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
+PAPER2 = ROOT / "scenarios" / "data" / "paper_fig2.toml"
 
 
 def _variant(tmp_path: Path, name: str, h=None, extra: str = "") -> Path:
@@ -135,19 +135,19 @@ def test_limits_from_the_file_and_the_command_line_overriding_them(tmp_path, cap
 
 
 def test_a_directory_checks_its_scenarios_and_says_what_it_skipped(tmp_path, capsys):
-    """`arfem check scenarios/` runs the two paper scenarios and names every other file
+    """`arfem check scenarios/data/` runs the two paper scenarios and names every other file
     (sweep, allocation) and the fl_thermal/ subfolder as skipped, with the reason; in a
     directory a TOML without [cycle] (a pyproject.toml) is skipped, while a scenario with
     a bad key still stops everything with status 2. A mesh scenario is checked, not
     skipped (issue 32 item 4): the shipped directory is mirrored with the paper's rod mesh
     in place of the spindle unit, whose solve (~40 s CPU, 2.8 GB) is CI's own
-    `arfem check scenarios/` step, not a unit test's."""
+    `arfem check scenarios/data/` step, not a unit test's."""
     import shutil
     shipped = tmp_path / "shipped"
     shipped.mkdir()
     (shipped / "fl_thermal").mkdir()
-    assert (ROOT / "scenarios" / "spindle_unit.toml").is_file()
-    for f in (ROOT / "scenarios").glob("*.toml"):
+    assert (ROOT / "scenarios" / "data" / "spindle_unit.toml").is_file()
+    for f in (ROOT / "scenarios" / "data").glob("*.toml"):
         if f.name != "spindle_unit.toml":
             shutil.copy(f, shipped / f.name)
     data = ROOT / "tests" / "data"
@@ -194,7 +194,7 @@ def test_bad_paths_are_status_2(tmp_path, capsys):
     directory are refused before anything runs."""
     for argv, needle in (
             (["check", str(tmp_path / "nope.toml")], "no such file"),
-            (["check", str(ROOT / "scenarios" / "sweep_dtau_h.toml")], "is a sweep file"),
+            (["check", str(ROOT / "scenarios" / "data" / "sweep_dtau_h.toml")], "is a sweep file"),
             (["check", str(PAPER2), "--junit", str(tmp_path)], "is a directory")):
         assert main(argv) == 2
         err = capsys.readouterr().err
@@ -290,7 +290,7 @@ def test_ci_workflow_runs_the_readme_install_and_both_gates():
     wf = (ROOT / ".github" / "workflows" / "ci.yml").read_text("utf-8")
     install = 'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[test]"'
     assert install in readme and install in wf
-    for step in ("python -m pytest -q", "arfem check scenarios/ --junit ci-reports/",
+    for step in ("python -m pytest -q", "arfem check scenarios/data/ --junit ci-reports/",
                  "arfem reproduce --check", "actions/upload-artifact", "path: ci-reports/"):
         assert step in wf, step
 

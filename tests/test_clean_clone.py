@@ -19,7 +19,7 @@ import pytest
 from PIL import Image
 
 from arfem.scenarios.cli import main
-from arfem.scenarios.deterministic import same_picture
+from arfem.scenarios.rod.deterministic import same_picture
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "reports" / "paper"
@@ -56,7 +56,7 @@ def _committed_elsewhere(out: Path, levels: int, monkeypatch) -> dict:
     """``arfem reproduce`` into ``out`` on "another machine", whose renderer draws every
     figure.png ``levels`` grey levels off in 40 pixels, then ``out`` as a clone of that
     commit gives it (no ownership file, no field files); returns its files' bytes."""
-    from arfem.scenarios import run_outputs
+    from arfem.scenarios.rod import outputs as run_outputs
     draw = run_outputs._figure
 
     def other_renderer(ev, path):

@@ -85,7 +85,7 @@ def test_model_json_refusals():
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.records.synth_files import write_case
     d = tmp_path_factory.mktemp("comp")
     case = generate("none", 21, duration_h=24, interval_s=60, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0, noise_um=0.02)
@@ -116,9 +116,9 @@ def test_replay_compensates_and_writes_every_output(workspace):
 
 def test_replay_is_causal(workspace):
     """Offsets up to row k do not depend on rows after k."""
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.compensation.model_file import read_model
     import dataclasses
     d, rec = workspace
     model, ds = read_model(d / "run" / "model.json"), load_dataset(rec)
@@ -187,7 +187,7 @@ def test_replay_scores_after_the_fit_window_by_default(workspace):
     the terminal line say which hours were scored; ``--score-from 0`` still scores every
     row and says that the fitted rows are in it. Exact row counts: the record is sampled
     every 60 s from t = 0, so nothing here needs a tolerance."""
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     d, rec = workspace
     t = np.asarray(load_dataset(rec).time_s, float)
     model = _with_fit_window(d / "run" / "model.json", d / "fitted.json", (0.0, 12 * 3600.0))
@@ -230,7 +230,7 @@ def test_replay_of_a_model_without_fit_window_scores_every_row_and_says_so(works
 def test_a_fit_window_covering_the_record_is_one_line(workspace):
     """Nothing after the fit window: exit 2, one line pointing at --score-from 0, and no
     --out written."""
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     d, rec = workspace
     t_end = float(np.asarray(load_dataset(rec).time_s)[-1])
     model = _with_fit_window(d / "run" / "model.json", d / "whole.json", (0.0, t_end))

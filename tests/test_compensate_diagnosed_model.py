@@ -71,7 +71,7 @@ def test_causes_without_a_linear_form_are_refused_and_drift_is_left_out(phys):
 
 def test_mlr_model_survives_the_json_round_trip(tmp_path):
     from arfem.models.compensator import fit_mlr_model
-    from arfem.scenarios.model_file import read_model, write_model
+    from arfem.scenarios.compensation.model_file import read_model, write_model
     T = np.linspace(20, 30, 100)
     m = fit_mlr_model(3.0 * (T - 20), {"T_a_C": T, "T_b_C": T ** 0.5}, dtau_s=60.0)
     write_model(tmp_path / "m.json", m)
@@ -85,10 +85,10 @@ def test_mlr_model_survives_the_json_round_trip(tmp_path):
 
 def test_twin_extended_model_beats_the_paper_ar1_threefold(tmp_path):
     from arfem.models.twin import SpindleTwin, TwinProgram
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.twin_record import write_record
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.live.twin_record import write_record
     tw = SpindleTwin(TwinProgram(seed=3))
     rows = [tw.advance() for _ in range(4 * 1440)]        # four days at 60 s
     write_record(tmp_path / "fit", rows[:2880])            # the first two: diagnosed
@@ -143,10 +143,10 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
     from pathlib import Path
 
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.diagnosis_run import compensator_models
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.diagnosis.run import compensator_models
     root = Path(__file__).parents[1]
-    ds = load_dataset(root / "scenarios" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
+    ds = load_dataset(root / "scenarios" / "data" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
     d = diagnose(ds, 100800.0, intervals=False)
     # named by the selection rules, but without intervals not established (issue 30):
     # the extended model is still exported, as the best candidate's

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from arfem.models.compensator import ar1_model
-from arfem.scenarios.model_file import write_model
+from arfem.scenarios.compensation.model_file import write_model
 
 CONFIG = '[live]\ntransport = "jsonl"\nmax_offset_um = {mo}\nmax_step_um = {ms}\nstale_after_s = 120\n'
 
@@ -121,7 +121,7 @@ def test_the_machine_clock_decides_how_far_the_model_advances():
     The reference steps a Compensator interval by interval by hand (== : up to
     EXACT_STEPS missed intervals are stepped one by one, the replay's floats)."""
     from arfem.models.compensator import Compensator
-    from arfem.scenarios.live import Clock, clocked_step
+    from arfem.scenarios.live.jsonl import Clock, clocked_step
     m = ar1_model(0.9, 0.01, dtau_s=60.0)
     c, ref, clock = Compensator(m), Compensator(m), Clock()
     kw = {"stale_after_s": 600.0}

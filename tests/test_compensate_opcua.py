@@ -40,7 +40,7 @@ pytest.importorskip("asyncua")
 from arfem.models.ar1 import c1_paper, c2_paper  # noqa: E402
 from arfem.models.compensator import ar1_model  # noqa: E402
 from arfem.params import Rod  # noqa: E402
-from arfem.scenarios.model_file import write_model  # noqa: E402
+from arfem.scenarios.compensation.model_file import write_model  # noqa: E402
 
 ARFEM = [sys.executable, "-m", "arfem"]
 NODE = "ns=2;s=Spindle.{}"
@@ -123,8 +123,8 @@ def read_csv(path):
 
 
 def test_live_equals_replay_and_limits_hold(tmp_path, procs, model_file):
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.records.dataset import load_dataset
     mpath, model = model_file
     n = 240                                         # 4 h at Δτ = 60 s: heating and a stop
     twin, url = procs.twin(tmp_path, "--steps", str(n))
@@ -216,7 +216,7 @@ def test_killed_server_holds_retries_and_recovers(tmp_path, procs, model_file):
 ])
 def test_bad_live_input_is_one_line_exit_2_before_any_offset(tmp_path, procs, model_file,
                                                               case, msg):
-    from arfem.scenarios.twin_record import free_port
+    from arfem.scenarios.live.twin_record import free_port
     mpath, _ = model_file
     twin = None
     if case == "unreachable":

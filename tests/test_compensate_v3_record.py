@@ -96,7 +96,7 @@ def test_v3_record_refusals_are_one_line(run_dir, capsys):
     rec = v3_record(run_dir)
     v1 = run_dir / "v1.json"
     from arfem.models.compensator import ar1_model
-    from arfem.scenarios.model_file import write_model
+    from arfem.scenarios.compensation.model_file import write_model
     write_model(v1, ar1_model(0.99, 1e-4, dtau_s=60.0))
     _one_line_refusal(capsys, ["compensate", str(v1), str(rec), "--out", str(out)], out,
                       ["contract-v3", "d_tip_z_um", "version-2"])

@@ -7,8 +7,8 @@ import numpy as np
 from arfem.models.diagnosis.candidates import FemPhysics, fit_candidate, parameter_ci95
 from arfem.models.diagnosis.synth import generate
 from arfem.params import Rod
-from arfem.scenarios.diagnosis_run import diagnose_file
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.records.synth_files import write_case
 
 
 def _rows(case):

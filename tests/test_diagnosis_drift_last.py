@@ -46,7 +46,7 @@ def test_drift_is_named_only_if_no_input_driven_cause_passes(robust):
 def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
     """``arfem diagnose --drift-last`` passes drift_last=True to the engine (and the
     default passes False): the engine is replaced by a recorder that stops the run."""
-    import arfem.scenarios.diagnosis_run as d
+    import arfem.scenarios.diagnosis.run as d
     seen = []
 
     class Stop(Exception):
@@ -74,12 +74,14 @@ def test_speed_only_options_on_a_heat_flux_record_are_reported_as_ignored(tmp_pa
     found the output identical with and without them), and say nothing without them
     (the diagnosis itself is replaced by a fixed summary: only the command's lines are
     under test)."""
-    import arfem.scenarios.diagnosis_run as d
+    import arfem.scenarios.diagnosis.run as d
     summary = {"dataset": "x", "cause": "none", "causes": [], "input_kind": "q_W_m2",
                "warnings": [], "holdout": {"baseline_rmse_um": 1.0, "extended_rmse_um": 1.0,
                                            "gain_pct": 0.0, "start_s": 0.0,
                                            "how_chosen": "given"}}
     monkeypatch.setattr(d, "run_diagnosis", lambda *a, **k: summary)
+    monkeypatch.chdir(tmp_path)          # the command reads the record's TOML first
+    (tmp_path / "x.toml").write_text("")
     for extra, note in (([], None), (["--drift-last"], "--drift-last apply"),
                         (["--frame-search", "wide", "--drift-last"],
                          "--frame-search and --drift-last apply")):

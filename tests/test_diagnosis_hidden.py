@@ -8,8 +8,8 @@ import pytest
 from arfem.models.diagnosis.engine import CONTRACT_PARAMETERS
 from arfem.models.diagnosis.synth import generate
 from arfem.params import Rod
-from arfem.scenarios.synth_files import write_case
-from arfem.scenarios.diagnosis_run import run_diagnosis
+from arfem.scenarios.records.synth_files import write_case
+from arfem.scenarios.diagnosis.run import run_diagnosis
 
 #: relative (or absolute, for the exponent) tolerance on the fitted parameter, and why
 TOL = {

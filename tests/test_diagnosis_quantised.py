@@ -12,7 +12,7 @@ import pytest
 from arfem.models.diagnosis.dataset import hampel_outliers
 from arfem.models.diagnosis.engine import diagnose
 from arfem.models.diagnosis.stats import resolution
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.records.dataset import load_dataset
 
 QUANTUM = 0.255
 

@@ -1,15 +1,15 @@
 """The committed reports/fl_thermal/README.md table agrees with a fresh run on the
-shipped real record (scenarios/fl_thermal/), through regenerate.py's own helpers."""
+shipped real record (scenarios/data/fl_thermal/), through regenerate.py's own helpers."""
 import importlib.util
 from pathlib import Path
 
 import pytest
 
 from arfem.models.diagnosis.verdict import named_cause
-from arfem.scenarios.diagnosis_run import diagnose_file
+from arfem.scenarios.diagnosis.run import diagnose_file
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = REPO / "scenarios" / "fl_thermal"
+DATA = REPO / "scenarios" / "data" / "fl_thermal"
 
 
 def _regenerate():

@@ -12,9 +12,9 @@ from arfem.models.diagnosis.engine import PARSIMONY_P, _parsimony
 from arfem.models.diagnosis.holdout import default_holdout as _default_holdout
 from arfem.models.diagnosis.synth import generate
 from arfem.scenarios.cli import main as cli
-from arfem.scenarios.dataset import load_dataset
-from arfem.scenarios.diagnosis_run import run_diagnosis
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.records.dataset import load_dataset
+from arfem.scenarios.diagnosis.run import run_diagnosis
+from arfem.scenarios.records.synth_files import write_case
 
 
 def _diag(case, tmp_path, *extra):

@@ -23,8 +23,8 @@ from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.engine import diagnose
 from arfem.models.diagnosis.rules import _unconfirmed
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.dataset import load_dataset
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.records.dataset import load_dataset
+from arfem.scenarios.records.synth_files import write_case
 
 
 def _diagnose(case, tmp_path):
@@ -49,7 +49,7 @@ def test_sensor_wander_names_no_cause(tmp_path):
     u = s.get("unconfirmed")
     assert u is not None and u["effect_rms_um"] < 3.0 * u["slow_noise_um"]
     assert any("unconfirmed" in w for w in s["warnings"])
-    from arfem.scenarios.diagnosis_report import verdict
+    from arfem.scenarios.diagnosis.report import verdict
     assert "sensor wander" in " ".join(verdict(s))       # the report opens with it
 
 

@@ -180,7 +180,7 @@ def test_on_fit_reports_every_candidate_without_changing_the_diagnosis(tmp_path)
     one without it (the hook only observes)."""
     from arfem.models.diagnosis.engine import diagnose
     from arfem.models.diagnosis.speed import SPEED_CAUSES
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     t, speed, y, temps = _record()
     ds = load_dataset(_write(tmp_path, t, speed, y, temps))
     seen = []

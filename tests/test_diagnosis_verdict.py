@@ -16,9 +16,9 @@ import pytest
 from arfem.models.diagnosis import verdict as vd
 from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.diagnosis_run import add_stability, run_diagnosis, rod_terminal_line
-from arfem.scenarios.diagnosis_report import verdict as report_verdict
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.diagnosis.run import add_stability, run_diagnosis, rod_terminal_line
+from arfem.scenarios.diagnosis.report import verdict as report_verdict
+from arfem.scenarios.records.synth_files import write_case
 
 RNG = np.random.default_rng(30)
 #: a white residual: passes Ljung-Box on N_eff (p >= 0.05) for this seed
@@ -352,6 +352,6 @@ def test_p_values_that_underflow_are_shown_as_below_the_floor_everywhere():
     text = s["verdict_detail"]["text"]
     assert "p < 1e-16" in text and "p = 0)" not in text
     assert s["verdict_detail"]["residual_within_noise"]["ljung_box_p_neff"] == p
-    from arfem.scenarios.diagnosis_report import _residual_lines
+    from arfem.scenarios.diagnosis.report import _residual_lines
     row = next(x for x in _residual_lines(s) if x.startswith("| Ljung–Box p"))
     assert row == "| Ljung–Box p (eq. 19) | < 1e-16 | < 1e-16 |"

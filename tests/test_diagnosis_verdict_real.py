@@ -1,4 +1,4 @@
-"""Issue 30 on the real record (scenarios/fl_thermal/): what verdict each FL_THERMAL
+"""Issue 30 on the real record (scenarios/data/fl_thermal/): what verdict each FL_THERMAL
 channel gets, and that no cause that is not established gets the ``cause`` field or
 advice -- in the published reports (reports/fl_thermal/ch1-ch5, hold-out from 20 h of
 the first 28 h) and in a fresh run of the README's command at the default split, the
@@ -57,7 +57,7 @@ def test_readme_command_at_the_default_split_no_longer_says_explained(tmp_path):
     import io
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
-        rc = cli(["diagnose", str(REPO / "scenarios/fl_thermal/fl_thermal_ch2.toml"),
+        rc = cli(["diagnose", str(REPO / "scenarios/data/fl_thermal/fl_thermal_ch2.toml"),
                   "--out", str(out), "--no-progress"])
     assert rc == 0
     s = json.loads((out / "diagnosis.json").read_text(encoding="utf-8"))

@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from arfem.scenarios.config import scenario_from_dict
-from arfem.scenarios.evaluation import evaluate
-from arfem.scenarios.run_outputs import growth_figure, write_outputs
+from arfem.scenarios.rod.scenario import scenario_from_dict
+from arfem.scenarios.rod.evaluation import evaluate
+from arfem.scenarios.rod.outputs import growth_figure, write_outputs
 
 UNIT = re.compile(r"\[[^\]]+\]")          # "[µm]", "[h]", "[°C]"
 

@@ -59,8 +59,8 @@ def test_twin_start_is_bounded_in_intervals_too(capsys, tmp_path):
 
 
 def _alloc(tmp_path, bounds: str, formula_paper: bool = False) -> Path:
-    src = (REPO / "scenarios" / ("pallet_changer_paper.toml" if formula_paper
-                                 else "pallet_changer.toml")).read_text("utf-8")
+    src = (REPO / "scenarios" / "data" / ("pallet_changer_paper.toml" if formula_paper
+                                           else "pallet_changer.toml")).read_text("utf-8")
     src = re.sub(r"rotation_mrad = \[[^\]]*\]", f"rotation_mrad = {bounds}", src, count=1)
     p = tmp_path / "a.toml"
     p.write_text(src, "utf-8")
@@ -83,6 +83,6 @@ def test_allocation_refuses_bounds_that_overflow(tmp_path, capsys, bounds):
 
 def test_allocation_keeps_the_papers_zero_lower_bound():
     """The paper's literal formula has no reciprocal cost: its [0, 0.005] stays valid."""
-    from arfem.scenarios.allocation_file import load_allocation_scenario
-    sc = load_allocation_scenario(REPO / "scenarios" / "pallet_changer_paper.toml")
+    from arfem.scenarios.allocation.file import load_allocation_scenario
+    sc = load_allocation_scenario(REPO / "scenarios" / "data" / "pallet_changer_paper.toml")
     assert sc is not None

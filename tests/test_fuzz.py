@@ -211,13 +211,13 @@ def _read(path: Path) -> dict:
 
 # -- scenario files ------------------------------------------------------------------------
 
-SCENARIO_SEEDS = [REPO / "scenarios" / f"{n}.toml" for n in ("paper_fig2", "paper_fig3")]
+SCENARIO_SEEDS = [REPO / "scenarios" / "data" / f"{n}.toml" for n in ("paper_fig2", "paper_fig3")]
 
 
 @given(seed=st.sampled_from(SCENARIO_SEEDS), data=st.data())
 def test_fuzz_scenario_file(tmp_path, seed, data):
     """Mutated scenario files: accepted or refused in one line, never a traceback."""
-    from arfem.scenarios.config import load_scenario
+    from arfem.scenarios.rod.scenario import load_scenario
     p = tmp_path / "s.toml"
     if data.draw(st.booleans()):
         p.write_text(to_toml(data.draw(mutated(_read(seed)))), "utf-8")
@@ -248,7 +248,7 @@ def test_fuzz_sweep_file(tmp_path, data):
 
 # -- measured data (dataset TOML + CSV) --------------------------------------------------------
 
-FL = REPO / "scenarios" / "fl_thermal"
+FL = REPO / "scenarios" / "data" / "fl_thermal"
 
 
 @pytest.fixture(scope="module")
@@ -261,7 +261,7 @@ def csv_head() -> str:
 @given(data=st.data())
 def test_fuzz_dataset_toml(tmp_path, csv_head, data):
     """Mutated dataset descriptions over a good CSV: accepted or one line."""
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     (tmp_path / "fl_thermal_whole.csv").write_text(csv_head, "utf-8")
     seed = FL / "fl_thermal_ch1.toml"
     p = tmp_path / "case.toml"
@@ -280,7 +280,7 @@ CELLS = st.sampled_from(["", "nan", "NaN", "inf", "-inf", "1e308", "-1e308", "x"
 def test_fuzz_dataset_csv(tmp_path, csv_head, data):
     """A good description over a damaged CSV (bad cells, rows cut or doubled, time going
     back, junk bytes): accepted or one line."""
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     import shutil
     shutil.copy(FL / "fl_thermal_ch1.toml", tmp_path / "case.toml")
     lines = csv_head.splitlines()
@@ -314,13 +314,13 @@ def test_fuzz_dataset_csv(tmp_path, csv_head, data):
 
 # -- allocation files ----------------------------------------------------------------------
 
-ALLOC_SEEDS = sorted((REPO / "scenarios").glob("pallet_changer*.toml"))
+ALLOC_SEEDS = sorted((REPO / "scenarios" / "data").glob("pallet_changer*.toml"))
 
 
 @given(seed=st.sampled_from(ALLOC_SEEDS), data=st.data())
 def test_fuzz_allocation_file(tmp_path, seed, data):
     """Mutated allocation scenarios: accepted or one line."""
-    from arfem.scenarios.allocation_file import load_allocation_scenario
+    from arfem.scenarios.allocation.file import load_allocation_scenario
     p = tmp_path / "a.toml"
     if data.draw(st.integers(0, 3)):
         p.write_text(to_toml(data.draw(mutated(_read(seed)))), "utf-8")

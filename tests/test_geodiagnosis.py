@@ -22,8 +22,8 @@ from arfem.models.geodiagnosis.fit import make_context
 from arfem.models.geodiagnosis.problem import Setting, make_record, trial_for
 from arfem.models.geodiagnosis.rom import ScaledBody, group_conduction, rom_error
 from arfem.models.geodiagnosis.synth import Hidden, covers, duty_cycle, generate
-from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of, reduced_model
-from arfem.scenarios.georecord import write_record
+from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
+from arfem.scenarios.records.georecord import write_record
 
 DATA = Path(__file__).parent / "data" / "geodiag"
 SCENARIO = DATA / "spindle_coarse.toml"
@@ -157,7 +157,7 @@ def test_record_naming_a_rod_scenario_is_one_line(tmp_path):
     """A v3 record whose [model] names a rod scenario is refused naming model.scenario and
     the missing [geometry] table (the rod scenario's own [rod] table was reported as an
     unknown key of a mesh scenario), exit 2, --out not created."""
-    shutil.copy(Path(__file__).parents[1] / "scenarios" / "paper_fig2.toml",
+    shutil.copy(Path(__file__).parents[1] / "scenarios" / "data" / "paper_fig2.toml",
                 tmp_path / "rod.toml")
     toml = write_record(tmp_path / "rec.toml", "rod.toml",
                         {"time_s": np.arange(3.0), "d_tcp_z_um": np.zeros(3)})
@@ -499,7 +499,7 @@ def test_channel_far_from_white_is_not_within_the_noise():
 def test_terminal_line_names_the_gain_the_verdict_uses():
     """The first line shows the raw hold-out gain and the whitened one the verdict
     requires, labelled (an audit found the raw one alone, unlabelled)."""
-    from arfem.scenarios.geodiagnose import mesh_terminal_line
+    from arfem.scenarios.diagnosis.mesh import mesh_terminal_line
     line = mesh_terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
                           "causes": [{"name": "warm_start"}],
                           "holdout": {"gain_pct": -10.8, "gain_whitened_pct": 0.5}})

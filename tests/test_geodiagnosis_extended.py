@@ -41,8 +41,8 @@ import numpy as np
 import pytest
 
 from arfem.models.geodiagnosis.synth import Hidden, duty_cycle, generate
-from arfem.scenarios.geodiagnose_model import load_diagnosis_scenario, plant_of
-from arfem.scenarios.georecord import write_record
+from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of
+from arfem.scenarios.records.georecord import write_record
 
 DATA = Path(__file__).parent / "data" / "geodiag"
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,7 +85,7 @@ def _validate(path: Path) -> dict:
     import jsonschema
     doc = json.loads(path.read_text("utf-8"))
     jsonschema.validate(doc, json.loads((ROOT / "docs" / "model.schema.json").read_text()))
-    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.compensation.model_file import read_model
     read_model(path)
     return doc
 
@@ -143,7 +143,7 @@ def test_version_1_model_still_reads_and_replays(tmp_path):
     replayed as before (the record's own growth is the paper's AR(1) of the model, so
     the residual is its rounding)."""
     from arfem.models.compensator import ar1_model
-    from arfem.scenarios.model_file import read_model, write_model
+    from arfem.scenarios.compensation.model_file import read_model, write_model
     m = ar1_model(0.99, 1e-3, dtau_s=60.0)
     write_model(tmp_path / "m.json", m)
     assert read_model(tmp_path / "m.json").outputs == ()
@@ -188,7 +188,7 @@ def test_exported_model_is_the_reduced_model_with_the_cause(plant, which):
     from arfem.models.geodiagnosis.extended import export_reduced, reads_speed
     from arfem.models.geodiagnosis.fit import Cause, Fit, _predict, _setting, make_context
     from arfem.models.geodiagnosis.problem import make_record
-    from arfem.scenarios.geodiagnose_model import reduced_model
+    from arfem.scenarios.diagnosis.mesh_model import reduced_model
     sc, spec = load_diagnosis_scenario(DATA / "spindle_coarse.toml")
     model, _ = reduced_model(plant, sc, spec, 8000.0)
     rng = np.random.default_rng(1012)
@@ -255,8 +255,8 @@ def test_a_cause_that_cannot_be_built_in_writes_no_extended_model(plant):
 
     from arfem.models.geodiagnosis.fit import Cause, Fit, make_context, _setting
     from arfem.models.geodiagnosis.problem import make_record
-    from arfem.scenarios.geodiagnose_export import diagnosis_models
-    from arfem.scenarios.geodiagnose_model import reduced_model
+    from arfem.scenarios.diagnosis.mesh_export import diagnosis_models
+    from arfem.scenarios.diagnosis.mesh_model import reduced_model
     sc, spec = load_diagnosis_scenario(DATA / "spindle_coarse.toml")
     model, _ = reduced_model(plant, sc, spec, 8000.0)
     rng = np.random.default_rng(1013)

@@ -32,7 +32,7 @@ import pytest
 from arfem.models.geodiagnosis.engine import diagnose_geometry
 from arfem.models.geodiagnosis.problem import make_record
 from arfem.models.geodiagnosis.synth import Hidden, covers, duty_cycle, generate, signal
-from arfem.scenarios.geodiagnose_model import (DiagnosisSpec, load_diagnosis_scenario,
+from arfem.scenarios.diagnosis.mesh_model import (DiagnosisSpec, load_diagnosis_scenario,
                                                plant_of, reduced_model)
 
 DATA = Path(__file__).parent / "data" / "geodiag"
@@ -114,7 +114,7 @@ def test_a_narrowed_search_says_what_went_unsearched(coarse, tmp_path):
     """The same record against a table that lists only the housing: the verdict text
     and diagnosis.json name every cause left out, the true one among them, and no
     missing source is claimed on the group actually searched."""
-    from arfem.scenarios.geodiagnose import summary_of
+    from arfem.scenarios.diagnosis.mesh import summary_of
     sc, plant, _ = coarse
     narrow, _ = reduced_model(plant, sc, DiagnosisSpec(("housing_outer",), ()), 8000.0)
     d = diagnose_geometry(narrow, _record(plant, [Hidden("missing_source", "spindle_bore",
@@ -177,10 +177,11 @@ def test_an_error_outside_the_vocabulary_that_a_regression_explains_is_not_expla
 
 @pytest.mark.slow
 def test_the_shipped_units_own_run_record_is_explained(tmp_path):
-    """`arfem run scenarios/spindle_unit.toml` then `arfem diagnose` of its record.toml
+    """`arfem run scenarios/data/spindle_unit.toml` then `arfem diagnose` of its record.toml
     (about 2 min): "explained" (it had been "established: warm_start" for -2.7e-5 K)."""
     run = tmp_path / "run"
-    for args in (["run", str(ROOT / "scenarios" / "spindle_unit.toml"), "--out", str(run)],
+    unit = ROOT / "scenarios" / "data" / "spindle_unit.toml"
+    for args in (["run", str(unit), "--out", str(run)],
                  ["diagnose", str(run / "record.toml"), "--out", str(tmp_path / "diag"),
                   "--no-progress"]):
         r = subprocess.run([sys.executable, "-m", "arfem", *args], capture_output=True,

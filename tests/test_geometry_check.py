@@ -26,8 +26,8 @@ from arfem.models.ar1 import c1_paper, c2_paper, steady_growth_m
 from arfem.models.geometry_ar1 import lumped_ar1
 from arfem.params import Rod
 from arfem.scenarios.cli import main
-from arfem.scenarios.geometry_check import compare_geometry_ar1
-from arfem.scenarios.geometry_scenario import build_geometry_model, load_geometry_scenario
+from arfem.scenarios.geometry.check import compare_geometry_ar1
+from arfem.scenarios.geometry.scenario import build_geometry_model, load_geometry_scenario
 
 from geometry_meshes import box_meshio, write_msh
 
@@ -223,10 +223,10 @@ def test_api_check_takes_a_mesh_scenario():
 
 def test_the_shipped_spindle_unit_passes_the_gate_with_p1_elements(tmp_path, capsys):
     """The shipped spindle unit, on its own mesh with P1 elements (~4 s CPU, 0.4 GB;
-    the P2 check, 38 s and 2.8 GB, is CI's `arfem check scenarios/` step): every TCP
+    the P2 check, 38 s and 2.8 GB, is CI's `arfem check scenarios/data/` step): every TCP
     axis passes the 15 % gate with 7 inputs superposed (measured 0.88 / 6.88 / 12.06 %
     for x / y / z; P2: 0.91 / 7.15 / 12.69 %)."""
-    root = Path(__file__).resolve().parents[1] / "scenarios"
+    root = Path(__file__).resolve().parents[1] / "scenarios" / "data"
     text = (root / "spindle_unit.toml").read_text("utf-8")
     assert "\norder = 2\n" in text and 'mesh = "spindle_unit.msh"' in text
     text = text.replace("\norder = 2\n", "\norder = 1\n").replace(

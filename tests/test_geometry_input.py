@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from arfem.params import InputError
-from arfem.scenarios.geometry_scenario import (build_geometry_model, load_geometry_scenario,
+from arfem.scenarios.geometry.scenario import (build_geometry_model, load_geometry_scenario,
                                                solve_geometry)
 from geometry_meshes import BOX_TOML, box_meshio, write_msh
 

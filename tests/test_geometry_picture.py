@@ -6,7 +6,7 @@ import numpy as np
 
 from arfem.fem.body import SensorSpec
 from arfem.fem.gmsh_io import read_grouped_mesh
-from arfem.scenarios.geometry_scenario import (_GROUP_COLOURS, _sensor_labels, geometry_picture,
+from arfem.scenarios.geometry.scenario import (_GROUP_COLOURS, _sensor_labels, geometry_picture,
                                                group_roles, load_geometry_scenario)
 from geometry_meshes import BOX_TOML, box_meshio, write_msh
 

@@ -10,9 +10,9 @@ import pytest
 
 from arfem.fem.body import locate
 from arfem.fem.gmsh_io import read_grouped_mesh
-from arfem.scenarios.geometry_scenario import _history, load_geometry_scenario
+from arfem.scenarios.geometry.scenario import _history, load_geometry_scenario
 
-SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "spindle_unit.toml"
+SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "data" / "spindle_unit.toml"
 
 
 @pytest.fixture(scope="module")

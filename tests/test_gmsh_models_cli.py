@@ -1,10 +1,10 @@
-"""``python -m arfem.scenarios.gmsh_models``: a command with ``--help`` that writes only
+"""``python -m arfem.scenarios.geometry.gmsh_models``: a command with ``--help`` that writes only
 to the path it is given.
 
 Properties verified: ``--help`` exits 0 and names the argument and the options; no
 argument, a bad size or an existing file is one ``arfem: error:`` line, exit 2, nothing
 written (not in the working directory, not into the installed package's
-``scenarios/spindle_unit.msh``); given a path (and Gmsh), the mesh appears there, with
+``scenarios/data/spindle_unit.msh``); given a path (and Gmsh), the mesh appears there, with
 the unit's groups, and nowhere else.
 """
 from __future__ import annotations
@@ -16,13 +16,13 @@ from pathlib import Path
 import pytest
 
 import arfem.scenarios
-from arfem.scenarios.gmsh_models import main
+from arfem.scenarios.geometry.gmsh_models import main
 
 SHIPPED = Path(arfem.scenarios.__file__).parent / "spindle_unit.msh"
 
 
 def _cli(args, cwd):
-    return subprocess.run([sys.executable, "-m", "arfem.scenarios.gmsh_models", *args],
+    return subprocess.run([sys.executable, "-m", "arfem.scenarios.geometry.gmsh_models", *args],
                           cwd=cwd, capture_output=True, text=True, timeout=120)
 
 

@@ -123,18 +123,18 @@ def test_the_checker_flags_an_upward_import():
     assert violations("from arfem.scenarios.io import x\n", "arfem.models.ar1")
     assert violations("def f():\n    from arfem.models import ar1\n", "arfem.fem.heat")
     assert violations("from arfem.fem import heat\n", "arfem.params")
-    assert violations("from models.ar1 import x\n", "arfem.scenarios.run")
+    assert violations("from models.ar1 import x\n", "arfem.scenarios.commands.run")
     assert violations("from ...scenarios import cli\n", "arfem.models.diagnosis.engine")
     assert violations("from arfem.models import diagnosis\n", "arfem.io") != []
     assert violations("from arfem.fem.heat import x\nfrom arfem.params import Rod\n",
                       "arfem.models.ar1") == []
-    assert violations("from arfem.models.ar1 import x\n", "arfem.scenarios.run") == []
+    assert violations("from arfem.models.ar1 import x\n", "arfem.scenarios.commands.run") == []
     assert file_calls("def f(p):\n    return open(p).read()\n")
     # the API sits above everything; only the package root may reach it (lazily)
-    assert violations("from arfem import api\n", "arfem.scenarios.run")
+    assert violations("from arfem import api\n", "arfem.scenarios.commands.run")
     assert violations("from arfem import api\n", "arfem.params")
     assert violations("from arfem import api\n", "arfem") == []
-    assert violations("from arfem.scenarios.run import evaluate\n", "arfem.api") == []
+    assert violations("from arfem.scenarios.commands.run import evaluate\n", "arfem.api") == []
 
 
 @pytest.mark.parametrize("path, module", list(package_modules()),
@@ -237,18 +237,18 @@ def test_the_command_checker_flags_a_command_import():
     """The checker itself: importing a command module from a library module, a script or
     through ``from package import command`` is caught; the CLI, the command's own module
     and a library module beside it are not (so a green run means something)."""
-    cmds = {"arfem.scenarios.run", "arfem.scenarios.compensate"}
-    src = "from arfem.scenarios.run import evaluate\n"
-    assert command_imports(src, "arfem.scenarios.check", cmds) == [(1, "arfem.scenarios.run")]
-    assert command_imports(src, "script", cmds) == [(1, "arfem.scenarios.run")]
-    assert command_imports("def f():\n    from arfem.scenarios import compensate\n",
-                           "arfem.api", cmds) == [(2, "arfem.scenarios.compensate")]
-    assert command_imports("import arfem.scenarios.run as r\n", "script", cmds)
-    assert command_imports("from .run import evaluate\n", "arfem.scenarios.check", cmds)
+    cmds = {"arfem.scenarios.commands.run", "arfem.scenarios.commands.compensate"}
+    src = "from arfem.scenarios.commands.run import evaluate\n"
+    assert command_imports(src, "arfem.scenarios.commands.check", cmds) == [(1, "arfem.scenarios.commands.run")]
+    assert command_imports(src, "script", cmds) == [(1, "arfem.scenarios.commands.run")]
+    assert command_imports("def f():\n    from arfem.scenarios.commands import compensate\n",
+                           "arfem.api", cmds) == [(2, "arfem.scenarios.commands.compensate")]
+    assert command_imports("import arfem.scenarios.commands.run as r\n", "script", cmds)
+    assert command_imports("from .run import evaluate\n", "arfem.scenarios.commands.check", cmds)
     assert command_imports(src, CLI, cmds) == []
-    assert command_imports(src, "arfem.scenarios.run", cmds) == []
-    assert command_imports("from arfem.scenarios.evaluation import evaluate\n"
-                           "from arfem.scenarios.replay import replay\n", "script", cmds) == []
+    assert command_imports(src, "arfem.scenarios.commands.run", cmds) == []
+    assert command_imports("from arfem.scenarios.rod.evaluation import evaluate\n"
+                           "from arfem.scenarios.compensation.replay import replay\n", "script", cmds) == []
     assert defines_command("def add_parser(sub):\n    pass\n")
     assert not defines_command("def f():\n    def add_parser(sub):\n        pass\n")
 
@@ -259,7 +259,7 @@ def test_command_modules_are_imported_by_the_cli_only():
     ``report``…) but scenarios/cli.py, except the pairs of KNOWN_COMMAND_IMPORTS; and
     every one of those still occurs (the list only shrinks)."""
     cmds = command_module_names()
-    assert {"arfem.scenarios.run", "arfem.scenarios.compensate"} <= cmds
+    assert {"arfem.scenarios.commands.run", "arfem.scenarios.commands.compensate"} <= cmds
     found = {}
     for rel, name, path in checked_files():
         for line, cmd in command_imports(path.read_text(encoding="utf-8"), name, cmds):

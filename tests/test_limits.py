@@ -5,15 +5,16 @@ are one line too. (Time and peak memory of each refusal: benchmarks/bench_limits
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import pytest
 
 from arfem.io import read_toml
 from arfem.limits import STRICT, Limits
 from arfem.params import InputError
-from arfem.scenarios import config
+from arfem.scenarios.rod import scenario as config
 from arfem.scenarios.cli import main
-from arfem.scenarios.config import (builtin_scenario_path, estimate_cost, load_scenario,
+from arfem.scenarios.rod.scenario import (builtin_scenario_path, estimate_cost, load_scenario,
                                     scenario_from_dict)
 
 BASE = read_toml(builtin_scenario_path("paper_fig2"))
@@ -105,10 +106,12 @@ def test_the_cli_flag_is_passed_as_a_value_not_through_the_environment(tmp_path,
     before = dict(os.environ)
     seen = []
 
-    def reader(path, limits=None):
+    import arfem.io
+
+    def reader(path, limits=None):               # the one read of the scenario
         seen.append((limits, dict(os.environ) == before))
-        return {}
-    monkeypatch.setattr(config, "read_toml", reader)
+        return arfem.io.TomlFile(Path(path), "", {})
+    monkeypatch.setattr(arfem.io, "read_toml_file", reader)
     main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"), "--allow-large"])
     main(["run", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o")])
     assert seen == [(Limits(large=True), True), (STRICT, True)]
@@ -192,7 +195,7 @@ def test_no_module_of_the_package_writes_the_environment():
 def test_estimate_matches_the_built_models():
     """The unknown counts of the estimate are exact for the meshes arfem builds (the
     memory/work figures are built on them), checked against assembled models."""
-    from arfem.scenarios.evaluation import build_model
+    from arfem.scenarios.rod.evaluation import build_model
     for tables in ({"fem.mesh": {"nr": 3, "nz": 10}},
                    {"fem": {"model": "3d", "order": 1},
                     "fem.mesh": {"n_core": 2, "n_ring": 1, "nz": 4}},

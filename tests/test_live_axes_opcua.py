@@ -37,7 +37,7 @@ import pytest
 
 pytest.importorskip("asyncua")
 
-from axes_machine import AxesMachine, write_config  # noqa: E402
+from axes_machine import AxesMachine, box_run, write_config  # noqa: E402
 from live_fault_machine import free_port, log_lines, until  # noqa: E402
 
 LIMITS = {"X": (15.0, 0.3), "Y": (2.0, 0.2), "Z": (50.0, 1.0)}
@@ -47,20 +47,7 @@ CYCLES = 60
 
 @pytest.fixture(scope="module")
 def box(tmp_path_factory):
-    from test_model_v2_export import box_scenario
-
-    from arfem.scenarios.cli import main
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import record_columns
-    d = tmp_path_factory.mktemp("box")
-    assert main(["run", str(box_scenario(d, 0.0)), "--out", str(d / "run")]) == 0
-    model = read_model(d / "run" / "model.json")
-    ds = load_dataset(d / "run" / "record.toml")
-    inputs, _ = record_columns(model, ds, "record")
-    rows = [{"time_s": float(ds.time_s[k]), **{nm: float(v[k]) for nm, v in inputs.items()}}
-            for k in range(ds.time_s.size)]
-    return d / "run", model, rows
+    return box_run(tmp_path_factory.mktemp("box"))
 
 
 def expected(model, rows, refused) -> dict:

@@ -34,8 +34,8 @@ import pytest
 
 from arfem.models.compensator import (Compensator, ar1_model, fit_speed_ar1_model,
                                       plausible_ranges, propagate)
-from arfem.scenarios.live import Clock, clocked_step, load_config, run_jsonl
-from arfem.scenarios.model_file import write_model
+from arfem.scenarios.live.jsonl import Clock, clocked_step, load_config, run_jsonl
+from arfem.scenarios.compensation.model_file import write_model
 
 CONFIG = ('[live]\ntransport = "jsonl"\nmax_offset_um = 20\nmax_step_um = 0.5\n'
           'stale_after_s = 600\nstatus_every = 0\n{extra}')
@@ -53,7 +53,7 @@ def run(d, model, lines, log="compensate.log.jsonl"):
     (d / "run.toml").write_text(CONFIG.format(extra=f'log = "{log}"\n'))
     cfg = load_config(d / "run.toml", model)
     out, err = io.StringIO(), io.StringIO()
-    from arfem.scenarios.live import Status
+    from arfem.scenarios.live.jsonl import Status
     rc = run_jsonl(model, cfg, io.StringIO("".join(lines)), out, Status(0, err))
     answers = [json.loads(x) for x in out.getvalue().splitlines()]
     return rc, answers, err.getvalue()

@@ -1,4 +1,4 @@
-"""Tests of arfem.scenarios.dataset (the loader): the measured-data contract, read exactly, refused clearly."""
+"""Tests of arfem.scenarios.records.dataset (the loader): the measured-data contract, read exactly, refused clearly."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis.dataset import Dataset, hampel_outliers, sampling_gaps
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.records.dataset import load_dataset
 from arfem.params import InputError
 
-FL = Path(__file__).resolve().parents[1] / "scenarios" / "fl_thermal"
+FL = Path(__file__).resolve().parents[1] / "scenarios" / "data" / "fl_thermal"
 
 
 def write(tmp_path: Path, csv_text: str, toml_text: str | None = None, stem="case",
@@ -369,7 +369,7 @@ def test_nul_bytes_are_refused_before_reading_the_file_whole(tmp_path):
 def test_too_large_csv_is_refused_by_its_size(tmp_path, monkeypatch):
     """Beyond MAX_CSV_BYTES (here lowered to 1 KiB) the file is refused from its size
     alone, naming --allow-large; with it the same file loads."""
-    import arfem.scenarios.dataset as dsmod
+    import arfem.scenarios.records.dataset as dsmod
     monkeypatch.setattr(dsmod, "MAX_CSV_BYTES", 1024)
     p = write(tmp_path, good_csv(n=200))
     refuse(p, "case.csv", "MiB", "--allow-large")
@@ -380,7 +380,7 @@ def test_too_large_csv_is_refused_by_its_size(tmp_path, monkeypatch):
 def test_too_many_rows_are_refused_before_parsing(tmp_path, monkeypatch):
     """More rows than MAX_ROWS (here lowered to 100) are refused by a line count before
     any cell is parsed; --allow-large lifts it."""
-    import arfem.scenarios.dataset as dsmod
+    import arfem.scenarios.records.dataset as dsmod
     monkeypatch.setattr(dsmod, "MAX_ROWS", 100)
     p = write(tmp_path, good_csv(n=200))
     refuse(p, "case.csv", "200 rows", "at most 100", "--allow-large")

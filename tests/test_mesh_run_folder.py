@@ -58,7 +58,7 @@ def run_dir(tmp_path_factory):
 def test_record_is_contract_v3_naming_the_copy(run_dir):
     """record.toml has [model] scenario = "scenario.toml", which resolves beside it,
     and every column maps onto the scenario's sensors and sources."""
-    from arfem.scenarios.georecord import is_mesh_record, read_record_files, read_table
+    from arfem.scenarios.records.georecord import is_mesh_record, read_record_files, read_table
     rec = run_dir / "out" / "record.toml"
     assert is_mesh_record(rec)
     files = read_record_files(rec)
@@ -104,7 +104,7 @@ def test_rod_diagnosis_refuses_a_mesh_record(run_dir, tmp_path):
     API) it names the [model] table; the same record without [model] names its
     displacement channels; the command, exit 2 and one line, --out not created."""
     import arfem
-    from arfem.scenarios.diagnosis_run import diagnose_file, run_diagnosis
+    from arfem.scenarios.diagnosis.run import diagnose_file, run_diagnosis
     rec = run_dir / "out" / "record.toml"
     for call in (lambda: diagnose_file(rec), lambda: run_diagnosis(rec, tmp_path / "o"),
                  lambda: arfem.read_record(rec), lambda: arfem.diagnose(rec)):
@@ -180,7 +180,7 @@ def test_scenario_copy_rewrites_only_the_paths():
     line edit cannot handle (an inline table) gives None, not a wrong file."""
     import tomllib
 
-    from arfem.scenarios.geometry_copy import plan_copy, rewrite_values
+    from arfem.scenarios.geometry.copy import plan_copy, rewrite_values
     text = ('# my unit\n[geometry]  # the mesh\nmesh = \'../m/u.msh\'  # mm\nunit = "mm"\n'
             '[cycle]\ncsv = "data/record.csv"\ntotal_h = 2.0\n')
     doc = tomllib.loads(text)
@@ -202,7 +202,7 @@ def test_scenario_copy_xdmf_and_the_verbatim_fallback(tmp_path):
     a comment naming the original mesh (write_copy returns False)."""
     import tomllib
 
-    from arfem.scenarios.geometry_copy import plan_copy, write_copy
+    from arfem.scenarios.geometry.copy import plan_copy, write_copy
     plan = plan_copy(tmp_path / "u" / "s.toml", {"geometry": {"mesh": "../m.xdmf"}})
     assert plan.files == ()
     assert plan.values == {("geometry", "mesh"): (tmp_path / "m.xdmf").as_posix()}
@@ -246,8 +246,8 @@ def test_twin_record_of_a_scenario_names_it(tmp_path):
     """arfem twin --scenario --record writes a contract-v3 record: its [model] names the
     served scenario relative to the record, so arfem diagnose checks it against that
     mesh (without [model] its d_ channels are refused by the rod's diagnosis)."""
-    from arfem.scenarios.georecord import is_mesh_record, read_record_files
-    from arfem.scenarios.twin_record import write_record
+    from arfem.scenarios.records.georecord import is_mesh_record, read_record_files
+    from arfem.scenarios.live.twin_record import write_record
     shutil.copy(DATA / "spindle_coarse.toml", tmp_path / "unit.toml")
     write_record(tmp_path / "rec", [], scenario=tmp_path / "unit.toml")
     rec = tmp_path / "rec" / "twin.toml"

@@ -117,7 +117,7 @@ def test_each_malformed_field_is_one_error_naming_its_key(key, value):
 def test_nan_and_infinity_tokens_of_the_file_are_refused(tmp_path):
     """Python's json reads the non-standard NaN/Infinity; read_model refuses them (the
     schema validates JSON, which has no such numbers), and 1e400 (inf) by its key."""
-    from arfem.scenarios.model_file import read_model
+    from arfem.scenarios.compensation.model_file import read_model
     for text, where in (('"d0_um": NaN', "NaN"), ('"d0_um": -Infinity', "Infinity"),
                         ('"d0_um": 1e400', "d0_um")):
         body = json.dumps(AR1).replace('"d0_um": 0.0', text)
@@ -292,7 +292,7 @@ def test_schema_and_reader_agree_on_generated_documents(case):
 def record(tmp_path_factory):
     """A small q_W_m2 record at Δτ = 60 s (the models' interval)."""
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.records.synth_files import write_case
     d = tmp_path_factory.mktemp("rec")
     case = generate("none", 3, duration_h=3.0, interval_s=60, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)

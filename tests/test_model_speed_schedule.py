@@ -95,9 +95,9 @@ def test_a_cycle_of_many_speeds_gets_an_even_grid(tmp_path):
     range of the reduced solve (measured 4.1e-6 at most: h is linear in n on this box,
     so only the matrices' curvature in h remains; the linearised model missed the
     two-speed cycle by 2.2e-2)."""
-    from arfem.scenarios.geometry_export import (MAX_SCHEDULE_SPEEDS, export_state_space,
+    from arfem.scenarios.geometry.export import (MAX_SCHEDULE_SPEEDS, export_state_space,
                                                  record_columns)
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     toml = box_scenario(tmp_path, 0.01)
     speeds = [0.0, 2400.0, 300.0, 1500.0, 700.0, 2000.0, 100.0, 1100.0, 1800.0, 500.0,
@@ -122,10 +122,10 @@ def test_run_compensate_and_live_with_a_schedule(tmp_path):
     import jsonschema
 
     from arfem.scenarios.cli import main
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.live import Status, load_config, run_jsonl
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import record_columns
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.live.jsonl import Status, load_config, run_jsonl
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.compensation.replay_axes import record_columns
     toml = box_scenario(tmp_path, 0.01)
     assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
     doc = json.loads((tmp_path / "run" / "model.json").read_text("utf-8"))

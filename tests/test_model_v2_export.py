@@ -80,8 +80,8 @@ def simulate(model, cols) -> np.ndarray:
 
 
 def solved(d: Path, b: float, solver: str = "reduced"):
-    from arfem.scenarios.geometry_export import export_state_space, record_columns
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.geometry.export import export_state_space, record_columns
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     gm = build_geometry_model(load_geometry_scenario(box_scenario(d, b, solver)))
     run = solve_geometry(gm)

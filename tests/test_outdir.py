@@ -245,7 +245,7 @@ def test_disk_full_while_writing_is_one_line_and_out_unchanged(tmp_path, capsys,
                                                                 monkeypatch):
     """ENOSPC raised by a writer inside `arfem run` (disk full): one line, exit 2, the
     earlier result in --out byte for byte as it was."""
-    import arfem.scenarios.run_outputs as runmod
+    import arfem.scenarios.rod.outputs as runmod
     (tmp_path / "case.toml").write_text(SCENARIO)
     out = tmp_path / "out"
     assert main(["run", str(tmp_path / "case.toml"), "--out", str(out)]) == 0

@@ -20,8 +20,8 @@ import numpy as np
 from arfem.models.ar1 import ar1_simulate, fit_ar1
 from arfem.models.compensator import Compensator, fit_speed_ar1_model
 from arfem.models.diagnosis.speed import paper_ar, speed_to_heat_map
-from arfem.scenarios.diagnosis_report import _unseen_note
-from arfem.scenarios.diagnosis_run import rod_terminal_line
+from arfem.scenarios.diagnosis.report import _unseen_note
+from arfem.scenarios.diagnosis.run import rod_terminal_line
 
 DT = 15.0
 C1 = 0.995

@@ -5,7 +5,7 @@ import io
 
 from arfem.scenarios.cli import main
 from arfem.scenarios.progress import Progress
-from arfem.scenarios.run_outputs import run_scenario
+from arfem.scenarios.rod.outputs import run_scenario
 from scenario_texts import small_scenario
 
 SMALL = small_scenario(fields=True, picture=True, field_interval_s=1800.0)

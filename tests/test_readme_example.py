@@ -3,7 +3,7 @@
 What is verified and why: issue 30 found the README's example did not fit the shipped
 record (foreign column names, ``initial`` silently defaulted). Every ```python block of
 README.md is executed, unchanged, in a fresh working directory that holds only the
-shipped ``scenarios/fl_thermal`` folder (a symbolic link), as a user's clone would; an
+shipped ``scenarios/data/fl_thermal`` folder (a symbolic link), as a user's clone would; an
 exception fails the test. The example prints the record's ``initial``, which must be
 the TOML's ``"unknown"``, and the columns, which must be the contract's names. It
 diagnoses the whole shipped record once (about 12 s of CPU here), the price of running
@@ -25,8 +25,8 @@ def _python_blocks(text: str) -> list[str]:
 def test_readme_python_blocks_run_verbatim_on_the_shipped_record(tmp_path, monkeypatch):
     blocks = _python_blocks((REPO / "README.md").read_text(encoding="utf-8"))
     assert blocks, "README.md has no ```python block"
-    (tmp_path / "scenarios").mkdir()
-    os.symlink(REPO / "scenarios" / "fl_thermal", tmp_path / "scenarios" / "fl_thermal")
+    (tmp_path / "scenarios" / "data").mkdir(parents=True)
+    os.symlink(REPO / "scenarios" / "data" / "fl_thermal", tmp_path / "scenarios" / "data" / "fl_thermal")
     monkeypatch.chdir(tmp_path)
     out = io.StringIO()
     namespace: dict = {}

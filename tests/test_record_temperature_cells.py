@@ -12,13 +12,13 @@ from __future__ import annotations
 import pytest
 
 from arfem.params import InputError
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.records.dataset import load_dataset
 
 
 @pytest.fixture
 def record(tmp_path):
     from arfem.models.diagnosis.synth import generate
-    from arfem.scenarios.synth_files import write_case
+    from arfem.scenarios.records.synth_files import write_case
     case = generate("none", 5, duration_h=3.0, interval_s=60, jitter_s=0.0, n_gaps=0,
                     empty_fraction=0.0, n_outliers=0)
     toml = write_case(case, tmp_path)
@@ -63,7 +63,7 @@ def test_a_record_held_in_memory_is_checked_as_the_file_is(record, value):
     lacked this one (a -1e308 °C cell loaded from a DataFrame, not from the CSV)."""
     import csv as csv_module
 
-    from arfem.scenarios.dataset import dataset_from_columns
+    from arfem.scenarios.records.dataset import dataset_from_columns
     _, csv = record
     with open(csv, newline="", encoding="utf-8") as fh:
         rows = list(csv_module.DictReader(fh))

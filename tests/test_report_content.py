@@ -90,10 +90,10 @@ def test_the_replay_figure_says_record_and_rpm(runs, monkeypatch):
     'measured'), and the speed axis reads rpm, as on every other page."""
     from matplotlib.figure import Figure
     from arfem.io import read_toml  # noqa: F401  (the record is read by the command)
-    from arfem.scenarios.axes_record import load_axes_record
-    from arfem.scenarios.model_file import read_model
-    from arfem.scenarios.replay_axes import replay_axes
-    from arfem.scenarios.replay_axes_report import axes_figure
+    from arfem.scenarios.records.axes_record import load_axes_record
+    from arfem.scenarios.compensation.model_file import read_model
+    from arfem.scenarios.compensation.replay_axes import replay_axes
+    from arfem.scenarios.compensation.replay_axes_report import axes_figure
     model = read_model(runs / "run" / "model.json")
     res = replay_axes(model, load_axes_record(runs / "run" / "record.toml"))
     drawn = []
@@ -115,14 +115,14 @@ def test_run_help_lists_exactly_what_each_kind_of_run_writes():
     """``arfem run --help``: the rod's paragraph names run_outputs.WRITES and the mesh's
     geometry_scenario.WRITES, each file once and no other (a mesh run writes
     report.html and sensors.png, not timeseries.csv or figure.png)."""
-    from arfem.scenarios.geometry_scenario import WRITES as MESH
-    from arfem.scenarios.run_outputs import WRITES as ROD
+    from arfem.scenarios.geometry.scenario import WRITES as MESH
+    from arfem.scenarios.rod.outputs import WRITES as ROD
     text = " ".join(build_parser("run")._subparsers._group_actions[0]
                     .choices["run"].description.split())
     rod, mesh = text.split("A mesh scenario", 1)
     rod = rod.split("The paper's rod", 1)[1]
     assert _files_named(rod) == set(ROD)
-    assert _files_named(mesh) - {"scenarios/spindle_unit.toml"} == set(MESH)
+    assert _files_named(mesh) - {"scenarios/data/spindle_unit.toml"} == set(MESH)
     assert {"report.html", "sensors.png"} <= _files_named(mesh)
     assert not {"timeseries.csv", "figure.png"} & _files_named(mesh)
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from arfem.scenarios.cli import main
-from arfem.scenarios.config import load_scenario, builtin_scenario_path
+from arfem.scenarios.rod.scenario import load_scenario, builtin_scenario_path
 from scenario_texts import small_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-PAPER2 = ROOT / "scenarios" / "paper_fig2.toml"
+PAPER2 = ROOT / "scenarios" / "data" / "paper_fig2.toml"
 
 
 def _write(tmp_path: Path, text: str, name="case.toml") -> Path:

@@ -178,7 +178,7 @@ def test_slow_frame_response_is_the_slower_one():
 def test_report_says_when_an_interval_reaches_the_fit_range():
     """An interval cut at the range the fit can return (τ_f 0.1-200 h) is not a bound
     from the data, and report.md must say so; an interval inside the range must not."""
-    from arfem.scenarios.diagnosis_report import _unbounded
+    from arfem.scenarios.diagnosis.report import _unbounded
     assert "do not bound" in _unbounded("frame_time_constant_h", [0.1, 200.0])
     assert "do not bound" in _unbounded("frame_time_constant_h", [3.0, 200.0])
     assert _unbounded("frame_time_constant_h", [1.5, 40.0]) == ""
@@ -218,7 +218,7 @@ def test_the_report_and_the_engine_share_one_search_edge_test():
     at_search_edge, so the two cannot disagree (they did for an interval beyond an
     end: abs(v - e) <= tol e called 250 h not at the 200 h end)."""
     from arfem.models.diagnosis.speed_intervals import SEARCH_RANGES, at_search_edge
-    from arfem.scenarios.diagnosis_report import _unbounded
+    from arfem.scenarios.diagnosis.report import _unbounded
     name = "frame_time_constant_h"
     lo, hi = SEARCH_RANGES[name]
     for v in (0.5 * lo, lo, 1.005 * lo, 1.02 * lo, 10.0, 0.98 * hi, 0.995 * hi, hi, 1.25 * hi):

@@ -22,8 +22,8 @@ import pytest
 
 from arfem.params import InputError
 from arfem.scenarios.cli import main
-from arfem.scenarios.config import scenario_from_dict
-from arfem.scenarios.evaluation import evaluate
+from arfem.scenarios.rod.scenario import scenario_from_dict
+from arfem.scenarios.rod.evaluation import evaluate
 from arfem.scenarios.sweep import (PointStore, TIMING_COLUMNS, biot_threshold, load_sweep,
                              point_key, run_sweep)
 
@@ -83,10 +83,10 @@ def small_store(tmp_path_factory):
 
 
 def test_shipped_sweep_is_valid_and_large_enough():
-    """scenarios/sweep_dtau_h.toml loads (so every Δτ divides all phases of the paper's
+    """scenarios/data/sweep_dtau_h.toml loads (so every Δτ divides all phases of the paper's
     cycle, which load_sweep checks per point) and spans the promised grid: >= 6 Δτ from
     10 to 600 s, >= 8 h from 5 to 400 W/(m²K), q in {2000, 3000}, >= 96 points."""
-    sweep = load_sweep(REPO / "scenarios" / "sweep_dtau_h.toml")
+    sweep = load_sweep(REPO / "scenarios" / "data" / "sweep_dtau_h.toml")
     g = sweep.grid
     assert len(g["dtau_s"]) >= 6 and (min(g["dtau_s"]), max(g["dtau_s"])) == (10, 600)
     assert len(g["h_W_m2K"]) >= 8 and (min(g["h_W_m2K"]), max(g["h_W_m2K"])) == (5, 400)
@@ -600,7 +600,7 @@ def test_huge_grid_is_refused_from_its_shape_before_any_point(tmp_path, capsys):
     """Issue 17: a 100³ grid was still validating at 180 s. Its size is known from the list
     lengths: refused in one line that gives the points and the estimated time steps and
     names --max-points; check_size accepts it when the limit is lifted."""
-    from arfem.scenarios.config import load_scenario
+    from arfem.scenarios.rod.scenario import load_scenario
     from arfem.scenarios.sweep.spec import MAX_POINTS, check_size
     write_base(tmp_path)
     vals = lambda a: "[" + ", ".join(str(a + i) for i in range(100)) + "]"
@@ -665,7 +665,7 @@ def test_scheduler_killed_mid_sweep_is_one_line_and_keeps_points(tmp_path):
     try:
         time.sleep(5)
         proc = subprocess.Popen([sys.executable, "-m", "arfem", "sweep",
-                                 str(REPO / "scenarios" / "sweep_dtau_h.toml"), "--out",
+                                 str(REPO / "scenarios" / "data" / "sweep_dtau_h.toml"), "--out",
                                  str(out), "--scheduler", f"tcp://127.0.0.1:{port}",
                                  "--no-progress"], stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, cwd=tmp_path)

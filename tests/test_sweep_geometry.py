@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from arfem.scenarios.cli import main
-from arfem.scenarios.geometry_scenario import (build_geometry_model, geometry_scenario_from_dict,
+from arfem.scenarios.geometry.scenario import (build_geometry_model, geometry_scenario_from_dict,
                                                solve_geometry)
 from arfem.scenarios.sweep.runner import run_sweep
 from arfem.scenarios.sweep.spec import load_sweep

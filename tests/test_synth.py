@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from arfem.fem.heat import modes
-from arfem.scenarios.dataset import load_dataset
+from arfem.scenarios.records.dataset import load_dataset
 from arfem.models.diagnosis.synth import (CAUSES, ambient_gain_um_per_K, generate, random_case, rod_model)
-from arfem.scenarios.synth_files import write_case
+from arfem.scenarios.records.synth_files import write_case
 from arfem.params import InputError, Rod
 
 H0 = 55.0

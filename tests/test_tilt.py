@@ -104,7 +104,7 @@ def test_check_reports_the_tilt_on_its_own_peak(run_dir):
     """``arfem check`` gates the displacements and reports the tilt in its notes, in µrad
     against the largest FEM tilt (not gated: a tilt is not compensated, and one time
     constant per input misses its fast share: 40 % on this box when written)."""
-    from arfem.scenarios.geometry_check import check_geometry_case, load_geometry_case
+    from arfem.scenarios.geometry.check import check_geometry_case, load_geometry_case
     res = check_geometry_case(load_geometry_case(run_dir / "box.toml"))
     names = [c.name for c in res.criteria]
     assert "max_abs_diff_pct_of_peak[p1]" in names and "max_abs_diff_pct_of_peak[B]" not in names
@@ -118,7 +118,7 @@ def test_diagnosis_reads_the_tilt_as_evidence(run_dir):
     channel of kind "tilt" in µrad, and the nominal model's response on it equals the
     record's tilt within 1 % of its peak (the parametric reduced model's own error)."""
     from arfem.models.geodiagnosis.problem import Setting, responses
-    from arfem.scenarios.geodiagnose import load_mesh_record
+    from arfem.scenarios.diagnosis.mesh import load_mesh_record
     rec, model, plant, sc, _ = load_mesh_record(run_dir / "run" / "record.toml")
     j = [c.column for c in rec.channels].index("tilt_B_urad")
     assert rec.channels[j].kind == "tilt" and rec.channels[j].unit == "urad"

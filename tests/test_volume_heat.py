@@ -174,7 +174,7 @@ def test_volume_source_runs_through_a_scenario(tmp_path):
     the volume's, the run's record carries P_heater_W, the lumped AR(1) sees 1 W/W."""
     from geometry_meshes import BOX_TOML, box_meshio, write_msh
 
-    from arfem.scenarios.geometry_scenario import (build_geometry_model,
+    from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    geometry_scenario_from_dict,
                                                    solve_geometry)
     import tomllib

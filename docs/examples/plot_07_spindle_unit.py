@@ -3,8 +3,9 @@ A spindle unit from a Gmsh mesh: the tool-centre point's drift in X, Y and Z
 ============================================================================
 
 The rod of the seed paper is not your machine. This example runs the spindle unit
-shipped with arfem (``scenarios/spindle_unit.toml`` and its mesh) as a user does: the
-scenario file, ``arfem run``, and the files it writes. The unit is a steel shaft in two
+shipped with arfem (``scenarios/data/spindle_unit.toml`` and its mesh) as a user does: the
+scenario file, :func:`arfem.run` (``arfem run`` from Python), its result and the files
+it writes. The unit is a steel shaft in two
 bearing sets and a built-in motor, in a cast-iron housing on a column stub clamped at
 its foot, run for 24 h of speed steps. What a compensation engineer wants from it: the
 drift of the tool-centre point (TCP) along X, Y and Z, the temperatures the sensors
@@ -13,7 +14,7 @@ would read, and the fields.
 From the command line, the same in one go (with the shipped P2 elements; this page uses
 P1 on the same mesh so that it builds in seconds)::
 
-    arfem run scenarios/spindle_unit.toml --out out/spindle
+    arfem run scenarios/data/spindle_unit.toml --out out/spindle
 """
 # %%
 # The scenario file
@@ -21,16 +22,15 @@ P1 on the same mesh so that it builds in seconds)::
 # A scenario with ``[geometry]`` names a mesh and ties its physical groups to
 # materials, heat sources, convection, a support and sensors, every key with its unit
 # (:doc:`../geometry` explains each table). This is the shipped file:
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
-import arfem.scenarios
 import matplotlib.pyplot as plt
 import numpy as np
 
-shipped = Path(arfem.scenarios.__file__).parent / "spindle_unit.toml"
+import arfem
+
+shipped = arfem.shipped_scenario("spindle_unit")      # the installed file
 text = shipped.read_text(encoding="utf-8")
 print(text[text.index("[geometry]"):text.index("[[material]]")])
 print("...")
@@ -42,19 +42,19 @@ print(text[text.index("[[heat_source]]"):text.index("[[convection]]")])
 # A copy that names the shipped mesh by its full path and asks for P1 elements (the
 # same geometry, groups and loads with a seventh of the temperature unknowns; the
 # shipped P2 run is the one to trust, and the P1 peaks lie within 0.6 % of it) and for
-# the fields, which are off by default.
+# the fields, which are off by default. :func:`arfem.run` writes what ``arfem run``
+# writes and returns the sensors' histories (:class:`arfem.FemResult`);
+# :func:`arfem.solve` would return them without writing a file.
 work = Path(tempfile.mkdtemp())
 copy = (text.replace('mesh = "spindle_unit.msh"',
-                     f'mesh = "{(shipped.parent / "spindle_unit.msh").as_posix()}"')
+                     f'mesh = "{shipped.with_suffix(".msh").as_posix()}"')
         .replace("order = 2", "order = 1")
         .replace("fields = false", "fields = true")
         .replace("field_interval_s = 3600.0", "field_interval_s = 1800.0"))
 (work / "unit.toml").write_text(copy, encoding="utf-8")
-done = subprocess.run([sys.executable, "-m", "arfem", "run", str(work / "unit.toml"),
-                       "--out", str(work / "out"), "--no-progress"],
-                      capture_output=True, text=True, check=True)
-print(done.stdout)
 out = work / "out"
+unit = arfem.run(work / "unit.toml", out)
+print(f"{unit.scenario}: {unit.ndofs} temperature unknowns, solver {unit.solver}")
 print("wrote:", ", ".join(sorted(p.name for p in out.iterdir() if not p.name.startswith("."))))
 
 # %%
@@ -72,25 +72,27 @@ ax.set_axis_off()
 # %%
 # The TCP's drift along X, Y and Z, and the temperatures
 # -------------------------------------------------------
-# ``sensors.csv`` has one column per sensor, its unit in its name. Z is the spindle
-# axis: the shaft and the housing grow, and the nose (at z = −80 mm, below the housing)
-# moves down, −Z. The column stub is clamped at its back face (y = 300 mm); everything in
-# front of it expands away from that face, so the nose also moves −Y. X stays near zero:
-# the unit is symmetric about the plane x = 0. These three curves are what a
-# compensation writes into the controller's offsets.
-s = np.genfromtxt(out / "sensors.csv", delimiter=",", names=True)
-for name in s.dtype.names[2:]:
-    v = s[name]
-    j = int(np.argmax(np.abs(v - (20.0 if name.startswith("T_") else 0.0))))
-    print(f"{name:<20} peak {v[j]:8.2f} at {s['time_h'][j]:5.2f} h, final {v[-1]:8.2f}")
+# The result holds each sensor by its name, in its unit: ``displacement_um``,
+# ``temperature_C`` (and ``tilt_urad``); ``unit.to_dataframe()`` gives the columns of
+# ``sensors.csv``. Z is the spindle axis: the shaft and the housing grow, and the nose
+# (at z = −80 mm, below the housing) moves down, −Z. The column stub is clamped at its
+# back face (y = 300 mm); everything in front of it expands away from that face, so the
+# nose also moves −Y. X stays near zero: the unit is symmetric about the plane x = 0.
+# These three curves are what a compensation writes into the controller's offsets.
+t_h = unit.times_s / 3600.0
+table = unit.to_dataframe()
+for c in unit.channels:
+    v = table[c.column].to_numpy()
+    j = int(np.argmax(np.abs(v - (20.0 if c.quantity == "temperature" else 0.0))))
+    print(f"{c.column:<20} peak {v[j]:8.2f} {c.unit:<2} at {t_h[j]:5.2f} h, final {v[-1]:8.2f}")
 fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True, layout="constrained")
 for axis in "xyz":
-    ax1.plot(s["time_h"], s[f"d_tcp_{axis}_um"], label=f"TCP {axis.upper()}")
+    ax1.plot(t_h, unit.displacement_um[f"tcp_{axis}"], label=f"TCP {axis.upper()}")
 ax1.axhline(0.0, color="0.6", lw=0.8)
 ax1.set_ylabel("TCP drift [µm]")
 ax1.legend(ncol=3)
 for name in ("front_bearing", "housing", "column"):
-    ax2.plot(s["time_h"], s[f"T_{name}_C"], label=name)
+    ax2.plot(t_h, unit.temperature_C[name], label=name)
 ax2.set_ylabel("temperature [°C]")
 ax2.set_xlabel("time [h]")
 _ = ax2.legend(ncol=3, loc="upper right")
@@ -132,9 +134,9 @@ _ = ax.set_title(f"t = {t_s / 3600:g} h: temperature on the half x < 0, deformed
 # %%
 # Next steps
 # ----------
-# * ``arfem run scenarios/spindle_unit.toml --out out/spindle``: the shipped P2 run,
+# * ``arfem run scenarios/data/spindle_unit.toml --out out/spindle``: the shipped P2 run,
 #   with ``report.html`` and ``model.json``.
-# * ``arfem sweep scenarios/sweep_spindle_unit.toml --out out/sweep``: the TCP drift per
+# * ``arfem sweep scenarios/data/sweep_spindle_unit.toml --out out/sweep``: the TCP drift per
 #   axis for other housing h and motor losses
 #   (:doc:`../commands/sweep`, "Sweeping a mesh scenario").
 # * Replace the mesh by your own: name its groups in Gmsh, keep the units declared.

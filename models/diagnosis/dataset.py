@@ -2,7 +2,7 @@
 arrays) and the robust flags computed on it (growth outliers, sampling gaps).
 
 Reading a record from its files (``NAME.toml`` + ``NAME.csv``, the measured-data
-contract in ``docs/measured-data.md``) is :func:`arfem.scenarios.dataset.load_dataset`;
+contract in ``docs/measured-data.md``) is :func:`arfem.scenarios.records.dataset.load_dataset`;
 nothing here touches a file.
 """
 from __future__ import annotations

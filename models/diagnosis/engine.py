@@ -148,7 +148,7 @@ def _metrics(y, pred, mask):
 
 
 def _holdout_start(t, holdout_start_s, where, u=None):
-    """The hold-out start [s] -- as given, or chosen by :func:`_default_holdout` -- and
+    """The hold-out start [s] -- as given, or chosen by :func:`arfem.models.diagnosis.holdout.default_holdout` -- and
     how it was chosen.
 
     Fitting uses the samples with t < start and scoring those with t >= start, so the

@@ -8,8 +8,8 @@ score on the rest, PREREGISTRATION.md):
 * the paper's AR(1) calibrated by eq. 17 (C1 shared, C2 per speed, speed → C2
   interpolated) and the MLR of eq. 18 on the 16 temperatures, both fitted before 28 h
   by the same function ``arfem diagnose`` uses to write model.json
-  (``arfem.scenarios.diagnosis_run.compensator_models``);
-* each replayed strictly causally over the whole record (``arfem.scenarios.replay``, what ``arfem compensate`` runs;
+  (``arfem.scenarios.diagnosis.run.compensator_models``);
+* each replayed strictly causally over the whole record (``arfem.scenarios.compensation.replay``, what ``arfem compensate`` runs;
   the AR(1) state runs from t = 0 on the speed alone) and scored after 28 h;
 * the diagnosis's extended model (``arfem diagnose`` with the hold-out at 28 h, its
   named cause exported by ``compensator_models`` as model_extended.json: the speed
@@ -32,13 +32,13 @@ from pathlib import Path
 
 
 from arfem.io import atomic_write_text, write_json
-from arfem.scenarios.replay import replay
-from arfem.scenarios.dataset import load_dataset
-from arfem.scenarios.diagnosis_run import compensator_models
+from arfem.scenarios.compensation.replay import replay
+from arfem.scenarios.records.dataset import load_dataset
+from arfem.scenarios.diagnosis.run import compensator_models
 from arfem.models.diagnosis.verdict import named_cause
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parents[1] / "scenarios" / "fl_thermal"
+DATA = HERE.parents[1] / "scenarios" / "data" / "fl_thermal"
 FIT_END_S = 100800.0
 PROBES = (("never", None), ("every 4 h", 4 * 3600.0), ("every 1 h", 3600.0))
 

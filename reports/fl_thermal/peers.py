@@ -35,7 +35,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-DATA = HERE.parents[1] / "scenarios" / "fl_thermal"
+DATA = HERE.parents[1] / "scenarios" / "data" / "fl_thermal"
 CACHE = HERE / ".peers_cache.jsonl"
 SPLIT_28H_S = 100800.0
 #: models on the table, in column order, with their labels
@@ -102,9 +102,9 @@ def one_split(job):
     from regenerate import origin_dataset
 
     from arfem.models.diagnosis.engine import diagnose
-    from arfem.scenarios.replay import replay
-    from arfem.scenarios.dataset import load_dataset
-    from arfem.scenarios.diagnosis_run import compensator_models
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.diagnosis.run import compensator_models
     ds = load_dataset(DATA / f"fl_thermal_ch{ch}.toml")
     t = np.asarray(ds.time_s, float)
     g = np.asarray(ds.growth_um, float)
@@ -147,7 +147,7 @@ def splits():
     from regenerate import ROLL_MIN_BLOCK_S, ROLL_START_S
 
     from arfem.models.diagnosis.rolling import speed_step_origins
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     ds = load_dataset(DATA / "fl_thermal_ch1.toml")
     org = speed_step_origins(ds.time_s, ds.speed_rpm, ROLL_START_S, ROLL_MIN_BLOCK_S)
     return [(SPLIT_28H_S, math.inf)] + [(o, e) for o, e in zip(org, org[1:] + [math.inf])]
@@ -239,7 +239,7 @@ def ch4_story(entries):
     """Numbers for the ch4 section: the extended model's contributions (speed state,
     frame states) at rest before and after the split, from its model.json, replayed."""
     from arfem.models.compensator import StateSpaceModel
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     e = next(x for x in entries if x["channel"] == "ch4" and x["split_s"] == SPLIT_28H_S)
     m = StateSpaceModel.from_dict(e["extended_model"])
     ds = load_dataset(DATA / "fl_thermal_ch4.toml")

@@ -1,4 +1,4 @@
-"""Regenerate reports/fl_thermal/ from the shipped real recording, scenarios/fl_thermal/.
+"""Regenerate reports/fl_thermal/ from the shipped real recording, scenarios/data/fl_thermal/.
 
     cd <repo> && python reports/fl_thermal/regenerate.py [--data DIR]
 
@@ -53,13 +53,13 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
 #: the shipped real example: the whole record and one TOML per channel
-DATA = REPO / "scenarios" / "fl_thermal"
+DATA = REPO / "scenarios" / "data" / "fl_thermal"
 WHOLE_CSV = "fl_thermal_whole.csv"
 #: rows of the first 28 h (t <= 100 800 s), on which the published table was made
 FIRST_28H_ROWS = 6721
 
-from arfem.scenarios.diagnosis_run import diagnose_file
-from arfem.scenarios.diagnosis_run import run_diagnosis
+from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.diagnosis.run import run_diagnosis
 from arfem.io import atomic_write_text
 from arfem.models.diagnosis.verdict import named_cause
 
@@ -219,7 +219,7 @@ _DS_CACHE: dict = {}
 
 
 def _dataset(toml):
-    from arfem.scenarios.dataset import load_dataset
+    from arfem.scenarios.records.dataset import load_dataset
     if toml not in _DS_CACHE:
         _DS_CACHE[toml] = load_dataset(toml)
     return _DS_CACHE[toml]

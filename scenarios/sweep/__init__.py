@@ -30,7 +30,7 @@ version), so a sweep that was interrupted
 points that are missing: none lost, none computed twice.
 
 This package is a library (the API, the benchmarks and the tests import it); the
-command's parser and printed lines live in :mod:`arfem.scenarios.sweep.command`.
+command's parser and printed lines live in :mod:`arfem.scenarios.commands.sweep`.
 """
 from __future__ import annotations
 

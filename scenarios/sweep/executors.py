@@ -15,8 +15,8 @@ import numpy as np
 
 from arfem.limits import Limits
 from arfem.params import InputError
-from arfem.scenarios.config import scenario_from_dict
-from arfem.scenarios.deterministic import blas_threads
+from arfem.scenarios.rod.scenario import scenario_from_dict
+from arfem.scenarios.rod.deterministic import blas_threads
 
 __all__ = ["evaluate_point", "blas_threads", "LocalExecutor", "DaskExecutor",
            "clear_worker_cache", "ClusterLost"]
@@ -54,7 +54,7 @@ def evaluate_point(data: dict, source: str = "<sweep point>",
     dict
         ``{"metrics": {...}, "run_time_s": float, "worker": "host:pid"}``.
     """
-    from arfem.scenarios.evaluation import evaluate
+    from arfem.scenarios.rod.evaluation import evaluate
     t0 = time.perf_counter()
     scenario = scenario_from_dict(data, source, limits)
     if len(_WORKER_CACHE) > _WORKER_CACHE_MAX:

@@ -102,7 +102,7 @@ def geometry_keys(data: dict) -> list:
             for f in _CONV_FIELDS]
     keys += [f"heat_source.{_label('heat_source', t)}.{f}"
              for t in _tables(data, "heat_source") for f in _SRC_FIELDS]
-    from arfem.scenarios.geometry_scenario import _MAT
+    from arfem.scenarios.geometry.scenario import _MAT
     keys += [f"material.{_label('material', t)}.{f}" for t in _tables(data, "material")
              for f in sorted(_MAT - {"group"})]
     return keys + [f"fem.{f}" for f in _FEM_FIELDS]
@@ -150,7 +150,7 @@ def geometry_override(data: dict, key: str, value) -> dict:
         return _set_convection(out, t, fld, value, key)
     if fam == "heat_source":
         return _set_source(out, t, fld, value, key)
-    from arfem.scenarios.geometry_scenario import _MAT
+    from arfem.scenarios.geometry.scenario import _MAT
     if fld not in _MAT - {"group"}:
         raise InputError(f"unknown material property {fld!r} (properties: "
                          f"{', '.join(sorted(_MAT - {'group'}))})", key)
@@ -226,7 +226,7 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     description read already) on the mesh scenario ``base_data`` (read from
     ``base_path``): every key resolved on the base, every value and every point
     validated as a whole scenario before anything is computed."""
-    from arfem.scenarios.geometry_scenario import geometry_scenario_from_dict
+    from arfem.scenarios.geometry.scenario import geometry_scenario_from_dict
     from arfem.scenarios.sweep.spec import _flatten, distinct_values
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
@@ -239,7 +239,7 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     if not base_sc.mesh_path.is_file():
         raise InputError(f"no mesh file {str(base_sc.mesh_path)!r}",
                          f"{base_source}: geometry.mesh")
-    from arfem.scenarios.geometry_scenario import check_geometry_scenario
+    from arfem.scenarios.geometry.scenario import check_geometry_scenario
     check_geometry_scenario(base_sc)     # a bad mesh: one line before any point (issue 32)
     _check_size(grid_flat, max_points)
     grid = {}
@@ -313,7 +313,7 @@ def metric_columns(sensors) -> list:
 
 def sensor_metrics(run) -> dict:
     """Peak (farthest from 0 µm or from the reference °C), its time [h] and the final
-    value of every sensor of a :class:`~arfem.scenarios.geometry_scenario.GeometryRun`."""
+    value of every sensor of a :class:`~arfem.scenarios.geometry.scenario.GeometryRun`."""
     sc = run.model.scenario
     t_h = run.result.times_s / 3600.0
     out = {}
@@ -421,7 +421,7 @@ def _variant(entry: _Entry, sc) -> tuple:
 
 def _model_for(sc) -> tuple:
     """(GeometryModel for ``sc``, what was reused): from the caches where possible."""
-    from arfem.scenarios.geometry_scenario import _history, build_geometry_model
+    from arfem.scenarios.geometry.scenario import _history, build_geometry_model
     skey = _structure_key(sc)
     mkey = (skey, tuple(sorted(sc.materials.items())))
     if mkey in _VARIANTS:
@@ -449,7 +449,7 @@ def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=No
     earlier points in the same process is in the module docstring and in the returned
     ``metrics["reused"]``. ``limits`` is accepted for the sweep runner's signature.
     """
-    from arfem.scenarios.geometry_scenario import geometry_scenario_from_dict, solve_geometry
+    from arfem.scenarios.geometry.scenario import geometry_scenario_from_dict, solve_geometry
     t0 = time.perf_counter()
     sc = geometry_scenario_from_dict(data, source, Path(data["geometry"]["mesh"]).parent)
     sc = replace(sc, fields=False, picture=False)

@@ -9,6 +9,7 @@ import json
 import math
 from pathlib import Path
 
+from arfem.fem.body import SENSOR_QUANTITIES      # each quantity's prefix and units
 from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.sweep.geometry import (GeometrySweep, evaluate_geometry_point,
                                             metric_columns)
@@ -42,9 +43,9 @@ def geometry_record_problem(rec, key: str, inputs: dict | None, sensors) -> str 
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             return f"metrics.{c} is {v!r}"
     ref, total = m["reference_C"], m["total_h"]
-    for name, q in sensors:
-        pre, unit, zero = (f"T_{name}", "C", ref) if q == "temperature" else \
-            (f"d_{name}", "um", 0.0)
+    for name, q in sensors:                           # (a tilt's are tilt_ and urad)
+        head, unit = SENSOR_QUANTITIES[q][:2]
+        pre, zero = f"{head}_{name}", (ref if q == "temperature" else 0.0)
         if not 0.0 <= m[f"{pre}_peak_time_h"] <= total * (1 + 1e-12):
             return f"metrics.{pre}_peak_time_h is {m[f'{pre}_peak_time_h']!r}"
         if abs(m[f"{pre}_final_{unit}"] - zero) > abs(m[f"{pre}_peak_{unit}"] - zero) * \
@@ -185,7 +186,7 @@ def _short(inputs: dict) -> str:
 def _figure(sweep: GeometrySweep, rows: list, path: Path) -> None:
     """Peak (solid) and final (dashed) of every sensor against the first swept key: one
     colour per sensor, one marker per combination of the other keys; displacements
-    above, temperatures below, the legends beside the panels."""
+    above, then tilts, then temperatures, the legends beside the panels."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -195,13 +196,13 @@ def _figure(sweep: GeometrySweep, rows: list, path: Path) -> None:
     others = [k for k in sweep.grid if k != key]
     combos = sorted({canonical({k: r[k] for k in others}) for r in rows})
     kinds = [(q, [n for n, qq in sweep.sensors if qq == q])
-             for q in ("displacement", "temperature")]
+             for q in ("displacement", "tilt", "temperature")]
     kinds = [(q, ns) for q, ns in kinds if ns]
     fig, axes = plt.subplots(len(kinds), 1, figsize=(11, 3.8 * len(kinds)), squeeze=False)
     colours = plt.get_cmap("tab10")
     markers = "o^sDv<>pP*"
     for ax, (q, names) in zip(axes[:, 0], kinds):
-        pre, unit = ("d", "um") if q == "displacement" else ("T", "C")
+        pre, unit, _, shown = SENSOR_QUANTITIES[q][:4]
         for i, name in enumerate(names):
             for j, combo in enumerate(combos):
                 rs = sorted((r for r in rows if canonical({k: r[k] for k in others}) == combo),
@@ -213,7 +214,7 @@ def _figure(sweep: GeometrySweep, rows: list, path: Path) -> None:
                         **kw)
                 ax.plot(x, [r[f"{pre}_{name}_final_{unit}"] for r in rs], "--", alpha=0.6,
                         mfc="none", label=f"{tag}: final", **kw)
-        ax.set_ylabel("displacement [µm]" if q == "displacement" else "temperature [°C]")
+        ax.set_ylabel(f"{q} [{shown}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
         if not num:
@@ -236,8 +237,8 @@ def _range_lines(sweep: GeometrySweep, rows: list) -> list:
     """Per sensor: its peak's range over the points and the inputs at either end."""
     L = []
     for name, q in sweep.sensors:
-        col = f"d_{name}_peak_um" if q == "displacement" else f"T_{name}_peak_C"
-        unit = "µm" if q == "displacement" else "°C"
+        head, short, _, unit = SENSOR_QUANTITIES[q][:4]
+        col = f"{head}_{name}_peak_{short}"
         lo = min(rows, key=lambda r: r[col])
         hi = max(rows, key=lambda r: r[col])
         where = lambda r: ", ".join(f"`{k}` = {_fmt(r[k])}" for k in sweep.grid)

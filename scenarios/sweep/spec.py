@@ -13,7 +13,7 @@ import numpy as np
 from arfem.io import read_toml
 from arfem.limits import Limits
 from arfem.params import InputError, check_finite
-from arfem.scenarios.config import (ALIASES, apply_override, builtin_scenario_path,
+from arfem.scenarios.rod.scenario import (ALIASES, apply_override, builtin_scenario_path,
                                     scenario_from_dict)
 from arfem.strict import check_keys
 
@@ -130,7 +130,7 @@ def resolved_inputs(scenario) -> dict:
 
     Examples
     --------
-    >>> from arfem.scenarios.config import scenario_from_dict
+    >>> from arfem.scenarios.rod.scenario import scenario_from_dict
     >>> cyc = {"phases": [{"duration_h": 1.0, "q_W_m2": 2000.0}]}
     >>> a = scenario_from_dict({"cycle": cyc, "scenario": {"name": "a"}})
     >>> b = scenario_from_dict({"cycle": cyc, "rod": {"radius_m": 0.1}, "ar": {"dtau_s": 30}})

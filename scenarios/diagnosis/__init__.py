@@ -1,0 +1,1 @@
+"""arfem.scenarios.diagnosis."""

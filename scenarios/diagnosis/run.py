@@ -1,0 +1,226 @@
+"""The work of ``arfem diagnose``, as a library: load a measured record, diagnose it, add
+the verdict's stability, fit the compensators on the same window and write every output
+(``diagnosis.json``, ``report.md``, ``series.csv``, figures, ``report.html``, ``model.json``,
+``model_extended.json``, ``model_mlr.json``) atomically. The command module
+(:mod:`arfem.scenarios.commands.diagnose`) only parses the command line and prints; report scripts,
+benchmarks and tests call this module.
+"""
+from __future__ import annotations
+
+from arfem.models.diagnosis.engine import Diagnosis, diagnose
+from arfem.params import InputError
+from arfem.scenarios.records.dataset import RecordDoc, load_dataset, read_record_doc
+from arfem.scenarios.records.georecord import refuse_mesh_channels, refuse_mesh_record
+from arfem.scenarios.html_report import write_html_report
+from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
+
+__all__ = ["WRITES", "compensator_models", "diagnose_file", "add_stability",
+           "run_diagnosis", "rod_terminal_line"]
+
+#: The files ``write_all`` puts into --out (checked before the work: never an input or
+#: a file arfem did not write; see arfem.scenarios.outdir).
+WRITES = ("diagnosis.json", "report.md", "series.csv", "growth_residual.png",
+          "correlations.png", "report.html", "model.json", "model_extended.json",
+          "model_mlr.json")
+
+
+def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
+    """The models ``arfem compensate`` can run, fitted on the rows before ``fit_end_s``
+    (the diagnosis's hold-out start): ``{"model.json": …, "model_extended.json": …,
+    "model_mlr.json": …}``.
+
+    A ``q_W_m2`` record gets the paper's AR(1) of its ``[rod]`` (eqs. 12-14, nothing
+    fitted) and, given the :class:`Diagnosis` ``diag`` with a named cause, the extended
+    model (:func:`arfem.models.diagnosis.export.fem_state_space`); a ``speed_rpm``
+    record the AR(1) calibrated by eq. 17 with its speed → C2 map; a record with complete
+    temperatures also the MLR of eq. 18. A model that cannot run as a compensator (C1 >=
+    1, a cause with no linear time-invariant form) is not exported; the list
+    ``"not_exported"`` says why.
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from arfem import __version__
+    from arfem.models.ar1 import c1_paper, c2_paper
+    from arfem.models.compensator import ar1_model, fit_mlr_model, fit_speed_ar1_model
+    t = np.asarray(ds.time_s, float)
+    dt = float(np.median(np.diff(t)))
+    fit = t < fit_end_s
+    span = f"fitted on {t[fit][0] / 3600:.2f}-{t[fit][-1] / 3600:.2f} h of {ds.name!r}"
+    out, why = {}, []
+    if ds.q_W_m2 is not None:
+        out["model.json"] = ar1_model(
+            c1_paper(ds.rod, dt), c2_paper(ds.rod, dt, 1.0) * 1e6, dtau_s=dt,
+            arfem_version=__version__,
+            description=f"paper eqs. 12-14 for the [rod] of {ds.name!r} (not fitted)")
+    else:
+        try:
+            out["model.json"] = fit_speed_ar1_model(
+                ds.growth_um[fit], ds.speed_rpm[fit][1:], dtau_s=dt,
+                arfem_version=__version__,
+                description=f"paper AR(1) calibrated by eq. 17 on every row, {span}; "
+                            f"C2 of a speed off the fitted ones interpolated linearly "
+                            f"(extrapolated beyond them; arfem diagnose's baseline maps "
+                            f"a speed not seen before the hold-out by eqs. 20-21 instead)")
+        except InputError as exc:          # e.g. C1 >= 1: no compensator to export
+            why.append(f"model.json: {exc}")
+    # the extended model of the cause the selection rules named, established or not
+    # (an unconfirmed one is ``best_candidate`` in diagnosis.json; its file says so)
+    if diag is not None and diag.models.get("causes"):
+        from arfem.models.diagnosis import stats as st
+        from arfem.models.diagnosis.export import fem_state_space, speed_state_space
+        causes = " + ".join(diag.models["causes"])
+        verdict = diag.summary.get("verdict", "established")
+        label = ("" if verdict == "established" else
+                 f"; the best candidate, {verdict}: not established")
+        kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
+              "arfem_version": __version__}
+        try:
+            if diag.models.get("physics") is not None:
+                out["model_extended.json"] = fem_state_space(
+                    diag.models["extended"], diag.models["physics"], dt,
+                    description=f"FEM rod with {causes} (the diagnosis's extended "
+                                f"model{label}), {span}", **kw)
+            elif diag.models.get("speed") is not None:
+                out["model_extended.json"] = speed_state_space(
+                    diag.models["extended"], diag.models["speed"], dt,
+                    description=f"AR(1) of the speed + frame from thermometers (the "
+                                f"diagnosis's extended model{label}), {span}", **kw)
+            else:
+                why.append(f"model_extended.json: the extended model of this speed-only "
+                           f"record ({causes}) is not exported yet")
+        except InputError as exc:
+            why.append(f"model_extended.json: {exc}")
+    temps = {k: np.asarray(v, float)[fit] for k, v in ds.temperatures.items()}
+    if any(np.all(np.isfinite(v)) for v in temps.values()):
+        out["model_mlr.json"] = fit_mlr_model(ds.growth_um[fit], temps, dtau_s=dt,
+                                              arfem_version=__version__,
+                                              description=f"MLR of eq. 18, {span}")
+    window = (float(t[fit][0]), float(t[fit][-1]))
+    for name, m in out.items():          # every model but the unfitted paper AR(1)
+        if not (name == "model.json" and ds.q_W_m2 is not None):
+            out[name] = dataclasses.replace(m, fit_window_s=window)
+    if why:
+        out["not_exported"] = why
+    return out
+
+
+def _rod_dataset(toml_path, limits):
+    """The record read for the rod's diagnosis (``toml_path``, or its TOML as read: a
+    :class:`arfem.scenarios.records.dataset.RecordDoc`); a mesh model's record (contract v3, or
+    its displacement channels without the ``[model]`` table) is refused in one line."""
+    doc = toml_path if isinstance(toml_path, RecordDoc) else read_record_doc(toml_path, limits)
+    refuse_mesh_record(doc)
+    ds = load_dataset(doc, limits)
+    refuse_mesh_channels(ds)
+    return ds
+
+
+def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
+                  progress=None, drift_last: bool = False, limits=None,
+                  stability: int = 0) -> Diagnosis:
+    """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` and
+    ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`, ``limits``
+    (:class:`arfem.limits.Limits`) as :func:`arfem.scenarios.records.dataset.load_dataset`,
+    ``stability`` as in :func:`add_stability`."""
+    if progress is not None:
+        progress("reading the dataset")
+    ds = _rod_dataset(toml_path, limits)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    add_stability(diag, ds, stability, frame_search, drift_last, progress)
+    return diag
+
+
+def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narrow",
+                  drift_last: bool = False, progress=None, mapper=map) -> None:
+    """The verdict's stability across hold-out splits, written into ``diag.summary``
+    (``verdict_detail.stability`` and the verdict's text): the diagnosis rerun with its
+    hold-out from each of up to ``n_origins`` rolling origins
+    (:func:`arfem.models.diagnosis.rolling.stability_origins`), without intervals
+    (:func:`arfem.models.diagnosis.rolling.verdict_stability`). ``n_origins`` 0: nothing.
+    Each rerun costs about one diagnosis without intervals."""
+    if not n_origins:
+        return
+    from arfem.models.diagnosis import verdict as vd
+    from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
+    u = ds.q_W_m2 if ds.input_kind == "q_W_m2" else ds.speed_rpm
+    origins = stability_origins(ds.time_s, u, n_origins)
+    s = diag.summary
+
+    def at(origin_s):
+        if progress is not None:
+            progress(f"stability: hold-out from {origin_s / 3600:.2f} h")
+        return diagnose(ds, origin_s, frame_search, None, intervals=False,
+                        drift_last=drift_last).summary
+
+    subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
+    if s["verdict"] == "explained" and not s.get("causes"):
+        subject = None
+    if s["verdict"] == "not_explained" and s["verdict_detail"].get("best_candidate_beaten_by_mlr"):
+        # named by the selection rules, not explained only because a regression beats it
+        # (issue 41): its stability is still that of the cause the rules named
+        subject = vd.named_cause(s)
+    st = verdict_stability(at, origins, subject, mapper)
+    s["verdict_detail"]["stability"] = st
+    s["verdict_detail"]["text"] = vd.text(s)
+
+
+def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
+                  progress=None, drift_last=False, limits=None, stability=0):
+    """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
+    ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
+    from arfem.scenarios.diagnosis.report import write_all
+    from arfem.scenarios.compensation.model_file import write_model
+    doc = case if isinstance(case, RecordDoc) else read_record_doc(case, limits)
+    refuse_mesh_record(doc)          # a v3 record goes to the mesh diagnosis, not here
+    prepare_out_dir(out, force, inputs=[doc.path], writes=WRITES)   # refuse early, before any work
+    if progress is not None:
+        progress("reading the dataset")
+    ds = _rod_dataset(doc, limits)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    add_stability(diag, ds, stability, frame_search, drift_last, progress)
+    if progress is not None:
+        progress("writing outputs")
+    models = compensator_models(ds, diag.summary["holdout"]["start_s"], diag)
+    for why in models.pop("not_exported", []):
+        print(f"note: {why}")
+    with staged_out_dir(out, force) as stage:
+        write_all(diag, stage)
+        for name, m in models.items():
+            write_model(stage / name, m)
+        write_html_report(stage)
+    return diag.summary
+
+
+def rod_terminal_line(s: dict) -> str:
+    """The command's first line, from diagnosis.json's content: the verdict, the cause
+    only where it is established (else the best candidate, marked as such), and the
+    hold-out scores.
+
+    >>> rod_terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
+    ...                "best_candidate": {"cause": "frame_expansion",
+    ...                                   "causes": [{"cause": "frame_expansion"}]},
+    ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,
+    ...                            "gain_pct": -33.3}})
+    "d: verdict = unconfirmed; cause = none (best candidate frame_expansion, not established); hold-out RMSE 3 -> 4 µm (best candidate's extended model, gain -33.3 %)"
+    """
+    h = s["holdout"]
+    named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
+    bc = s.get("best_candidate")
+    est = s.get("verdict", "established") == "established"
+    line = f"{s['dataset']}: verdict = {s.get('verdict', '?')}; cause = {named}"
+    if bc and not est:
+        line += f" (best candidate {bc['cause']}, not established)"
+    ext = ("extended model" if est else "best candidate's extended model"
+           if bc and bc.get("causes") else "no extended model: the baseline")
+    where = (f" (from {h['start_s'] / 3600:.2f} h, {h['n_samples']} rows)"
+             if "n_samples" in h else "")
+    line += (f"; hold-out{where} RMSE {h['baseline_rmse_um']:.3g} -> "
+             f"{h['extended_rmse_um']:.3g} µm ({ext}, gain {h['gain_pct']:.1f} %)")
+    if h.get("speeds_not_seen_before_rpm"):
+        line += (f"; the baseline maps speeds not seen before the hold-out "
+                 f"({', '.join(f'{v:g}' for v in h['speeds_not_seen_before_rpm'])} rpm) by "
+                 "eqs. 20-21, model.json inter- or extrapolates their C2 linearly, so "
+                 "arfem compensate scores it differently")
+    return line
