@@ -27,16 +27,11 @@ from arfem.scenarios.records.georecord import MeshRecord, is_mesh_record, read_m
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
-           "summary_of", "terminal_line", "main_geodiagnose"]
+           "summary_of", "mesh_terminal_line", "main_geodiagnose"]
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
           "channels.png", "model_extended.json", "model_nominal.json")
-
-#: A displacement channel whose spread is under this fraction of the nominal model's is
-#: taken for mm declared as µm (a factor of 1000; a real misfit is rarely 100x).
-UNITS_RATIO = 0.01
-
 
 def _map_columns(cols: dict, sc, where: str):
     """(channel columns, source power columns, speed, ambient) of a v3 table; refusals
@@ -129,8 +124,10 @@ def load_mesh_record(path, progress=None, limits=None):
 
 
 def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
-    """Refuse displacement channels whose spread is under :data:`UNITS_RATIO` of the
-    nominal model's where the model moves them by more than 1 µm."""
+    """Refuse displacement channels whose spread is out of proportion to the nominal
+    model's (:func:`arfem.models.diagnosis.verdict.units_suspect`: mm or nm declared
+    as µm) where the model moves them by more than 1 µm."""
+    from arfem.models.diagnosis.verdict import units_suspect
     from arfem.models.geodiagnosis.problem import responses
     s = Setting(np.ones(len(model.convections)), np.ones(len(model.interfaces)))
     R, _ = responses(model, rec, s, np.zeros(rec.time_s.size))
@@ -141,9 +138,10 @@ def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
         y = rec.data[:, j]
         sn = float(np.std(nom[:, j]))
         sm = float(np.nanstd(y))
-        if sn > 1.0 and sm < UNITS_RATIO * sn:
+        if sn > 1.0 and units_suspect(sm, sn):
+            slip = "mm" if sm < sn else "nm"
             raise InputError(f"spread {sm:.3g} µm against the model's {sn:.3g} µm: "
-                             f"displacements in mm declared as µm?", f"{where}: column "
+                             f"displacements in {slip} declared as µm?", f"{where}: column "
                              f"{c.column}")
 
 
@@ -171,18 +169,23 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
          "noise_sigma": d.sigma, "nominal_ljung_box_p_neff": d.within_noise,
          "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": h}
                      for n, b, p, h in d.ranking],
+         "below_resolution": d.below_resolution,
+         "best_candidate_beaten_by_mlr": d.beaten_by_mlr,
+         "not_searched": list(d.unsearched),
          "reduced_model": rom_statement}
+    s["alternatives"] = list(d.alternatives)
     if not est and d.named is not None:
-        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes),
+        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes)
+                               + "".join(f" or {a}" for a in d.alternatives),
                                "causes": ent, "named_by_selection_rules": True,
                                "not_established_because": list(d.failed)}
     return s
 
 
-def terminal_line(s: dict) -> str:
+def mesh_terminal_line(s: dict) -> str:
     """The command's first line.
 
-    >>> terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
+    >>> mesh_terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
     ...                "holdout": {"gain_pct": 0.0}})
     'r: verdict = explained; cause = none; hold-out gain 0.0 %'
     """
@@ -292,7 +295,7 @@ def main_geodiagnose(args, record=None) -> int:
         case = args.case if record is None else read_mesh_record(args.case, limits, record)
         s = run_geodiagnosis(case, args.out, args.holdout_start, args.force, progress,
                              limits)
-    print(terminal_line(s) + f"; wrote {args.out}")
+    print(mesh_terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")
     for n in (case.table.notes if isinstance(case, MeshRecord) else ()):
         print(f"note: {n}")               # what the record reader did (e.g. filled cells)
