@@ -69,7 +69,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from arfem.fem.heat import HeatFEM, HeatResult, _initial, _inputs, breakpoints
+from arfem.fem.heat_problem import HeatFEM, HeatResult, _initial, _inputs, breakpoints
 from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.params import InputError, Schedule
 
