@@ -49,7 +49,7 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
 
     from arfem.models.diagnosis.dataset import Dataset
     from arfem.models.geodiagnosis.engine import GeoDiagnosis
-    from arfem.scenarios.rod.checking import Criterion
+    from arfem.scenarios.gate import Criterion
     from arfem.scenarios.rod.scenario import Scenario
     from arfem.scenarios.geometry.check import GeometryCheckCase
     from arfem.scenarios.geometry.scenario import GeometryScenario
@@ -700,7 +700,7 @@ class CheckResult:
         The scenario's name.
     passed : bool
         Every criterion holds.
-    criteria : tuple of arfem.scenarios.rod.checking.Criterion
+    criteria : tuple of arfem.scenarios.gate.Criterion
         Each criterion (frozen): ``name``, ``value`` against ``limit`` (in ``unit``),
         ``passed``, and the ``message`` ``arfem check`` prints. The rod: max|AR − FEM|
         [% of the FEM peak] and the C1 difference (fitted to the FEM, of the AR) [-]; a
@@ -737,7 +737,7 @@ class CheckResult:
     def to_json(self) -> str:
         """The scenario's entry of ``arfem check --json``: ``scenario``, ``file``,
         ``model``, ``biot``, ``passed``, ``notes`` and each criterion's fields."""
-        from arfem.scenarios.rod.checking import ScenarioResult, json_report
+        from arfem.scenarios.gate import ScenarioResult, json_report
         r = ScenarioResult(self.scenario, self.file, self.model, list(self.criteria),
                            biot=self.biot, notes=self.notes)
         return json_text(json_report([r], [])["scenarios"][0])

@@ -9,7 +9,8 @@ from __future__ import annotations
 import time
 
 from arfem.io import atomic_write_bytes, write_json
-from arfem.scenarios.rod.checking import check_report_path, json_report, junit_xml, run_checks
+from arfem.scenarios.gate import check_report_path, json_report, junit_xml
+from arfem.scenarios.rod.checking import run_checks
 from arfem.scenarios.rod.scenario import CHECK_MODELS
 
 __all__ = ["add_parser"]

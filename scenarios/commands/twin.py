@@ -311,8 +311,8 @@ _ROD_ONLY = (("--dtau-s", "dtau_s", 60.0), ("--ambient-amplitude-K", "ambient_am
 
 
 def _scenario_twin(args):
-    """The twin of ``--scenario`` (:func:`arfem.scenarios.geometry.export.axes_twin`)."""
-    from arfem.scenarios.geometry.export import axes_twin
+    """The twin of ``--scenario`` (:func:`arfem.scenarios.geometry.twin.axes_twin`)."""
+    from arfem.scenarios.geometry.twin import axes_twin
     from arfem.scenarios.geometry.scenario import is_geometry_scenario
     for flag, name, default in _ROD_ONLY:
         if getattr(args, name) != default:

@@ -40,6 +40,7 @@ from arfem.fem.body import lumped_geometry
 from arfem.fem.thermal3d import solve_reduced, solve_theta
 from arfem.models.geometry_ar1 import GeometryAR1, lumped_ar1, modal_ar1, step_inputs
 from arfem.params import InputError
+from arfem.scenarios.gate import Criterion, ScenarioResult
 from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
 from arfem.strict import string as _string
@@ -224,7 +225,6 @@ def _criteria(rows, peak: float, pct: float, gated: str, unit: str, what: str) -
     """One criterion per sensor of one kind: max|AR − FEM| in % of the largest FEM peak
     of that kind (displacements in µm, gated; tilts in µrad, against their own largest
     tilt, reported in the notes)."""
-    from arfem.scenarios.rod.checking import Criterion
     out = []
     for name, err, own in rows:
         v = 100.0 * err / peak
@@ -240,9 +240,8 @@ def _criteria(rows, peak: float, pct: float, gated: str, unit: str, what: str) -
 def check_geometry_case(case: GeometryCheckCase, max_abs_pct: float | None = None,
                         model: str | None = None):
     """Run a mesh scenario's FEM and hold the chosen AR(1) to the FEM at every
-    displacement sensor; returns a :class:`arfem.scenarios.rod.checking.ScenarioResult`
+    displacement sensor; returns a :class:`arfem.scenarios.gate.ScenarioResult`
     (criteria per sensor; the other AR's errors and the C1 range in ``notes``)."""
-    from arfem.scenarios.rod.checking import Criterion, ScenarioResult
     from arfem.scenarios.geometry.scenario import build_geometry_model
     sc = case.scenario
     pct = next(v for v in (max_abs_pct, case.max_abs_diff_pct_of_peak,

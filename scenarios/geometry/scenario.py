@@ -90,6 +90,7 @@ from arfem.io import atomic_write_text, read_text_utf8, read_toml, write_csv, wr
 from arfem.limits import Limits, resolve
 from arfem.params import InputError
 from arfem.ranges import check_range
+from arfem.scenarios.geometry.export import write_exports
 from arfem.strict import boolean as _bool
 from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
@@ -1266,7 +1267,6 @@ def write_geometry_outputs(run: GeometryRun, out_dir: Path, progress=None,
         write_copy(copy, text, out_dir)
     progress("model.json")                      # issue 32 item 5: the MIMO model
     from arfem import __version__
-    from arfem.scenarios.geometry.export import write_exports
     write_exports(run, out_dir, __version__, mode_cache,
                   scenario_copy=None if copy is None else copy.names[0])
 

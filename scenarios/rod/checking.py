@@ -29,19 +29,17 @@ same as data; both atomically.
 from __future__ import annotations
 
 import time
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
-from pathlib import Path
 
 from arfem.io import read_toml
 from arfem.models.checks import C1_TOL, MAX_DEV_OF_PEAK, check_ar_tracks_fem
 from arfem.models.ar1 import ar1_on_schedule, c1_paper, corrected_coefficients
 from arfem.params import InputError, Rod
 from arfem.scenarios.rod.deterministic import blas_threads
+from arfem.scenarios.gate import Criterion, ScenarioResult, Skipped, result_line
+from arfem.scenarios.geometry.check import check_geometry_case, geometry_case_from_dict
 from arfem.scenarios.rod.scenario import Scenario, check_limit, scenario_file, scenario_from_dict
 
-__all__ = ["Criterion", "ScenarioResult", "Skipped", "collect", "check_scenario", "check_case",
-           "run_checks", "junit_xml", "json_report", "check_report_path",
+__all__ = ["collect", "check_scenario", "check_case", "run_checks",
            "DEFAULT_MAX_ABS_PCT", "DEFAULT_MAX_C1_DIFF"]
 
 #: Defaults: the limits of this project's own test (tests/test_ar_tracks_fem.py).
@@ -53,39 +51,6 @@ _OTHER_KINDS = (("sweep", "a sweep file (run it with arfem sweep)"),
                 ("dataset", "a measured-data case (run it with arfem diagnose)"),
                 ("units", "a precision-allocation file (run it with arfem allocate)"),
                 ("optimizer", "a precision-allocation file (run it with arfem allocate)"))
-
-
-@dataclass(frozen=True)
-class Skipped:
-    path: str
-    reason: str
-
-
-@dataclass(frozen=True)
-class Criterion:
-    """One criterion of one scenario: measured ``value`` against ``limit`` (same unit)."""
-
-    name: str            # "max_abs_diff_pct_of_peak" | "C1_abs_diff"
-    value: float
-    limit: float
-    unit: str
-    passed: bool
-    message: str
-
-
-@dataclass
-class ScenarioResult:
-    scenario: str
-    file: str
-    model: str
-    criteria: list = field(default_factory=list)
-    wall_s: float = 0.0
-    biot: float = float("nan")          # hR/λ of the FEM's rod: the paper AR's validity
-    notes: tuple = ()                   # reported, not gated (mesh scenarios: the other AR)
-
-    @property
-    def passed(self) -> bool:
-        return all(c.passed for c in self.criteria)
 
 
 # -- which files ---------------------------------------------------------------------------
@@ -142,7 +107,6 @@ def collect(paths, limits=None) -> tuple[list[Scenario], list[Skipped]]:
                 skipped.append(Skipped(str(f), why))
                 continue
             if isinstance(data, dict) and "geometry" in data:     # a mesh scenario
-                from arfem.scenarios.geometry.check import geometry_case_from_dict
                 scenarios.append(geometry_case_from_dict(data, str(f), f.parent))
                 continue
             scenarios.append(scenario_from_dict(data, str(f), limits))
@@ -237,7 +201,7 @@ def run_checks(paths, max_abs_pct=None, max_c1_diff=None, model=None, echo=print
         for sc in scenarios:
             r = check_case(sc, max_abs_pct, max_c1_diff, model, cache)
             results.append(r)
-            echo(_line(r))
+            echo(result_line(r))
     return results, skipped
 
 
@@ -254,80 +218,7 @@ def check_case(case, max_abs_pct: float | None = None, max_c1_diff: float | None
 
 def _check_geometry(case, max_abs_pct, max_c1_diff, model) -> ScenarioResult:
     """A mesh scenario (:mod:`arfem.scenarios.geometry.check`); the C1 limit is the rod's."""
-    from arfem.scenarios.geometry.check import check_geometry_case
     r = check_geometry_case(case, max_abs_pct, model)
     if max_c1_diff is not None:
         r.notes = r.notes + ("--max-c1-diff applies to rod scenarios only",)
     return r
-
-
-def _line(r: ScenarioResult) -> str:
-    head = "PASS" if r.passed else "FAIL"
-    parts = "; ".join(("" if c.passed else "FAILED ") + c.message for c in r.criteria)
-    bi = f", Bi = {r.biot:.3f}" if r.biot == r.biot else ""
-    notes = "".join(f"; {n}" for n in r.notes)
-    return f"{head} {r.scenario} ({r.file}, {r.model} AR{bi}): {parts}{notes}"
-
-
-# -- reports ---------------------------------------------------------------------------------
-
-def junit_xml(results, skipped, wall_s: float = 0.0) -> bytes:
-    """JUnit XML: one ``testsuite`` "arfem check" with a ``testcase`` per scenario and
-    criterion (``classname`` = the scenario, ``name`` = the criterion); a failed one holds
-    a ``failure`` whose ``message`` gives the figure and the limit. Skipped files are
-    ``skipped`` test cases, so every file the gate saw is listed."""
-    n_fail = sum(not c.passed for r in results for c in r.criteria)
-    n_tests = sum(len(r.criteria) for r in results) + len(skipped)
-    attrs = {"tests": str(n_tests), "failures": str(n_fail), "errors": "0",
-             "skipped": str(len(skipped)), "time": f"{wall_s:.3f}"}
-    root = ET.Element("testsuites", {"name": "arfem check", **attrs})
-    suite = ET.SubElement(root, "testsuite", {"name": "arfem check", **attrs})
-    for r in results:
-        per = r.wall_s / max(len(r.criteria), 1)
-        for c in r.criteria:
-            tc = ET.SubElement(suite, "testcase", {
-                "classname": f"arfem.check.{r.scenario}", "name": f"{c.name} ({r.model} AR)",
-                "file": r.file, "time": f"{per:.3f}"})
-            if not c.passed:
-                f = ET.SubElement(tc, "failure", {"message": c.message,
-                                                  "type": "ARDoesNotTrackFEM"})
-                f.text = (f"scenario {r.scenario} ({r.file}): {c.name} = {c.value:.6g} "
-                          f"[{c.unit}] exceeds the limit {c.limit:.6g}")
-            else:
-                ET.SubElement(tc, "system-out").text = "\n".join((c.message,) + r.notes)
-    for s in skipped:
-        tc = ET.SubElement(suite, "testcase", {"classname": "arfem.check.skipped",
-                                               "name": s.path, "time": "0"})
-        ET.SubElement(tc, "skipped", {"message": s.reason})
-    ET.indent(root)
-    return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
-
-
-def json_report(results, skipped) -> dict:
-    """The same as :func:`junit_xml`, as data."""
-    return {
-        "generator": "arfem check",
-        "passed": sum(r.passed for r in results),
-        "failed": sum(not r.passed for r in results),
-        "scenarios": [{"scenario": r.scenario, "file": r.file, "model": r.model,
-                       "biot": r.biot if r.biot == r.biot else None, "passed": r.passed,
-                       "notes": list(r.notes),
-                       "criteria": [{"name": c.name, "value": c.value, "limit": c.limit,
-                                     "unit": c.unit, "passed": c.passed,
-                                     "message": c.message} for c in r.criteria]}
-                      for r in results],
-        "skipped": [{"file": s.path, "reason": s.reason} for s in skipped],
-    }
-
-
-def check_report_path(path, flag: str) -> Path:
-    """Refuse, before any work, a report path that cannot be written as a file."""
-    from arfem.scenarios.outdir import check_out_path
-    p = Path(path)
-    if p.is_dir():
-        raise InputError("is a directory; give a file name", f"{flag} {p}")
-    try:
-        check_out_path(p.parent)        # may be created; not a file, writable
-    except InputError as e:
-        raise InputError(f"cannot be written: {e}", f"{flag} {p}") from None
-    return p
