@@ -213,8 +213,8 @@ def test_by_default_the_rest_stays_where_the_model_is_when_workers_cost_more(
     """The default path: the first point in this process, then the plan on its costs. A
     worker start-up that never pays (monkeypatched, so no timing decides) keeps every
     point here, each after the first reusing the model this process built."""
-    from arfem.scenarios.sweep import runner
-    monkeypatch.setattr(runner, "WORKER_START_S", 1e9)
+    from arfem.scenarios.sweep import executors, runner
+    monkeypatch.setattr(executors, "WORKER_START_S", 1e9)
     monkeypatch.setattr(runner, "usable_cores", lambda: 2)
     clear_geometry_cache()
     sw = _files(tmp_path, '"heat_source.heater.scale" = [1.0, 2.0, 3.0]\n')

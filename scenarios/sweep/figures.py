@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from arfem.scenarios.sweep.spec import CORE_INPUTS, Sweep
+from arfem.scenarios.sweep.points import Sweep
+from arfem.scenarios.sweep.spec import CORE_INPUTS
 
 __all__ = ["fig_error_vs_biot", "fig_c1_vs_dtau", "fig_error_heatmap", "write_figures",
            "spread_over", "q_dependence", "fixed_others", "LEVELS_PCT"]

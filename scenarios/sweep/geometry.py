@@ -54,8 +54,8 @@ from pathlib import Path
 import numpy as np
 
 from arfem.params import InputError
-from arfem.scenarios.sweep.spec import (MAX_POINTS, STORE_VERSION, Point, Sweep, _normalise,
-                                        _sha256)
+from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep, _flatten,
+                                          _normalise, _sha256, distinct_values)
 
 __all__ = ["GeometrySweep", "geometry_sweep_from_dict", "geometry_override", "geometry_keys",
            "evaluate_geometry_point", "sensor_metrics", "clear_geometry_cache",
@@ -227,7 +227,6 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     ``base_path``): every key resolved on the base, every value and every point
     validated as a whole scenario before anything is computed."""
     from arfem.scenarios.geometry.scenario import geometry_scenario_from_dict
-    from arfem.scenarios.sweep.spec import _flatten, distinct_values
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")

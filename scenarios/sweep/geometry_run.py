@@ -11,12 +11,12 @@ from pathlib import Path
 
 from arfem.fem.body import SENSOR_QUANTITIES      # each quantity's prefix and units
 from arfem.io import atomic_write_text, write_json
-from arfem.scenarios.sweep.geometry import (GeometrySweep, evaluate_geometry_point,
-                                            metric_columns)
-from arfem.scenarios.sweep.spec import canonical
+import arfem.scenarios.sweep.executors as executors
+from arfem.scenarios.sweep.geometry import GeometrySweep, metric_columns
+from arfem.scenarios.sweep.points import canonical
 from arfem.scenarios.sweep.store import PointStore, record_header_problem
 
-__all__ = ["GeometryPointStore", "geometry_record_problem", "run_geometry_sweep", "plan_tasks",
+__all__ = ["GeometryPointStore", "geometry_record_problem", "plan_tasks",
            "geometry_rows", "write_geometry_sweep_outputs", "FIGURE"]
 
 FIGURE = "sensor_peaks.png"
@@ -78,7 +78,7 @@ def _order(points) -> list:
     return sorted(points, key=share)
 
 
-def _unique_in_order(todo) -> list:
+def unique_in_order(todo) -> list:
     """Each point to compute once (identical inputs: one key), in :func:`_order`."""
     return _order({p.key: p for p in todo}.values())
 
@@ -94,7 +94,7 @@ def plan_tasks(points: list, first: dict | None, n_workers: int,
     mesh, assembly, elasticity) and the rest of its ``run_time_s`` (the solve) give the
     two costs: the rest here takes n·solve (the model is held), on w workers
     start + model + ⌈n/w⌉·solve, with ``start_s`` a worker's start-up
-    (:data:`arfem.scenarios.sweep.runner.WORKER_START_S`). The workers get the points
+    (:data:`arfem.scenarios.sweep.executors.WORKER_START_S`). The workers get the points
     only when they finish sooner.
 
     Examples
@@ -106,11 +106,10 @@ def plan_tasks(points: list, first: dict | None, n_workers: int,
     >>> plan_tasks(list("abc"), None, 2)
     [['a', 'b'], ['c']]
     """
-    from arfem.scenarios.sweep.runner import WORKER_START_S
     n = len(points)
     w = max(1, min(n_workers, n))
     if first is not None:
-        start = WORKER_START_S if start_s is None else start_s
+        start = executors.WORKER_START_S if start_s is None else start_s
         build = float(first.get("model_s", 0.0))
         solve = max(float(first["run_time_s"]) - build, 0.0)
         if n * solve <= start + build + math.ceil(n / w) * solve:
@@ -124,23 +123,9 @@ def plan_tasks(points: list, first: dict | None, n_workers: int,
     return out
 
 
-def run_geometry_sweep(sweep: GeometrySweep, out, *, workers=None, scheduler=None,
-                       force: bool = False, progress: bool = True, timeout_s: float = 5.0,
-                       worker_wait_s: float = 60.0, point_fn=evaluate_geometry_point,
-                       warn=None, limits=None):
-    """:func:`arfem.scenarios.sweep.runner.run_sweep` for a mesh sweep: the same store,
-    resume, lock, executors and run log; its own record check and outputs."""
-    from arfem.scenarios.sweep.runner import note, run_in_store
-    return run_in_store(sweep, out, ready_store=_ready_store, order=_unique_in_order,
-                        write=write_geometry_sweep_outputs, workers=workers,
-                        scheduler=scheduler, force=force, progress=progress,
-                        timeout_s=timeout_s, worker_wait_s=worker_wait_s, point_fn=point_fn,
-                        warn=warn or note, limits=limits, plan=plan_tasks)
-
-
-def _ready_store(out: Path, sweep: GeometrySweep, mode: str) -> "GeometryPointStore":
+def ready_store(out: Path, sweep: GeometrySweep, mode: str) -> "GeometryPointStore":
     """The mesh sweep's point store in ``out``, ready as the rod's is
-    (:func:`arfem.scenarios.sweep.runner._ready_store`): folder made, temporaries removed,
+    (:func:`arfem.scenarios.sweep.runner.ready_store`): folder made, temporaries removed,
     manifest written (kept on a resume), the folder adopted as arfem's."""
     from arfem.scenarios.outdir import adopt_outputs
     from arfem.scenarios.sweep.store import STORE_MANIFEST

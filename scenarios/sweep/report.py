@@ -12,7 +12,8 @@ from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import staged_out_dir
 from arfem.scenarios.sweep.figures import write_figures
-from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS, Sweep, canonical
+from arfem.scenarios.sweep.points import Sweep, canonical
+from arfem.scenarios.sweep.spec import CORE_INPUTS, METRIC_COLUMNS
 
 __all__ = ["results_rows", "rows_to_csv", "biot_threshold", "thresholds", "render_readme",
            "write_outputs"]

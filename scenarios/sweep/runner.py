@@ -16,10 +16,12 @@ from typing import Callable
 from arfem.limits import Limits, resolve
 from arfem.params import InputError
 from arfem.io import write_json
-from arfem.scenarios.sweep.executors import (DaskExecutor, LocalExecutor, blas_threads,
-                                            evaluate_point)
+from arfem.scenarios.sweep.executors import (WORKER_START_S, DaskExecutor, LocalExecutor,
+                                            blas_threads, evaluate_point)
+import arfem.scenarios.sweep.geometry_run as geometry_run
+from arfem.scenarios.sweep.geometry import GeometrySweep, evaluate_geometry_point
 from arfem.scenarios.sweep.report import write_outputs
-from arfem.scenarios.sweep.spec import STORE_VERSION, Point, Sweep, canonical
+from arfem.scenarios.sweep.points import STORE_VERSION, Point, Sweep, canonical
 from arfem.scenarios.outdir import adopt_outputs
 from arfem.scenarios.sweep.store import (STORE_MANIFEST, DirLock, PointStore,
                                          append_run_log, open_store)
@@ -97,12 +99,11 @@ def n_local_workers(workers: int | None, n_todo: int, warn: Callable = note) -> 
 
 def _mesh_sweeps_apart(run: Callable) -> Callable:
     """``run_sweep`` for a rod's sweep; a mesh scenario's sweep (``sweep.kind ==
-    "geometry"``, issue 32) goes to :func:`arfem.scenarios.sweep.geometry_run.
-    run_geometry_sweep`, the same store, executors and resume with its own outputs."""
+    "geometry"``) goes to :func:`run_geometry_sweep`, the same store, executors and
+    resume with its own outputs (:mod:`arfem.scenarios.sweep.geometry_run`)."""
     @functools.wraps(run)
     def dispatch(sweep, out, **kw):
         if getattr(sweep, "kind", None) == "geometry":
-            from arfem.scenarios.sweep.geometry_run import run_geometry_sweep
             return run_geometry_sweep(sweep, out, **kw)
         return run(sweep, out, **kw)
     return dispatch
@@ -272,10 +273,6 @@ def bad_points_line(bad: list) -> str:
 _DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG}
 
 
-#: worker start-up [s] on a 2-core machine (spawning and importing numpy, scipy, arfem);
-#: the shipped 156-point sweep computed in 2.5-3.1 s in-process against 3.9 s on the
-#: default 2 workers (issue 30)
-WORKER_START_S = 1.5
 #: with the default ``workers``, points are first computed in this process for this long
 #: [s]; workers start only for what is left. A sweep done by then costs no start-up;
 #: one that is not would gain at most this from workers started at once (two workers
@@ -424,3 +421,16 @@ def _planned(sweep, points, executor, point_fn, rep, settle, plan, measure_first
                 else:
                     err = res if isinstance(res, BaseException) else PointFailed(res)
                     settle(p, lambda err=err: _raise(err))
+
+
+def run_geometry_sweep(sweep: GeometrySweep, out, *, workers=None, scheduler=None,
+                       force: bool = False, progress: bool = True, timeout_s: float = 5.0,
+                       worker_wait_s: float = 60.0, point_fn=evaluate_geometry_point,
+                       warn=None, limits=None):
+    """:func:`run_sweep` for a mesh sweep (:mod:`arfem.scenarios.sweep.geometry_run`): the same store,
+    resume, lock, executors and run log; its own record check and outputs."""
+    return run_in_store(sweep, out, ready_store=geometry_run.ready_store, order=geometry_run.unique_in_order,
+                        write=geometry_run.write_geometry_sweep_outputs, workers=workers,
+                        scheduler=scheduler, force=force, progress=progress,
+                        timeout_s=timeout_s, worker_wait_s=worker_wait_s, point_fn=point_fn,
+                        warn=warn or note, limits=limits, plan=geometry_run.plan_tasks)

@@ -2,27 +2,24 @@
 to a full scenario dict, validated and keyed before anything is computed."""
 from __future__ import annotations
 
-import hashlib
 import itertools
-import json
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from arfem.io import read_toml
 from arfem.limits import Limits
-from arfem.params import InputError, check_finite
+from arfem.params import InputError
 from arfem.scenarios.rod.scenario import (ALIASES, apply_override, builtin_scenario_path,
                                     scenario_from_dict)
+from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
+from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep, _flatten,
+                                          distinct_values, point_key)
 from arfem.strict import check_keys
 
 __all__ = ["Sweep", "Point", "load_sweep", "sweep_from_dict", "point_key", "resolved_inputs",
            "STORE_VERSION", "METRIC_COLUMNS", "CORE_INPUTS", "TIMING_COLUMNS",
            "MAX_POINTS", "check_size"]
-
-#: Bumped when the stored record or the meaning of a metric changes; part of every key.
-STORE_VERSION = 2   # 2: per-level metrics named *_by_q_W_m2
 
 #: Column name of a grid key (the three usual inputs keep their short names).
 _COLUMN = {"ar.dtau_s": "dtau_s", "rod.convection_W_m2K": "h_W_m2K", "cycle.q_W_m2": "q_W_m2"}
@@ -41,84 +38,7 @@ METRIC_COLUMNS = (
 #: Columns that depend on the machine, not on the inputs (left out of reproducibility checks).
 TIMING_COLUMNS = ("run_time_s",)
 
-#: Largest grid accepted without ``--max-points`` (the shipped sweep has 156 points; each
-#: point is resolved and validated up front, about 2 ms each, i.e. 40 s for 20000 points on a
-#: loaded 2-core machine, then computed, 0.02-2 s each).
-MAX_POINTS = 20000
-
 _SWEEP_KEYS = {"name", "base", "description", "grid"}
-
-
-# -- the sweep definition ---------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Point:
-    """One grid point: its inputs (column → value), full scenario dict and key."""
-
-    index: int
-    inputs: dict
-    data: dict = field(repr=False)
-    key: str = ""
-
-
-@dataclass(frozen=True)
-class Sweep:
-    """A validated sweep: base scenario, grid and every resolved point."""
-
-    name: str
-    description: str
-    source: str
-    base: str
-    grid: dict               # column name -> list of values, in file order
-    paths: dict              # column name -> dotted scenario path (or alias) it sets
-    points: tuple
-
-    @property
-    def sweep_id(self) -> str:
-        """SHA-256 of the name and the ordered point keys: equal iff the same sweep."""
-        return _sha256({"name": self.name, "points": [p.key for p in self.points]})
-
-    def manifest(self) -> dict:
-        return {"store_version": STORE_VERSION, "sweep_id": self.sweep_id, "name": self.name,
-                "description": self.description, "source": self.source, "base": self.base,
-                "grid": self.grid, "n_points": len(self.points)}
-
-
-def canonical(obj) -> str:
-    """Canonical JSON text of ``obj`` (sorted keys, no spaces, ASCII): the key of a point
-    and of a sweep in the store."""
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True,
-                      allow_nan=False)
-
-
-def _sha256(obj) -> str:
-    return hashlib.sha256(canonical(obj).encode("ascii")).hexdigest()
-
-
-def point_key(data: dict) -> str:
-    """Key of a point: SHA-256 of its fully resolved inputs, canonical JSON.
-
-    Numbers are normalised (``30`` and ``30.0`` give the same key) and the
-    store format version is part of the hash.
-
-    Parameters
-    ----------
-    data : dict
-        Resolved inputs (:func:`resolved_inputs`), or any JSON-like dict.
-
-    Returns
-    -------
-    str
-        64 hex digits.
-
-    Examples
-    --------
-    >>> point_key({"ar": {"dtau_s": 30}}) == point_key({"ar": {"dtau_s": 30.0}})
-    True
-    >>> point_key({"ar": {"dtau_s": 30}}) == point_key({"ar": {"dtau_s": 60}})
-    False
-    """
-    return _sha256({"store_version": STORE_VERSION, "scenario": _normalise(data)})
 
 
 def resolved_inputs(scenario) -> dict:
@@ -147,20 +67,6 @@ def resolved_inputs(scenario) -> dict:
         "dtau_s": scenario.dtau_s,
         "fem": asdict(scenario.fem),
     }
-
-
-def _normalise(o):
-    if isinstance(o, dict):
-        return {str(k): _normalise(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_normalise(v) for v in o]
-    if isinstance(o, bool) or o is None or isinstance(o, str):
-        return o
-    if isinstance(o, (int, float, np.integer, np.floating)):
-        return check_finite(None, o)
-    if hasattr(o, "isoformat"):          # TOML dates and times
-        return o.isoformat()
-    return str(o)
 
 
 def _resolve_base(base: str, sweep_path: Path) -> tuple[Path, str]:
@@ -286,7 +192,6 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
 
 def _mesh_sweep(sw, name, description, source, base_data, base_source, max_points):
     """The sweep of a mesh scenario (``[geometry]``): :mod:`arfem.scenarios.sweep.geometry`."""
-    from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
     return geometry_sweep_from_dict(sw, name, description, source, base_data,
                                     None if base_source == "<base>" else Path(base_source),
                                     str(sw.get("base", "<base>")), max_points)
@@ -331,29 +236,3 @@ def check_size(grid: dict, base, max_points: int | None = None) -> tuple[int, fl
                          f"more than the limit of {limit} points; split the grid, or pass "
                          f"--max-points {n} to run it anyway", "sweep.grid")
     return n, steps
-
-
-def distinct_values(values: list, where: str) -> list:
-    """The grid values of one key, normalised (:func:`_normalise`); one line naming
-    ``where`` for a value that is not a number or string, or one given twice."""
-    try:
-        norm = [_normalise(v) for v in values]
-    except InputError as e:
-        raise e.at(where) from None
-    dup = [v for i, v in enumerate(norm) if v in norm[:i]]
-    if dup:
-        raise InputError(f"lists the value {dup[0]!r} twice", where)
-    return norm
-
-
-def _flatten(d: dict, prefix: str = "") -> dict:
-    """``{"fem": {"mesh": {"nz": [..]}}}`` → ``{"fem.mesh.nz": [..]}`` (unquoted dotted TOML keys)."""
-    out = {}
-    for k, v in d.items():
-        key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
-        else:
-            out[key] = v
-    return out
-

@@ -10,6 +10,7 @@ from pathlib import Path
 from arfem.io import atomic_write_text, write_json
 from arfem.params import InputError
 from arfem.scenarios.outdir import check_out_path, check_replaceable, lock_out_dir
+from arfem.scenarios.sweep.points import STORE_VERSION
 
 #: the report files a sweep writes into --out (its store, points/, sweep.json and
 #: runs.jsonl, is checked above by its manifest)
@@ -53,7 +54,6 @@ def record_header_problem(rec, key: str, inputs=None) -> str | None:
     """What is wrong with a stored point's envelope (object, key, store version,
     inputs, a ``metrics`` object), or None: the checks every sweep's store makes
     before its own metrics' (:func:`record_problem`, the mesh sweep's)."""
-    from arfem.scenarios.sweep.spec import STORE_VERSION
     if not isinstance(rec, dict):
         return "not a JSON object"
     if rec.get("key") != key:
