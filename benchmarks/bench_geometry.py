@@ -33,7 +33,7 @@ def main() -> None:
                     help="also Crank–Nicolson at dt = 30 s: CN's own dt error, and the reduced "
                          "solve against the Richardson extrapolation (4 CN30 − CN60)/3")
     args = ap.parse_args()
-    from arfem.fem.thermal3d import solve_theta
+    from arfem.fem.thermal3d import solve_body_theta
     from arfem.scenarios.geometry.scenario import (build_geometry_model,
                                                    load_geometry_scenario, solve_geometry)
     print("load:", os.getloadavg())
@@ -72,7 +72,7 @@ def main() -> None:
         print(f"  {k:<20} peak {v[np.argmax(np.abs(v - (20.0 if k.startswith('T_') else 0)))]:10.4f}")
     if not args.no_cn:
         c1 = time.process_time()
-        cn = solve_theta(model.thermal, model.history, model.G, 60.0)
+        cn = solve_body_theta(model.thermal, model.history, model.G, 60.0)
         pick = np.searchsorted(cn.times_s, run.result.times_s - 1e-6)
         diff = np.max(np.abs(cn.outputs[pick] - run.result.outputs), axis=0)
         rng = np.max(np.abs(run.result.outputs), axis=0)
@@ -81,7 +81,7 @@ def main() -> None:
         for s, d, r in zip(sc.sensors, diff, rng):
             print(f"  {s.name:<20} {d / r if r else 0.0:.2e}")
         if args.cn30:
-            cn30 = solve_theta(model.thermal, model.history, model.G, 30.0)
+            cn30 = solve_body_theta(model.thermal, model.history, model.G, 30.0)
             y30 = cn30.outputs[np.searchsorted(cn30.times_s, run.result.times_s - 1e-6)]
             y60 = cn.outputs[pick]
             rich = (4 * y30 - y60) / 3

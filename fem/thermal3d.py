@@ -7,10 +7,10 @@ u the sources' inputs and the convection groups' h θ_amb, and G one column per 
 :meth:`arfem.fem.body.ElasticBody.functional`). Inputs and h are piecewise constant on
 an :class:`InputHistory`.
 
-* :func:`solve_theta` -- the θ-method (Crank–Nicolson θ = ½, backward Euler θ = 1), each
+* :func:`solve_body_theta` -- the θ-method (Crank–Nicolson θ = ½, backward Euler θ = 1), each
   distinct (step, h) matrix M + θΔtA factored once (:func:`arfem.fem.linsolve.factorize_spd`),
   as :func:`arfem.fem.heat.solve_theta` does for the rod.
-* :func:`solve_reduced` -- the block-Krylov reduced-modal solve of
+* :func:`solve_body_reduced` -- the block-Krylov reduced-modal solve of
   :mod:`arfem.fem.reduced` generalised to S + G inputs and r outputs: Ritz modes of
   A in K_j(A⁻¹M; A⁻¹[F, G]), grown until every output's step response to every
   input moves by less than ``tol`` of that output's largest static gain; the modal
@@ -27,8 +27,8 @@ from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.fem.reduced import _m_orthonormal
 from arfem.params import InputError
 
-__all__ = ["InputHistory", "BodyResult", "BodyModes", "body_modes", "projected_modes", "solve_theta",
-           "solve_reduced", "KRYLOV_TOL"]
+__all__ = ["InputHistory", "BodyResult", "BodyModes", "body_modes", "projected_modes",
+           "solve_body_theta", "solve_body_reduced", "KRYLOV_TOL"]
 
 #: Stopping tolerance of the Krylov growth, relative to each output's largest static gain:
 #: 1e-5, since a point sensor (a thermometer beside a heated face) is a rough functional
@@ -114,7 +114,7 @@ def _check_times(hist: InputHistory, t, name: str) -> np.ndarray:
     return np.clip(t, 0.0, hist.total_s)
 
 
-def solve_theta(body, hist: InputHistory, G: np.ndarray, dt_s: float, theta: float = 0.5,
+def solve_body_theta(body, hist: InputHistory, G: np.ndarray, dt_s: float, theta: float = 0.5,
                 field_times_s=None, factor_method: str | None = None) -> BodyResult:
     """θ-method; outputs at t = 0 and every step end, fields at the nearest step ends.
 
@@ -363,13 +363,13 @@ def projected_modes(body, base: BodyModes, h_W_m2K, G: np.ndarray) -> BodyModes:
                      base.step_change, 0)
 
 
-def solve_reduced(body, hist: InputHistory, G: np.ndarray, output_times_s=None,
+def solve_body_reduced(body, hist: InputHistory, G: np.ndarray, output_times_s=None,
                   field_times_s=None, tol: float = KRYLOV_TOL,
                   mode_cache: dict | None = None, kinds=None) -> BodyResult:
     """Outputs (and fields) for piecewise-constant inputs by the reduced-modal method.
 
     Exact in time for the kept modes; where h changes the state is carried across in
-    nodal form. Parameters as :func:`solve_theta`; ``output_times_s`` default t = 0
+    nodal form. Parameters as :func:`solve_body_theta`; ``output_times_s`` default t = 0
     and every segment end; ``mode_cache`` ``{h tuple: BodyModes}`` reused across calls.
     """
     out_t = _check_times(hist, output_times_s, "output_times_s")

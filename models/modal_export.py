@@ -12,7 +12,7 @@ reads a row's input: over the interval that ends at the row) its exact discretis
 
     c_k = e^{−μΔτ} c_{k−1} + (1 − e^{−μΔτ})/μ · F_k u_k,     y_k = G_kᵀ c_k + D u_k,
 
-which is what :func:`arfem.fem.thermal3d.solve_reduced` advances between breakpoints:
+which is what :func:`arfem.fem.thermal3d.solve_body_reduced` advances between breakpoints:
 for inputs constant over each interval and the same h, the two give the same outputs
 to round-off. The model's inputs u_model map to the body's inputs by a matrix
 (u = T u_model): each source's power or flux is one body input, and the ambient drives

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from arfem.fem.thermal3d import InputHistory, solve_reduced
+from arfem.fem.thermal3d import InputHistory, solve_body_reduced
 from arfem.models.geodiagnosis.engine import diagnose_geometry
 from arfem.models.geodiagnosis.fit import make_context
 from arfem.models.geodiagnosis.problem import Setting, make_record, trial_for
@@ -60,7 +60,7 @@ def test_reduced_model_matches_full_solve_at_changed_parameters(setup):
     S, G = len(model.sources), len(model.convections)
     t = np.concatenate([[0.0], np.cumsum(tr.durations_s)])
     sb = ScaledBody(plant.body, [0.3], [group_conduction(plant.body, "front_bearing")])
-    full = solve_reduced(sb, InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K), plant.G, t,
+    full = solve_body_reduced(sb, InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K), plant.G, t,
                          kinds=[int(k == "displacement") for k in plant.kinds]).outputs
     tr0 = type(tr)(tr.durations_s, tr.h_W_m2K, tr.kappa,
                    np.column_stack([tr.inputs[:, :S + G],

@@ -15,7 +15,7 @@ from arfem.fem.body import (ConvectionSpec, ElasticBody, Material, SensorSpec, S
                             assemble_thermal_coupling, conduction, elastic_stiffness,
                             thermal_coupling)
 from arfem.fem.gmsh_io import GroupedMesh, read_grouped_mesh
-from arfem.fem.thermal3d import InputHistory, solve_reduced, solve_theta
+from arfem.fem.thermal3d import InputHistory, solve_body_reduced, solve_body_theta
 from arfem.params import Rod, paper_cycle
 
 DATA = Path(__file__).parent / "data"
@@ -56,7 +56,7 @@ def test_rod_from_gmsh_gives_the_paper_peak(rod):
     w = (eb.sensor_weight(SensorSpec("far", "displacement", group="far"), "s")
          - eb.sensor_weight(SensorSpec("heated", "displacement", group="heated"), "s"))
     G = np.column_stack([ROD.expansion_1_K * tb.volume / A, eb.functional(w)])
-    r = solve_reduced(tb, hist, G, output_times_s=np.arange(0.0, 24 * 3600 + 1, 30.0))
+    r = solve_body_reduced(tb, hist, G, output_times_s=np.arange(0.0, 24 * 3600 + 1, 30.0))
     peak = r.outputs.max(axis=0) * 1e6
     assert np.all(np.abs(peak / PEAK_UM - 1) < 1e-3), peak
     assert r.times_s[np.argmax(r.outputs[:, 0])] == pytest.approx(9.5 * 3600)
@@ -73,10 +73,10 @@ def test_reduced_matches_crank_nicolson_as_dt_to_zero(rod):
     G = np.column_stack([ROD.expansion_1_K * tb.volume / tb.areas_m2["heated"],
                          np.asarray(P.toarray()).ravel()])
     t = np.arange(0.0, 24 * 3600 + 1, 1800.0)
-    red = solve_reduced(tb, hist, G, output_times_s=t).outputs
+    red = solve_body_reduced(tb, hist, G, output_times_s=t).outputs
     errs, cns = [], []
     for dt in (120.0, 60.0, 30.0):
-        cn = solve_theta(tb, hist, G, dt)
+        cn = solve_body_theta(tb, hist, G, dt)
         pick = np.searchsorted(cn.times_s, t - 1e-6)
         cns.append(cn.outputs[pick])
         errs.append(np.max(np.abs(cn.outputs[pick] - red), axis=0))
@@ -103,7 +103,7 @@ def test_reduced_steady_state_is_exact_at_every_speed(rod):
     u = np.array([[2000.0, 55.0 * 1.0], [2000.0, 15.0 * 1.0]])    # q and h·θ_amb (1 K)
     hist = InputHistory(np.array([0.0, 3600.0, 3600.0 + 1e2 * 86400]), u,
                         np.array([[55.0], [15.0]]))
-    red = solve_reduced(tb, hist, G).outputs[-1]
+    red = solve_body_reduced(tb, hist, G).outputs[-1]
     exact = G.T @ spsolve(tb.operator([15.0]).tocsc(), tb.F @ u[1])
     assert np.all(np.abs(red - exact) <= 1e-8 * np.abs(exact)), (red, exact)
 

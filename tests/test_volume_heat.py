@@ -23,7 +23,7 @@ from skfem import Functional, MeshTet1
 from arfem.fem.body import (ConvectionSpec, Material, SourceSpec, ThermalBody, lumped_geometry,
                             power_column)
 from arfem.fem.gmsh_io import GroupedMesh
-from arfem.fem.thermal3d import InputHistory, solve_reduced, solve_theta
+from arfem.fem.thermal3d import InputHistory, solve_body_reduced, solve_body_theta
 
 STEEL = dict(conductivity_W_mK=50.0, density_kg_m3=7850.0, specific_heat_J_kgK=460.0,
              expansion_1_K=12e-6, youngs_modulus_Pa=206e9, poisson_ratio=0.3)
@@ -59,7 +59,7 @@ def test_insulated_body_warms_at_p_over_rho_c_v(order):
     P, rhoc = 100.0, 7850.0 * 460.0
     hist = InputHistory(np.array([0.0, 3600.0]), np.array([[P]]), np.zeros((1, 0)))
     G = np.eye(body.ndofs)[:, :: max(1, body.ndofs // 7)]
-    res = solve_theta(body, hist, G, 60.0, 0.5)
+    res = solve_body_theta(body, hist, G, 60.0, 0.5)
     expect = P * res.times_s / (rhoc * 2e-3)
     assert expect[-1] == pytest.approx(49.8477, rel=1e-5)
     assert np.max(np.abs(res.outputs - expect[:, None])) <= 1e-10 * expect[-1]
@@ -76,7 +76,7 @@ def test_heat_in_one_material_is_all_stored():
     assert float(body.F[:, 0].sum()) == pytest.approx(1.0, abs=1e-13)
     hist = InputHistory(np.array([0.0, 600.0]), np.array([[50.0]]), np.zeros((1, 0)))
     ones = np.asarray(body.M @ np.ones(body.ndofs))
-    res = solve_theta(body, hist, np.column_stack([ones]), 30.0, 1.0,
+    res = solve_body_theta(body, hist, np.column_stack([ones]), 30.0, 1.0,
                       field_times_s=[600.0])
     np.testing.assert_allclose(res.outputs[:, 0], 50.0 * res.times_s, rtol=1e-10, atol=1e-9)
     x = body.basis.doflocs[0]
@@ -134,7 +134,7 @@ def test_reduced_solve_reaches_the_slab_steady_state():
     G = np.eye(body.ndofs)[:, [int(np.argmin(x))]]
     hist = InputHistory(np.array([0.0, 200 * 3600.0]), np.array([[40.0, 0.0]]),
                         np.array([[200.0]]))
-    res = solve_reduced(body, hist, G, [0.0, 200 * 3600.0])
+    res = solve_body_reduced(body, hist, G, [0.0, 200 * 3600.0])
     assert res.outputs[-1, 0] == pytest.approx(600.0, rel=1e-6)
 
 

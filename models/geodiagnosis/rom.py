@@ -332,7 +332,7 @@ def _advance(c, E, P, Lm, U) -> np.ndarray:
 
 class ScaledBody:
     """A :class:`ThermalBody` seen with scaled group conductivities and extra load
-    columns, for the full-order reference solves (:func:`arfem.fem.thermal3d.solve_reduced`
+    columns, for the full-order reference solves (:func:`arfem.fem.thermal3d.solve_body_reduced`
     needs only ``M``, ``F``, ``ndofs`` and ``operator``)."""
 
     def __init__(self, body, kappa=(), Kvs=(), extra_loads=None):

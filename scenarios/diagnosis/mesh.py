@@ -204,7 +204,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     """The reduced model against the full solve (fresh Krylov basis at each h, the
     project's reduced-modal solver) on this record's nominal inputs: largest error per
     sensor, relative to the sensor's largest value."""
-    from arfem.fem.thermal3d import InputHistory, solve_reduced
+    from arfem.fem.thermal3d import InputHistory, solve_body_reduced
     from arfem.models.geodiagnosis.fit import make_context
     s = Setting(np.ones(len(model.convections)), np.ones(len(model.interfaces)))
     ctx = make_context(model, rec)
@@ -213,7 +213,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     S, G = len(model.sources), len(model.convections)
     hist = InputHistory(t, tr.inputs[:, :S + G], tr.h_W_m2K)
     t0 = time.perf_counter()
-    full = solve_reduced(plant.body, hist, plant.G, t,
+    full = solve_body_reduced(plant.body, hist, plant.G, t,
                          kinds=[SENSOR_QUANTITIES[k][4] for k in plant.kinds]).outputs
     t_full = time.perf_counter() - t0
     tr0 = type(tr)(tr.durations_s, tr.h_W_m2K, tr.kappa,
@@ -229,7 +229,7 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
             "max_rel_error": {n: float(e / s) if s > 0 else 0.0
                               for n, e, s in zip(plant.names, err, scale)},
             "units": "µm for displacements, µrad for tilts, K for temperatures",
-            "reference": "arfem.fem.thermal3d.solve_reduced at the nominal h (own basis)",
+            "reference": "arfem.fem.thermal3d.solve_body_reduced at the nominal h (own basis)",
             "reference_solve_s": t_full}
 
 

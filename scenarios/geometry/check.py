@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.fem.body import lumped_geometry
-from arfem.fem.thermal3d import solve_reduced, solve_theta
+from arfem.fem.thermal3d import solve_body_reduced, solve_body_theta
 from arfem.models.geometry_ar1 import GeometryAR1, lumped_ar1, modal_ar1, step_inputs
 from arfem.params import InputError
 from arfem.scenarios.gate import Criterion, ScenarioResult
@@ -170,7 +170,7 @@ def _modes_per_step(model, h_steps, kinds, cache):
             from arfem.fem.thermal3d import InputHistory
             one = InputHistory(np.array([0.0, 1.0]), np.zeros((1, model.thermal.n_inputs)),
                                np.array([row]))
-            solve_reduced(model.thermal, one, model.G, [0.0, 1.0], kinds=kinds,
+            solve_body_reduced(model.thermal, one, model.G, [0.0, 1.0], kinds=kinds,
                           mode_cache=cache)
         md = cache[key]
         mus.append(md.mu[0])
@@ -188,11 +188,11 @@ def compare_geometry_ar1(model, dtau_s: float) -> GeometryARComparison:
     kinds = [s.kind_index for s in sc.sensors]
     cache: dict = {}
     if sc.solver == "reduced":
-        fem = solve_reduced(model.thermal, hist, model.G, t, kinds=kinds,
+        fem = solve_body_reduced(model.thermal, hist, model.G, t, kinds=kinds,
                             mode_cache=cache).outputs
     else:
         th = 0.5 if sc.solver == "crank-nicolson" else 1.0
-        full = solve_theta(model.thermal, hist, model.G, min(sc.dt_s, dtau_s), th)
+        full = solve_body_theta(model.thermal, hist, model.G, min(sc.dt_s, dtau_s), th)
         pick = np.clip(np.searchsorted(full.times_s, t - 1e-6), 0, full.times_s.size - 1)
         fem = full.outputs[pick]
     u = step_inputs(hist.edges_s, hist.u, dtau_s, n)

@@ -85,7 +85,7 @@ import numpy as np
 from arfem.fem.body import (ConvectionSpec, ElasticBody, Material, SensorSpec, SourceSpec,
                             Support, ThermalBody)
 from arfem.fem.gmsh_io import GroupedMesh, UNITS, check_memory, read_grouped_mesh
-from arfem.fem.thermal3d import BodyResult, InputHistory, solve_reduced, solve_theta
+from arfem.fem.thermal3d import BodyResult, InputHistory, solve_body_reduced, solve_body_theta
 from arfem.io import atomic_write_text, read_text_utf8, read_toml, write_csv, write_json
 from arfem.limits import Limits, resolve
 from arfem.params import InputError
@@ -973,10 +973,10 @@ def solve_geometry(model: GeometryModel, progress=None,
     theta = _SOLVERS[sc.solver]
     if theta is None:
         kinds = [s.kind_index for s in sc.sensors]
-        res = solve_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
+        res = solve_body_reduced(model.thermal, model.history, model.G, t_out, t_f, kinds=kinds,
                             mode_cache=mode_cache)
     else:
-        full = solve_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
+        full = solve_body_theta(model.thermal, model.history, model.G, sc.dt_s, theta, t_f)
         pick = np.clip(np.searchsorted(full.times_s, t_out - 1e-6), 0, full.times_s.size - 1)
         res = BodyResult(full.times_s[pick], full.outputs[pick], full.field_times_s,
                          full.fields)
