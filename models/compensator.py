@@ -50,6 +50,7 @@ from arfem.params import InputError
 from arfem.ranges import RANGES, reading_quantity, reading_range
 
 __all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
+           "GROWTH_AXIS",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
            "fit_speed_ar1_model", "fit_mlr_model",
            "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind", "check_reading"]
@@ -78,6 +79,11 @@ class OutputSpec:
     name: str
     unit: str
     axis: str
+
+
+#: The one axis of a version-1 model: its output ``growth_um`` [µm], the axis named after
+#: it (``growth``); a replay, a report and a live loop treat it as any other axis.
+GROWTH_AXIS = OutputSpec("growth_um", "µm", "growth")
 
 
 @dataclass(frozen=True)
@@ -231,6 +237,13 @@ class StateSpaceModel:
     def axes(self) -> tuple:
         """The axis of each output (version 2); () for version 1."""
         return tuple(o.axis for o in self.outputs)
+
+    @property
+    def axis_outputs(self) -> tuple:
+        """Every axis the model compensates, as :class:`OutputSpec`: a version-2 model's
+        ``outputs``; a version-1 model's one axis, named after its output ``growth_um``
+        (:data:`GROWTH_AXIS`)."""
+        return self.outputs or (GROWTH_AXIS,)
 
     def d0_vector(self) -> np.ndarray:
         """The constant output term as a (p,) array [µm]."""
@@ -886,6 +899,15 @@ class Cycle:
     held: bool = False
     axes: tuple = ()
     observer: object = None
+
+    def per_axis(self) -> tuple:
+        """Every axis of the cycle as :class:`AxisCycle`: ``axes``, or a version-1
+        model's one axis (:data:`GROWTH_AXIS`: the cycle's offset, prediction, alarms
+        and hold), so that one loop serves one axis and several."""
+        if self.axes:
+            return self.axes
+        return (AxisCycle(GROWTH_AXIS.axis, GROWTH_AXIS.name, self.offset_um,
+                          self.predicted_growth_um, self.alarms, self.held),)
 
     def axis_alarms(self, axis: str) -> tuple:
         """The alarms that concern ``axis``: every alarm not tagged with an axis (the

@@ -328,7 +328,7 @@ def test_the_replay_runs_open_loop_where_the_record_lacks_a_thermometer(coarse):
     the summary says why."""
     from types import SimpleNamespace
 
-    from arfem.scenarios.compensation.replay_axes import observer_readings
+    from arfem.scenarios.compensation.replay import observer_readings
     _, m = coarse
     part = SimpleNamespace(temperatures={"T_front_bearing_C": np.zeros(3)})
     assert observer_readings(m, part, True) == ({}, "the record has no T_housing_C, "

@@ -743,7 +743,7 @@ def with_command_line(cfg: LiveConfig, model, args) -> LiveConfig:
     is refused in one line (exit 2), so that a live run never runs looser than either.
     Axes not named by ``--axis-limits`` take ``--max-offset-um`` / ``--max-step-um``
     where given, else the config's (``[live.axes.<AXIS>]``, else ``[live]``)."""
-    from arfem.scenarios.compensation.replay_axes import axis_limits
+    from arfem.scenarios.compensation.replay import axis_limits
     items = getattr(args, "axis_limits", None) or []
     common = (args.max_offset_um, args.max_step_um)
     if not model.axes:

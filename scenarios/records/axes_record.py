@@ -6,7 +6,7 @@ one column per displacement channel (``d_<sensor>_um``), no ``growth_um``; a ver
 model (one output per axis) predicts exactly those columns. :func:`load_axes_record`
 reads it through the one record reader (:mod:`arfem.scenarios.records.georecord`: the TOML's
 keys, the scenario file, the CSV's numbers, limits and ranges, and ``time_s``) and hands
-:func:`arfem.scenarios.compensation.replay_axes.replay_axes` what it reads of a record: the time,
+:func:`arfem.scenarios.compensation.replay.replay` what it reads of a record: the time,
 the inputs (``speed_rpm``, ``ambient_C``, ``T_<sensor>_C``) and every other column
 (``P_<source>_W``, ``d_<sensor>_um``, …) as cells, an empty cell missing.
 
