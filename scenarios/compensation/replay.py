@@ -29,6 +29,7 @@ import numpy as np
 
 from arfem.models.compensator import Compensator, StateSpaceModel
 from arfem.params import InputError
+from arfem.scenarios.records.georecord import refuse_unit_slip
 
 __all__ = ["Replay", "ReplaySummary", "ReplaySeries", "AxisSummary", "AxisSeries",
            "ObserverSummary", "replay", "scored_from_s", "record_columns",
@@ -275,19 +276,24 @@ def _column(ds, name: str, where: str) -> np.ndarray:
 
 
 def _missing_text(missing: list, have: set, ds) -> str:
-    """What the record lacks, in one line. Where the speed is missing, the powers a
-    scenario's speed laws would give from it are not listed as needed too (the speed
-    alone gives them: ``speed_powers`` of a contract-v3 record)."""
+    """What the record lacks, in one line. The powers its scenario gives from the speed
+    (``speed_powers`` of a contract-v3 record) are not listed as needed beside a missing
+    speed: the speed alone gives them."""
     from_speed = set(getattr(ds, "speed_powers", ()) or ())
-    if "speed_rpm" in missing and from_speed & set(missing):
-        follow = [nm for nm in missing if nm in from_speed]
-        missing = [nm for nm in missing if nm not in from_speed]
+    follow = [nm for nm in missing if nm in from_speed] if "speed_rpm" not in have else []
+    has = ", ".join(sorted(have)) or "no column"
+    if not follow:
         return (f"the model reads {', '.join(missing)}, which this record does not have "
-                f"(the scenario's speed laws give {', '.join(follow)} from speed_rpm, or "
-                f"give {'it' if len(follow) == 1 else 'them'} as columns; the record has "
-                f"{', '.join(sorted(have)) or 'no column'})")
-    return (f"the model reads {', '.join(missing)}, which this record does not have "
-            f"(it has {', '.join(sorted(have)) or 'no column'})")
+                f"(it has {has})")
+    rest = [nm for nm in missing if nm not in from_speed]
+    them = "it" if len(follow) == 1 else "them"
+    if "speed_rpm" in rest:
+        return (f"the model reads {', '.join(rest)}, which this record does not have "
+                f"(with speed_rpm, its scenario gives {', '.join(follow)} too; the record "
+                f"has {has})")
+    return (f"the model reads {', '.join(missing)}, which this record does not have (give "
+            f"{them} as column{'s' if len(follow) > 1 else ''}, or speed_rpm, from which "
+            f"its scenario gives {them}; the record has {has})")
 
 
 def record_columns(model: StateSpaceModel, ds, where: str) -> tuple[dict, np.ndarray]:
@@ -517,8 +523,10 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um=math.inf, max_step_um=ma
     Raises
     ------
     InputError
-        The model reads a column the record lacks, the sample intervals differ, no row
-        is left to score, or probes are asked of a model with several axes.
+        The model reads a column the record lacks, the sample intervals differ, a
+        displacement's spread is under 1 % of the model's (mm declared as µm,
+        :func:`arfem.scenarios.records.georecord.refuse_unit_slip`), no row is left to
+        score, or probes are asked of a model with several axes.
     """
     if probe_every_s is not None and model.outputs:
         raise InputError("probe updates need a one-output (version 1) model",
@@ -533,6 +541,10 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um=math.inf, max_step_um=ma
     # first row closes the interval that began at t = 0 (the contract), so it is stepped
     first = 1 if t[0] <= 0.0 else 0
     run = _step_causally(comp, inputs, therm, t, meas, first, probe_every_s)
+    specs = model.axis_outputs
+    for j, s in enumerate(specs):                # mm declared as µm: diagnose's one rule
+        if s.name.startswith("d_"):
+            refuse_unit_slip(s.name, meas[:, j], run.predicted_um[:, j], where)
     off = run.offset_um
     resid = meas + off
     zero = getattr(ds, "displacement_zero", "reference")
@@ -540,7 +552,6 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um=math.inf, max_step_um=ma
         resid = resid - off[:1]          # zeroed probes: the model minus its first row
     start, basis = scored_from_s(model, t, score_from_s)
     ok = _scored_rows(model, t, meas, first, start, basis, where)
-    specs = model.axis_outputs
     axes = tuple(_axis_summary(s, comp, j, meas[:, j], resid[:, j], off[:, j], ok,
                                run.clamped[j], run.rate_limited[j])
                  for j, s in enumerate(specs))
