@@ -372,6 +372,7 @@ class _Stepped:
     clamped: np.ndarray
     rate_limited: np.ndarray
     probe_gains: tuple
+    probe_every_s: float | None
     estimates: np.ndarray | None
     innovations: np.ndarray | None
     thermometer_held: int
@@ -412,7 +413,7 @@ def _step_causally(comp: Compensator, inputs: dict, therm: dict, t, measured, fi
             gains.append(comp.probe(float(measured[k, 0])))
             next_probe += probe_every_s
     return _Stepped(pred, off, int(held), int(outside), clamped, limited, tuple(gains),
-                    est, innov, int(t_held))
+                    probe_every_s, est, innov, int(t_held))
 
 
 def _check_interval(model: StateSpaceModel, t: np.ndarray, where: str) -> None:
@@ -547,26 +548,30 @@ def replay(model: StateSpaceModel, ds, *, max_offset_um=math.inf, max_step_um=ma
             refuse_unit_slip(s.name, meas[:, j], run.predicted_um[:, j], where)
     off = run.offset_um
     resid = meas + off
-    zero = getattr(ds, "displacement_zero", "reference")
-    if zero == "first_row":
+    if getattr(ds, "displacement_zero", "reference") == "first_row":
         resid = resid - off[:1]          # zeroed probes: the model minus its first row
     start, basis = scored_from_s(model, t, score_from_s)
     ok = _scored_rows(model, t, meas, first, start, basis, where)
+    obs, ob_cols = _observer_parts(model, run, ok, why)
     axes = tuple(_axis_summary(s, comp, j, meas[:, j], resid[:, j], off[:, j], ok,
                                run.clamped[j], run.rate_limited[j])
                  for j, s in enumerate(specs))
-    obs, ob_cols = _observer_parts(model, run, ok, why)
-    g = run.probe_gains
-    summary = ReplaySummary(
-        model.version, model.kind, model.description, ds.name, model.dtau_s,
-        int(t.size - first), start, float(t[ok][-1]), basis, int(ok.sum()), run.held, axes,
-        run.outside, probe_every_s, len(g), float(np.mean(g)) if g else None,
-        None if model.fit_window_s is None else tuple(model.fit_window_s), zero,
-        _not_compensated(model, ds), obs)
     series = ReplaySeries(t, inputs, tuple(
         AxisSeries(s.axis, s.name, meas[:, j], run.predicted_um[:, j], off[:, j], resid[:, j])
         for j, s in enumerate(specs)), ob_cols)
-    return Replay(summary, series)
+    return Replay(_summary(model, ds, run, t, ok, first, start, basis, axes, obs), series)
+
+
+def _summary(model, ds, run: _Stepped, t, ok, first: int, start: float, basis: str,
+             axes: tuple, obs) -> ReplaySummary:
+    """The replay's figures: its axes', the rows scored and the counts."""
+    g = run.probe_gains
+    return ReplaySummary(
+        model.version, model.kind, model.description, ds.name, model.dtau_s,
+        int(t.size - first), start, float(t[ok][-1]), basis, int(ok.sum()), run.held, axes,
+        run.outside, run.probe_every_s, len(g), float(np.mean(g)) if g else None,
+        None if model.fit_window_s is None else tuple(model.fit_window_s),
+        getattr(ds, "displacement_zero", "reference"), _not_compensated(model, ds), obs)
 
 
 def axis_limits(model, items, max_offset_um: float, max_step_um: float) -> tuple:

@@ -341,7 +341,8 @@ def clocked_step(comp: Compensator, values: Mapping, t: float | None, clock: Clo
 
 def model_sha(model) -> str:
     """12 hex digits naming the model's numbers (a warm start needs the same model)."""
-    d = model.to_dict()
+    from arfem.scenarios.compensation.model_file import model_to_doc
+    d = model_to_doc(model)
     d.pop("arfem_version", None)
     d.pop("description", None)
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
