@@ -95,8 +95,27 @@ class ObserverSummary:
     cycles_thermometer_held: int = 0
 
 
+class _OneAxis:
+    """What a replay's summary and series have alike: their ``axes``, and for a one-axis
+    replay that axis's fields (``_OWN``) read as their own."""
+
+    _OWN: tuple = ()
+
+    @property
+    def axis(self):
+        """The one axis of a one-axis replay (ValueError for several)."""
+        if len(self.axes) != 1:
+            raise ValueError(f"a replay of {len(self.axes)} axes has no one axis")
+        return self.axes[0]
+
+    def __getattr__(self, name):
+        if name in type(self)._OWN:                # a one-axis replay's own
+            return getattr(self.axis, name)
+        raise AttributeError(name)
+
+
 @dataclass(frozen=True)
-class ReplaySummary:
+class ReplaySummary(_OneAxis):
     """The figures of one replay (``summary.json``), per axis in ``axes``.
 
     ``score_basis`` says how ``score_from_s`` was chosen: ``after_fit_window`` (the
@@ -131,18 +150,7 @@ class ReplaySummary:
     not_compensated: tuple = ()
     #: the thermometers' observer; None for a model without one
     observer: ObserverSummary | None = None
-
-    @property
-    def axis(self) -> AxisSummary:
-        """The one axis of a one-axis replay (ValueError for several)."""
-        if len(self.axes) != 1:
-            raise ValueError(f"a replay of {len(self.axes)} axes has no one axis")
-        return self.axes[0]
-
-    def __getattr__(self, name):
-        if name in AXIS_FIGURES:                   # a one-axis replay's own figures
-            return getattr(self.axis, name)
-        raise AttributeError(name)
+    _OWN = AXIS_FIGURES
 
     def to_dict(self) -> dict:
         """The ``summary.json`` document: the replay's figures and ``axes``, one entry
@@ -197,7 +205,7 @@ AXIS_SERIES = ("measured_um", "predicted_um", "offset_um", "residual_um")
 
 
 @dataclass(frozen=True)
-class ReplaySeries:
+class ReplaySeries(_OneAxis):
     """The per-row series of a replay (``compensated.csv``): the time [s], the inputs
     (the model's, in its order, each the record's column in the unit the model's
     ``inputs`` state), one :class:`AxisSeries` per axis, and the observer's columns
@@ -208,18 +216,7 @@ class ReplaySeries:
     inputs: dict
     axes: tuple
     observer: dict = dataclasses.field(default_factory=dict)
-
-    @property
-    def axis(self) -> AxisSeries:
-        """The one axis of a one-axis replay (ValueError for several)."""
-        if len(self.axes) != 1:
-            raise ValueError(f"a replay of {len(self.axes)} axes has no one axis")
-        return self.axes[0]
-
-    def __getattr__(self, name):
-        if name in AXIS_SERIES:                    # a one-axis replay's own series
-            return getattr(self.axis, name)
-        raise AttributeError(name)
+    _OWN = AXIS_SERIES
 
     def columns(self) -> dict:
         """``compensated.csv``: time, inputs, then per axis ``measured_<A>_um``,
