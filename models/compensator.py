@@ -507,13 +507,26 @@ class Cycle:
     observer: object = None
 
     def per_axis(self) -> tuple:
-        """Every axis of the cycle as :class:`AxisCycle`: ``axes``, or a version-1
-        model's one axis (:data:`GROWTH_AXIS`: the cycle's offset, prediction, alarms
-        and hold), so that one loop serves one axis and several."""
-        if self.axes:
-            return self.axes
-        return (AxisCycle(GROWTH_AXIS.axis, GROWTH_AXIS.name, self.offset_um,
-                          self.predicted_growth_um, self.alarms, self.held),)
+        """Every axis of the cycle, each with ``axis``, ``output``, ``offset_um``,
+        ``predicted_um``, ``alarms`` and ``held`` (:class:`AxisCycle`): ``axes``, or a
+        version-1 model's one axis (:data:`GROWTH_AXIS`), which is the cycle itself, so
+        that one loop serves one axis and several."""
+        return self.axes or (self,)
+
+    @property
+    def axis(self) -> str:
+        """A version-1 cycle as its one axis: the axis's name (:data:`GROWTH_AXIS`)."""
+        return GROWTH_AXIS.axis
+
+    @property
+    def output(self) -> str:
+        """A version-1 cycle as its one axis: its output, ``growth_um``."""
+        return GROWTH_AXIS.name
+
+    @property
+    def predicted_um(self) -> float:
+        """A version-1 cycle as its one axis: the predicted growth [µm]."""
+        return self.predicted_growth_um
 
     def axis_alarms(self, axis: str) -> tuple:
         """The alarms that concern ``axis``: every alarm not tagged with an axis (the

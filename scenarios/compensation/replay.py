@@ -381,7 +381,7 @@ def _step_causally(comp: Compensator, inputs: dict, therm: dict, t, measured, fi
     inputs (and thermometers) of rows up to it only, every axis by the same loop; a
     probe (the measured growth [µm] of the one axis) at every ``probe_every_s`` [s]."""
     (n, p), ob = measured.shape, (comp.model.observer if therm else None)
-    pred, off = np.full((n, p), np.nan), np.zeros((n, p))
+    preds, offs = [], []                        # per cycle, per axis (arrays at the end)
     clamped, limited = np.zeros(p, int), np.zeros(p, int)
     held = outside = t_held = 0
     est = np.full((n, ob.n_disturbances), np.nan) if ob else None
@@ -401,14 +401,20 @@ def _step_causally(comp: Compensator, inputs: dict, therm: dict, t, measured, fi
         elif ob is not None and k > first:          # a held cycle: the estimates stand
             est[k] = est[k - 1]
         held += cyc.held
-        outside += any(x.startswith("outside_schedule") for x in cyc.alarms)
-        for j, a in enumerate(cyc.per_axis()):
-            pred[k, j], off[k, j] = a.predicted_um, a.offset_um
-            clamped[j] += "clamped" in a.alarms
-            limited[j] += "rate_limited" in a.alarms
+        axes = cyc.per_axis()
+        preds.append([a.predicted_um for a in axes])
+        offs.append([a.offset_um for a in axes])
+        if cyc.alarms:                              # (an axis's alarms are the cycle's too)
+            outside += any(x.startswith("outside_schedule") for x in cyc.alarms)
+            for j, a in enumerate(axes):
+                clamped[j] += "clamped" in a.alarms
+                limited[j] += "rate_limited" in a.alarms
         if t[k] >= next_probe:                       # a touch probe at this instant
             gains.append(comp.probe(float(measured[k, 0])))
             next_probe += probe_every_s
+    pred, off = np.full((n, p), np.nan), np.zeros((n, p))
+    if preds:
+        pred[first:], off[first:] = preds, offs
     return _Stepped(pred, off, int(held), int(outside), clamped, limited, tuple(gains),
                     probe_every_s, est, innov, int(t_held))
 
