@@ -2,7 +2,7 @@
 
 What is verified and why:
 * the export is the fitted model: stepping the exported state-space model through the
-  record's inputs reproduces the fit's own prediction (``fit_causes``, the forward run
+  record's inputs reproduces the fit's own prediction (``fit_rod_causes``, the forward run
   the diagnosis scored) to 1e-9 of its peak, for every cause with a linear
   time-invariant form and for pairs -- so a compensator runs what the diagnosis scored;
 * causes with no such form (speed-dependent or natural convection) are refused with a
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from arfem.models.compensator import Compensator
-from arfem.models.diagnosis.candidates import FemPhysics, fit_causes
+from arfem.models.diagnosis.candidates import FemPhysics, fit_rod_causes
 from arfem.models.diagnosis.export import fem_state_space
 from arfem.models.diagnosis.forward import RodModel
 from arfem.params import InputError, Rod
@@ -47,7 +47,7 @@ def _record(phys):
 ])
 def test_export_reproduces_the_fitted_model(phys, causes):
     t, q, amb, y = _record(phys)
-    fit = fit_causes(causes, phys, t, q, y, np.ones(t.size, bool), ambient_K=amb)
+    fit = fit_rod_causes(causes, phys, t, q, y, np.ones(t.size, bool), ambient_K=amb)
     m = fem_state_space(fit, phys, 60.0)
     c = Compensator(m)
     pred = np.array([c.step({"q_W_m2": qk, "ambient_C": 20.0 + ak}).predicted_growth_um
@@ -59,10 +59,10 @@ def test_export_reproduces_the_fitted_model(phys, causes):
 def test_causes_without_a_linear_form_are_refused_and_drift_is_left_out(phys):
     t, q, amb, y = _record(phys)
     rows = np.ones(t.size, bool)
-    fit = fit_causes(("speed_dependent_convection",), phys, t, q, y, rows)
+    fit = fit_rod_causes(("speed_dependent_convection",), phys, t, q, y, rows)
     with pytest.raises(InputError, match="not a linear time-invariant model"):
         fem_state_space(fit, phys, 60.0)
-    fit = fit_causes(("sensor_drift",), phys, t, q, y, rows)
+    fit = fit_rod_causes(("sensor_drift",), phys, t, q, y, rows)
     m = fem_state_space(fit, phys, 60.0)
     assert "sensor_drift left out" in m.description
     c = Compensator(m)
@@ -118,7 +118,7 @@ def test_every_kind_of_model_arfem_writes_meets_the_published_schema(tmp_path, p
     from arfem.models.ar1 import ar1_simulate
     schema = json.loads((Path(__file__).parents[1] / "docs" / "model.schema.json").read_text())
     t, q, amb, y = _record(phys)
-    ext = fem_state_space(fit_causes(("ambient_drift", "frame_expansion"), phys, t, q, y,
+    ext = fem_state_space(fit_rod_causes(("ambient_drift", "frame_expansion"), phys, t, q, y,
                                      np.ones(t.size, bool), ambient_K=amb), phys, 60.0)
     sp = np.repeat([0.0, 3000.0, 0.0, 6000.0, 0.0], 200)
     g = ar1_simulate(0.99, np.where(sp == 3000, 0.1, np.where(sp == 6000, 0.25, 0.0)))

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis.candidates import CandidateFit
-from arfem.models.diagnosis.engine import PARSIMONY_P, _default_holdout, _parsimony
+from arfem.models.diagnosis.engine import PARSIMONY_P, _parsimony
+from arfem.models.diagnosis.holdout import default_holdout as _default_holdout
 from arfem.models.diagnosis.synth import generate
 from arfem.scenarios.cli import main as cli
 from arfem.scenarios.records.dataset import load_dataset

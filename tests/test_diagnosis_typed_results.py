@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis import stats as st
-from arfem.models.diagnosis.candidates import CandidateFit, FemPhysics, fit_causes
+from arfem.models.diagnosis.candidates import CandidateFit, FemPhysics, fit_rod_causes
 from arfem.models.diagnosis.forward import RodModel
 from arfem.params import Rod
 
@@ -29,7 +29,7 @@ def small_fit():
     q = np.where((t % 36000) < 18000, 2000.0, 0.0)
     y = 1.2 * phys.response(t, q) + np.random.default_rng(5).normal(0.0, 0.05, t.size)
     rows = t < 400 * 60.0
-    return fit_causes(("heat_input_scale",), phys, t, q, y, rows, initial_known=False), y, rows
+    return fit_rod_causes(("heat_input_scale",), phys, t, q, y, rows, initial_known=False), y, rows
 
 
 def test_a_fit_is_frozen_and_carries_its_own_residual(small_fit):

@@ -293,7 +293,7 @@ def test_drift_vs_walk_keeps_a_real_drift_under_a_walk(setup):
     (the power the drift check leaves) and the drift is established. Near the edge:
     here p ~ 1e-4 against the level 0.01/(number of candidates) = 0.01/19 = 5.3e-4; a smaller drift
     under this walk is, rightly, not told from the walk."""
-    from arfem.models.geodiagnosis.engine import ALPHA
+    from arfem.models.diagnosis.verdict import ALPHA
     from arfem.models.geodiagnosis.fit import candidate_causes
     from arfem.models.geodiagnosis.noise import drift_vs_walk_p
     sc, spec, plant, model = setup
@@ -482,22 +482,25 @@ def test_named_pair_of_two_nonlinear_causes_is_at_its_joint_optimum(setup):
 
 def test_channel_far_from_white_is_not_within_the_noise():
     """A residual with too few effective samples to thin (a thermometer 30 σ off along a
-    slow curve, N_eff ~ 2) is far from white: p = 0, not NaN (NaN was skipped by the
-    verdict, so such a channel counted as within the noise; found by an audit). A white
-    residual still passes, and fewer than 10 rows still give no test (NaN)."""
-    from arfem.models.geodiagnosis.engine import within_noise_p
+    slow curve, N_eff ~ 2) cannot be tested (NaN), and the verdict's rule counts an
+    untestable channel as not within the noise (NaN had been skipped by the mesh
+    verdict, so such a channel counted as within the noise; found by an audit; issue
+    41: one answer, NaN, for both engines). A white residual still passes."""
+    from arfem.models.diagnosis.verdict import channels_white, whiteness_p
     rng = np.random.default_rng(5)
     t = np.linspace(0.0, 1.0, 400)
-    assert within_noise_p(30.0 * np.sin(np.pi * t) + rng.normal(size=t.size)) == 0.0
-    assert within_noise_p(rng.normal(size=t.size)) > 0.01
-    assert np.isnan(within_noise_p(rng.normal(size=8)))
+    far = whiteness_p(30.0 * np.sin(np.pi * t) + rng.normal(size=t.size))
+    white = whiteness_p(rng.normal(size=t.size))
+    assert np.isnan(far) and white > 0.01
+    assert not channels_white([white, far]) and channels_white([white, white])
+    assert np.isnan(whiteness_p(rng.normal(size=8)))
 
 
 def test_terminal_line_names_the_gain_the_verdict_uses():
     """The first line shows the raw hold-out gain and the whitened one the verdict
     requires, labelled (an audit found the raw one alone, unlabelled)."""
-    from arfem.scenarios.diagnosis.mesh import terminal_line
-    line = terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
+    from arfem.scenarios.diagnosis.mesh import mesh_terminal_line
+    line = mesh_terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
                           "causes": [{"name": "warm_start"}],
                           "holdout": {"gain_pct": -10.8, "gain_whitened_pct": 0.5}})
     assert "hold-out gain -10.8 % (whitened 0.5 %, the one the verdict uses)" in line

@@ -18,7 +18,7 @@ import pytest
 import arfem.scenarios
 from arfem.scenarios.geometry.gmsh_models import main
 
-SHIPPED = Path(arfem.scenarios.__file__).parent / "spindle_unit.msh"
+SHIPPED = Path(arfem.scenarios.__file__).parent / "data" / "spindle_unit.msh"
 
 
 def _cli(args, cwd):

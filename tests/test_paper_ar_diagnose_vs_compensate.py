@@ -21,7 +21,7 @@ from arfem.models.ar1 import ar1_simulate, fit_ar1
 from arfem.models.compensator import Compensator, fit_speed_ar1_model
 from arfem.models.diagnosis.speed import paper_ar, speed_to_heat_map
 from arfem.scenarios.diagnosis.report import _unseen_note
-from arfem.scenarios.diagnosis.run import terminal_line
+from arfem.scenarios.diagnosis.run import rod_terminal_line
 
 DT = 15.0
 C1 = 0.995
@@ -100,7 +100,7 @@ def test_outputs_say_where_the_two_numbers_part():
          "start_s": 111140.0, "n_samples": 3701,
          "speeds_not_seen_before_rpm": [500.0, 1500.0, 3500.0, 4500.0],
          "n_samples_at_speeds_not_seen": 2157}
-    line = terminal_line({"dataset": "ch2", "verdict": "not_explained", "cause": "none",
+    line = rod_terminal_line({"dataset": "ch2", "verdict": "not_explained", "cause": "none",
                           "holdout": h})
     assert "hold-out (from 30.87 h, 3701 rows) RMSE 5.36 -> 5.36 µm" in line
     assert ("maps speeds not seen before the hold-out (500, 1500, 3500, 4500 rpm) by "
@@ -109,6 +109,6 @@ def test_outputs_say_where_the_two_numbers_part():
     assert "2157 of them (58 %) run at speeds not seen before it" in note
     assert "`arfem compensate` scores it differently" in note
     assert _unseen_note(dict(h, speeds_not_seen_before_rpm=[])) == ""
-    assert "extrapolates" not in terminal_line({"dataset": "d", "verdict": "explained",
+    assert "extrapolates" not in rod_terminal_line({"dataset": "d", "verdict": "explained",
                                                 "cause": "none",
                                                 "holdout": dict(h, speeds_not_seen_before_rpm=[])})

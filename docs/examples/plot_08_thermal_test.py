@@ -58,9 +58,10 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import arfem.scenarios  # noqa: E402
+import arfem  # noqa: E402
 
-shipped = Path(arfem.scenarios.__file__).parent / "iso230_3" / "iso230_3_spindle_unit.toml"
+# the ISO test ships beside the spindle unit it runs on
+shipped = arfem.shipped_scenario("spindle_unit").parent / "iso230_3" / "iso230_3_spindle_unit.toml"
 text = shipped.read_text(encoding="utf-8")
 print(text[text.index("[[heat_source]]"):text.index("[[convection]]")].strip())
 print("...")

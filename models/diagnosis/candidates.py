@@ -31,7 +31,7 @@ from arfem.params import Rod
 
 __all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "JointFit", "FrameFit", "FemPhysics",
            "ArPhysics", "fit_candidate",
-           "fit_causes", "compatible", "parameter_ci95", "project"]
+           "fit_rod_causes", "compatible", "parameter_ci95", "project"]
 
 #: the contract's vocabulary, in the order candidates are tried
 CAUSES = ("none", "ambient_drift", "convection_mismatch", "speed_dependent_convection",
@@ -43,7 +43,7 @@ DT_REF_K = 10.0
 
 @dataclass(frozen=True)
 class JointFit:
-    """What a fit of :func:`fit_causes` keeps beside its prediction, for its intervals
+    """What a fit of :func:`fit_rod_causes` keeps beside its prediction, for its intervals
     (:func:`parameter_ci95`), the pair searches that start from it and the export as a
     compensator (:func:`arfem.models.diagnosis.export.fem_state_space`).
 
@@ -149,7 +149,7 @@ class CandidateFit:
     time_constant_h : float, optional
         Speed records: the AR(1) rod's time constant 1/b [h].
     joint : JointFit, optional
-        :func:`fit_causes` fits: the coordinates, Jacobian and refits.
+        :func:`fit_rod_causes` fits: the coordinates, Jacobian and refits.
     frame : FrameFit, optional
         Speed records' thermometer ``frame_expansion``: its frame part.
     equivalent : dict, optional
@@ -178,7 +178,7 @@ class CandidateFit:
 
     @property
     def theta(self) -> dict:
-        """The searched coordinates of a :func:`fit_causes` fit (else empty)."""
+        """The searched coordinates of a :func:`fit_rod_causes` fit (else empty)."""
         return self.joint.theta if self.joint is not None else {}
 
     def copy_with(self, **changes) -> CandidateFit:
@@ -548,7 +548,7 @@ def _starts(causes, names, h0, start):
     return x0
 
 
-def fit_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_K=None,
+def fit_rod_causes(causes, phys, t, q, y, rows, initial_known: bool = True, ambient_K=None,
                frame_C=None, start: dict | None = None) -> CandidateFit | None:
     """Fit a set of causes together (``()`` = the baseline) by variable projection.
 
@@ -897,8 +897,8 @@ def _interval(cov: _Covariances, idx, vals, eiv, k, coord) -> tuple[float, float
 
 def fit_candidate(cause: str, phys, t, q, y, rows, initial_known: bool = True,
                   ambient_K=None, frame_C=None) -> CandidateFit | None:
-    """Fit one cause (``none`` = the baseline) -- :func:`fit_causes` of one cause."""
+    """Fit one cause (``none`` = the baseline) -- :func:`fit_rod_causes` of one cause."""
     if cause not in CAUSES:
         raise ValueError(f"unknown cause {cause!r}")
-    return fit_causes(() if cause == "none" else (cause,), phys, t, q, y, rows, initial_known,
+    return fit_rod_causes(() if cause == "none" else (cause,), phys, t, q, y, rows, initial_known,
                       ambient_K, frame_C)

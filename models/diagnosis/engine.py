@@ -63,7 +63,8 @@ the batch-means form, which sees slow sensor wander
 (:func:`arfem.models.diagnosis.stats.noise_n_eff`).
 
 Without ``--holdout-start`` the hold-out is the last third of the record if it holds a
-change of the input, else it starts at the last such change (:func:`_default_holdout`);
+change of the input, else it starts at the last such change
+(:func:`arfem.models.diagnosis.holdout.default_holdout`, the mesh's too);
 a hold-out whose growth varies by less than ``INFORMATIVE_NOISE_LEVELS`` noise σ gets a
 warning.
 """
@@ -76,7 +77,7 @@ import numpy as np
 
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, H_CAUSES, ArPhysics, CandidateFit,
-                                               FemPhysics, fit_candidate, fit_causes,
+                                               FemPhysics, fit_candidate, fit_rod_causes,
                                                parameter_ci95)
 from arfem.models.diagnosis.rules import (
     ALPHA, EFFECT_FACTOR, MIN_GAIN, MISFIT_CUT, MISFIT_FACTOR, PAIR_MIN_GAIN,
@@ -92,6 +93,7 @@ from arfem.models.diagnosis.speed_select import cv_rmse, forward_folds, select_f
 from arfem.params import InputError
 from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
+from arfem.models.diagnosis.holdout import default_holdout
 
 __all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
            "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
@@ -145,35 +147,8 @@ def _metrics(y, pred, mask):
             "fit_pct": st.fit_percent(y[mask], pred[mask])}
 
 
-def _default_holdout(t, u):
-    """The default hold-out start [s] and how it was chosen: the last third of the record
-    if it contains a change of the input ``u`` (heating or cooling) whose response it
-    sees for at least an hour; else the last such change that still leaves 40 % of the
-    record to fit (the hold-out starts at the sample before it); else the last third."""
-    t0, t1 = float(t[0]), float(t[-1])
-    span = t1 - t0
-    hs = t0 + span * 2.0 / 3.0
-    u = np.asarray(u, float)
-    idx = np.flatnonzero(u[1:] != u[:-1]) + 1          # first sample with the new input
-    seen = idx[t[idx] <= t1 - max(3600.0, 0.05 * span)]
-    late = seen[t[seen] >= hs]
-    if late.size:
-        return hs, (f"not given: the last third of the record (from 2/3 of its duration), "
-                    f"which contains {late.size} change(s) of the input")
-    early = seen[t[seen] >= t0 + 0.4 * span]
-    if early.size:
-        i = int(early[-1])
-        kind = "heating" if u[i] > u[i - 1] else "cooling"
-        start = float(t[i - 1])
-        return start, (f"not given: the last third of the record (from {hs:g} s) holds no "
-                       f"change of the input, so the hold-out starts at the last change that "
-                       f"leaves >= 40 % of the record to fit ({kind} at {t[i - 1]:g} s)")
-    return hs, ("not given: the last third of the record (from 2/3 of its duration); the "
-                "record has no change of the input it could start at instead")
-
-
 def _holdout_start(t, holdout_start_s, where, u=None):
-    """The hold-out start [s] -- as given, or chosen by :func:`_default_holdout` -- and
+    """The hold-out start [s] -- as given, or chosen by :func:`arfem.models.diagnosis.holdout.default_holdout` -- and
     how it was chosen.
 
     Fitting uses the samples with t < start and scoring those with t >= start, so the
@@ -183,7 +158,7 @@ def _holdout_start(t, holdout_start_s, where, u=None):
             hs = t[0] + (t[-1] - t[0]) * 2.0 / 3.0
             how = "not given: the last third of the record (from 2/3 of its duration)"
         else:
-            hs, how = _default_holdout(t, u)
+            hs, how = default_holdout(t, u)
     else:
         hs = float(holdout_start_s)
         how = "given by --holdout-start"
@@ -390,7 +365,7 @@ def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress) -> Branch
                                                    t, y, rows)
     ar = ArPhysics(rod)
     ar_base = fit_candidate("none", ar, *args)
-    ar_ext = ar_base if cause == "none" else fit_causes(tuple(causes), ar, *args)
+    ar_ext = ar_base if cause == "none" else fit_rod_causes(tuple(causes), ar, *args)
     return BranchResult(
         fits=fits, cause=cause, causes=tuple(causes), runner=runner, scores=scores,
         tests=tests, selection=neff, extended=ext, baseline=fits["none"],
@@ -412,7 +387,7 @@ def _fit_single_causes(fem, args, progress) -> dict:
                                                 "nonlinear_convection") else {
             "log_h_running": h.theta["log_h"], "log_h_stopped": h.theta["log_h"],
             "log_h_ref": h.theta["log_h"], "exponent": 0.0}
-        fits[c] = fit_causes(() if c == "none" else (c,), fem, *args, start=start)
+        fits[c] = fit_rod_causes(() if c == "none" else (c,), fem, *args, start=start)
     return fits
 
 
@@ -873,12 +848,16 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
     return summary
 
 
-def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None) -> None:
+def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None,
+                resolution_um: float = 0.0) -> None:
     """The verdict (:mod:`arfem.models.diagnosis.verdict`) written into ``summary``:
     ``verdict``, ``verdict_detail`` and, for a cause that is not established,
-    ``best_candidate`` in place of ``cause``/``causes``/``parameters``."""
+    ``best_candidate`` in place of ``cause``/``causes``/``parameters``.
+    ``resolution_um``: the growth sensor's quantum [µm], 0 where the record is not
+    quantised (the verdict's default resolution then)."""
     from arfem.models.diagnosis import verdict as vd
-    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K))
+    vd.apply(summary, vd.decide(summary, baseline_residual, nominal_h_W_m2K,
+                                resolution_um or vd.DEFAULT_RESOLUTION))
 
 
 @one_blas_thread
@@ -941,7 +920,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in r.signals.items() if k not in series})
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
-    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K)
+    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
+                getattr(ds, "growth_resolution_um", 0.0))
     models = {"extended": ext, "causes": tuple(branch.causes),
               "physics": branch.physics, "speed": branch.speed_inputs}
     return Diagnosis(summary, series, text, models)

@@ -51,7 +51,7 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     Parameters
     ----------
     fit : CandidateFit
-        A fit of :func:`arfem.models.diagnosis.candidates.fit_causes` on
+        A fit of :func:`arfem.models.diagnosis.candidates.fit_rod_causes` on
         :class:`~arfem.models.diagnosis.candidates.FemPhysics` (its ``causes`` and
         ``joint``: θ and the linear coefficients).
     phys : FemPhysics
@@ -75,14 +75,14 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
 
     Examples
     --------
-    >>> from arfem.models.diagnosis.candidates import FemPhysics, fit_causes
+    >>> from arfem.models.diagnosis.candidates import FemPhysics, fit_rod_causes
     >>> from arfem.models.diagnosis.forward import RodModel
     >>> from arfem.params import Rod
     >>> phys = FemPhysics(Rod(), RodModel(Rod(), nr=2, nz=8))
     >>> t = np.arange(1, 601) * 60.0
     >>> q = np.where((t % 36000) < 18000, 2000.0, 0.0)
     >>> y = 1.2 * phys.response(t, q)
-    >>> f = fit_causes(("heat_input_scale",), phys, t, q, y, np.ones(t.size, bool))
+    >>> f = fit_rod_causes(("heat_input_scale",), phys, t, q, y, np.ones(t.size, bool))
     >>> m = fem_state_space(f, phys, 60.0)
     >>> from arfem.models.compensator import Compensator
     >>> c = Compensator(m)

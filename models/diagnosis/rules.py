@@ -16,14 +16,11 @@ from __future__ import annotations
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
-from arfem.models.diagnosis.candidates import CandidateFit, compatible, fit_causes
+from arfem.models.diagnosis.candidates import CandidateFit, compatible, fit_rod_causes
 from arfem.models.diagnosis.speed_select import drift_last as _drift_last
 from arfem.models.diagnosis.speed_select import median_block_ratio
+from arfem.models.diagnosis.verdict import ALPHA, naming_level, units_suspect
 from arfem.params import PLAUSIBLE_RANGES
-
-
-#: family-wise significance level of the test against the baseline
-ALPHA = 1e-3
 
 
 #: minimum relative cut of the fit-window RMSE for a cause to be named
@@ -61,11 +58,6 @@ PAIR_MIN_GAIN = 0.15
 PAIR_MISFIT = 2.0
 
 
-#: a record whose spread is below this fraction (or above its inverse) of the nominal
-#: simulation's, with an implausible heat scale, is in the wrong units
-UNITS_RATIO = 0.05
-
-
 def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
     """Scores, the named cause and the runner-up (see module docstring)."""
     valid = {c: f for c, f in fits.items() if f is not None}
@@ -83,9 +75,9 @@ def _select(fits: dict, base: CandidateFit, n_tests: int, noise_um: float):
         f = valid[c]
         p = st.f_test_p(base.rss, f.rss, f.k, n_eff)
         cut = 1.0 - np.sqrt(f.rss / base.rss) if base.rss > 0 else 0.0
-        tests[c] = {"p_value": p, "p_threshold": ALPHA / max(n_tests, 1),
+        tests[c] = {"p_value": p, "p_threshold": naming_level(n_tests),
                     "rmse_cut_pct": 100 * cut,
-                    "significant": bool(p < ALPHA / max(n_tests, 1) and cut >= MIN_GAIN)}
+                    "significant": bool(p < naming_level(n_tests) and cut >= MIN_GAIN)}
     cause = top if top != "none" and tests[top]["significant"] else "none"
     base_rmse = float(np.sqrt(base.rss / max(n, 1)))
     misfit = bool(np.isfinite(noise_um) and base_rmse > MISFIT_FACTOR * noise_um)
@@ -240,8 +232,7 @@ def _units_warning(fits, rod):
     y_fit = base.residual_um[rows]              # measured − nominal, on the fit rows
     spread = float(np.std(y_fit + nominal_um))
     nominal = float(np.std(nominal_um))
-    ratio = spread / nominal if nominal > 0 else 1.0
-    if lo <= sc <= hi or UNITS_RATIO < ratio < 1.0 / UNITS_RATIO:
+    if lo <= sc <= hi or not units_suspect(spread, nominal):
         return None
     hint = ("growth_um recorded in mm (1000x too small)?" if 0 < sc < 0.01 else
             "growth_um in nm or a [rod] value in the wrong unit?" if sc > hi else
@@ -276,6 +267,7 @@ def _parsimony(cause, fits, tests, neff):
     c, p, gain = best
     tests[c]["named_by"] = "parsimony"
     return c, {"cause": cause, "parameters": top.parameters, "p_value": p,
+               "excluded_by": "parsimony",
                "why": (f"{cause} ({top.k} parameters) fits no better than {c} ({fits[c].k}): "
                        f"the extra parameters cut the fit-window RMSE by {100 * gain:.1f} % "
                        f"(named only from {100 * MIN_GAIN:g} %), nested F test {st.p_text(p)} "
@@ -302,7 +294,7 @@ def _pair_test(f, lead_fit, y, rows, n_pairs):
     p = st.f_test_p(lead_fit.rss, f.rss, max(f.k - lead_fit.k, 1), n_eff)
     cut = 1.0 - np.sqrt(f.rss / lead_fit.rss) if lead_fit.rss > 0 else 0.0
     why_not = _implausible(f)
-    sig = bool(p < ALPHA / max(n_pairs, 1) and cut >= PAIR_MIN_GAIN and why_not is None)
+    sig = bool(p < naming_level(n_pairs) and cut >= PAIR_MIN_GAIN and why_not is None)
     return {"causes": list(f.causes), "p_value": p, "rmse_cut_pct": 100 * cut,
             "n_eff": n_eff, "significant": sig, "parameters": f.parameters,
             **({"refused": why_not} if why_not else {})}
@@ -326,7 +318,7 @@ def _second_cause(cause, fits, phys, args, refused):
             if f is not None and not f.at_bound:
                 start.update(f.theta)
         start.update(extra_start or {})
-        return fit_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
+        return fit_rod_causes(pair, phys, t, q, y, rows, initial_known, amb_K, frame, start=start)
 
     pairs = [(cause, c) for c in _PARTNERS
              if c != cause and fits.get(c) is not None and compatible((cause, c))]
@@ -363,7 +355,7 @@ def _second_cause(cause, fits, phys, args, refused):
                 ups.append(g)
             elif best is const and const.equivalent is None:
                 const = best = const.copy_with(equivalent=_equivalent(
-                    g, p, _fewer_parameters_why(m, cause, gain, p)))
+                    g, p, _fewer_parameters_why(m, cause, gain, p), "parsimony"))
     if ups:
         ups.sort(key=lambda g: g.rss)
         g = ups[0]
@@ -392,10 +384,14 @@ def _fewer_parameters_why(m: str, other: str, gain: float, p: float) -> str:
             "parameters is named")
 
 
-def _equivalent(alt, p: float, why: str) -> dict:
-    """The record of an alternative that fits as well (``equivalent`` in the report)."""
+def _equivalent(alt, p: float, why: str, excluded_by: str | None = None) -> dict:
+    """The record of an alternative that fits as well (``equivalent`` in the report).
+    ``excluded_by``: ``"parsimony"`` where the alternative has more parameters that fit
+    no better (excluded: rule 6); None where the two have as many parameters and the
+    data do not tell them apart -- then the named cause is not established (rule 1 of
+    :mod:`arfem.models.diagnosis.verdict`: the alternatives must be excluded)."""
     return {"cause": "+".join(alt.causes), "parameters": alt.parameters,
-            "p_value": p, "why": why}
+            "p_value": p, "why": why, "excluded_by": excluded_by}
 
 
 def _h_swap(best, fits, y, rows, fit_pair, tried, lead, n_pairs):
@@ -445,7 +441,7 @@ def _pair_parsimony(pair, fits, phys, args):
                  if m == "speed_dependent_convection" else th["log_h_ref"])
         start = {k: v for k, v in th.items() if not k.startswith("log_h") and k != "exponent"}
         start["log_h"] = log_h
-        g = fit_causes((other, "convection_mismatch"), phys, t, q, y, rows, initial_known,
+        g = fit_rod_causes((other, "convection_mismatch"), phys, t, q, y, rows, initial_known,
                        amb_K, frame, start=start)
         if g is None or _implausible(g) is not None:
             continue
@@ -454,7 +450,8 @@ def _pair_parsimony(pair, fits, phys, args):
         gain = 1.0 - np.sqrt(pair.rss / g.rss) if g.rss > 0 else 0.0
         if p >= PARSIMONY_P or gain < MIN_GAIN:
             g = g.copy_with(equivalent=_equivalent(pair, p,
-                                                  _fewer_parameters_why(m, other, gain, p)))
+                                                  _fewer_parameters_why(m, other, gain, p),
+                                                  "parsimony"))
             if "convection_mismatch" not in fits or fits["convection_mismatch"] is None:
                 return pair
             return g

@@ -11,9 +11,11 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    (every candidate at once, :func:`.fit.with_noise`); every fit below is generalised
    least squares on it (the Kalman innovations whiten the rows), every interval the
    GLS covariance on the whitened residual's own variance.
-1. The hold-out is the last third of the record (moved back to the last change of the
-   inputs before it when the last third holds none), or from ``holdout_start_s``; every
-   fit uses the rows before it only.
+1. The hold-out is the rod's default (:func:`arfem.models.diagnosis.holdout.default_holdout`:
+   the last third of the record if it holds a change of the input seen for an hour,
+   else the last such change that leaves 40 % to fit; one rule since issue 41, the mesh
+   had moved back to any last change), or from ``holdout_start_s``; every fit uses the
+   rows before it only.
 2. Every single cause of :func:`.fit.candidate_causes` is fitted. A cause passes when
    its nested F test against the nominal model, on the pooled effective sample size of
    its whitened residual (Σ_c N_eff,c, :func:`arfem.models.diagnosis.stats.noise_n_eff`),
@@ -51,17 +53,21 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    re-fitted under both models (:func:`walk_profiled_p`), and at the end each cause of
    the pair is tested against the other alone by both tests, the weaker dropped when
    it fails (:func:`_prune`; development seed 70015).
-5. Verdict (:func:`verdict_of`): ``established`` when each named cause's 95 % interval
+5. Verdict (:func:`_judge`, by the rules of :mod:`arfem.models.diagnosis.verdict`,
+   the same as the rod's): ``explained`` first where the nominal residual stays below
+   every sensor's resolution; ``established`` when each named cause's 95 % interval
    of its effect excludes "no effect", no interval reaches an end of the range the fit
    can return, magnitudes are plausible and the hold-out gain is positive (on the
    whitened hold-out, step 3's score, since the sixth pre-registration: the raw RMS
    under a random walk, development seed 100016);
-   ``explained`` when nothing is named and the nominal residual is within the noise on
-   every channel (Ljung–Box on N_eff, p ≥ 0.05/C, of the residual whitened by the
-   channel's fitted noise) with no MLR on the thermometers (paper eq. 18) better on
-   the whitened hold-out by 5 % or more; ``unconfirmed`` when a cause
-   was named but not established; ``not_explained`` otherwise. A cause is reported as
-   the cause only when established.
+   ``explained`` otherwise when the nominal residual is within the noise on every
+   channel (Ljung–Box on N_eff, p ≥ WHITE_P/C, of the residual whitened by the
+   channel's fitted noise; a channel too short to test is not within it) with no MLR on
+   the thermometers (paper eq. 18) better on the whitened hold-out by BETTER_CUT or
+   more, a named cause then listed beside it (it had been ``unconfirmed``; issue 41:
+   one rule for both engines); ``unconfirmed`` when a cause was named but not
+   established and the MLR does not beat its extended model on the whitened hold-out;
+   ``not_explained`` otherwise. A cause is reported as the cause only when established.
 """
 from __future__ import annotations
 
@@ -71,18 +77,22 @@ import numpy as np
 
 from dataclasses import replace as with_fields
 
-from arfem.models.diagnosis.stats import bic, f_test_p, ljung_box_p, noise_n_eff
-from arfem.models.geodiagnosis.fit import (BOUNDS, NO_EFFECT, PLAUSIBLE, Fit, FitContext,
-                                           candidate_causes, channel_rows, fit_causes,
+from arfem.models.diagnosis.holdout import default_holdout
+from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff, xcorr
+from arfem.models.diagnosis.verdict import (EQUIVALENCE_P, beaten_text, NO_EFFECT, RESOLUTION_DEFAULTS,
+                                            below_resolution, better, channels_white,
+                                            correlation_bound, WHITE_P,
+                                            holdout_tells_apart_p, naming_level, outcome,
+                                            reaches_edge, whiteness_p)
+from arfem.models.geodiagnosis.fit import (BOUNDS, PLAUSIBLE, Fit, FitContext,
+                                           candidate_causes, channel_rows, fit_mesh_causes,
                                            implausible,
                                            make_context, whitened, with_noise)
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 
-__all__ = ["GeoDiagnosis", "diagnose_geometry", "default_holdout", "mlr_holdout",
-           "verdict_of", "ALPHA"]
+__all__ = ["GeoDiagnosis", "diagnose_geometry", "mlr_holdout",
+           "establishment_failures"]
 
-#: Family-wise level of the naming tests.
-ALPHA = 0.01
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself
 #: (Kass R. E., Raftery A. E., J. Amer. Statist. Assoc. 90 (1995) 773-795, sec. 3.2).
@@ -106,6 +116,15 @@ class GeoDiagnosis:
     gain_whitened_pct : float, the same of the whitened hold-out RMS (each channel's
         one-step errors under its fitted noise): the gain the verdict requires
     holdout_how : str, how the hold-out's start was chosen, in words
+    below_resolution : bool, the nominal residual stays below every sensor's resolution
+        (the verdict's practical floor: "explained")
+    beaten_by_mlr : bool, the MLR of eq. 18 beats the best candidate's extended model
+        on the whitened hold-out (so "not explained", not "unconfirmed")
+    unsearched : tuple of str, what the scenario's ``[diagnosis]`` table left out of
+        the search (``missing_source:<group>``, ``contact_conductance:<group>``)
+    alternatives : tuple of str, causes (``a + b`` for a pair) that fit the data as well
+        as the named ones: reported together with them, and the named ones are then
+        not established
     failed : tuple of str, the checks of ``established`` the named causes fail
     ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-], the
         one-step errors over their σ under each channel's fitted noise)
@@ -129,27 +148,15 @@ class GeoDiagnosis:
     sigma: dict = field(default_factory=dict)
     gain_whitened_pct: float = float("nan")
     holdout_how: str = ""
+    below_resolution: bool = False
+    beaten_by_mlr: bool = False
+    unsearched: tuple = ()
+    alternatives: tuple = ()
 
     @property
     def established(self) -> tuple:
         """The established causes (empty unless the verdict is ``established``)."""
         return self.named.causes if self.verdict == "established" and self.named else ()
-
-
-def _last_third(time_s: np.ndarray) -> float:
-    """The start of the record's last third [s]."""
-    return float(time_s[0] + (time_s[-1] - time_s[0]) * 2.0 / 3.0)
-
-
-def default_holdout(time_s: np.ndarray, shape: np.ndarray) -> float:
-    """The start of the last third, moved back to the last change of the input before
-    it if the last third holds none [s]."""
-    t0 = _last_third(time_s)
-    tail = shape[time_s >= t0]
-    if tail.size and np.ptp(tail) > 0:
-        return t0
-    ch = np.flatnonzero(np.diff(shape) != 0)
-    return float(time_s[ch[-1]]) if ch.size else t0
 
 
 def _weighted_rms(ctx: FitContext, pred, rows) -> float:
@@ -158,12 +165,17 @@ def _weighted_rms(ctx: FitContext, pred, rows) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
+def _holdout_errors(ctx: FitContext, pred, hold) -> np.ndarray:
+    """The hold-out residual whitened by each channel's fitted noise (its one-step
+    prediction errors over their standard deviations), all channels in a row [-]."""
+    return np.concatenate([whitened(ctx, ctx.rec.data - pred, j, hold)
+                           for j in range(ctx.rec.data.shape[1])])
+
+
 def _holdout_score(ctx: FitContext, pred, hold) -> float:
-    """RMS of the hold-out residual whitened by each channel's fitted noise (its
-    one-step prediction errors over their standard deviations) [-]: a slow noise
-    wander the whole hold-out shares is not held against a cause."""
-    r = np.concatenate([whitened(ctx, ctx.rec.data - pred, j, hold)
-                        for j in range(ctx.rec.data.shape[1])])
+    """RMS of :func:`_holdout_errors` [-]: a slow noise wander the whole hold-out shares
+    is not held against a cause."""
+    r = _holdout_errors(ctx, pred, hold)
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
@@ -265,68 +277,57 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
                               [ctx.rec.channels[j].kind for j in js], df)
 
 
-def within_noise_p(r: np.ndarray) -> float:
-    """Ljung–Box p (paper eq. 19, 20 lags, at most a fifth of the samples) of a
-    whitened residual on its effective samples: every ⌊N/N_eff⌋-th row, so that at
-    least N_eff rows are kept (⌈N/N_eff⌉ halved a white residual whose batch-means
-    N_eff came out a little under N, and the test on half the rows then failed clean
-    records by chance). Fewer than 10 effective samples in 10 rows or more is a residual
-    far from white: p = 0 (it had been NaN, and the verdict skipped the channel, so a
-    thermometer off by 30 σ with N_eff 2 counted as "within the noise")."""
-    r = np.asarray(r, float)
-    r = r[np.isfinite(r)]
-    if r.size < 10:
-        return float("nan")
-    stride = max(int(np.floor(r.size / max(noise_n_eff(r), 1.0))), 1)
-    thin = r[::stride]
-    return ljung_box_p(thin, min(20, max(thin.size // 5, 1))) if thin.size >= 10 else 0.0
-
-
-def mlr_holdout(rec: GeoRecord, rows: np.ndarray) -> dict:
-    """The MLR of paper eq. 18 per displacement channel on the thermometers (and the
-    ambient): fitted on ``rows``, its prediction on every row, {column: (N,)}; empty
-    where the record has no thermometer."""
-    T = [j for j, c in enumerate(rec.channels) if c.kind == "temperature"]
-    X = [rec.data[:, j] for j in T]
+def mlr_holdout(rec: GeoRecord, rows: np.ndarray, ref: np.ndarray | None = None) -> dict:
+    """The MLR of paper eq. 18 per displacement channel on the thermometers and the
+    ambient -- the rod's own (:func:`arfem.models.diagnosis.speed.mlr`: one MLR baseline
+    for every plant; a thermometer with an empty cell is left out) -- fitted on
+    ``rows``, its prediction on every row, {column: (N,)}; empty where the record has no
+    thermometer. With ``ref`` (N, C), a model's prediction, the regression is of the
+    residual ``data − ref`` and the prediction is ``ref`` plus it: the model with what
+    the thermometers can add to it (a grey-box baseline)."""
+    from arfem.models.diagnosis.speed import mlr
+    temps = {c.column: rec.data[:, j] for j, c in enumerate(rec.channels)
+             if c.kind == "temperature"}
     if rec.ambient_C is not None:
-        X.append(rec.ambient_C)
-    if not X:
-        return {}
-    X = np.column_stack([np.ones(rec.time_s.size)] + X)
+        temps["ambient_C"] = rec.ambient_C
     out = {}
     for j, c in enumerate(rec.channels):
-        if c.kind != "displacement":
+        if c.kind != "displacement" or not temps:
             continue
-        ok = rows & np.all(np.isfinite(X), axis=1) & np.isfinite(rec.data[:, j])
-        if ok.sum() < X.shape[1] + 2:
+        y = rec.data[:, j] - (0.0 if ref is None else ref[:, j])
+        ok = rows & np.isfinite(y)
+        if ok.sum() < len(temps) + 3:
             continue
-        b, *_ = np.linalg.lstsq(X[ok], rec.data[ok, j], rcond=None)
-        out[c.column] = X @ b
+        pred, names = mlr(np.where(np.isfinite(y), y, 0.0), temps, ok)
+        if pred is not None:
+            out[c.column] = pred + (0.0 if ref is None else ref[:, j])
     return out
 
 
 def _screen(ctx, singles, train, hold, base, n_tests):
     """Steps 2-3: (ranking, the named single Fit or None, the passing single Fits, at
-    most three, best BIC first: the leads of step 4's pair search)."""
+    most three, best BIC first: the leads of step 4's pair search; the passing singles
+    within ``DELTA_BIC`` of the best: the alternatives the verdict must exclude)."""
     rows = []
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
-        f = fit_causes(ctx, (c,), train, intervals=False)
+        f = fit_mesh_causes(ctx, (c,), train, intervals=False)
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(base.sse_w, f.sse_w, f.n_params, ne)
         rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
                      _holdout_score(ctx, f.prediction, hold)))
     rows.sort(key=lambda r: r[2])
     ranking = tuple((r[0].name, r[2], r[3], r[4]) for r in rows)
-    passing = [r for r in rows if r[3] < ALPHA / n_tests and implausible(r[1]) is None
+    passing = [r for r in rows if r[3] < naming_level(n_tests) and implausible(r[1]) is None
                and not below_floor(ctx, r[1].prediction, base.prediction, train)
-               and not walk_explains(ctx, r[0], base.prediction, train, ALPHA / n_tests)][:3]
+               and not walk_explains(ctx, r[0], base.prediction, train, naming_level(n_tests))][:3]
     if not passing:
-        return ranking, None, ()
+        return ranking, None, (), ()
     leads = tuple(r[1] for r in passing)
     # the hold-out decides only between causes the fit window cannot tell apart
     passing = [r for r in passing if r[2] - passing[0][2] <= DELTA_BIC]
-    return ranking, min(passing, key=lambda r: r[4])[1], leads
+    return ranking, min(passing, key=lambda r: r[4])[1], leads, \
+        tuple(r[1].causes for r in passing)
 
 
 def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = True):
@@ -341,13 +342,13 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
         if c == lead or (c.nonlinear and c.nonlinear == lead.nonlinear and c.kind == lead.kind
                          and c.target == lead.target):
             continue
-        f = fit_causes(ctx, (lead, c), train, intervals=False, fixed=held)
+        f = fit_mesh_causes(ctx, (lead, c), train, intervals=False, fixed=held)
         ne = _n_eff(ctx, f.prediction, train)
         p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
         b = bic(f.sse_w, N, ne, f.n_params)
-        if p < ALPHA / n_tests and implausible(f) is None \
+        if p < naming_level(n_tests) and implausible(f) is None \
                 and not below_floor(ctx, f.prediction, first.prediction, train) \
-                and not walk_explains(ctx, c, first.prediction, train, ALPHA / n_tests):
+                and not walk_explains(ctx, c, first.prediction, train, naming_level(n_tests)):
             passing.append((b, f))
     # the passing partner of lowest BIC whose pair (refitted jointly) lowers the whitened
     # hold-out error; until the sixth pre-registration only the lowest-BIC partner was
@@ -356,10 +357,10 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
     # tried)
     first_score = _holdout_score(ctx, first.prediction, hold)
     for _, f in sorted(passing, key=lambda r: r[0]):
-        pair = fit_causes(ctx, f.causes, train, intervals=False)
+        pair = fit_mesh_causes(ctx, f.causes, train, intervals=False)
         if _holdout_score(ctx, pair.prediction, hold) < first_score and \
                 walk_profiled_p(ctx, first.prediction, pair.prediction, train,
-                                pair.n_params - first.n_params) < ALPHA / n_tests:
+                                pair.n_params - first.n_params) < naming_level(n_tests):
             return pair
     return None
 
@@ -367,9 +368,11 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
     """Step 4's pair: a second cause screened beside each passing single of step 3
     (the named first and the others, at most three), the pair of lowest BIC kept (the
-    hold-out deciding within ``DELTA_BIC``); None when the named first gets no partner
-    (then one cause is all the record shows: a first version that also paired the
-    weaker leads turned single convection records into "unconfirmed" pairs).
+    hold-out deciding within ``DELTA_BIC``), and the causes of the pairs within
+    ``DELTA_BIC`` (the alternatives the verdict must exclude); (None, ()) when the named
+    first gets no partner (then one cause is all the record shows: a first version that
+    also paired the weaker leads turned single convection records into "unconfirmed"
+    pairs).
 
     A forward search from the named first cause alone misses the pair whose members
     are neither of the two best single stand-ins (development seed 90027: a missing
@@ -382,25 +385,26 @@ def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
     if own is None:
         # no second cause beside the named one: the record shows one cause, and a pair
         # built on a weaker lead is no evidence against it
-        return None
+        return None, ()
     pairs = [(bic(own.sse_w, N, _n_eff(ctx, own.prediction, train), own.n_params), own)]
     for lead in leads:
         if lead.causes == first.causes:
             continue
-        p = _second(ctx, fit_causes(ctx, lead.causes, train, intervals=False), singles,
+        p = _second(ctx, fit_mesh_causes(ctx, lead.causes, train, intervals=False), singles,
                     train, hold, n_tests)
         if p is not None:
             pairs.append((bic(p.sse_w, N, _n_eff(ctx, p.prediction, train), p.n_params), p))
     pairs.sort(key=lambda r: r[0])
     near = [r[1] for r in pairs if r[0] - pairs[0][0] <= DELTA_BIC]
-    return min(near, key=lambda f: _holdout_score(ctx, f.prediction, hold))
+    return min(near, key=lambda f: _holdout_score(ctx, f.prediction, hold)), \
+        tuple(f.causes for f in near)
 
 
 def _swap_one(ctx, pair: Fit, keep: int, singles, train, hold, n_tests) -> Fit:
     """The pair's cause ``keep`` (0 or 1) held, its partner re-screened (:func:`_swap`)."""
     N = int((ctx.valid & train[:, None]).sum())
     kept, dropped = pair.causes[keep], pair.causes[1 - keep]
-    alone = fit_causes(ctx, (kept,), train, intervals=False)
+    alone = fit_mesh_causes(ctx, (kept,), train, intervals=False)
     # the kept cause's parameter is NOT held at its single fit: alone it stands in for
     # the sum as well (a front contact fitted at 0.51 alone, 0.22 beside the right partner)
     other = _second(ctx, alone, [c for c in singles if c != dropped], train, hold,
@@ -463,11 +467,11 @@ def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
     ne = _n_eff(ctx, pair.prediction, train)
     for k in range(len(pair.causes)):
         rest = tuple(c for i, c in enumerate(pair.causes) if i != k)
-        sub = fit_causes(ctx, rest, train, intervals=False)
+        sub = fit_mesh_causes(ctx, rest, train, intervals=False)
         df = pair.n_params - sub.n_params
         p = max(f_test_p(sub.sse_w, pair.sse_w, df, ne),
                 walk_profiled_p(ctx, sub.prediction, pair.prediction, train, df))
-        if p >= ALPHA / n_tests and (worst is None or p > worst[0]):
+        if p >= naming_level(n_tests) and (worst is None or p > worst[0]):
             worst = (p, sub)
     return pair if worst is None else worst[1]
 
@@ -485,7 +489,7 @@ def _effect_failures(fit: Fit) -> list:
                            f"'no effect' ({NO_EFFECT[k]:g})")
             if k in BOUNDS:
                 a, b = BOUNDS[k]
-                if lo <= a * 1.01 or hi >= b * 0.99:
+                if reaches_edge((lo, hi), (a, b)):
                     out.append(f"{c.name}: the interval of {k} reaches an end of the range "
                                f"the fit can return [{a:g}, {b:g}]")
             if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= p[k] <= PLAUSIBLE[k][1]:
@@ -496,20 +500,30 @@ def _effect_failures(fit: Fit) -> list:
     return out
 
 
-def verdict_of(named: Fit | None, gain_pct: float, within: dict, mlr_better: bool):
-    """(verdict, failed checks) by the rules of the module docstring; ``gain_pct`` is
-    the gain on the whitened hold-out (``GeoDiagnosis.gain_whitened_pct``)."""
-    if named is not None:
-        failed = _effect_failures(named)
-        if not gain_pct > 0:
-            failed.append(f"the extended model does not beat the nominal on the whitened "
-                          f"hold-out (gain {gain_pct:.1f} %)")
-        return ("established" if not failed else "unconfirmed"), tuple(failed)
-    ok = all(p >= 0.05 / max(len(within), 1) for p in within.values() if np.isfinite(p))
-    return ("explained" if ok and not mlr_better else "not_explained"), ()
+def establishment_failures(named: Fit, gain_pct: float) -> tuple:
+    """The checks of ``established`` (rule 1 of :mod:`arfem.models.diagnosis.verdict`)
+    the named causes fail, in words; ``gain_pct`` is the gain on the whitened hold-out
+    (``GeoDiagnosis.gain_whitened_pct``)."""
+    failed = _effect_failures(named)
+    if not gain_pct > 0:
+        failed.append(f"the extended model does not beat the nominal on the whitened "
+                      f"hold-out (gain {gain_pct:.1f} %)")
+    return tuple(failed)
 
 
-def _text(rec: GeoRecord, verdict: str, named: Fit | None, failed, gain: float) -> str:
+def _unsearched_text(unsearched) -> str:
+    return (f" Not searched, as the scenario's [diagnosis] table narrows the search: "
+            f"{', '.join(unsearched)}." if unsearched else "")
+
+
+def _text(v: _Judgement, named: Fit | None, gain: float, unsearched=()) -> str:
+    """The verdict in words (rules of :mod:`arfem.models.diagnosis.verdict`), saying
+    what went unsearched where ``[diagnosis]`` narrowed the search."""
+    verdict, failed = v.verdict, v.failed
+    return _verdict_words(verdict, named, failed, gain, v) + _unsearched_text(unsearched)
+
+
+def _verdict_words(verdict, named, failed, gain, v) -> str:
     if verdict == "established":
         parts = []
         for c, p, ci in zip(named.causes, named.params, named.ci95):
@@ -523,12 +537,48 @@ def _text(rec: GeoRecord, verdict: str, named: Fit | None, failed, gain: float) 
     if verdict == "unconfirmed":
         return (f"Best candidate {' + '.join(c.name for c in named.causes)}, not established: "
                 f"{'; '.join(failed)}.")
+    if verdict == "explained" and v.below_resolution:
+        return ("The nominal model explains the record to within the instruments' "
+                "resolution: its residual stays below each sensor's resolution on every "
+                "row, so no cause can be claimed"
+                + (f" (a {' + '.join(c.name for c in named.causes)} fits, but below what "
+                   "the sensors can show)." if named is not None else "."))
     if verdict == "explained":
-        return ("The nominal model explains the record to within its noise on every channel; "
-                "no cause is named.")
-    return ("The nominal model does not explain the record (its residual is not within the "
-            "noise) and no cause of the vocabulary passes the naming test: the difference "
-            "is not attributed.")
+        return ("The nominal model explains the record to within its noise on every channel"
+                + (f"; {' + '.join(c.name for c in named.causes)} fits before the "
+                   f"hold-out but is not established ({'; '.join(failed)})."
+                   if named is not None else "; no cause is named."))
+    if v.beaten_by_mlr:
+        return (f"The nominal model does not explain the record, and the best candidate "
+                f"{' + '.join(c.name for c in named.causes)} is not established "
+                f"({'; '.join(failed)}); a regression on the thermometers (the MLR of eq. 18, "
+                "or the nominal model with its residual regressed on them) does better on "
+                "the whitened hold-out than the candidate's extended model: the "
+                "thermometers explain more than any cause of the vocabulary, so the "
+                "difference is not attributed.")
+    return (f"The nominal model does not explain the record ({_not_within_noise(v)}) and "
+            "no cause of the vocabulary passes the naming test: the difference is not "
+            "attributed.")
+
+
+def _not_within_noise(v: _Judgement) -> str:
+    """Why the nominal residual is not within the noise, in words."""
+    level = WHITE_P / max(len(v.within), 1)
+    bad = [k for k, p in v.within.items() if np.isfinite(p) and p < level]
+    untestable = [k for k, p in v.within.items() if not np.isfinite(p)]
+    why = []
+    if bad:
+        why.append(f"not white by Ljung-Box on N_eff on {', '.join(bad)}")
+    if untestable:
+        why.append(f"too few independent samples to test on {', '.join(untestable)}")
+    if v.thermometers_beyond:
+        why.append("it follows the temperatures beyond the N_eff bound ("
+                   + ", ".join(f"{d} with {t}" for d, t in v.thermometers_beyond[:4])
+                   + (", …" if len(v.thermometers_beyond) > 4 else "") + ")")
+    if v.mlr_better:
+        why.append("a regression on the thermometers does better on the whitened hold-out")
+    return "its residual is not within the noise: " + "; ".join(why) if why else \
+        "its residual is not within the noise"
 
 
 def diagnose_geometry(model: GeoModel, rec: GeoRecord, holdout_start_s: float | None = None,
@@ -546,27 +596,25 @@ def _regrown(ctx: FitContext, model: GeoModel, s, train):
     """(``ctx`` on the reduced model regrown at setting ``s``, its nominal fit)."""
     regrown = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
     ctx = with_fields(ctx, model=regrown, cache={})
-    return ctx, fit_causes(ctx, (), train)
+    return ctx, fit_mesh_causes(ctx, (), train)
 
 
 def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     progress = progress or (lambda s: None)
     ctx = make_context(model, rec)
-    h0 = default_holdout(rec.time_s, ctx.shape) if holdout_start_s is None else holdout_start_s
-    how = ("given by the caller (--holdout-start); the fits saw only the rows before it"
-           if holdout_start_s is not None else
-           "the last third of the record (fit window before it)"
-           if h0 == _last_third(rec.time_s) else
-           "the last change of the inputs before the last third (the last third holds "
-           "none); the fits saw only the rows before it")
+    if holdout_start_s is None:
+        h0, how = default_holdout(rec.time_s, ctx.shape)
+    else:
+        h0, how = holdout_start_s, ("given by the caller (--holdout-start); the fits saw "
+                                    "only the rows before it")
     train, hold = rec.time_s < h0, rec.time_s >= h0
     progress("fitting each channel's noise (white plus a random walk)")
     ctx = with_noise(ctx, train)
-    base = fit_causes(ctx, (), train)
+    base = fit_mesh_causes(ctx, (), train)
     singles = candidate_causes(ctx)
     n_tests = max(len(singles), 1)
     progress(f"fitting {len(singles)} single causes")
-    ranking, first, leads = _screen(ctx, singles, train, hold, base, n_tests)
+    ranking, first, leads, near = _screen(ctx, singles, train, hold, base, n_tests)
     named = None
     if first is not None:
         if model.regrow is not None and any(c.nonlinear for c in first.causes):
@@ -574,13 +622,14 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
             # second cause is screened: else the second soaks up that bias
             progress("regrowing the reduced basis at the first cause's setting")
             ctx, base = _regrown(ctx, model, first.setting, train)
-            first = fit_causes(ctx, first.causes, train, intervals=False)
+            first = fit_mesh_causes(ctx, first.causes, train, intervals=False)
         progress("screening a second cause")
-        pair = _best_pair(ctx, first, leads, singles, train, hold, n_tests)
+        pair, near_pairs = _best_pair(ctx, first, leads, singles, train, hold, n_tests)
         if pair is not None:
+            near = near_pairs
             progress("re-screening the first cause beside the second")
             pair = _swap(ctx, pair, singles, train, hold, n_tests)
-        named = fit_causes(ctx, (pair or first).causes, train, intervals=False)
+        named = fit_mesh_causes(ctx, (pair or first).causes, train, intervals=False)
         if pair is not None:
             progress("testing each cause of the pair beside the other")
             named = _prune(ctx, named, train, n_tests)
@@ -588,7 +637,7 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
                 c.nonlinear for c in named.causes):
             progress("regrowing the reduced basis at the named setting")
             ctx, base = _regrown(ctx, model, named.setting, train)
-        named = fit_causes(ctx, named.causes, train)
+        named = fit_mesh_causes(ctx, named.causes, train)
     ext = named if named is not None else base
     wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
     gain = 100.0 * (1.0 - we / wb) if wb > 0 else 0.0
@@ -598,32 +647,145 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     # "lost" 10.8 % on it while its whitened error fell (0.975 against 0.981)
     sb, se = _holdout_score(ctx, base.prediction, hold), _holdout_score(ctx, ext.prediction, hold)
     gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
+    alts = _alternatives(ctx, named, near, train, hold) if named is not None else ()
+    v = _judge(ctx, rec, base, named, train, hold, gain_w, alts)
+    return GeoDiagnosis(rec.name, v.verdict, named, base, float(h0), v.table, float(gain),
+                        v.failed, ranking, v.within,
+                        _text(v, named, gain, model.unsearched),
+                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)},
+                        float(gain_w), how, v.below_resolution, v.beaten_by_mlr,
+                        tuple(model.unsearched), tuple(a for a, _, _ in alts))
+
+
+@dataclass(frozen=True)
+class _Judgement:
+    """What the verdict rests on (:func:`_judge`)."""
+
+    verdict: str
+    failed: tuple
+    table: dict
+    within: dict
+    below_resolution: bool
+    beaten_by_mlr: bool
+    thermometers_beyond: tuple = ()
+    mlr_better: bool = False
+
+
+def _whitened_rms(ctx: FitContext, pred, j: int, ok) -> float:
+    r = whitened(ctx, ctx.rec.data - pred, j, ok)
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+
+def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
+    """The causes that fit the data as well as ``named`` (rule 1 of
+    :mod:`arfem.models.diagnosis.verdict`): of the near-equivalent ones the search met
+    (``near``: cause tuples within ``DELTA_BIC`` on the fit window) that are not the
+    named causes with one more or one fewer, each refitted on ``ctx``, those still
+    within ``DELTA_BIC`` of ``named``'s BIC on N_eff (either side) whose
+    whitened hold-out errors a paired test does not tell from ``named``'s
+    (:func:`arfem.models.diagnosis.verdict.holdout_tells_apart_p` >= EQUIVALENCE_P).
+    Returns ((cause names, ΔBIC, p), ...)."""
+    key = frozenset(c.name for c in named.causes)
+    N = int((ctx.valid & train[:, None]).sum())
+    b0 = bic(named.sse_w, N, _n_eff(ctx, named.prediction, train), named.n_params)
+    e0 = _holdout_errors(ctx, named.prediction, hold)
+    out = []
+    for causes in near:
+        other = frozenset(c.name for c in causes)
+        if other <= key or key <= other:
+            # the named causes with one more or one fewer: not another explanation but
+            # the same one, which the naming and pruning tests (steps 2-4) decided on
+            continue
+        f = fit_mesh_causes(ctx, causes, train, intervals=False)
+        db = bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params) - b0
+        p = holdout_tells_apart_p(e0, _holdout_errors(ctx, f.prediction, hold))
+        if abs(db) <= DELTA_BIC and p >= EQUIVALENCE_P:
+            out.append((" + ".join(c.name for c in causes), float(db), float(p)))
+    return tuple(out)
+
+
+def _thermometers_beyond(ctx: FitContext, rec: GeoRecord, base: Fit) -> tuple:
+    """The (displacement channel, thermometer) pairs whose nominal residual correlates
+    with the thermometer's reading (or the ambient) beyond the bound on the residual's
+    N_eff, Bonferroni over the pairs (:func:`arfem.models.diagnosis.verdict.correlation_bound`):
+    the rod's check of "within the noise", on every displacement channel. A smooth
+    misfit that the fitted random walk absorbs in the whitening (a housing expanding
+    faster than modelled) still follows the temperatures."""
+    temps = {c.column: rec.data[:, j] for j, c in enumerate(rec.channels)
+             if c.kind == "temperature"}
+    if rec.ambient_C is not None and np.ptp(rec.ambient_C) > 0:
+        temps["ambient_C"] = rec.ambient_C
+    disp = [j for j, c in enumerate(rec.channels) if c.kind == "displacement"]
+    m = len(disp) * len(temps)
+    out = []
+    for j in disp:
+        ok = ctx.valid[:, j]
+        r = rec.data[ok, j] - base.prediction[ok, j]
+        if r.size < 10:
+            continue
+        bound = correlation_bound(noise_n_eff(r), m)
+        out += [(rec.channels[j].column, k) for k, x in temps.items()
+                if abs(xcorr(r, x[ok])) > bound]
+    return tuple(out)
+
+
+def _judge(ctx: FitContext, rec: GeoRecord, base: Fit, named, train, hold,
+           gain_w: float, alternatives=()) -> _Judgement:
+    """The verdict by the rules of :mod:`arfem.models.diagnosis.verdict`: the hold-out
+    table per channel (nominal, extended, MLR of eq. 18), the whiteness of the nominal
+    residual per channel, the practical floor and the data-driven baselines. The mesh
+    plant offers two (its named property ``data baselines``): the MLR of eq. 18 on the
+    thermometers, and the nominal model with its residual regressed on them (what the
+    thermometers add to the model: a housing that expands at 11.5e-6 where the model
+    says 10.5e-6 is caught by it, issue 41). Either better than the nominal model on a
+    channel's whitened hold-out, and the residual is not within the noise; better than
+    the best candidate's extended model, and that candidate is not explained.
+
+    The MLR is compared on the whitened hold-out: its intercept, fitted on the window,
+    holds a slow noise wander's level there that the nominal model (rightly) does not
+    carry; whitening judges both on their one-step errors."""
+    ext = named if named is not None else base
     mlr = mlr_holdout(rec, train)
-    table, mlr_better = {}, False
+    grey = mlr_holdout(rec, train, base.prediction)
+    table, mlr_better, beat = {}, False, None
     for j, c in enumerate(rec.channels):
         ok = hold & ctx.valid[:, j]
 
         def rms(p):
             return float(np.sqrt(np.mean((rec.data[ok, j] - p[ok]) ** 2))) if ok.any() else np.nan
         m = rms(mlr[c.column]) if c.column in mlr else None
-        b = rms(base.prediction[:, j])
-        table[c.column] = (b, rms(ext.prediction[:, j]), m)
-        if m is not None:
-            # compared on the whitened hold-out: the MLR's intercept, fitted on the
-            # window, holds a slow noise wander's level there that the nominal model
-            # (rightly) does not carry; whitening judges both on their one-step errors
+        table[c.column] = (rms(base.prediction[:, j]), rms(ext.prediction[:, j]), m)
+        for label, data_model in (("the MLR of eq. 18", mlr),
+                                  ("the nominal model with its residual regressed on them",
+                                   grey)):
+            if c.column not in data_model:
+                continue
             P = base.prediction.copy()
-            P[:, j] = mlr[c.column]
-            mw = whitened(ctx, rec.data - P, j, ok)
-            bw = whitened(ctx, rec.data - base.prediction, j, ok)
-            if np.sqrt(np.mean(mw * mw)) < 0.95 * np.sqrt(np.mean(bw * bw)):
-                mlr_better = True
-    within = {}
+            P[:, j] = data_model[c.column]
+            mw, ew = _whitened_rms(ctx, P, j, ok), _whitened_rms(ctx, ext.prediction, j, ok)
+            mlr_better |= better(mw, _whitened_rms(ctx, base.prediction, j, ok))
+            if beat is None and better(mw, ew):
+                beat = (f"{label} (whitened hold-out RMS on {c.column})", mw, ew)
+    beaten = beat is not None
+    within, worst, res = {}, [], []
     for j, c in enumerate(rec.channels):
         ok = ctx.valid[:, j]
-        within[c.column] = within_noise_p(whitened(ctx, rec.data - base.prediction, j, ok))
-    verdict, failed = verdict_of(named, gain_w, within, mlr_better)
-    return GeoDiagnosis(rec.name, verdict, named, base, float(h0), table, float(gain), failed,
-                        ranking, within, _text(rec, verdict, named, failed, gain),
-                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)},
-                        float(gain_w), how)
+        within[c.column] = whiteness_p(whitened(ctx, rec.data - base.prediction, j, ok))
+        r = (rec.data - base.prediction)[ok, j]
+        worst.append(float(np.max(np.abs(r))) if r.size else np.inf)
+        q = float(ctx.quantum[j]) if ctx.quantum is not None else 0.0
+        res.append(q if q > 0 else RESOLUTION_DEFAULTS[c.unit])
+    floor = below_resolution(worst, res)
+    beyond = _thermometers_beyond(ctx, rec, base)
+    failed = establishment_failures(named, gain_w) if named is not None else ()
+    failed += tuple(f"{a} fits the data as well (BIC {db:+.1f} on N_eff, within ±"
+                    f"{DELTA_BIC:g}; the whitened hold-out does not tell them apart, paired "
+                    f"test p = {p:.2g} >= {EQUIVALENCE_P:g}): the alternatives are not "
+                    "excluded" for a, db, p in alternatives)
+    if beaten and named is not None:
+        failed += (beaten_text(*beat, unit=""),)
+    noise = channels_white(within.values()) and not mlr_better and not beyond
+    v = outcome(named is not None, failed, noise, floor, beaten and named is not None)
+    return _Judgement(v, failed if v != "established" else (), table, within, floor,
+                      bool(beaten and named is not None and v == "not_explained"), beyond,
+                      mlr_better)

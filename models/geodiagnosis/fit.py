@@ -49,10 +49,11 @@ from scipy.optimize import minimize_scalar
 from scipy.stats import norm
 
 from arfem.models.diagnosis.stats import slow_noise_sandwich
+from arfem.models.diagnosis.verdict import NO_EFFECT, reaches_edge
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
-           "candidate_causes", "channel_rows", "fit_causes",
+           "candidate_causes", "channel_rows", "fit_mesh_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
@@ -70,11 +71,9 @@ def implausible(fit) -> str | None:
         for k, v in p.items():
             if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= v <= PLAUSIBLE[k][1]:
                 return f"{c.name}: {k} = {v:.3g} outside {PLAUSIBLE[k]}"
-            if k in BOUNDS and not BOUNDS[k][0] * 1.01 < v < BOUNDS[k][1] * 0.99:
+            if k in BOUNDS and reaches_edge((v, v), BOUNDS[k]):
                 return f"{c.name}: {k} = {v:.3g} at an end of {BOUNDS[k]}"
     return None
-NO_EFFECT = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 0.0, "scale": 1.0,
-             "power_W": 0.0, "initial_offset_K": 0.0}
 _Z95 = float(norm.ppf(0.975))
 
 
@@ -462,7 +461,7 @@ def _predict(ctx: FitContext, causes, nl: dict, beta) -> np.ndarray:
     return out
 
 
-def fit_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True,
+def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool = True,
                fixed: dict | None = None) -> Fit:
     """Fit ``causes`` (a tuple, ``()`` for the nominal model) on ``rows`` (N,) bool.
 

@@ -95,6 +95,10 @@ class GeoModel:
         ``regrow(h_scale, kappa) -> ReducedBody``: the same reduced model with its basis
         grown at another setting (one new factorisation), used once to refit a named
         nonlinear cause where the basis was grown (its bias there is then gone).
+    unsearched : tuple of str
+        Causes left out of the search because the scenario's ``[diagnosis]`` table
+        narrowed it (``missing_source:<group>``, ``contact_conductance:<group>``); the
+        verdict says so.
     """
 
     rb: ReducedBody
@@ -107,6 +111,7 @@ class GeoModel:
     candidates: tuple
     interfaces: tuple
     regrow: object = None
+    unsearched: tuple = ()
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ temperatures; see ``arfem compensate``), atomically. Bad input: one line, exit 2
 from __future__ import annotations
 
 from arfem.scenarios.diagnosis import run as diagnosis_run
-from arfem.scenarios.diagnosis.run import terminal_line
+from arfem.scenarios.diagnosis.run import rod_terminal_line
 from arfem.scenarios.progress import Progress, add_progress_flag
 
 __all__ = ["add_parser", "main"]
@@ -72,7 +72,7 @@ def main(args) -> int:
         s = diagnosis_run.run_diagnosis(doc, args.out, args.holdout_start, args.force,
                           args.frame_search, progress, args.drift_last, args.limits,
                           args.stability)
-    print(terminal_line(s) + f"; wrote {args.out}")
+    print(rod_terminal_line(s) + f"; wrote {args.out}")
     if s.get("verdict_detail"):
         print(f"verdict ({s['verdict']}): {s['verdict_detail']['text']}")
     h = s["holdout"]

@@ -28,7 +28,7 @@ from arfem.scenarios.records.georecord import (MeshRecord, is_mesh_record, read_
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
-           "summary_of", "terminal_line", "main_geodiagnose"]
+           "summary_of", "mesh_terminal_line", "main_geodiagnose"]
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
@@ -129,18 +129,23 @@ def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
          "noise_sigma": d.sigma, "nominal_ljung_box_p_neff": d.within_noise,
          "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": h}
                      for n, b, p, h in d.ranking],
+         "below_resolution": d.below_resolution,
+         "best_candidate_beaten_by_mlr": d.beaten_by_mlr,
+         "not_searched": list(d.unsearched),
          "reduced_model": rom_statement}
+    s["alternatives"] = list(d.alternatives)
     if not est and d.named is not None:
-        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes),
+        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes)
+                               + "".join(f" or {a}" for a in d.alternatives),
                                "causes": ent, "named_by_selection_rules": True,
                                "not_established_because": list(d.failed)}
     return s
 
 
-def terminal_line(s: dict) -> str:
+def mesh_terminal_line(s: dict) -> str:
     """The command's first line.
 
-    >>> terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
+    >>> mesh_terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
     ...                "holdout": {"gain_pct": 0.0}})
     'r: verdict = explained; cause = none; hold-out gain 0.0 %'
     """
@@ -250,7 +255,7 @@ def main_geodiagnose(args, record=None) -> int:
         case = args.case if record is None else read_mesh_record(args.case, limits, record)
         s = run_geodiagnosis(case, args.out, args.holdout_start, args.force, progress,
                              limits)
-    print(terminal_line(s) + f"; wrote {args.out}")
+    print(mesh_terminal_line(s) + f"; wrote {args.out}")
     print(f"verdict ({s['verdict']}): {s['verdict_text']}")
     for n in (case.table.notes if isinstance(case, MeshRecord) else ()):
         print(f"note: {n}")               # what the record reader did (e.g. filled cells)

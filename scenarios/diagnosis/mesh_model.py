@@ -11,8 +11,13 @@ The scenario may carry (and ``arfem run`` ignores)::
                                                            # conductivity stands for a
                                                            # contact resistance
 
-Both default to none (the causes on them are then not searched). A group the mesh
-lacks is refused by name (one line, exit 2).
+Without the table (or without one of its keys) the search is the whole model's
+(issue 41): every surface group that carries no heat source is a candidate for a
+missing source, and every volume group that is a thin layer between two others
+(:func:`arfem.models.geodiagnosis.rom.interface_layers`) an interface. The table
+narrows the search; what it leaves out is listed in the verdict
+(``GeoModel.unsearched``). A group the mesh lacks is refused by name (one line,
+exit 2).
 """
 from __future__ import annotations
 
@@ -31,15 +36,17 @@ from arfem.strict import check_keys
 from arfem.scenarios.geometry.scenario import (GeometryScenario, build_geometry_model,
                                                geometry_scenario_from_dict)
 
-__all__ = ["DiagnosisSpec", "load_diagnosis_scenario", "plant_of", "reduced_model"]
+__all__ = ["DiagnosisSpec", "load_diagnosis_scenario", "plant_of", "reduced_model",
+           "search_groups"]
 
 
 @dataclass(frozen=True)
 class DiagnosisSpec:
-    """The scenario's ``[diagnosis]`` table."""
+    """The scenario's ``[diagnosis]`` table; None where a key is not given (the whole
+    model is searched, :func:`search_groups`)."""
 
-    candidate_groups: tuple = ()
-    interface_groups: tuple = ()
+    candidate_groups: tuple | None = None
+    interface_groups: tuple | None = None
 
 
 def _names(v, where: str) -> tuple:
@@ -58,8 +65,8 @@ def load_diagnosis_scenario(path, toml=None) -> tuple[GeometryScenario, Diagnosi
         raise InputError("must be a table", f"{p}: diagnosis")
     try:
         check_keys(d, {"candidate_groups", "interface_groups"}, "diagnosis")
-        spec = DiagnosisSpec(_names(d.get("candidate_groups", []), "diagnosis.candidate_groups"),
-                             _names(d.get("interface_groups", []), "diagnosis.interface_groups"))
+        spec = DiagnosisSpec(*(_names(d[k], f"diagnosis.{k}") if k in d else None
+                               for k in ("candidate_groups", "interface_groups")))
         sc = geometry_scenario_from_dict(data, str(p), p.parent)
     except InputError as exc:
         if exc.where and exc.where.startswith(str(p)):
@@ -78,6 +85,25 @@ def plant_of(sc: GeometryScenario, progress=None):
     return plant, gm
 
 
+def search_groups(body, sc: GeometryScenario, spec: DiagnosisSpec):
+    """(candidate surface groups, interface volume groups, what the table left out).
+
+    By default every surface group of the mesh without a heat source is a candidate
+    for a missing source, and every thin layer between two volume groups an interface
+    (module docstring); a ``[diagnosis]`` key replaces its default, and the defaults it
+    leaves out are returned as ``missing_source:<group>`` / ``contact_conductance:<group>``.
+    """
+    from arfem.models.geodiagnosis.rom import interface_layers
+    with_source = {s.spec.group for s in sc.sources}
+    all_cand = tuple(g for g in sorted(body.gmesh.surfaces) if g not in with_source)
+    all_intf = interface_layers(body)
+    cand = all_cand if spec.candidate_groups is None else spec.candidate_groups
+    intf = all_intf if spec.interface_groups is None else spec.interface_groups
+    left = tuple(f"missing_source:{g}" for g in all_cand if g not in cand) + \
+        tuple(f"contact_conductance:{g}" for g in all_intf if g not in intf)
+    return tuple(cand), tuple(intf), left
+
+
 def reduced_model(plant: Plant, sc: GeometryScenario, spec: DiagnosisSpec,
                   h_speed_rpm: float = 0.0, keep_basis: bool = False):
     """The parametric reduced model (:mod:`arfem.models.geodiagnosis.rom`) with the
@@ -88,9 +114,10 @@ def reduced_model(plant: Plant, sc: GeometryScenario, spec: DiagnosisSpec,
     t0 = time.perf_counter()
     body = plant.body
     where = f"{sc.source}: diagnosis.candidate_groups"
+    groups, interfaces, unsearched = search_groups(body, sc, spec)
     try:
-        cand = [surface_power_column(body, g, where) for g in spec.candidate_groups]
-        for g in spec.interface_groups:
+        cand = [surface_power_column(body, g, where) for g in groups]
+        for g in interfaces:
             body.gmesh.volume_group(g, f"{sc.source}: diagnosis.interface_groups")
     except InputError as exc:
         if exc.where and exc.where.startswith(sc.source):
@@ -99,13 +126,13 @@ def reduced_model(plant: Plant, sc: GeometryScenario, spec: DiagnosisSpec,
     loads = np.column_stack([body.F] + cand) if cand else body.F
     a, b, m = plant.h_law.T
     h0 = a + b * np.power(max(h_speed_rpm, 0.0), m)
-    rb = build_reduced(body, plant.G, loads, h0, spec.interface_groups, keep_basis=keep_basis)
+    rb = build_reduced(body, plant.G, loads, h0, interfaces, keep_basis=keep_basis)
 
     def regrow(h_scale, kappa):
         return build_reduced(body, plant.G, loads, h0 * np.asarray(h_scale),
-                             spec.interface_groups, kappa0=kappa)
+                             interfaces, kappa0=kappa)
     own = np.array([np.nan if c.ambient_C is None else c.ambient_C for c in sc.convections])
     model = GeoModel(rb, plant.sources, plant.convections,
                      tuple(c.spec.group for c in sc.convections), plant.h_law, own,
-                     sc.reference_C, spec.candidate_groups, spec.interface_groups, regrow)
+                     sc.reference_C, groups, interfaces, regrow, unsearched)
     return model, time.perf_counter() - t0

@@ -15,7 +15,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "compensator_models", "diagnose_file", "add_stability",
-           "run_diagnosis", "terminal_line"]
+           "run_diagnosis", "rod_terminal_line"]
 
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
@@ -157,6 +157,10 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
     subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
     if s["verdict"] == "explained" and not s.get("causes"):
         subject = None
+    if s["verdict"] == "not_explained" and s["verdict_detail"].get("best_candidate_beaten_by_mlr"):
+        # named by the selection rules, not explained only because a regression beats it
+        # (issue 41): its stability is still that of the cause the rules named
+        subject = vd.named_cause(s)
     st = verdict_stability(at, origins, subject, mapper)
     s["verdict_detail"]["stability"] = st
     s["verdict_detail"]["text"] = vd.text(s)
@@ -189,12 +193,12 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
     return diag.summary
 
 
-def terminal_line(s: dict) -> str:
+def rod_terminal_line(s: dict) -> str:
     """The command's first line, from diagnosis.json's content: the verdict, the cause
     only where it is established (else the best candidate, marked as such), and the
     hold-out scores.
 
-    >>> terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
+    >>> rod_terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
     ...                "best_candidate": {"cause": "frame_expansion",
     ...                                   "causes": [{"cause": "frame_expansion"}]},
     ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,

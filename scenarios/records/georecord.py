@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.limits import Limits
+from arfem.models.diagnosis.verdict import units_suspect
 from arfem.params import InputError
 from arfem.scenarios.records.dataset import (DISPLACEMENT_ZERO, RecordColumns, RecordDoc,
                                      displacement_zero, read_record_columns,
@@ -35,14 +36,8 @@ from arfem.scenarios.records.dataset import (DISPLACEMENT_ZERO, RecordColumns, R
 __all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
            "read_record_files", "record_toml_of", "MeshRecord", "read_mesh_record",
            "DISPLACEMENT_ZERO", "displacement_zero",
-           "RecordTable", "read_table", "write_record", "sensor_columns", "UNITS_RATIO",
+           "RecordTable", "read_table", "write_record", "sensor_columns",
            "refuse_unit_slip"]
-
-#: A displacement channel whose spread is under this fraction of its model's is taken
-#: for mm declared as µm (a factor of 1000; a real misfit is rarely 100x): the one rule
-#: of ``arfem diagnose`` (against the nominal model) and ``arfem compensate`` (against
-#: the compensator's prediction), :func:`refuse_unit_slip`.
-UNITS_RATIO = 0.01
 
 
 @dataclass(frozen=True)
@@ -227,10 +222,12 @@ def sensor_columns(cols, sc, where: str) -> tuple[list, dict]:
 
 
 def refuse_unit_slip(column: str, measured_um, model_um, where: str) -> None:
-    """Refuse a displacement column whose spread is under :data:`UNITS_RATIO` of its
-    model's (``model_um``: the nominal model's response, or a compensator's prediction)
-    where the model moves it by more than 1 µm: displacements in mm declared as µm.
-    One line naming the column; NaN cells are left out of both spreads.
+    """Refuse a displacement column whose spread is out of proportion to its model's
+    (``model_um``: the nominal model's response in ``arfem diagnose``, the compensator's
+    prediction in ``arfem compensate``) where the model moves it by more than 1 µm:
+    displacements in mm (or nm) declared as µm, by the verdict module's one rule
+    (:func:`arfem.models.diagnosis.verdict.units_suspect`). One line naming the column;
+    NaN cells are left out of both spreads.
 
     >>> import numpy as np
     >>> refuse_unit_slip("d_x_um", np.r_[0.0, 0.012], np.r_[0.0, 12.0], "r.csv")
@@ -240,9 +237,10 @@ def refuse_unit_slip(column: str, measured_um, model_um, where: str) -> None:
     """
     sn = float(np.nanstd(model_um))
     sm = float(np.nanstd(measured_um))
-    if sn > 1.0 and sm < UNITS_RATIO * sn:
+    if sn > 1.0 and units_suspect(sm, sn):
+        slip = "mm" if sm < sn else "nm"
         raise InputError(f"spread {sm:.3g} µm against the model's {sn:.3g} µm: "
-                         f"displacements in mm declared as µm?", f"{where}: column {column}")
+                         f"displacements in {slip} declared as µm?", f"{where}: column {column}")
 
 
 def write_record(toml_path, scenario: str, columns: dict, name: str | None = None) -> Path:
