@@ -1370,8 +1370,9 @@ def read_model(path: str | Path) -> StateSpaceModel:
     Examples
     --------
     >>> import tempfile, pathlib
+    >>> from arfem.scenarios.compensation.model_file import write_model
     >>> p = pathlib.Path(tempfile.mkdtemp()) / "model.json"
-    >>> _ = p.write_text(json.dumps(ar1_model(0.99, 1e-4, dtau_s=30.0).to_dict()))
+    >>> write_model(p, ar1_model(0.99, 1e-4, dtau_s=30.0))
     >>> read_model(p).dtau_s, read_model(p).inputs[0].name
     (30.0, 'q_W_m2')
     """

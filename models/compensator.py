@@ -47,19 +47,13 @@ from typing import Mapping
 import numpy as np
 
 from arfem.params import InputError
+from arfem.strict import is_json_number
 from arfem.ranges import RANGES, reading_quantity, reading_range
 
-__all__ = ["MODEL_VERSION", "MODEL_VERSIONS", "MAX_ABS_NUMBER", "InputSpec", "OutputSpec",
+__all__ = ["InputSpec", "OutputSpec", "GROWTH_AXIS",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
            "fit_speed_ar1_model", "fit_mlr_model",
            "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind", "check_reading"]
-
-#: version of the ``model.json`` layout of a one-output model (the rod's growth)
-MODEL_VERSION = 1
-#: the versions this module reads: 1 (one output, ``growth_um``) and 2 (several outputs,
-#: one per axis)
-MODEL_VERSIONS = (1, 2)
-
 
 @dataclass(frozen=True)
 class InputSpec:
@@ -78,6 +72,11 @@ class OutputSpec:
     name: str
     unit: str
     axis: str
+
+
+#: The one axis of a version-1 model: its output ``growth_um`` [µm], the axis named after
+#: it (``growth``); a replay, a report and a live loop treat it as any other axis.
+GROWTH_AXIS = OutputSpec("growth_um", "µm", "growth")
 
 
 @dataclass(frozen=True)
@@ -136,11 +135,6 @@ class SpeedSchedule:
             return self.A[i], self.B[i], self.D[i], False
         return tuple((1.0 - w) * M[i] + w * M[i + 1] for M in (self.A, self.B, self.D)) + (
             False,)
-
-    def to_dict(self) -> dict:
-        """The ``speed_schedule`` object of ``model.json``."""
-        return {"input": self.input, "speeds_rpm": [float(v) for v in self.speeds_rpm],
-                "A": self.A.tolist(), "B": self.B.tolist(), "D": self.D.tolist()}
 
 
 @dataclass(frozen=True)
@@ -232,6 +226,13 @@ class StateSpaceModel:
         """The axis of each output (version 2); () for version 1."""
         return tuple(o.axis for o in self.outputs)
 
+    @property
+    def axis_outputs(self) -> tuple:
+        """Every axis the model compensates, as :class:`OutputSpec`: a version-2 model's
+        ``outputs``; a version-1 model's one axis, named after its output ``growth_um``
+        (:data:`GROWTH_AXIS`)."""
+        return self.outputs or (GROWTH_AXIS,)
+
     def d0_vector(self) -> np.ndarray:
         """The constant output term as a (p,) array [µm]."""
         return np.atleast_1d(np.asarray(self.d0_um, float))
@@ -254,388 +255,6 @@ class StateSpaceModel:
             slope = (y[i + 1] - y[i]) / (x[i + 1] - x[i])
             return float(y[i] + slope * (value - x[i])), True
         return float(np.interp(value, x, y)), False
-
-    def to_dict(self) -> dict:
-        """The ``model.json`` document (``docs/model-json.md``)."""
-        if self.outputs:
-            return self._to_dict_v2()
-        return {"model_version": MODEL_VERSION, "kind": self.kind, "dtau_s": self.dtau_s,
-                "inputs": [{"name": i.name, "unit": i.unit} for i in self.inputs],
-                "output": {"name": "growth_um", "unit": "µm"},
-                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
-                "D": self.D.tolist(), "d0_um": self.d0_um, "x0": self.x0.tolist(),
-                "noise": {"Q_um2": self.Q, "R_um2": self.R},
-                "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
-                               for k, (x, y) in self.input_maps.items()},
-                "description": self.description, "arfem_version": self.arfem_version,
-                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {}),
-                **({"fit_window_s": [float(v) for v in self.fit_window_s]}
-                   if self.fit_window_s is not None else {})}
-
-    def _to_dict_v2(self) -> dict:
-        """The version-2 document: ``outputs`` instead of ``output``, ``d0_um`` a list."""
-        return {"model_version": 2, "kind": self.kind, "dtau_s": self.dtau_s,
-                "inputs": [{"name": i.name, "unit": i.unit} for i in self.inputs],
-                "outputs": [{"name": o.name, "unit": o.unit, "axis": o.axis}
-                            for o in self.outputs],
-                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
-                "D": self.D.tolist(), "d0_um": [float(v) for v in self.d0_vector()],
-                "x0": self.x0.tolist(), "noise": {"Q_um2": self.Q, "R_um2": self.R},
-                "input_maps": {k: {"x": x.tolist(), "y": y.tolist()}
-                               for k, (x, y) in self.input_maps.items()},
-                "description": self.description, "arfem_version": self.arfem_version,
-                **({"input_offsets": dict(self.input_offsets)} if self.input_offsets else {}),
-                **({"fit_window_s": [float(v) for v in self.fit_window_s]}
-                   if self.fit_window_s is not None else {}),
-                **({"speed_schedule": self.schedule.to_dict()}
-                   if self.schedule is not None else {}),
-                **({"observer": self.observer.to_dict()} if self.observer is not None
-                   else {})}
-
-    @classmethod
-    def from_dict(cls, d: dict, where: str = "model") -> "StateSpaceModel":
-        """Validate a ``model.json`` document; :class:`InputError` names the key.
-
-        One strict reading (:func:`_read_model_doc`) checks what ``docs/model.schema.json``
-        states (every key's type, strings where strings go, numbers that are JSON numbers
-        -- not booleans -- finite and within :data:`MAX_ABS_NUMBER`, variances >= 0) and
-        what a schema cannot (shapes that agree, an A that settles, maps that increase).
-
-        Examples
-        --------
-        >>> m = ar1_model(0.99, 1e-4, dtau_s=30.0)
-        >>> StateSpaceModel.from_dict(m.to_dict()).A.tolist()
-        [[0.99]]
-        >>> StateSpaceModel.from_dict({**m.to_dict(), "model_version": 7})
-        Traceback (most recent call last):
-        ...
-        arfem.params.InputError: model: model_version: is 7; this arfem reads versions 1 and 2
-        >>> StateSpaceModel.from_dict({**m.to_dict(), "d0_um": float("nan")})
-        Traceback (most recent call last):
-        ...
-        arfem.params.InputError: model: d0_um: must be a finite number of µm, got nan
-        """
-        return _read_model_doc(cls, d, where)
-
-
-#: Largest magnitude of any number in a ``model.json`` (matrix entries, d0_um, variances,
-#: map points, offsets, the fit window, Δτ). Far beyond any physical model (growth in µm,
-#: inputs in W/m², 1/min, °C, s) and far enough from the float range that a stable model
-#: run on any accepted record stays finite; ``docs/model.schema.json`` states the same.
-MAX_ABS_NUMBER = 1e12
-
-#: The keys of ``model.json`` (``docs/model.schema.json``), required ones first.
-MODEL_REQUIRED = ("model_version", "kind", "dtau_s", "inputs", "output", "A", "B", "C",
-                  "D", "d0_um", "x0")
-MODEL_OPTIONAL = ("noise", "input_maps", "input_offsets", "fit_window_s", "description",
-                  "arfem_version")
-#: version 2 may also hold ``speed_schedule`` (:class:`SpeedSchedule`)
-MODEL_OPTIONAL_V2 = MODEL_OPTIONAL + ("speed_schedule", "observer")
-#: version 2: ``outputs`` (several, each with its axis) in place of ``output``
-MODEL_REQUIRED_V2 = tuple("outputs" if k == "output" else k for k in MODEL_REQUIRED)
-#: input names of the measured-data contract (the schema's ``pattern``)
-INPUT_NAME_PATTERN = r"^(q_W_m2|speed_rpm|ambient_C|T_[A-Za-z0-9_]+_C)$"
-#: version 2 also reads each heat source's power ``P_<source>_W`` [W] or flux
-#: ``q_<source>_W_m2`` [W/m²] (the sources of a ``[geometry]`` scenario)
-INPUT_NAME_PATTERN_V2 = (r"^(q_W_m2|speed_rpm|ambient_C|T_[A-Za-z0-9_]+_C|P_[A-Za-z0-9_]+_W"
-                         r"|q_[A-Za-z0-9_]+_W_m2)$")
-#: version 2's output names: a displacement sensor's column, and axis names
-OUTPUT_NAME_PATTERN = r"^d_[A-Za-z0-9_]+_um$"
-AXIS_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,31}$"
-
-
-def _is_number(v) -> bool:
-    """A JSON number: int or float, not a bool."""
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _number(v, key: str, what: str = "a finite number", low: float = -MAX_ABS_NUMBER,
-            low_open: bool = False) -> float:
-    """``v`` as a float if it is a JSON number, finite, in [low, MAX_ABS_NUMBER]
-    (``low_open``: > low); else one :class:`InputError` naming ``key``."""
-    ok = _is_number(v) and (math.isfinite(v) if isinstance(v, float) else True)
-    if ok:
-        ok = (v > low if low_open else v >= low) and v <= MAX_ABS_NUMBER
-    if not ok:
-        raise InputError(f"must be {what}, got {_short_repr(v)}", key)
-    return float(v)
-
-
-def _short_repr(v) -> str:
-    r = repr(v)
-    return r if len(r) <= 60 else r[:57] + "..."
-
-
-def _object(v, key: str, allowed=None, required=()) -> dict:
-    """``v`` if it is a JSON object with string keys, only ``allowed`` ones (if given)
-    and every ``required`` one."""
-    if not isinstance(v, dict) or not all(isinstance(k, str) for k in v):
-        raise InputError(f"must be a JSON object, got {_short_repr(v)}", key)
-    if allowed is not None:
-        extra = sorted(set(v) - set(allowed))
-        if extra:
-            raise InputError(f"unknown key {extra[0]!r}", key)
-    for k in required:
-        if k not in v:
-            raise InputError("missing", f"{key}.{k}")
-    return v
-
-
-def _numbers(v, key: str, ndim: int, min_len: int = 0) -> np.ndarray:
-    """A list (``ndim`` 1) or list of equally long lists (``ndim`` 2) of JSON numbers,
-    each finite and within :data:`MAX_ABS_NUMBER`, as a float array."""
-    what = "a list of numbers" if ndim == 1 else "a list of lists of numbers"
-    if not isinstance(v, list) or len(v) < min_len:
-        raise InputError(f"must be {what}" + (f" (at least {min_len})" if min_len else "")
-                         + f", got {_short_repr(v)}", key)
-    rows = v if ndim == 2 else [v]
-    for i, row in enumerate(rows):
-        if not isinstance(row, list):
-            raise InputError(f"must be {what}, got {_short_repr(row)} in row {i}", key)
-        for j, x in enumerate(row):
-            at = f"{key}[{i}][{j}]" if ndim == 2 else f"{key}[{j}]"
-            _number(x, at)
-    if ndim == 2 and len({len(r) for r in rows}) > 1:
-        raise InputError("rows must have the same length", key)
-    a = np.array(v, dtype=float)
-    if ndim == 2 and a.ndim == 1:                   # [] → shape (0,): no rows
-        a = a.reshape(0, 0)
-    return a
-
-
-def _shaped(a: np.ndarray, shape: tuple, key: str) -> np.ndarray:
-    """``a`` in ``shape``; an empty array takes any empty shape (a model without state
-    keeps ``[]`` and ``[[]]``)."""
-    if a.size == 0 and 0 in shape:
-        return a.reshape(shape)
-    if a.shape != shape:
-        raise InputError(f"has shape {a.shape}, needs {shape}", key)
-    return a
-
-
-def _string(v, key: str) -> str:
-    if not isinstance(v, str):
-        raise InputError(f"must be a string, got {_short_repr(v)}", key)
-    return v
-
-
-def _read_model_doc(cls, d, where: str) -> "StateSpaceModel":
-    """The one strict reading of a ``model.json`` document (see
-    :meth:`StateSpaceModel.from_dict`); every refusal is one :class:`InputError`
-    ``<where>: <key>: <what is wrong>``. Version 1 has one output (``output``,
-    ``growth_um``); version 2 several (``outputs``, each with its axis)."""
-    if not isinstance(d, dict):
-        raise InputError("must be a JSON object", where)
-    k = lambda name: f"{where}: {name}"              # noqa: E731 - the key's label
-    version = d.get("model_version")
-    if version not in MODEL_VERSIONS or isinstance(version, bool):
-        extra = sorted(set(d) - set(MODEL_REQUIRED) - set(MODEL_OPTIONAL_V2)
-                       - {"outputs"}, key=str)
-        if extra:
-            raise InputError(f"unknown key {extra[0]!r}", where)
-        raise InputError(f"is {_short_repr(version)}; this arfem reads versions 1 and 2",
-                         k("model_version"))
-    required = MODEL_REQUIRED if version == 1 else MODEL_REQUIRED_V2
-    other = "outputs" if version == 1 else "output"
-    if other in d and other not in required and (version == 1) != ("output" in d):
-        raise InputError(f"is {version}, whose layout has {'output' if version == 1 else 'outputs'}"
-                         f", not {other} (version 1: one output, growth_um; version 2: one "
-                         "output per axis)", k("model_version"))
-    optional = MODEL_OPTIONAL if version == 1 else MODEL_OPTIONAL_V2
-    extra = sorted(set(d) - set(required) - set(optional), key=str)
-    if extra:
-        raise InputError(f"unknown key {extra[0]!r}" + (
-            " (a speed schedule is read in version 2 only)" if extra[0] == "speed_schedule"
-            else ""), where)
-    for name in required:
-        if name not in d:
-            raise InputError("missing", k(name))
-    kind = _string(d["kind"], k("kind"))
-    dtau = _number(d["dtau_s"], k("dtau_s"), "a positive number of seconds", 0.0, True)
-    names = _read_inputs(d["inputs"], k, INPUT_NAME_PATTERN if version == 1
-                         else INPUT_NAME_PATTERN_V2)
-    if version == 1:
-        out = _object(d["output"], k("output"), ("name", "unit"), ("name", "unit"))
-        if out["name"] != "growth_um" or out["unit"] != "µm":
-            raise InputError(f"must be {{\"name\": \"growth_um\", \"unit\": \"µm\"}}, got "
-                             f"{_short_repr(out)}", k("output"))
-        outputs = ()
-    else:
-        outputs = _read_outputs(d["outputs"], k)
-    A, B, C, D, x0 = _read_matrices(d, k, len(names), max(len(outputs), 1))
-    if version == 1:
-        d0 = _number(d["d0_um"], k("d0_um"), "a finite number of µm")
-    else:
-        d0 = tuple(float(v) for v in _shaped(_numbers(d["d0_um"], k("d0_um"), 1),
-                                             (len(outputs),), k("d0_um")))
-    noise = _object(d.get("noise", {}), k("noise"), ("Q_um2", "R_um2"))
-    Q, R = (_number(noise.get(q, 0.0), k(f"noise.{q}"), "a finite variance >= 0 [µm²]", 0.0)
-            for q in ("Q_um2", "R_um2"))
-    maps, offsets = _read_maps(d, k, names), _read_offsets(d, k, names)
-    fw = _read_window(d, k)
-    description = _string(d.get("description", ""), k("description"))
-    arfem_version = _string(d.get("arfem_version", ""), k("arfem_version"))
-    schedule = (_read_schedule(d["speed_schedule"], k, names, A.shape, B.shape, D.shape,
-                               maps) if "speed_schedule" in d else None)
-    model = cls(kind=kind, dtau_s=dtau, A=A, B=B, C=C, D=D,
-                inputs=tuple(InputSpec(s["name"], s["unit"]) for s in d["inputs"]), x0=x0,
-                d0_um=d0, Q=Q, R=R, description=description, arfem_version=arfem_version,
-                input_maps=maps, input_offsets=offsets, fit_window_s=fw, outputs=outputs,
-                schedule=schedule)
-    if "observer" in d:                             # version 2's thermometers (issue 43)
-        from arfem.models.observer import observer_from_dict
-        model = _with_fields(model, observer=observer_from_dict(d["observer"],
-                                                                k("observer"), model))
-    return model
-
-
-def _read_inputs(ins, k, pattern: str) -> list:
-    """The input names of ``inputs``: ``{name, unit}`` each, names matching ``pattern``
-    (the measured-data contract's), each once."""
-    import re
-    if not isinstance(ins, list):
-        raise InputError(f"must be a list of {{name, unit}}, got {_short_repr(ins)}",
-                         k("inputs"))
-    names = []
-    for i, spec in enumerate(ins):
-        key = k(f"inputs[{i}]")
-        _object(spec, key, ("name", "unit"), ("name", "unit"))
-        name = _string(spec["name"], f"{key}.name")
-        _string(spec["unit"], f"{key}.unit")
-        if not re.match(pattern, name):
-            raise InputError(f"{name!r} is not an input of the measured-data contract "
-                             "(q_W_m2, speed_rpm, ambient_C, T_<name>_C"
-                             + (", P_<source>_W, q_<source>_W_m2)" if pattern
-                                != INPUT_NAME_PATTERN else ")"), f"{key}.name")
-        if name in names:
-            raise InputError(f"{name!r} is read twice", f"{key}.name")
-        names.append(name)
-    return names
-
-
-def _read_outputs(outs, k) -> tuple:
-    """Version 2's ``outputs``: at least one ``{name, unit, axis}``, names
-    ``d_<sensor>_um`` in µm, names and axes each once."""
-    import re
-    if not isinstance(outs, list) or not outs:
-        raise InputError(f"must be a list of at least one {{name, unit, axis}}, got "
-                         f"{_short_repr(outs)}", k("outputs"))
-    specs = []
-    for i, spec in enumerate(outs):
-        key = k(f"outputs[{i}]")
-        _object(spec, key, ("name", "unit", "axis"), ("name", "unit", "axis"))
-        name = _string(spec["name"], f"{key}.name")
-        axis = _string(spec["axis"], f"{key}.axis")
-        if _string(spec["unit"], f"{key}.unit") != "µm":
-            raise InputError(f"must be \"µm\", got {spec['unit']!r}", f"{key}.unit")
-        if not re.match(OUTPUT_NAME_PATTERN, name):
-            raise InputError(f"{name!r} is not a displacement column d_<sensor>_um",
-                             f"{key}.name")
-        if not re.match(AXIS_PATTERN, axis):
-            raise InputError(f"{axis!r} is not an axis name (a letter, then letters, "
-                             "digits or _; e.g. X)", f"{key}.axis")
-        if any(o.name == name for o in specs) or any(o.axis == axis for o in specs):
-            raise InputError("names an output or an axis twice", key)
-        specs.append(OutputSpec(name, "µm", axis))
-    return tuple(specs)
-
-
-def _read_matrices(d, k, m: int, p: int) -> tuple:
-    """A (n × n, stable), B (n × m), C (p × n), D (p × m) and x0 (n)."""
-    A = _numbers(d["A"], k("A"), 2)
-    if A.shape[0] != (A.shape[1] if A.ndim == 2 else 0):
-        raise InputError(f"must be square, got shape {A.shape}", k("A"))
-    n = A.shape[0]
-    B = _shaped(_numbers(d["B"], k("B"), 2), (n, m), k("B"))
-    rows = "one row" if p == 1 else f"{p} rows, one per output"
-    C = _numbers(d["C"], k("C"), 2)
-    if C.shape[0] != p:
-        raise InputError(f"must be {rows}, got {C.shape[0]}", k("C"))
-    C = _shaped(C, (p, n), k("C"))
-    D = _numbers(d["D"], k("D"), 2)
-    if D.shape[0] != p:
-        raise InputError(f"must be {rows}, got {D.shape[0]}", k("D"))
-    D = _shaped(D, (p, m), k("D"))
-    x0 = _shaped(_numbers(d["x0"], k("x0"), 1), (n,), k("x0"))
-    if n and np.max(np.abs(np.linalg.eigvals(A))) >= 1.0:
-        raise InputError("has an eigenvalue on or outside the unit circle: the model "
-                         "would not settle", k("A"))
-    return A, B, C, D, x0
-
-
-def _read_schedule(v, k, names, a_shape, b_shape, d_shape, maps) -> SpeedSchedule:
-    """``speed_schedule`` (version 2): ``input`` an input the model reads (unmapped),
-    ``speeds_rpm`` strictly increasing (at least two, >= 0), and per speed an A, B, D of
-    the model's shapes, finite, each A settling."""
-    key = k("speed_schedule")
-    _object(v, key, ("input", "speeds_rpm", "A", "B", "D"),
-            ("input", "speeds_rpm", "A", "B", "D"))
-    name = _string(v["input"], f"{key}.input")
-    if name not in names:
-        raise InputError(f"{name!r} is not an input the model reads", f"{key}.input")
-    if name in maps:
-        raise InputError(f"{name!r} has an input map; a schedule reads the raw speed",
-                         f"{key}.input")
-    x = _numbers(v["speeds_rpm"], f"{key}.speeds_rpm", 1, 2)
-    if np.any(np.diff(x) <= 0) or x[0] < 0:
-        raise InputError("must be speeds >= 0 [1/min], strictly increasing, got "
-                         + _short_repr(x.tolist()), f"{key}.speeds_rpm")
-    mats = []
-    for nm, shape in (("A", a_shape), ("B", b_shape), ("D", d_shape)):
-        at = f"{key}.{nm}"
-        lst = v[nm]
-        if not isinstance(lst, list) or len(lst) != x.size:
-            raise InputError(f"must be a list of {x.size} matrices, one per speed, got "
-                             + _short_repr(lst), at)
-        mats.append(np.array([_shaped(_numbers(m, f"{at}[{i}]", 2), shape, f"{at}[{i}]")
-                              for i, m in enumerate(lst)]).reshape((x.size,) + shape))
-    for i, Ai in enumerate(mats[0]):
-        if Ai.size and np.max(np.abs(np.linalg.eigvals(Ai))) >= 1.0:
-            raise InputError("has an eigenvalue on or outside the unit circle: the model "
-                             "would not settle", f"{key}.A[{i}]")
-    return SpeedSchedule(name, x, *mats)
-
-
-def _read_maps(d, k, names) -> dict:
-    """``input_maps``: name → (x, y), x strictly increasing, as many x as y."""
-    maps = {}
-    for name, mp in _object(d.get("input_maps", {}), k("input_maps")).items():
-        key = k(f"input_maps.{name}")
-        _object(mp, key, ("x", "y"), ("x", "y"))
-        x = _numbers(mp["x"], f"{key}.x", 1, 1)
-        y = _numbers(mp["y"], f"{key}.y", 1, 1)
-        if name not in names:
-            raise InputError("maps an input the model does not read", key)
-        if x.shape != y.shape or np.any(np.diff(x) <= 0):
-            raise InputError("x must increase strictly and match y, all finite", key)
-        maps[name] = (x, y)
-    return maps
-
-
-def _read_offsets(d, k, names) -> dict:
-    """``input_offsets``: name → the reference subtracted from the reading."""
-    offsets = {}
-    for name, v in _object(d.get("input_offsets", {}), k("input_offsets")).items():
-        key = k(f"input_offsets.{name}")
-        offsets[name] = _number(v, key)
-        if name not in names:
-            raise InputError("offsets an input the model does not read", key)
-    return offsets
-
-
-def _read_window(d, k):
-    """``fit_window_s``: (first, last) in order, or None where the key is absent."""
-    if "fit_window_s" not in d:                      # null is not a window: refused
-        return None
-    fw = d["fit_window_s"]
-    bad = InputError(f"must be [first, last] sample times in seconds, got "
-                     f"{_short_repr(fw)}", k("fit_window_s"))
-    if not (isinstance(fw, list) and len(fw) == 2):
-        raise bad
-    fw = tuple(_number(v, k("fit_window_s")) for v in fw)
-    if fw[0] > fw[1]:
-        raise bad
-    return fw
 
 
 def ar1_model(c1: float, c2_um_per_W_m2: float, *, dtau_s: float, kind: str = "paper_ar1",
@@ -886,6 +505,28 @@ class Cycle:
     held: bool = False
     axes: tuple = ()
     observer: object = None
+
+    def per_axis(self) -> tuple:
+        """Every axis of the cycle, each with ``axis``, ``output``, ``offset_um``,
+        ``predicted_um``, ``alarms`` and ``held`` (:class:`AxisCycle`): ``axes``, or a
+        version-1 model's one axis (:data:`GROWTH_AXIS`), which is the cycle itself, so
+        that one loop serves one axis and several."""
+        return self.axes or (self,)
+
+    @property
+    def axis(self) -> str:
+        """A version-1 cycle as its one axis: the axis's name (:data:`GROWTH_AXIS`)."""
+        return GROWTH_AXIS.axis
+
+    @property
+    def output(self) -> str:
+        """A version-1 cycle as its one axis: its output, ``growth_um``."""
+        return GROWTH_AXIS.name
+
+    @property
+    def predicted_um(self) -> float:
+        """A version-1 cycle as its one axis: the predicted growth [µm]."""
+        return self.predicted_growth_um
 
     def axis_alarms(self, axis: str) -> tuple:
         """The alarms that concern ``axis``: every alarm not tagged with an axis (the
@@ -1175,7 +816,7 @@ class Compensator:
         (None, 2.4)
         """
         try:
-            v = float(offset_um) if _is_number(offset_um) else math.nan
+            v = float(offset_um) if is_json_number(offset_um) else math.nan
         except OverflowError:                       # an int beyond the float range
             v = math.inf
         lim, _ = self.limits(j)

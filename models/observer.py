@@ -64,7 +64,7 @@ from scipy.linalg import solve_discrete_are
 __all__ = ["ObserverNoise", "Disturbance", "Observer", "Correction", "ObserverRun",
            "augmented_matrices", "steady_state_gain", "design_observer",
            "disturbance_inputs", "fit_noise_scale", "noise_from_table", "NOISE_KEYS",
-           "observer_from_dict", "measurement_matrix", "dare_doubling"]
+           "measurement_matrix", "dare_doubling"]
 
 
 @dataclass(frozen=True)
@@ -362,25 +362,6 @@ class Observer:
         g = self.gains
         return SpeedSchedule("speed_rpm", self.speeds_rpm, g, g, g).at(speed_rpm)[0]
 
-    def to_dict(self) -> dict:
-        """The ``observer`` block of ``model.json`` (``docs/model-json.md``)."""
-        n = self.noise
-        return {"thermometers": [{"name": t, "unit": "°C"} for t in self.thermometers],
-                "C": self.C_T.tolist(), "D": self.D_T.tolist(),
-                "z0_C": [float(v) for v in self.z0_C],
-                "disturbances": [{"input": d.input, "unit": d.unit,
-                                  "sigma_per_sqrt_h": d.sigma_per_sqrt_h}
-                                 for d in self.disturbances],
-                "uniform": self.uniform.tolist(),
-                "noise": {"thermometer_K": n.thermometer_K,
-                          "heat_per_sqrt_h": n.heat_per_sqrt_h,
-                          "ambient_K_per_sqrt_h": n.ambient_K_per_sqrt_h,
-                          "uniform_K_per_sqrt_h": n.uniform_K_per_sqrt_h,
-                          "time_constant_h": n.time_constant_h},
-                "gain": self.gains.tolist(),
-                **({"speeds_rpm": [float(v) for v in self.speeds_rpm]}
-                   if self.speeds_rpm is not None else {})}
-
     def estimate_sd(self, A, B) -> np.ndarray:
         """The steady-state standard deviation of each disturbance estimate (its unit)
         with the matrices ``A``, ``B`` (a schedule's at one speed): the square root of
@@ -635,104 +616,7 @@ def _log_likelihood(model, ob: Observer, U: np.ndarray, Z: np.ndarray) -> float:
     return ll
 
 
-#: keys of ``model.json``'s ``observer`` block, required ones first
-OBSERVER_REQUIRED = ("thermometers", "C", "D", "z0_C", "disturbances", "uniform", "noise",
-                     "gain")
-OBSERVER_OPTIONAL = ("speeds_rpm",)
-#: the closed-loop error dynamics must settle by at least this margin below 1
+#: the closed-loop error dynamics must settle by at least this margin below 1 (the
+#: ``observer`` block of model.json is refused otherwise:
+#: :mod:`arfem.scenarios.compensation.model_file`)
 STABLE_RADIUS = 1.0 - 1e-12
-
-
-def observer_from_dict(v, key: str, model) -> Observer:
-    """The strict reading of ``model.json``'s ``observer`` block against ``model``
-    (the StateSpaceModel read so far); one :class:`InputError` naming the key.
-
-    Checked: the keys; thermometer names ``T_<sensor>_C`` in °C, each once; C (q × n),
-    D (q × m), z0_C (q), uniform (n) of the model's shapes; each disturbance an input
-    the model reads (a source's or ``ambient_C``; not the speed), once, with a strength
-    >= 0; the noise levels (:func:`noise_from_table`); one gain (n + n_d) × q per
-    tabulated speed of the model's schedule (one without), ``speeds_rpm`` equal to the
-    schedule's; and that the observer settles at every tabulated speed (the spectral
-    radius of (I − K H) F below 1).
-    """
-    import re
-
-    from arfem.models.compensator import _numbers, _object, _shaped, _string
-    from arfem.params import InputError
-    _object(v, key, OBSERVER_REQUIRED + OBSERVER_OPTIONAL, OBSERVER_REQUIRED)
-    n, m = model.n_states, len(model.inputs)
-    ts = v["thermometers"]
-    if not isinstance(ts, list) or not ts:
-        raise InputError("must be a list of at least one {name, unit}", f"{key}.thermometers")
-    names = []
-    for i, t in enumerate(ts):
-        at = f"{key}.thermometers[{i}]"
-        _object(t, at, ("name", "unit"), ("name", "unit"))
-        nm = _string(t["name"], f"{at}.name")
-        if not re.match(r"^T_[A-Za-z0-9_]+_C$", nm) or nm in names:
-            raise InputError(f"{nm!r} is not a thermometer column T_<sensor>_C named once",
-                             f"{at}.name")
-        if _string(t["unit"], f"{at}.unit") != "°C":
-            raise InputError(f"must be \"°C\", got {t['unit']!r}", f"{at}.unit")
-        names.append(nm)
-    q = len(names)
-    C_T = _shaped(_numbers(v["C"], f"{key}.C", 2), (q, n), f"{key}.C")
-    D_T = _shaped(_numbers(v["D"], f"{key}.D", 2), (q, m), f"{key}.D")
-    z0 = _shaped(_numbers(v["z0_C"], f"{key}.z0_C", 1), (q,), f"{key}.z0_C")
-    uniform = _shaped(_numbers(v["uniform"], f"{key}.uniform", 1), (n,), f"{key}.uniform")
-    noise = noise_from_table(_object(v["noise"], f"{key}.noise"), f"{key}.noise")
-    dist, cols = _read_disturbances(v["disturbances"], f"{key}.disturbances", model)
-    sched = model.schedule
-    S = 1 if sched is None else sched.speeds_rpm.size
-    g = v["gain"]
-    if not isinstance(g, list) or len(g) != S:
-        raise InputError(f"must be a list of {S} gain matrices (one per tabulated speed)",
-                         f"{key}.gain")
-    gains = np.array([_shaped(_numbers(gk, f"{key}.gain[{i}]", 2), (n + len(dist), q),
-                              f"{key}.gain[{i}]") for i, gk in enumerate(g)])
-    speeds = None
-    if sched is not None or "speeds_rpm" in v:
-        speeds = _numbers(v.get("speeds_rpm"), f"{key}.speeds_rpm", 1) \
-            if "speeds_rpm" in v else None
-        if sched is None or speeds is None or not np.array_equal(speeds, sched.speeds_rpm):
-            raise InputError("must equal the speed schedule's speeds_rpm (and is only for "
-                             "a model with one)", f"{key}.speeds_rpm")
-    ob = Observer(tuple(names), C_T, D_T, z0, dist, cols, uniform, noise,
-                  float(model.dtau_s), gains, speeds)
-    pairs = [(model.A, model.B)] if sched is None else list(zip(sched.A, sched.B))
-    for i, (A, B) in enumerate(pairs):
-        if not ob.closed_loop_radius(A, B, i) < STABLE_RADIUS:
-            raise InputError("the observer with this gain would not settle (an eigenvalue "
-                             "of (I - K H) F on or outside the unit circle)",
-                             f"{key}.gain[{i}]")
-    return ob
-
-
-def _read_disturbances(ds, key: str, model) -> tuple:
-    """``disturbances``: [{input, unit, sigma_per_sqrt_h}] → (Disturbance tuple, columns)."""
-    from arfem.models.compensator import _number, _object, _string
-    from arfem.params import InputError
-    if not isinstance(ds, list):
-        raise InputError("must be a list of {input, unit, sigma_per_sqrt_h}", key)
-    names = [i.name for i in model.inputs]
-    out, cols = [], []
-    for i, d in enumerate(ds):
-        at = f"{key}[{i}]"
-        _object(d, at, ("input", "unit", "sigma_per_sqrt_h"),
-                ("input", "unit", "sigma_per_sqrt_h"))
-        nm = _string(d["input"], f"{at}.input")
-        if nm not in names or not (nm == "ambient_C" or nm.startswith(("P_", "q_"))):
-            raise InputError(f"{nm!r} is not a source's input or ambient_C the model reads",
-                             f"{at}.input")
-        if nm in [x.input for x in out]:
-            raise InputError(f"{nm!r} has two disturbances", f"{at}.input")
-        unit = _string(d["unit"], f"{at}.unit")
-        want = "K" if nm == "ambient_C" else model.inputs[names.index(nm)].unit
-        if unit != want:
-            raise InputError(f"must be {want!r} (the unit of {nm}'s estimate), got {unit!r}",
-                             f"{at}.unit")
-        s = _number(d["sigma_per_sqrt_h"], f"{at}.sigma_per_sqrt_h",
-                    "a finite strength >= 0", 0.0)
-        out.append(Disturbance(nm, unit, s))
-        cols.append(names.index(nm))
-    return tuple(out), tuple(cols)

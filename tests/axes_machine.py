@@ -148,7 +148,7 @@ def box_run(d, run_dir=None) -> tuple:
     are the record's, ``time_s`` and each input the model reads, from row 0."""
     from arfem.scenarios.records.dataset import load_dataset
     from arfem.scenarios.compensation.model_file import read_model
-    from arfem.scenarios.compensation.replay_axes import record_columns
+    from arfem.scenarios.compensation.replay import record_columns
     if run_dir is None:
         from test_model_v2_export import box_scenario
 

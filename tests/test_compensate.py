@@ -18,8 +18,9 @@ import sys
 import numpy as np
 import pytest
 
-from arfem.models.compensator import Compensator, StateSpaceModel, ar1_model
+from arfem.models.compensator import Compensator, ar1_model
 from arfem.params import InputError
+from arfem.scenarios.compensation.model_file import model_from_doc, model_to_doc
 
 M = ar1_model(0.99, 1e-3, dtau_s=60.0)
 
@@ -56,7 +57,7 @@ def test_stale_alarm_from_the_transport_holds():
 
 
 def test_probe_follows_the_kalman_gain():
-    noisy = StateSpaceModel.from_dict({**M.to_dict(), "noise": {"Q_um2": 0.01, "R_um2": 1e-6}})
+    noisy = model_from_doc({**model_to_doc(M), "noise": {"Q_um2": 0.01, "R_um2": 1e-6}})
     c = Compensator(noisy)
     for _ in range(50):
         c.step({"q_W_m2": 100.0})
@@ -69,15 +70,15 @@ def test_probe_follows_the_kalman_gain():
 
 
 def test_model_json_refusals():
-    d = M.to_dict()
+    d = model_to_doc(M)
     with pytest.raises(InputError, match="model_version"):
-        StateSpaceModel.from_dict({**d, "model_version": 2})
+        model_from_doc({**d, "model_version": 2})
     with pytest.raises(InputError, match="B: has shape"):
-        StateSpaceModel.from_dict({**d, "B": [[1.0, 2.0]]})
+        model_from_doc({**d, "B": [[1.0, 2.0]]})
     with pytest.raises(InputError, match="unit circle"):
-        StateSpaceModel.from_dict({**d, "A": [[1.01]]})
+        model_from_doc({**d, "A": [[1.01]]})
     with pytest.raises(InputError, match="unknown key 'gain'"):
-        StateSpaceModel.from_dict({**d, "gain": 1})
+        model_from_doc({**d, "gain": 1})
     with pytest.raises(InputError, match="max_step_um"):
         Compensator(M, max_step_um=0.0)
 
@@ -163,7 +164,7 @@ def test_speed_fit_that_would_not_settle_is_refused():
 def test_speed_model_maps_and_flags_extrapolation():
     """The speed → C2 map interpolates between fitted levels and flags a speed beyond
     them (informative: the offset is not held)."""
-    m = StateSpaceModel.from_dict({**M.to_dict(), "inputs": [{"name": "speed_rpm",
+    m = model_from_doc({**model_to_doc(M), "inputs": [{"name": "speed_rpm",
                                                               "unit": "1/min"}],
                                    "B": [[1.0]], "input_maps": {"speed_rpm": {
                                        "x": [0.0, 1000.0], "y": [0.0, 0.2]}}})

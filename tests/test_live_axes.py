@@ -57,10 +57,10 @@ def box(tmp_path_factory):
     assert main(["run", str(box_scenario(d, 0.0)), "--out", str(d / "run")]) == 0
     model = read_model(d / "run" / "model.json")
     from arfem.scenarios.records.dataset import load_dataset
-    from arfem.scenarios.compensation.replay_axes import record_columns
+    from arfem.scenarios.compensation.replay import record_columns
     ds = load_dataset(d / "run" / "record.toml")
     inputs, _ = record_columns(model, ds, "record")
-    from arfem.scenarios.compensation.replay_axes import observer_readings
+    from arfem.scenarios.compensation.replay import observer_readings
     inputs.update(observer_readings(model, ds, True)[0])   # its thermometer (issue 43)
     return d / "run", model, ds, inputs
 
@@ -89,14 +89,14 @@ def offsets(answers, ax):
 
 def test_live_equals_replay_per_axis_and_each_axis_keeps_its_limits(box, tmp_path):
     run_dir, model, ds, inputs = box
-    from arfem.scenarios.compensation.replay_axes import replay_axes
+    from arfem.scenarios.compensation.replay import replay
     rc, ans = run(tmp_path, model, lines_of(ds, inputs), "a.log")
     assert rc == 0 and len(ans) == ds.time_s.size - 1
     axes = model.axes
-    res = replay_axes(model, ds, max_offset_um=tuple(LIMITS[a][0] for a in axes),
-                      max_step_um=tuple(LIMITS[a][1] for a in axes))
+    res = replay(model, ds, max_offset_um=tuple(LIMITS[a][0] for a in axes),
+                 max_step_um=tuple(LIMITS[a][1] for a in axes))
     for j, ax in enumerate(axes):
-        assert offsets(ans, ax) == res.series.offset_um[1:, j].tolist()
+        assert offsets(ans, ax) == res.series.axes[j].offset_um[1:].tolist()
         off = np.array([0.0] + offsets(ans, ax))
         clamp, step = LIMITS[ax]
         assert np.max(np.abs(off)) <= clamp + 1e-12

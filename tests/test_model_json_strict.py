@@ -23,14 +23,14 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from arfem.models.compensator import (MAX_ABS_NUMBER, StateSpaceModel, ar1_model,
-                                      fit_speed_ar1_model)
+from arfem.models.compensator import ar1_model, fit_speed_ar1_model
 from arfem.params import InputError
+from arfem.scenarios.compensation.model_file import MAX_ABS_NUMBER, model_from_doc, model_to_doc
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = json.loads((REPO / "docs" / "model.schema.json").read_text("utf-8"))
 
-AR1 = ar1_model(0.99, 1e-3, dtau_s=60.0, Q_um2=0.01, R_um2=1e-4).to_dict()
+AR1 = model_to_doc(ar1_model(0.99, 1e-3, dtau_s=60.0, Q_um2=0.01, R_um2=1e-4))
 
 
 def _speed_model() -> dict:
@@ -39,7 +39,7 @@ def _speed_model() -> dict:
     from arfem.models.ar1 import ar1_simulate
     sp = np.repeat([0.0, 3000.0, 0.0, 6000.0, 0.0], 200)
     g = ar1_simulate(0.99, np.where(sp == 3000, 0.1, np.where(sp == 6000, 0.25, 0.0)))
-    d = fit_speed_ar1_model(g, sp, dtau_s=60.0).to_dict()
+    d = model_to_doc(fit_speed_ar1_model(g, sp, dtau_s=60.0))
     d["input_offsets"] = {"speed_rpm": 0.0}
     d["fit_window_s"] = [0.0, 3600.0]
     return json.loads(json.dumps(d))
@@ -58,7 +58,7 @@ def _axes_model() -> dict:
                           dtau_s=60.0, input_map=np.eye(2),
                           inputs=[("P_front_W", "W"), ("P_rear_W", "W")],
                           outputs=[("d_tcp_x_um", "X"), ("d_tcp_z_um", "Z")])
-    return json.loads(json.dumps(m.to_dict()))
+    return json.loads(json.dumps(model_to_doc(m)))
 
 
 AXES = _axes_model()
@@ -80,7 +80,7 @@ def _scheduled_model() -> dict:
         inputs=[("P_front_W", "W"), ("ambient_C", "°C"), ("speed_rpm", "1/min")],
         outputs=[("d_tcp_y_um", "Y"), ("d_tcp_z_um", "Z")],
         input_offsets={"ambient_C": 20.0})
-    return json.loads(json.dumps(m.to_dict()))
+    return json.loads(json.dumps(model_to_doc(m)))
 
 
 SCHED = _scheduled_model()
@@ -109,7 +109,7 @@ def test_each_malformed_field_is_one_error_naming_its_key(key, value):
     refuses it in one InputError whose text names the key."""
     doc = {**copy.deepcopy(AR1), key: value}
     with pytest.raises(InputError) as e:
-        StateSpaceModel.from_dict(doc, "m.json")
+        model_from_doc(doc, "m.json")
     msg = str(e.value)
     assert "\n" not in msg and key in msg, msg
 
@@ -130,8 +130,8 @@ def test_nan_and_infinity_tokens_of_the_file_are_refused(tmp_path):
 def test_every_model_arfem_writes_still_reads_back():
     """The strict reading accepts what arfem writes (a round trip is exact)."""
     for doc in SEEDS:
-        m = StateSpaceModel.from_dict(doc)
-        assert json.loads(json.dumps(m.to_dict())) == doc
+        m = model_from_doc(doc)
+        assert json.loads(json.dumps(model_to_doc(m))) == doc
 
 
 # -- generated malformed models --------------------------------------------------------
@@ -239,7 +239,7 @@ def mutated(draw, malformed_only: bool = True):
 
 def _reader_accepts(doc) -> bool:
     try:
-        StateSpaceModel.from_dict(doc)
+        model_from_doc(doc)
     except InputError:
         return False
     return True
@@ -370,7 +370,7 @@ def test_bad_speed_schedules_are_one_error_naming_the_key(what, doc, key, tmp_pa
     exits 2 with one line, writing nothing."""
     from arfem.scenarios.cli import main
     with pytest.raises(InputError) as e:
-        StateSpaceModel.from_dict(doc, "m.json")
+        model_from_doc(doc, "m.json")
     msg = str(e.value)
     assert "\n" not in msg and key in msg, msg
     (tmp_path / "model.json").write_text(json.dumps(doc), "utf-8")
@@ -389,10 +389,10 @@ def test_bad_speed_schedules_are_one_error_naming_the_key(what, doc, key, tmp_pa
 def test_a_scheduled_model_reads_back_and_the_schema_takes_it():
     """The speed schedule round-trips exactly and is schema-valid; a model without one
     writes no ``speed_schedule`` key (version 2 as before)."""
-    m = StateSpaceModel.from_dict(SCHED)
+    m = model_from_doc(SCHED)
     assert m.schedule is not None and m.schedule.speeds_rpm.tolist() == [0.0, 6000.0]
-    assert json.loads(json.dumps(m.to_dict())) == SCHED and _schema_accepts(SCHED)
-    assert "speed_schedule" not in AXES and StateSpaceModel.from_dict(AXES).schedule is None
+    assert json.loads(json.dumps(model_to_doc(m))) == SCHED and _schema_accepts(SCHED)
+    assert "speed_schedule" not in AXES and model_from_doc(AXES).schedule is None
 
 
 @pytest.mark.parametrize("key,value", V2_CASES, ids=[f"{k}={v!r}" for k, v in V2_CASES])
@@ -404,7 +404,7 @@ def test_version_2_refusals_name_their_key(key, value):
     through model_version, whose layout it is not)."""
     doc = {**copy.deepcopy(AXES), key: value}
     with pytest.raises(InputError) as e:
-        StateSpaceModel.from_dict(doc, "m.json")
+        model_from_doc(doc, "m.json")
     msg = str(e.value)
     assert "\n" not in msg and (key in msg or "model_version" in msg), msg
     assert not _schema_accepts(doc) or key in ("outputs", "d0_um", "C", "D"), doc

@@ -125,7 +125,7 @@ def test_run_compensate_and_live_with_a_schedule(tmp_path):
     from arfem.scenarios.records.dataset import load_dataset
     from arfem.scenarios.live.jsonl import Status, load_config, run_jsonl
     from arfem.scenarios.compensation.model_file import read_model
-    from arfem.scenarios.compensation.replay_axes import record_columns
+    from arfem.scenarios.compensation.replay import record_columns
     toml = box_scenario(tmp_path, 0.01)
     assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
     doc = json.loads((tmp_path / "run" / "model.json").read_text("utf-8"))

@@ -195,13 +195,14 @@ def test_offsets_never_pass_clamp_or_step_under_the_observer(coarse):
 def test_model_json_carries_the_observer(coarse, tmp_path):
     import jsonschema
 
-    from arfem.models.compensator import Compensator, StateSpaceModel
+    from arfem.models.compensator import Compensator
+    from arfem.scenarios.compensation.model_file import model_from_doc, model_to_doc
     from arfem.params import InputError
     _, m = coarse
-    doc = json.loads(json.dumps(m.to_dict()))
+    doc = json.loads(json.dumps(model_to_doc(m)))
     schema = json.loads((ROOT / "docs" / "model.schema.json").read_text("utf-8"))
     jsonschema.validate(doc, schema)
-    back = StateSpaceModel.from_dict(doc)
+    back = model_from_doc(doc)
     assert back.observer.thermometers == m.observer.thermometers
     assert np.array_equal(back.observer.gains, m.observer.gains)
     assert back.observer.columns == m.observer.columns
@@ -215,12 +216,12 @@ def test_model_json_carries_the_observer(coarse, tmp_path):
         d = json.loads(json.dumps(doc))
         d["observer"][key] = val
         with pytest.raises(InputError) as e:
-            StateSpaceModel.from_dict(d)
+            model_from_doc(d)
         assert str(e.value).startswith(msg), str(e.value)
     d = json.loads(json.dumps(doc))
     d["observer"]["gain"] = [(-5.0 * np.array(g)).tolist() for g in d["observer"]["gain"]]
     with pytest.raises(InputError, match="would not settle"):
-        StateSpaceModel.from_dict(d)
+        model_from_doc(d)
     # a warm start restores the disturbance estimates
     c = Compensator(back)
     c.step({**{i.name: 10.0 for i in back.inputs}, "ambient_C": 21.0,
@@ -328,7 +329,7 @@ def test_the_replay_runs_open_loop_where_the_record_lacks_a_thermometer(coarse):
     the summary says why."""
     from types import SimpleNamespace
 
-    from arfem.scenarios.compensation.replay_axes import observer_readings
+    from arfem.scenarios.compensation.replay import observer_readings
     _, m = coarse
     part = SimpleNamespace(temperatures={"T_front_bearing_C": np.zeros(3)})
     assert observer_readings(m, part, True) == ({}, "the record has no T_housing_C, "

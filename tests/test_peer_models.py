@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arfem.models.compensator import Compensator, StateSpaceModel
+from arfem.models.compensator import Compensator
 from arfem.models.peers import (ARXFit, _lag, arx_simulate, arx_state_space, fit_arx,
                                 fit_transfer_functions, tf_simulate, tf_state_space)
 from arfem.params import InputError
+from arfem.scenarios.compensation.model_file import model_from_doc, model_to_doc
 
 DT = 60.0
 
@@ -21,7 +22,7 @@ def _speed(n_rep=1):
 
 def _step(model, inputs):
     """The compensator's predictions, row by row (the same call ``replay`` makes)."""
-    c = Compensator(StateSpaceModel.from_dict(model.to_dict()))   # through model.json
+    c = Compensator(model_from_doc(model_to_doc(model)))   # through model.json
     n = len(next(iter(inputs.values())))
     return np.array([c.step({k: v[i] for k, v in inputs.items()}).predicted_growth_um
                      for i in range(n)])

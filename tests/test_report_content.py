@@ -92,13 +92,13 @@ def test_the_replay_figure_says_record_and_rpm(runs, monkeypatch):
     from arfem.io import read_toml  # noqa: F401  (the record is read by the command)
     from arfem.scenarios.records.axes_record import load_axes_record
     from arfem.scenarios.compensation.model_file import read_model
-    from arfem.scenarios.compensation.replay_axes import replay_axes
-    from arfem.scenarios.compensation.replay_axes_report import axes_figure
+    from arfem.scenarios.compensation.replay import replay
+    from arfem.scenarios.compensation.report import replay_figure
     model = read_model(runs / "run" / "model.json")
-    res = replay_axes(model, load_axes_record(runs / "run" / "record.toml"))
+    res = replay(model, load_axes_record(runs / "run" / "record.toml"))
     drawn = []
     monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: drawn.append(self))
-    axes_figure(res, runs / "unused.png")
+    replay_figure(res, runs / "unused.png")
     texts = [t.get_text() for ax in drawn[0].axes for t in
              [ax.yaxis.label, ax.title] + (ax.get_legend().get_texts() if ax.get_legend()
                                            else [])]

@@ -9,11 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arfem.models.compensator import Compensator, StateSpaceModel, ar1_model
+from arfem.models.compensator import Compensator, ar1_model
 from arfem.models.residual import (fit_thermometer_residual, lag_features,
                                    parallel_state_space, residual_simulate,
                                    residual_state_space)
 from arfem.params import InputError
+from arfem.scenarios.compensation.model_file import model_from_doc, model_to_doc
 
 DT = 60.0
 N = 3000
@@ -115,7 +116,7 @@ def _fitted():
 def _stepped(model, inputs):
     """Compensator predictions for rows 1 … (row 0 is the rest replay starts from),
     through model.json and back."""
-    c = Compensator(StateSpaceModel.from_dict(model.to_dict()))
+    c = Compensator(model_from_doc(model_to_doc(model)))
     n = len(next(iter(inputs.values())))
     return np.array([c.step({k: v[i] for k, v in inputs.items()}).predicted_growth_um
                      for i in range(1, n)])

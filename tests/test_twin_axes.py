@@ -51,7 +51,7 @@ def test_twin_serves_a_geometry_scenario_per_axis(tmp_path):
     from arfem.scenarios.cli import main
     from arfem.scenarios.records.dataset import load_dataset
     from arfem.scenarios.compensation.model_file import read_model
-    from arfem.scenarios.compensation.replay_axes import replay_axes
+    from arfem.scenarios.compensation.replay import replay
     toml = box_scenario(tmp_path, 0.01)
     assert main(["run", str(toml), "--out", str(tmp_path / "run")]) == 0
     model = read_model(tmp_path / "run" / "model.json")
@@ -92,14 +92,14 @@ def test_twin_serves_a_geometry_scenario_per_axis(tmp_path):
     rec = read_csv(rec_dir / "twin.csv")
     assert rec["time_s"].size == N
     limits = {"X": (15.0, 0.3)}
-    res = replay_axes(model, load_dataset(rec_dir / "twin.toml"),
+    res = replay(model, load_dataset(rec_dir / "twin.toml"),
                       max_offset_um=tuple(limits.get(a, (50.0, 1.0))[0] for a in model.axes),
                       max_step_um=tuple(limits.get(a, (50.0, 1.0))[1] for a in model.axes),
                       use_observer=False)    # the live config has no thermometer node
     for j, ax in enumerate(model.axes):
         off = rec[f"offset_{ax}_um"]
         assert np.array_equal(off, [c["axes"][ax]["offset_um"] for c in cyc])
-        assert np.array_equal(off, res.series.offset_um[:, j])
+        assert np.array_equal(off, res.series.axes[j].offset_um)
         err = rec[f"true_{ax}_um"] + off
         assert np.max(np.abs(err - rec[f"error_{ax}_um"])) <= 1e-12
         clamp, step = limits.get(ax, (50.0, 1.0))

@@ -85,7 +85,7 @@ def _figure(series, path) -> None:
         m = series[(ch, "mlr")]
         th = m.time_s / 3600
         late = th >= FIT_END_S / 3600
-        ax.plot(th[late], m.measured_growth_um[late], color="0.45", lw=1,
+        ax.plot(th[late], m.measured_um[late], color="0.45", lw=1,
                 label="uncompensated")
         if (ch, "ar1") in series:
             s = series[(ch, "ar1")]

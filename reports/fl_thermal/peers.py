@@ -102,6 +102,7 @@ def one_split(job):
     from regenerate import origin_dataset
 
     from arfem.models.diagnosis.engine import diagnose
+    from arfem.scenarios.compensation.model_file import model_to_doc
     from arfem.scenarios.compensation.replay import replay
     from arfem.scenarios.records.dataset import load_dataset
     from arfem.scenarios.diagnosis.run import compensator_models
@@ -138,7 +139,7 @@ def one_split(job):
         entry["series"] = {"time_s": t[late].tolist(), "growth_um": g[late].tolist(),
                            **{k: v[late].tolist() for k, v in series.items()}}
         if models.get("model_extended.json") is not None:
-            entry["extended_model"] = models["model_extended.json"].to_dict()
+            entry["extended_model"] = model_to_doc(models["model_extended.json"])
     return entry
 
 
@@ -238,10 +239,10 @@ def speed_tau_h(model: dict):
 def ch4_story(entries):
     """Numbers for the ch4 section: the extended model's contributions (speed state,
     frame states) at rest before and after the split, from its model.json, replayed."""
-    from arfem.models.compensator import StateSpaceModel
+    from arfem.scenarios.compensation.model_file import model_from_doc
     from arfem.scenarios.records.dataset import load_dataset
     e = next(x for x in entries if x["channel"] == "ch4" and x["split_s"] == SPLIT_28H_S)
-    m = StateSpaceModel.from_dict(e["extended_model"])
+    m = model_from_doc(e["extended_model"])
     ds = load_dataset(DATA / "fl_thermal_ch4.toml")
     t = np.asarray(ds.time_s)
     names = [i.name for i in m.inputs]

@@ -1,14 +1,16 @@
 """``arfem compensate MODEL.json RECORD.toml --out DIR``: replay a compensator on a record.
 
-Strictly causal (:func:`arfem.scenarios.compensation.replay.replay`): the record is stepped through
-row by row, and the offset for interval k is computed from the inputs of rows up to k
-only (the same call a live loop makes). What is left after the offset is applied -- the
-residual the seed paper's Fig. 8 shows -- is measured growth + offset.
+Strictly causal (:func:`arfem.scenarios.compensation.replay.replay`, the one replay of a
+version-1 model's one axis and a version-2 model's several): the record is stepped
+through row by row, and each axis's offset for interval k is computed from the inputs of
+rows up to k only (the same call a live loop makes). What is left after the offset is
+applied -- the residual the seed paper's Fig. 8 shows -- is measured + offset.
 
-Writes ``compensated.csv`` (per row: inputs, measured and predicted growth, offset,
-residual), ``summary.json``, ``summary.md`` (the verdict first), ``figure.png``
-(in the manner of the paper's Fig. 8: uncompensated against compensated error, the
-inputs below) and ``report.html``.
+Writes (:mod:`arfem.scenarios.compensation.report`) ``compensated.csv`` (per row: inputs,
+per axis the measured and predicted displacement, offset, residual), ``summary.json``,
+``summary.md`` (the verdict first), ``figure.png`` (in the manner of the paper's Fig. 8:
+uncompensated against compensated error per axis, the inputs below) and
+``report.html``.
 
 ``--probe-every DURATION`` (e.g. ``1h``, ``4h``, ``900s``): a measured growth is used
 only at those instants, to correct the model's state by a Kalman update.
@@ -17,15 +19,13 @@ from __future__ import annotations
 
 import math
 import re
-import textwrap
 
-from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.params import InputError
-from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.compensation.model_file import read_model
+from arfem.scenarios.compensation.replay import axis_limits, replay
+from arfem.scenarios.compensation.report import terminal_line, write_replay
+from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
-from arfem.scenarios.compensation.replay import Replay, replay
-from arfem.scenarios.compensation.replay_axes import axis_limits
 
 __all__ = ["parse_duration_s", "axis_limits", "add_parser", "main", "WRITES"]
 
@@ -45,96 +45,6 @@ def parse_duration_s(text: str, where: str = "--probe-every") -> float:
     if v <= 0:
         raise InputError(f"must be > 0, got {text!r}", where)
     return v
-
-
-def _figure(res: Replay, path) -> None:
-    """The error with and without compensation on top; below it the inputs, each kind
-    on its own axis (speed or heat flux, then the temperatures in °C, which would draw
-    as flat lines on a 0-5000 rpm axis), every legend outside its panel so that none
-    hides a trace."""
-    from matplotlib import colormaps
-    from matplotlib.figure import Figure
-    s = res.series
-    m = res.summary
-    th = s.time_s / 3600.0
-    inputs = dict(s.inputs)
-    temps = [k for k in inputs if k.endswith("_C")]
-    drives = [k for k in inputs if k not in temps]
-    panels = [p for p in (drives, temps) if p]
-    fig = Figure(figsize=(9.0, 3.6 + 2.2 * len(panels)), dpi=130, layout="constrained")
-    axes = fig.subplots(1 + len(panels), 1, sharex=True, squeeze=False,
-                        gridspec_kw={"height_ratios": [2.2] + [1.4] * len(panels)})[:, 0]
-    ax = axes[0]
-    ax.plot(th, s.measured_growth_um, color="#0072B2", lw=1.2,
-            label="without compensation\n(the record's growth_um)")
-    ax.plot(th, s.residual_um, color="#D55E00", lw=1.2,
-            label="with compensation\n(record + offset)")
-    ax.axhline(0.0, color="0.5", lw=0.8)
-    ax.set_title(f"{m.dataset}: {m.model_kind}, RMS {m.rms_before_um:.3g} → "
-                 f"{m.rms_after_um:.3g} µm\n" + textwrap.fill(m.score_window_text(), 95),
-                 fontsize=10)
-    if m.score_from_s > float(s.time_s[0]):
-        for a in axes:                     # where scoring starts (the fit window's end)
-            a.axvline(m.score_from_s / 3600.0, color="k", ls="--", lw=0.8)
-        ax.plot([], [], color="k", ls="--", lw=0.8, label="scored from here")
-    ax.set_ylabel("thermal error [µm]")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    for bx, names in zip(axes[1:], panels):
-        if len(names) > 10:                   # 16 thermometers: no colour used twice
-            bx.set_prop_cycle(color=colormaps["tab20"].colors)
-        for nm in names:
-            bx.plot(th, inputs[nm], lw=1.0, label=nm)
-        if names is temps:
-            bx.set_ylabel("temperature [°C]")
-        else:
-            units = {"speed_rpm": "speed [rpm]", "q_W_m2": "heat flux [W/m²]"}
-            bx.set_ylabel(units.get(names[0], "input") if len(names) == 1 else "inputs")
-        bx.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
-                  ncol=1 + len(names) // 9)
-    axes[-1].set_xlabel("time [h]")
-    fig.savefig(path)
-
-
-def _markdown(res: Replay, model_path=None, record_path=None) -> str:
-    """``summary.md``: the verdict (saying when the record is the model's own output),
-    the figures, then the model and the record by name and the replay's limits."""
-    from arfem.scenarios.compensation.replay_axes_report import file_link, reproduced_to_roundoff
-    m = res.summary
-    rate = m.compensation_rate_rms_pct
-    rates = f" ({rate:.0f} %)" if rate is not None else ""
-    if reproduced_to_roundoff([(m.rms_before_um, m.rms_after_um)]):
-        text = (f"**The record is the model's own output.** `{m.model_kind}` reproduces "
-                f"{file_link(record_path, m.dataset)} to round-off (residual "
-                f"{m.rms_after_um:.1g} µm RMS), so the figures below say that the replay "
-                "is exact, not how well the model compensates a machine: replay a record "
-                "measured on the machine to judge that.")
-    else:
-        text = (f"Compensating with `{m.model_kind}` "
-                f"{'reduces' if rate and rate > 0 else 'does not reduce'} the thermal "
-                f"error of `{m.dataset}` ({m.score_window_text()}): RMS "
-                f"{m.rms_before_um:.3g} → {m.rms_after_um:.3g} µm{rates}, peak to peak "
-                f"{m.peak_to_peak_before_um:.3g} → {m.peak_to_peak_after_um:.3g} µm, "
-                "replayed strictly causally.")
-    if m.cycles_held:
-        text += f" The offset was held in {m.cycles_held} cycles (an input was not usable)."
-    L = [f"# Compensation replay: `{m.dataset}`", "", "## Verdict", "", text, "",
-         "![thermal error with and without compensation, inputs below](figure.png)", "",
-         "| measure | without | with compensation |", "|---|---|---|",
-         f"| RMS [µm] | {m.rms_before_um:.4g} | {m.rms_after_um:.4g} |",
-         f"| peak to peak [µm] | {m.peak_to_peak_before_um:.4g} | "
-         f"{m.peak_to_peak_after_um:.4g} |", "", "## The replay", "",
-         f"Model {file_link(model_path, 'model.json')}: "
-         f"{m.model_description or m.model_kind}. Record {file_link(record_path, m.dataset)} "
-         f"(`{m.dataset}`). Δτ = {m.dtau_s:g} s; "
-         f"{m.n_cycles} cycles. Largest offset step {m.largest_offset_step_um:.4g} µm; "
-         f"clamped in {m.cycles_clamped} and rate-limited in {m.cycles_rate_limited} "
-         f"cycles (limits: ±{m.max_offset_um or '∞'} µm, "
-         f"±{m.max_step_um or '∞'} µm per cycle).",
-         "", (f"Probes every {m.probe_every_s:g} s: {m.n_probes} Kalman updates, mean gain "
-              f"{m.probe_gain_mean:.3g}." if m.n_probes else "No probe updates."), "",
-         "Files: `compensated.csv` (every cycle), `summary.json`, `figure.png`, "
-         "`report.html`."]
-    return "\n".join(L) + "\n"
 
 
 def add_parser(sub) -> None:
@@ -182,24 +92,6 @@ def add_parser(sub) -> None:
     p.add_argument("--force", action="store_true", help="write into a non-empty --out "
                    "(replay only: refused with --live)")
     p.set_defaults(func=main)
-
-
-def _main_axes(args, model, ds, probe) -> int:
-    """The replay of a version-2 model: one offset per axis."""
-    from arfem.scenarios.compensation.replay_axes import replay_axes
-    from arfem.scenarios.compensation.replay_axes_report import terminal_line, write_axes_replay
-    off, step = axis_limits(model, args.axis_limits, args.max_offset_um, args.max_step_um)
-    if probe is not None:
-        raise InputError("probe updates need a one-output (version 1) model",
-                         "--probe-every")
-    res = replay_axes(model, ds, max_offset_um=off, max_step_um=step,
-                      score_from_s=args.score_from, where=str(args.record),
-                      use_observer=not getattr(args, "no_observer", False))
-    with staged_out_dir(args.out, args.force) as stage:
-        write_axes_replay(res, stage, args.model, args.record)
-        write_html_report(stage)
-    print(terminal_line(res, args.out))
-    return 0
 
 
 #: options of a replay that a live run has no use for: refused with --live, one line
@@ -268,19 +160,12 @@ def _main(args) -> int:
     if args.score_from is not None and not math.isfinite(args.score_from):
         raise InputError(f"must be a finite number of seconds, got {args.score_from!r}",
                          "--score-from")
-    if model.outputs or getattr(args, "axis_limits", None):
-        return _main_axes(args, model, ds, probe)
-    res = replay(model, ds, max_offset_um=args.max_offset_um, max_step_um=args.max_step_um,
-                 probe_every_s=probe, score_from_s=args.score_from, where=str(args.record))
+    off, step = axis_limits(model, args.axis_limits, args.max_offset_um, args.max_step_um)
+    res = replay(model, ds, max_offset_um=off, max_step_um=step, probe_every_s=probe,
+                 score_from_s=args.score_from, where=str(args.record),
+                 use_observer=not getattr(args, "no_observer", False))
     with staged_out_dir(args.out, args.force) as stage:
-        write_csv(stage / "compensated.csv", res.series.columns())
-        write_json(stage / "summary.json", res.summary.to_dict())
-        atomic_write_text(stage / "summary.md", _markdown(res, args.model, args.record))
-        _figure(res, stage / "figure.png")
+        write_replay(res, stage, args.model, args.record)
         write_html_report(stage)
-    m = res.summary
-    print(f"{m.dataset}: {m.model_kind}, {m.score_window_text()}: RMS "
-          f"{m.rms_before_um:.3g} -> {m.rms_after_um:.3g} µm, peak to peak "
-          f"{m.peak_to_peak_before_um:.3g} -> {m.peak_to_peak_after_um:.3g} µm; "
-          f"wrote {args.out}")
+    print(terminal_line(res, args.out))
     return 0

@@ -23,7 +23,8 @@ from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
 from arfem.params import InputError
 from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
-from arfem.scenarios.records.georecord import MeshRecord, is_mesh_record, read_mesh_record
+from arfem.scenarios.records.georecord import (MeshRecord, is_mesh_record, read_mesh_record,
+                                              refuse_unit_slip, sensor_columns)
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
@@ -35,42 +36,11 @@ WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_
 
 def _map_columns(cols: dict, sc, where: str):
     """(channel columns, source power columns, speed, ambient) of a v3 table; refusals
-    name the column and what the scenario has."""
-    disp = [s.name for s in sc.sensors if s.quantity == "displacement"]
-    temp = [s.name for s in sc.sensors if s.quantity == "temperature"]
-    tilts = [s.name for s in sc.sensors if s.quantity == "tilt"]
-    srcs = [s.spec.name for s in sc.sources]
-    chans, power = [], {}
-    for c in cols:
-        if c.startswith("tilt_") and c.endswith("_urad"):      # a tilt: evidence
-            if c[5:-5] not in tilts:
-                raise InputError(f"names no tilt sensor of {sc.source} (its tilts: "
-                                 f"{', '.join(tilts) or 'none'})", f"{where}: column {c}")
-            chans.append(c)
-            continue
-        if c.startswith("d_") and c.endswith("_um"):
-            if c[2:-3] not in disp:
-                raise InputError(f"names no displacement sensor of {sc.source} (it has "
-                                 f"{', '.join(disp) or 'none'})", f"{where}: column {c}")
-            chans.append(c)
-        elif c.startswith("d_") and c.endswith("_mm"):
-            raise InputError("displacements are read in µm: give d_<sensor>_um", f"{where}: "
-                             f"column {c}")
-        elif c.startswith("T_") and c.endswith("_C") and c != "T_ambient_C":
-            if c[2:-2] not in temp:
-                raise InputError(f"thermometer column without a temperature sensor point "
-                                 f"{c[2:-2]!r} in {sc.source} (its thermometers: "
-                                 f"{', '.join(temp) or 'none'})", f"{where}: column {c}")
-            chans.append(c)
-        elif c.startswith("P_") and c.endswith("_W"):
-            if c[2:-2] not in srcs:
-                raise InputError(f"names no heat source of {sc.source} (it has "
-                                 f"{', '.join(srcs)})", f"{where}: column {c}")
-            power[c[2:-2]] = cols[c]
-    if not any(c.startswith("d_") for c in chans):
-        raise InputError("needs at least one displacement column d_<sensor>_um (sensors: "
-                         f"{', '.join(disp)})", where)
-    return chans, power, cols.get("speed_rpm"), cols.get("ambient_C")
+    name the column and what the scenario has (the one check,
+    :func:`arfem.scenarios.records.georecord.sensor_columns`)."""
+    chans, power = sensor_columns(cols, sc, where)
+    return (chans, {s: cols[c] for s, c in power.items()}, cols.get("speed_rpm"),
+            cols.get("ambient_C"))
 
 
 def _speed_power(sc, src, speed, where: str) -> np.ndarray:
@@ -125,24 +95,14 @@ def load_mesh_record(path, progress=None, limits=None):
 
 def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
     """Refuse displacement channels whose spread is out of proportion to the nominal
-    model's (:func:`arfem.models.diagnosis.verdict.units_suspect`: mm or nm declared
-    as µm) where the model moves them by more than 1 µm."""
-    from arfem.models.diagnosis.verdict import units_suspect
+    model's (the one rule, :func:`arfem.scenarios.records.georecord.refuse_unit_slip`)."""
     from arfem.models.geodiagnosis.problem import responses
     s = Setting(np.ones(len(model.convections)), np.ones(len(model.interfaces)))
     R, _ = responses(model, rec, s, np.zeros(rec.time_s.size))
     nom = R[:, :, :len(model.sources) + len(model.convections)].sum(axis=2)
     for j, c in enumerate(rec.channels):
-        if c.kind != "displacement":
-            continue
-        y = rec.data[:, j]
-        sn = float(np.std(nom[:, j]))
-        sm = float(np.nanstd(y))
-        if sn > 1.0 and units_suspect(sm, sn):
-            slip = "mm" if sm < sn else "nm"
-            raise InputError(f"spread {sm:.3g} µm against the model's {sn:.3g} µm: "
-                             f"displacements in {slip} declared as µm?", f"{where}: column "
-                             f"{c.column}")
+        if c.kind == "displacement":
+            refuse_unit_slip(c.column, rec.data[:, j], nom[:, j], where)
 
 
 def _entries(fit) -> list:

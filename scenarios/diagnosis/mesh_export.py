@@ -3,7 +3,7 @@ parametric reduced model with the established causes built in,
 :mod:`arfem.models.geodiagnosis.extended`) and ``model_nominal.json`` (the same reduced
 model at the scenario's nominal parameters, same basis, same discretisation), both
 version 2 (one output per displacement channel), and their causal replay on the record
-(:func:`arfem.scenarios.compensation.replay_axes.replay_axes`, the replay ``arfem compensate`` runs),
+(:func:`arfem.scenarios.compensation.replay.replay`, the replay ``arfem compensate`` runs),
 scored from the hold-out's start.
 
 With no established cause, or none that can be built into the machine's model (a
@@ -157,12 +157,12 @@ def replay_table(models: DiagnosisModels, ds, score_from_s: float, where: str) -
     :class:`arfem.scenarios.records.axes_record.AxesRecord`, read once by the caller), scored
     from ``score_from_s``:
     {axis: {output, rms_before_um, nominal_rms_after_um, extended_rms_after_um}}."""
-    from arfem.scenarios.compensation.replay_axes import replay_axes
+    from arfem.scenarios.compensation.replay import replay
     if models.nominal is None:
         return {}
     try:
-        rn = replay_axes(models.nominal, ds, score_from_s=score_from_s, where=where)
-        re_ = (replay_axes(models.extended, ds, score_from_s=score_from_s, where=where)
+        rn = replay(models.nominal, ds, score_from_s=score_from_s, where=where)
+        re_ = (replay(models.extended, ds, score_from_s=score_from_s, where=where)
                if models.extended is not None else None)
     except InputError as exc:           # e.g. a record not sampled at one interval
         return {"not_replayed": str(exc)}

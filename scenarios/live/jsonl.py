@@ -67,7 +67,7 @@ import os
 import signal
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Mapping
 
 from arfem.io import read_toml
@@ -79,8 +79,9 @@ if TYPE_CHECKING:                                  # (opcua_live imports this mo
     from arfem.scenarios.live.opcua import OpcuaConfig
 
 __all__ = ["LiveConfig", "Clock", "CycleLog", "Status", "load_config", "clocked_step",
-           "model_sha", "warm_start", "faults", "resume_from", "take_held", "offsets_text",
-           "offsets_doc", "limits_doc", "held_text", "answer", "with_command_line",
+           "model_sha", "warm_start", "faults", "line_offsets", "take_held", "offsets_text",
+           "offsets_doc", "axes_doc", "axes_text", "limits_doc", "held_text", "answer",
+           "with_command_line",
            "run_jsonl", "run_live", "observer_doc", "reading_names"]
 
 _KEYS = {"transport", "max_offset_um", "max_step_um", "stale_after_s", "log", "period_s",
@@ -341,7 +342,8 @@ def clocked_step(comp: Compensator, values: Mapping, t: float | None, clock: Clo
 
 def model_sha(model) -> str:
     """12 hex digits naming the model's numbers (a warm start needs the same model)."""
-    d = model.to_dict()
+    from arfem.scenarios.compensation.model_file import model_to_doc
+    d = model_to_doc(model)
     d.pop("arfem_version", None)
     d.pop("description", None)
     return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
@@ -378,13 +380,14 @@ class CycleLog:
 @dataclass(frozen=True)
 class WarmStart:
     """What the log gave a starting loop: ``mode`` "warm" or "cold", ``reason``,
-    and from the last good line its machine time [s] and offset [µm] (None if none)."""
+    and from the last good line its machine time [s] and what each axis was sent
+    (``offsets_um``: axis → offset [µm], the key None for a version-1 model's one axis,
+    as :func:`take_held` takes it; {} if none)."""
 
     mode: str
     reason: str
     time_s: float | None = None
-    offset_um: float | None = None
-    offsets_um: dict | None = None          # version 2: axis → offset [µm]
+    offsets_um: dict = field(default_factory=dict)
 
 
 def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
@@ -420,11 +423,8 @@ def warm_start(path: str, comp: Compensator, sha: str) -> WarmStart:
         t = float(t) if _num(t) else None
         # an offset the line names but that is not a finite number (null: that axis was
         # not written) is kept as NaN, so that resume_axis holds that axis
-        off = _held_value(doc["offset_um"]) if "offset_um" in doc else None
-        axes = doc.get("axes") if isinstance(doc.get("axes"), dict) else {}
-        offs = {ax: _held_value(v.get("offset_um")) for ax, v in axes.items()
-                if isinstance(v, dict)} or None
-        return WarmStart("warm", f"state of the log's line at time_s = {t}", t, off, offs)
+        offs = {ax: _held_value(v) for ax, v in line_offsets(comp.model, doc).items()}
+        return WarmStart("warm", f"state of the log's line at time_s = {t}", t, offs)
     return WarmStart("cold", "the log's last state is of another model" if other
                      else "no state in the log")
 
@@ -485,33 +485,68 @@ def faults(cyc, axis: str | None = None) -> list:
     return sorted({a for a in alarms if alarm_kind(a) not in INFORMATIVE})
 
 
-def resume_from(comp: Compensator, offsets_um, source: str = "line",
-                readback: bool = False) -> list:
-    """:func:`take_held` for a version-2 model's ``offsets_um`` (a mapping axis →
-    offset [µm]; axes it lacks are left as they are; one that is not a number is held)."""
-    if not isinstance(offsets_um, Mapping):
-        return []
-    return take_held(comp, {ax: v for ax, v in offsets_um.items()
-                            if ax in comp.model.axes}, source, readback)
+def line_offsets(model, doc: Mapping, one: str = "offset_um", key: str | None = "offset_um",
+                 several: str = "axes") -> dict:
+    """What a line (a log line, an input line) says of each axis's offset, as
+    :func:`take_held` takes it: axis → raw value, the key None for a version-1 model's
+    one axis (its key ``one``); per axis of a version-2 model ``doc[several]``, a mapping
+    axis → {``key``: value} (``key`` None: axis → value). Axes the line lacks, or the
+    model does not have, are left out (left as they are).
+
+    >>> from types import SimpleNamespace as N
+    >>> line_offsets(N(axes=()), {"controller_offset_um": 2.0}, "controller_offset_um")
+    {None: 2.0}
+    >>> line_offsets(N(axes=("X",)), {"axes": {"X": {"offset_um": 1.5}, "W": {}}})
+    {'X': 1.5}
+    """
+    if not model.axes:
+        return {None: doc[one]} if one in doc else {}
+    per = doc.get(several)
+    if not isinstance(per, Mapping):
+        return {}
+    return {ax: (v if key is None else v.get(key)) for ax, v in per.items()
+            if ax in model.axes and (key is None or isinstance(v, Mapping))}
+
+
+def axes_doc(model, values: Mapping, one: str, several: str) -> dict:
+    """Per-axis values [µm] (axis → value, the key None for a version-1 model's one axis)
+    for a line: ``{one: value}`` for a version-1 model, ``{several: {axis: value}}`` for
+    a version-2 one; null where a value is not a finite number. The inverse of
+    :func:`line_offsets`."""
+    if not model.axes:
+        return {one: um_or_none(values[None])}
+    return {several: {ax: um_or_none(v) for ax, v in values.items()}}
+
+
+def axes_text(values: Mapping, um, one: str = "", several: str = "") -> str:
+    """Per-axis values (as :func:`axes_doc` takes them) for a status line, each through
+    ``um``; ``one`` / ``several`` open the text of one axis / of several."""
+    if None in values:
+        return f"{one}{um(values[None])} um"
+    return several + ", ".join(f"{ax} {um(v)}" for ax, v in values.items()) + " um"
+
+
+def _um_or_not_written(v) -> str:
+    return f"{v:+.3f}" if math.isfinite(v) else "not written"
 
 
 def offsets_text(cyc) -> str:
     """The offset(s) of a cycle for a status line."""
-    def um(v):
-        return f"{v:+.3f}" if math.isfinite(v) else "not written"
-    if cyc.axes:
-        return "offsets " + ", ".join(f"{a.axis} {um(a.offset_um)}" for a in cyc.axes) + " um"
-    return f"offset {um(cyc.offset_um)} um"
+    return axes_text({a.axis if cyc.axes else None: a.offset_um for a in cyc.per_axis()},
+                     _um_or_not_written, "offset ", "offsets ")
+
+
+def held_offsets(comp: Compensator) -> dict:
+    """What each axis holds as far as ``comp`` knows (axis → offset [µm], the key None
+    for a version-1 model's one axis)."""
+    return dict(zip(axis_names(comp.model), (float(v) for v in comp.offsets_um)))
 
 
 def offsets_doc(comp: Compensator, key: str = "offset_um") -> dict:
     """What each axis holds as far as ``comp`` knows, for a ``started`` or ``stopped``
     line: ``{key: value}`` for a version-1 model, ``{"offsets_um": {axis: value}}`` per
     axis for a version-2 one (null for an axis held beyond its clamp)."""
-    if not comp.model.axes:
-        return {key: um_or_none(comp.offset_um)}
-    return {"offsets_um": {ax: um_or_none(v) for ax, v in zip(comp.model.axes,
-                                                              comp.offsets_um)}}
+    return axes_doc(comp.model, held_offsets(comp), key, "offsets_um")
 
 
 def limits_doc(comp: Compensator) -> dict:
@@ -597,8 +632,7 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
     sha = model_sha(model)
     ws = warm_start(cfg.log, comp, sha)
     # what the gateway may have been sent last: adopted inside the clamp only
-    from_log = take_held(comp, ({None: ws.offset_um} if ws.offset_um is not None else {})
-                         if not model.axes else (ws.offsets_um or {}), "log")
+    from_log = take_held(comp, ws.offsets_um, "log")
     run = _JsonRun(comp, reading_names(model), cfg, sha, Clock(ws.time_s), stdout, status)
     n = 0
     try:
@@ -638,11 +672,8 @@ def run_jsonl(model, cfg: LiveConfig, stdin=None, stdout=None, status=None) -> i
 
 def held_text(comp: Compensator) -> str:
     """What each axis holds as far as ``comp`` knows, for a status line."""
-    def um(v):
-        return f"{v:+.3f}" if math.isfinite(v) else "held (not adopted)"
-    if not comp.model.axes:
-        return f"offset {um(comp.offset_um)} um"
-    return ", ".join(f"{a} {um(v)}" for a, v in zip(comp.model.axes, comp.offsets_um)) + " um"
+    return axes_text(held_offsets(comp), lambda v: f"{v:+.3f}" if math.isfinite(v)
+                     else "held (not adopted)", "offset ")
 
 
 class _Stop(Exception):
@@ -709,12 +740,9 @@ class _JsonRun:
                 values[nm] = v if isinstance(v, (int, float)) and not isinstance(v, bool) \
                     else None
             # what the controller holds, read back by the gateway: one rule for all
-            if not self.comp.model.axes and "controller_offset_um" in doc:
-                events = take_held(self.comp, {None: doc["controller_offset_um"]}, "line",
-                                   readback=True)
-            else:
-                events = resume_from(self.comp, doc.get("controller_offsets_um"), "line",
-                                     readback=True)
+            events = take_held(self.comp, line_offsets(
+                self.comp.model, doc, "controller_offset_um", None, "controller_offsets_um"),
+                "line", readback=True)
             for e in events:
                 self.log.write(e)
             cyc, self.clock = clocked_step(
@@ -743,18 +771,12 @@ def with_command_line(cfg: LiveConfig, model, args) -> LiveConfig:
     is refused in one line (exit 2), so that a live run never runs looser than either.
     Axes not named by ``--axis-limits`` take ``--max-offset-um`` / ``--max-step-um``
     where given, else the config's (``[live.axes.<AXIS>]``, else ``[live]``)."""
-    from arfem.scenarios.compensation.replay_axes import axis_limits
+    from arfem.scenarios.compensation.replay import axis_limits
     items = getattr(args, "axis_limits", None) or []
-    common = (args.max_offset_um, args.max_step_um)
-    if not model.axes:
-        axis_limits(model, items, *common)            # refuses --axis-limits (one axis)
-        lims = [(None, cfg.max_offset_um, cfg.max_step_um)]
-        cli = [common]
-    else:
-        off, step = axis_limits(model, items, *common)
-        lims = list(cfg.axes) or [(ax, cfg.max_offset_um, cfg.max_step_um)
-                                  for ax in model.axes]
-        cli = list(zip(off, step))
+    off, step = axis_limits(model, items, args.max_offset_um, args.max_step_um)
+    cli = list(zip(off, step)) if model.axes else [(off, step)]   # one axis: the common
+    lims = list(cfg.axes) or [(ax, cfg.max_offset_um, cfg.max_step_um)
+                              for ax in axis_names(model)]
     named = {it.split("=", 1)[0].strip() for it in items}
     out = []
     for (ax, c_off, c_step), typed in zip(lims, cli):

@@ -90,9 +90,10 @@ import time
 from dataclasses import dataclass, replace
 
 from arfem.params import InputError, one_line
-from arfem.scenarios.live.jsonl import (Clock, CycleLog, Status, answer, axis_names,
-                                  clocked_step, faults, limits_doc, model_sha, offsets_doc,
-                                  refuse_unknown_axes, take_held, um_or_none, warm_start)
+from arfem.scenarios.live.jsonl import (Clock, CycleLog, Status, answer, axes_doc, axes_text,
+                                        axis_names, clocked_step, faults, limits_doc,
+                                        model_sha, offsets_doc, refuse_unknown_axes,
+                                        take_held, um_or_none, warm_start)
 from arfem.strict import check_keys, number, string
 
 __all__ = ["OpcuaConfig", "parse_config", "run_opcua"]
@@ -525,17 +526,12 @@ class _Loop:
 
     def _held_doc(self) -> dict:
         """What the controller holds as last read or accepted, for a log line."""
-        if not self.model.axes:
-            return {"controller_offset_um": um_or_none(self.accepted[None])}
-        return {"controller_offsets_um": {ax: um_or_none(v)
-                                          for ax, v in self.accepted.items()}}
+        return axes_doc(self.model, self.accepted, "controller_offset_um",
+                        "controller_offsets_um")
 
     def _held_text(self) -> str:
-        def um(v):
-            return f"{v:+.3f}" if isinstance(v, float) and math.isfinite(v) else repr(v)
-        if not self.model.axes:
-            return f"{um(self.accepted[None])} um"
-        return ", ".join(f"{ax} {um(v)}" for ax, v in self.accepted.items()) + " um"
+        return axes_text(self.accepted, lambda v: f"{v:+.3f}" if isinstance(v, float)
+                         and math.isfinite(v) else repr(v))
 
     async def _read(self, ua, values, transport):
         """Read the inputs, the time and every axis's offset (the read-back) in ONE
@@ -595,7 +591,7 @@ class _Loop:
         what it last accepted, the others go on."""
         nodes, vals, plan = [], [], []
         for j, an in enumerate(self.nodes.axes):
-            off = cyc.axes[j].offset_um if cyc.axes else cyc.offset_um
+            off = cyc.per_axis()[j].offset_um
             i = ial = None
             if math.isfinite(off) and self.unread[an.axis] is None:
                 i = len(nodes)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.limits import Limits
+from arfem.models.diagnosis.verdict import units_suspect
 from arfem.params import InputError
 from arfem.scenarios.records.dataset import (DISPLACEMENT_ZERO, RecordColumns, RecordDoc,
                                      displacement_zero, read_record_columns,
@@ -35,7 +36,8 @@ from arfem.scenarios.records.dataset import (DISPLACEMENT_ZERO, RecordColumns, R
 __all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
            "read_record_files", "record_toml_of", "MeshRecord", "read_mesh_record",
            "DISPLACEMENT_ZERO", "displacement_zero",
-           "RecordTable", "read_table", "write_record"]
+           "RecordTable", "read_table", "write_record", "sensor_columns",
+           "refuse_unit_slip"]
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,73 @@ def read_mesh_record(path, limits: Limits | None = None,
     scenario, then the CSV (:func:`read_record_files`, :func:`read_table`)."""
     files = read_record_files(path, limits, doc)
     return MeshRecord(files, read_table(files, limits))
+
+
+def sensor_columns(cols, sc, where: str) -> tuple[list, dict]:
+    """(channel columns, {source: power column}) of a v3 record's columns ``cols``
+    (names, or a mapping name → values) against its mesh scenario ``sc``: the one check
+    of ``arfem diagnose`` and ``arfem compensate``. Refused, one line naming the column
+    and what the scenario has: a ``tilt_<s>_urad``, ``d_<s>_um`` or ``T_<s>_C`` whose
+    ``<s>`` is no tilt, displacement or temperature sensor of the scenario, a
+    ``d_<s>_mm``, a ``P_<s>_W`` naming no heat source, and a record without any
+    displacement column."""
+    disp = [s.name for s in sc.sensors if s.quantity == "displacement"]
+    temp = [s.name for s in sc.sensors if s.quantity == "temperature"]
+    tilts = [s.name for s in sc.sensors if s.quantity == "tilt"]
+    srcs = [s.spec.name for s in sc.sources]
+    chans, power = [], {}
+    for c in cols:
+        if c.startswith("tilt_") and c.endswith("_urad"):      # a tilt: evidence
+            if c[5:-5] not in tilts:
+                raise InputError(f"names no tilt sensor of {sc.source} (its tilts: "
+                                 f"{', '.join(tilts) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+            continue
+        if c.startswith("d_") and c.endswith("_um"):
+            if c[2:-3] not in disp:
+                raise InputError(f"names no displacement sensor of {sc.source} (it has "
+                                 f"{', '.join(disp) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+        elif c.startswith("d_") and c.endswith("_mm"):
+            raise InputError("displacements are read in µm: give d_<sensor>_um", f"{where}: "
+                             f"column {c}")
+        elif c.startswith("T_") and c.endswith("_C") and c != "T_ambient_C":
+            if c[2:-2] not in temp:
+                raise InputError(f"thermometer column without a temperature sensor point "
+                                 f"{c[2:-2]!r} in {sc.source} (its thermometers: "
+                                 f"{', '.join(temp) or 'none'})", f"{where}: column {c}")
+            chans.append(c)
+        elif c.startswith("P_") and c.endswith("_W"):
+            if c[2:-2] not in srcs:
+                raise InputError(f"names no heat source of {sc.source} (it has "
+                                 f"{', '.join(srcs)})", f"{where}: column {c}")
+            power[c[2:-2]] = c
+    if not any(c.startswith("d_") for c in chans):
+        raise InputError("needs at least one displacement column d_<sensor>_um (sensors: "
+                         f"{', '.join(disp)})", where)
+    return chans, power
+
+
+def refuse_unit_slip(column: str, measured_um, model_um, where: str) -> None:
+    """Refuse a displacement column whose spread is out of proportion to its model's
+    (``model_um``: the nominal model's response in ``arfem diagnose``, the compensator's
+    prediction in ``arfem compensate``) where the model moves it by more than 1 µm:
+    displacements in mm (or nm) declared as µm, by the verdict module's one rule
+    (:func:`arfem.models.diagnosis.verdict.units_suspect`). One line naming the column;
+    NaN cells are left out of both spreads.
+
+    >>> import numpy as np
+    >>> refuse_unit_slip("d_x_um", np.r_[0.0, 0.012], np.r_[0.0, 12.0], "r.csv")
+    Traceback (most recent call last):
+    ...
+    arfem.params.InputError: r.csv: column d_x_um: spread 0.006 µm against the model's 6 µm: displacements in mm declared as µm?
+    """
+    sn = float(np.nanstd(model_um))
+    sm = float(np.nanstd(measured_um))
+    if sn > 1.0 and units_suspect(sm, sn):
+        slip = "mm" if sm < sn else "nm"
+        raise InputError(f"spread {sm:.3g} µm against the model's {sn:.3g} µm: "
+                         f"displacements in {slip} declared as µm?", f"{where}: column {column}")
 
 
 def write_record(toml_path, scenario: str, columns: dict, name: str | None = None) -> Path:
