@@ -46,6 +46,8 @@ from typing import Mapping
 
 import numpy as np
 
+from arfem.models.observer import ObserverRun
+from arfem.models.speed_table import at_speed
 from arfem.params import InputError
 from arfem.strict import is_json_number
 from arfem.ranges import RANGES, reading_quantity, reading_range
@@ -124,17 +126,8 @@ class SpeedSchedule:
         >>> float(s.at(2000.0)[0][0, 0]), s.at(2000.0)[3]
         (0.9, True)
         """
-        x = self.speeds_rpm
-        v = float(speed_rpm)
-        if v <= x[0] or v >= x[-1]:
-            i = 0 if v <= x[0] else x.size - 1
-            return self.A[i], self.B[i], self.D[i], bool(v < x[0] or v > x[-1])
-        i = int(np.searchsorted(x, v, side="right")) - 1
-        w = (v - x[i]) / (x[i + 1] - x[i])
-        if w == 0.0:                                 # a tabulated speed: its own matrices
-            return self.A[i], self.B[i], self.D[i], False
-        return tuple((1.0 - w) * M[i] + w * M[i + 1] for M in (self.A, self.B, self.D)) + (
-            False,)
+        (A, B, D), outside = at_speed(self.speeds_rpm, (self.A, self.B, self.D), speed_rpm)
+        return A, B, D, outside
 
 
 @dataclass(frozen=True)
@@ -627,7 +620,6 @@ class Compensator:
         self._events = [[] for _ in range(n_axes)]
         self._known = [False] * n_axes              # (0 at a cold start is assumed)
         if self.use_observer and self.model.observer is not None:
-            from arfem.models.observer import ObserverRun
             self._observer = ObserverRun(self.model.observer)
 
     @property

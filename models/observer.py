@@ -61,6 +61,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_discrete_are
 
+from arfem.models.speed_table import at_speed
+
 __all__ = ["ObserverNoise", "Disturbance", "Observer", "Correction", "ObserverRun",
            "augmented_matrices", "steady_state_gain", "design_observer",
            "disturbance_inputs", "fit_noise_scale", "noise_from_table", "NOISE_KEYS",
@@ -358,9 +360,8 @@ class Observer:
         schedule or a known speed."""
         if self.speeds_rpm is None or speed_rpm is None:
             return self.gains[0]
-        from arfem.models.compensator import SpeedSchedule
-        g = self.gains
-        return SpeedSchedule("speed_rpm", self.speeds_rpm, g, g, g).at(speed_rpm)[0]
+        (g,), _ = at_speed(self.speeds_rpm, (self.gains,), speed_rpm)
+        return g
 
     def estimate_sd(self, A, B) -> np.ndarray:
         """The steady-state standard deviation of each disturbance estimate (its unit)

@@ -175,4 +175,4 @@ def test_there_is_one_replay():
         for node in ast.walk(ast.parse(p.read_text("utf-8"))):
             if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "Compensator":
                 builders.add(p.relative_to(REPO).as_posix())
-    assert builders == {"scenarios/compensation/replay.py", "scenarios/live/jsonl.py"}
+    assert builders == {"scenarios/compensation/replay.py", "scenarios/live/config.py"}

@@ -90,7 +90,7 @@ import time
 from dataclasses import dataclass, replace
 
 from arfem.params import InputError, one_line
-from arfem.scenarios.live.jsonl import (Clock, CycleLog, Status, answer, axes_doc, axes_text,
+from arfem.scenarios.live.cycle import (Clock, CycleLog, Status, answer, axes_doc, axes_text,
                                         axis_names, clocked_step, faults, limits_doc,
                                         model_sha, offsets_doc, refuse_unknown_axes,
                                         take_held, um_or_none, warm_start)
