@@ -95,14 +95,14 @@ def shipped_scenario(name: str) -> Path:
     >>> p.name, p.with_suffix(".msh").is_file()
     ('spindle_unit.toml', True)
     """
-    from arfem.scenarios.rod.scenario import builtin_scenario_path
+    from arfem.scenarios.shipped import builtin_scenario_path
     return builtin_scenario_path(str(name))
 
 
 def _file_or_shipped(path: str | Path) -> Path:
     """``path`` itself, or the shipped file of a bare name that is no file here (the
     CLI's rule, :func:`arfem.scenarios.rod.scenario.scenario_file`)."""
-    from arfem.scenarios.rod.scenario import scenario_file
+    from arfem.scenarios.shipped import scenario_file
     return scenario_file(path)
 
 

@@ -30,7 +30,8 @@ def _print_summary(ev: Evaluation, out) -> None:
 def _main_run(args) -> int:
     from arfem.io import read_toml_file
     from arfem.scenarios.geometry import scenario as geo     # a [geometry] scenario (issue 32)
-    from arfem.scenarios.rod.scenario import load_scenario, scenario_file
+    from arfem.scenarios.rod.scenario import load_scenario
+    from arfem.scenarios.shipped import scenario_file
     path = scenario_file(args.scenario)
     toml = read_toml_file(path, args.limits)          # the scenario, read once
     if toml.has_table("geometry"):

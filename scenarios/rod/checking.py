@@ -37,7 +37,8 @@ from arfem.params import InputError, Rod
 from arfem.scenarios.rod.deterministic import blas_threads
 from arfem.scenarios.gate import Criterion, ScenarioResult, Skipped, result_line
 from arfem.scenarios.geometry.check import check_geometry_case, geometry_case_from_dict
-from arfem.scenarios.rod.scenario import Scenario, check_limit, scenario_file, scenario_from_dict
+from arfem.scenarios.rod.scenario import Scenario, check_limit, scenario_from_dict
+from arfem.scenarios.shipped import scenario_file
 
 __all__ = ["collect", "check_scenario", "check_case", "run_checks",
            "DEFAULT_MAX_ABS_PCT", "DEFAULT_MAX_C1_DIFF"]

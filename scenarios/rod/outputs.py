@@ -16,8 +16,8 @@ import numpy as np
 from arfem.fem.heat import solve_modal, solve_theta
 from arfem.models.ar1 import c1_paper, c2_paper, corrected_coefficients
 from arfem.params import InputError
-from arfem.scenarios.rod.scenario import (PAPER_SCENARIOS, Scenario, builtin_scenario_path,
-                                    load_scenario)
+from arfem.scenarios.rod.scenario import PAPER_SCENARIOS, Scenario, load_scenario
+from arfem.scenarios.shipped import builtin_scenario_path
 from arfem.scenarios.rod.evaluation import Evaluation, evaluate, no_progress
 from arfem.io import atomic_write_text, read_text_utf8, sha256_file, write_csv, write_json
 from arfem.scenarios.html_report import write_html_report

@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field, fields
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +60,7 @@ from arfem.strict import check_keys as _unknown
 from arfem.strict import number as _number
 from arfem.strict import string as _string
 from arfem.strict import table as _table
+from arfem.scenarios.shipped import builtin_scenario_path, scenario_file
 
 
 __all__ = ["Scenario", "FemSettings", "OutputSettings", "load_scenario", "scenario_file",
@@ -155,42 +155,6 @@ class Scenario:
     def q_levels(self) -> list[float]:
         """Distinct non-zero heat fluxes of the cycle [W/m²], ascending."""
         return sorted({float(q) for q in self.schedule.q_W_m2 if q > 0})
-
-
-def shipped_dir():
-    """The folder of the scenarios shipped with arfem (``scenarios/data/``, installed as
-    package data), as an importlib resource."""
-    return resources.files("arfem.scenarios").joinpath("data")
-
-
-def builtin_scenario_path(name: str) -> Path:
-    """Path of a scenario file shipped with arfem (``paper_fig2``, ``spindle_unit`` …;
-    ``.toml`` may be given or left out): the one rule by which the CLI, the sweeps, the
-    check and the Python API (:func:`arfem.shipped_scenario`) map a name to a file."""
-    stem = name[:-5] if name.endswith(".toml") else name
-    p = shipped_dir().joinpath(f"{stem}.toml")
-    if not p.is_file():
-        raise InputError(f"no such shipped scenario (there are: {shipped_names()})", name)
-    return Path(str(p))
-
-
-def shipped_names() -> str:
-    """The names of the scenarios shipped with arfem, for a message."""
-    here = shipped_dir()
-    return ", ".join(sorted(q.name[:-5] for q in here.iterdir() if q.name.endswith(".toml")))
-
-
-def scenario_file(path) -> Path:
-    """The file of scenario ``path``: itself, or, for a bare name that is no file here
-    (no folder, no suffix), the shipped scenario of that name
-    (:func:`builtin_scenario_path`)."""
-    p = Path(path)
-    if not p.exists() and not p.suffix and len(p.parts) == 1:
-        if not shipped_dir().joinpath(f"{p.name}.toml").is_file():
-            raise InputError(f"is no file here, nor a shipped scenario (there are: "
-                             f"{shipped_names()})", str(path))
-        p = builtin_scenario_path(p.name)
-    return p
 
 
 def load_scenario(path, limits: Limits | None = None, toml=None) -> Scenario:

@@ -10,8 +10,8 @@ import numpy as np
 from arfem.io import read_toml
 from arfem.limits import Limits
 from arfem.params import InputError
-from arfem.scenarios.rod.scenario import (ALIASES, apply_override, builtin_scenario_path,
-                                    scenario_from_dict)
+from arfem.scenarios.rod.scenario import ALIASES, apply_override, scenario_from_dict
+from arfem.scenarios.shipped import builtin_scenario_path
 from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
 from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep, _flatten,
                                           distinct_values, point_key)
