@@ -13,12 +13,11 @@ line, exit 2, ``--out`` untouched.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from arfem.fem.body import SENSOR_QUANTITIES
-from arfem.io import atomic_write_text, write_csv, write_json
+from arfem.io import write_json
 from arfem.models.geodiagnosis.engine import diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
 from arfem.params import InputError
