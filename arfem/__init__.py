@@ -72,8 +72,8 @@ except _metadata.PackageNotFoundError:  # pragma: no cover - running from an uni
 _API = ("Rod", "Schedule", "paper_cycle", "load_scenario", "shipped_scenario", "solve", "run",
         "solve_fem", "FemResult", "ar1", "AR1Result", "compare", "Comparison", "check",
         "CheckResult", "sweep", "SweepResult", "diagnose", "DiagnosisResult", "diagnose_mesh",
-        "read_record", "Record", "Compensator", "StateSpaceModel", "ar1_model", "read_model",
-        "InputError")
+        "NamedCause", "Holdout", "read_record", "Record", "Compensator", "StateSpaceModel",
+        "ar1_model", "read_model", "InputError")
 
 __all__ = ["__version__", *_API]
 

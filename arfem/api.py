@@ -41,6 +41,7 @@ import numpy as np
 from arfem import __version__
 from arfem.io import json_text
 from arfem.models.compensator import Compensator, StateSpaceModel, ar1_model
+from arfem.models.diagnosis.result import Holdout, NamedCause
 from arfem.params import InputError, Rod, Schedule, paper_cycle
 
 if TYPE_CHECKING:                     # names in annotations only; not loaded at import
@@ -48,7 +49,7 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
     from numpy.typing import ArrayLike
 
     from arfem.models.diagnosis.dataset import Dataset
-    from arfem.models.geodiagnosis.engine import GeoDiagnosis
+    from arfem.models.diagnosis.result import Diagnosis
     from arfem.scenarios.gate import Criterion
     from arfem.scenarios.rod.scenario import Scenario
     from arfem.scenarios.geometry.check import GeometryCheckCase
@@ -57,7 +58,8 @@ if TYPE_CHECKING:                     # names in annotations only; not loaded at
 __all__ = ["Rod", "Schedule", "paper_cycle", "load_scenario", "shipped_scenario", "solve",
            "run", "solve_fem", "FemResult", "ar1", "AR1Result", "compare", "Comparison",
            "check", "CheckResult", "sweep", "SweepResult",
-           "diagnose", "DiagnosisResult", "Compensator", "StateSpaceModel", "ar1_model",
+           "diagnose", "diagnose_mesh", "DiagnosisResult", "NamedCause", "Holdout",
+           "Compensator", "StateSpaceModel", "ar1_model",
            "read_model", "read_record", "Record", "InputError", "__version__"]
 
 
@@ -923,47 +925,6 @@ def sweep(sweep_toml: str | Path, out: str | Path, *, workers: int | None = None
 
 # -- diagnosis of measured data ---------------------------------------------------------------
 
-class NamedCause(NamedTuple):
-    """One cause a diagnosis names (an entry of diagnosis.json's ``causes``).
-
-    Attributes
-    ----------
-    cause : str
-        The cause, one of the contract's vocabulary (``"convection_mismatch"``, ...).
-    parameters : dict of str to float
-        Its contract parameters, each named with its unit (``h_W_m2K`` [W/(m²·K)], ...).
-    ci95 : dict of str to tuple of float
-        Their 95 % intervals (low, high) [the parameter's unit].
-    """
-
-    cause: str
-    parameters: dict
-    ci95: dict
-
-
-class HoldoutScore(NamedTuple):
-    """How the baseline and the extended model score on the hold-out (diagnosis.json's
-    ``holdout``).
-
-    Attributes
-    ----------
-    start_s : float
-        Start of the hold-out [s].
-    baseline_rmse_um, extended_rmse_um : float
-        RMSE of each on the hold-out [µm].
-    gain_pct : float
-        1 − extended/baseline RMSE [%].
-    n_samples : int
-        Hold-out samples scored.
-    """
-
-    start_s: float
-    baseline_rmse_um: float
-    extended_rmse_um: float
-    gain_pct: float
-    n_samples: int
-
-
 class DiagnosisSeries(NamedTuple):
     """The arrays behind a diagnosis's figures, each of shape (N,).
 
@@ -991,66 +952,94 @@ class DiagnosisSeries(NamedTuple):
 
 @dataclass(frozen=True)
 class DiagnosisResult:
-    """What ``arfem diagnose`` finds in a record.
-
-    ``summary`` and ``series`` are the documents the command writes (diagnosis.json,
-    series.csv); ``verdict``, ``causes``, ``holdout``, ``warnings`` and ``arrays`` read
-    the same values typed.
+    """What ``arfem diagnose`` finds in a record, on the rod or on a mesh: the one typed
+    result of both engines (:class:`~arfem.models.diagnosis.result.Diagnosis`) and the
+    ``diagnosis.json`` document written from it.
 
     Attributes
     ----------
-    cause : str
-        The named cause (``"none"`` when the simulation's model explains the record).
+    diagnosis : Diagnosis
+        The typed result: ``verdict``, ``text``, ``causes`` (every cause the selection
+        rules named, established or not, each a ``NamedCause`` with its parameters, 95 %
+        intervals and no-effect values), ``holdout`` (a ``Holdout``: start, how chosen,
+        gains, the scores per channel), ``alternatives``, ``not_searched``, ``channels``
+        (the evidence per channel), ``warnings``, ``series``.
     summary : dict
-        The ``diagnosis.json`` document of ``docs/measured-data.md`` (causes,
-        parameters with 95 % intervals, hold-out RMSEs of the baseline, the extended
-        model and the MLR, warnings).
-    series : dict
-        Arrays behind the figures: time, measured and predicted growths [µm], and the
-        recorded signals by column.
+        The ``diagnosis.json`` document of ``docs/measured-data.md`` (contract v2 for the
+        rod, v3 for a mesh record; the mesh's reduced-model statement and compensators
+        are the command's, not computed here).
     """
 
-    cause: str
+    diagnosis: Diagnosis = field(repr=False)
     summary: dict = field(repr=False)
-    series: dict = field(repr=False)
+
+    @property
+    def cause(self) -> str:
+        """The (first) established cause, ``"none"`` where none is."""
+        return self.diagnosis.cause
 
     @property
     def verdict(self) -> str:
         """``established``, ``unconfirmed``, ``explained`` or ``not_explained``."""
-        return str(self.summary.get("verdict", ""))
+        return self.diagnosis.verdict
+
+    @property
+    def text(self) -> str:
+        """The verdict in words."""
+        return self.diagnosis.text
 
     @property
     def causes(self) -> tuple[NamedCause, ...]:
-        """The causes named, with their parameters and 95 % intervals (empty if none)."""
-        return tuple(NamedCause(c["cause"], dict(c["parameters"]),
-                                {k: tuple(v) for k, v in c["ci95"].items()})
-                     for c in self.summary.get("causes", ()))
+        """The established causes, with their parameters and 95 % intervals (empty if
+        none; a best candidate that is not established is in ``diagnosis.causes``)."""
+        return self.diagnosis.established
 
     @property
-    def holdout(self) -> HoldoutScore:
-        """The hold-out scores of the baseline and the extended model."""
-        h = self.summary["holdout"]
-        return HoldoutScore(float(h["start_s"]), float(h["baseline_rmse_um"]),
-                            float(h["extended_rmse_um"]), float(h["gain_pct"]),
-                            int(h["n_samples"]))
+    def established(self) -> tuple[NamedCause, ...]:
+        """The same as :attr:`causes`."""
+        return self.diagnosis.established
+
+    @property
+    def holdout(self) -> Holdout:
+        """The hold-out: its start and how it was chosen, the gain, per channel the
+        baseline's, the extended model's and the MLR's error."""
+        return self.diagnosis.holdout
 
     @property
     def warnings(self) -> tuple[str, ...]:
         """What a reader of the result must not miss."""
-        return tuple(self.summary.get("warnings", ()))
+        return self.diagnosis.warnings
 
     @property
-    def arrays(self) -> DiagnosisSeries:
-        """The measured and predicted growths of ``series``, typed."""
-        s = self.series
+    def series(self) -> dict:
+        """The arrays behind the figures (rod: ``time_s``, ``growth_um``, ``baseline_um``,
+        ``extended_um``, ``outlier``, the recorded signals; mesh: ``time_s`` and the
+        (N, C) ``measured``, ``baseline``, ``extended``)."""
+        return dict(self.diagnosis.series)
+
+    @property
+    def arrays(self) -> DiagnosisSeries | None:
+        """A rod record's growths typed (None for a mesh record: see :meth:`to_dataframe`)."""
+        s = self.diagnosis.series
+        if self.diagnosis.plant == "mesh":
+            return None
         return DiagnosisSeries(*(np.asarray(s[k]) for k in (
             "time_s", "growth_um", "baseline_um", "extended_um", "outlier")),
             None if s.get("mlr_um") is None else np.asarray(s["mlr_um"]))
 
     def to_dataframe(self) -> pandas.DataFrame:
-        """The equal-length arrays of ``series`` as a pandas DataFrame."""
-        n = len(self.series.get("time_s", ()))
-        return _frame({k: np.asarray(v) for k, v in self.series.items()
+        """The series as a pandas DataFrame (a mesh record: ``<column>``,
+        ``<column>_nominal`` and ``<column>_extended`` per channel)."""
+        s = self.diagnosis.series
+        if self.diagnosis.plant == "mesh":
+            cols = {"time_s": np.asarray(s["time_s"])}
+            for j, c in enumerate(self.diagnosis.holdout.channels):
+                cols[c.column] = s["measured"][:, j]
+                cols[f"{c.column}_nominal"] = s["baseline"][:, j]
+                cols[f"{c.column}_extended"] = s["extended"][:, j]
+            return _frame(cols)
+        n = len(s.get("time_s", ()))
+        return _frame({k: np.asarray(v) for k, v in s.items()
                        if np.ndim(v) == 1 and len(v) == n})
 
     def to_json(self) -> str:
@@ -1192,15 +1181,18 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     ----------
     data : Record, path-like, pandas.DataFrame or dict of columns
         A :class:`Record` from :func:`read_record`; the path of a contract TOML file (as
-        ``arfem diagnose`` takes); or the samples, with the columns of
+        ``arfem diagnose`` takes: a rod record, or a contract-v3 record whose ``[model]``
+        names a mesh scenario, diagnosed on that mesh as :func:`diagnose_mesh` does); or
+        the samples, with the columns of
         ``docs/measured-data.md``: ``time_s`` [s], ``growth_um`` [µm], and ``q_W_m2``
         [W/m²] or ``speed_rpm`` [1/min]; optional ``ambient_C`` [°C] and ``T_<name>_C``
         [°C] (NaN = an empty cell). Samples are validated in memory, no file is written.
     rod : Rod, optional
         The rod the simulation assumes (default: the seed paper's); only with samples
-        (a TOML's rod is its ``[rod]`` table).
+        (a TOML's rod is its ``[rod]`` table; a mesh record's model is its scenario).
     holdout_start_s : float, optional
-        Start of the hold-out [s] (default: the last third of the record).
+        Start of the hold-out [s] (default: the rule of
+        :func:`arfem.models.diagnosis.holdout.default_holdout`, for every plant).
     initial : {"equilibrium", "unknown"}, optional
         Did the record start at equilibrium with the ambient? A TOML or a
         :class:`Record` states it (``[dataset] initial``), and a value given here must
@@ -1217,12 +1209,17 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     Returns
     -------
     DiagnosisResult
+        The one result type of the rod's and the mesh's diagnosis: ``verdict``,
+        ``causes`` (each a ``NamedCause``: ``cause``, ``parameters``, ``ci95``,
+        ``no_effect``), ``holdout`` (a ``Holdout``: ``start_s``, ``how_chosen``,
+        ``gain_pct``, ``channels``), ``warnings``, ``summary`` (diagnosis.json).
 
     Raises
     ------
     InputError
         A missing column, a unit that cannot be right, NaNs in time or input; for
-        samples the message names ``<DataFrame>``, the row (from 0) and the column.
+        samples the message names ``<DataFrame>``, the row (from 0) and the column;
+        ``rod`` or ``initial`` given with a mesh record.
 
     Examples
     --------
@@ -1237,7 +1234,6 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
     >>> d.cause, round(d.summary["causes"][0]["parameters"]["h_W_m2K"])
     ('convection_mismatch', 80)
     """
-    from arfem.models.diagnosis.engine import diagnose as _diagnose
     if not callable(progress):
         from arfem.scenarios.progress import Progress
         # asked for: shown even where stderr is no terminal (a notebook's)
@@ -1245,17 +1241,58 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
             return diagnose(data, rod=rod, holdout_start_s=holdout_start_s, initial=initial,
                             name=name, frame_search=frame_search, progress=bar)
     progress("reading the dataset")
+    if isinstance(data, (str, Path)):
+        from arfem.scenarios.records.dataset import read_record_doc
+        doc = read_record_doc(data)                # the TOML, read once
+        if doc.is_mesh:
+            for key, v in (("rod", rod), ("initial", initial)):
+                if v is not None:
+                    raise InputError(f"applies to the rod's records; {data} names a mesh "
+                                     "scenario ([model]), whose model is that scenario", key)
+            return _diagnose_mesh(doc, holdout_start_s, progress)
+        data = doc
+    return _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search, progress)
+
+
+def _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search,
+                  progress) -> DiagnosisResult:
+    """:func:`diagnose` of a rod record (``data`` a :class:`Record`, the TOML as read, or
+    samples); the warnings of what was assumed join the result's."""
+    import dataclasses
+
+    from arfem.models.diagnosis.engine import diagnose as _diagnose
+    from arfem.models.diagnosis.result import frozen_mapping
+    from arfem.scenarios.diagnosis.document import document
     ds, assumed = _dataset_of(data, rod, initial, name)
     d = _diagnose(ds, holdout_start_s, frame_search, progress)
-    summary = d.summary
+    summary = document(d)
     if assumed:
-        summary = {**summary, "warnings": [*summary.get("warnings", []), *assumed]}
-    return DiagnosisResult(str(summary.get("cause", "")), summary, d.series)
+        summary["warnings"] = [*summary.get("warnings", []), *assumed]
+        d = dataclasses.replace(d, warnings=tuple(summary["warnings"]), evidence=(
+            dataclasses.replace(d.evidence, document=frozen_mapping(summary))))
+    return DiagnosisResult(d, summary)
+
+
+def _diagnose_mesh(record, holdout_start_s, progress) -> DiagnosisResult:
+    """:func:`diagnose` of a contract-v3 record (its path, or its TOML as read) on the
+    mesh scenario it names."""
+    from arfem.models.geodiagnosis.engine import diagnose_geometry
+    from arfem.scenarios.diagnosis.document import document
+    from arfem.scenarios.diagnosis.mesh import load_mesh_record
+    from arfem.scenarios.records.georecord import read_mesh_record
+    mr = read_mesh_record(record.path, None, record) if hasattr(record, "is_mesh") else record
+    rec, model, _plant, _sc, _tm = load_mesh_record(mr, progress)
+    if holdout_start_s is not None and not rec.time_s[0] < holdout_start_s < rec.time_s[-1]:
+        raise InputError(f"{holdout_start_s:g} s is outside the record "
+                         f"({rec.time_s[0]:g}-{rec.time_s[-1]:g} s)", "holdout_start_s")
+    d = diagnose_geometry(model, rec, holdout_start_s, progress)
+    return DiagnosisResult(d, document(d))
 
 
 def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
-                  progress: bool | Callable[[str], None] = False) -> GeoDiagnosis:
-    """Which part of a mesh model is wrong, from a contract-v3 record.
+                  progress: bool | Callable[[str], None] = False) -> DiagnosisResult:
+    """Which part of a mesh model is wrong, from a contract-v3 record: the same as
+    :func:`diagnose` of that record's path.
 
     The record's TOML names the mesh scenario it is checked against (``[model] scenario
     = "spindle_unit.toml"``, ``docs/measured-data.md``, version 3); its displacement
@@ -1269,23 +1306,25 @@ def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
     record : str or path-like
         The record's TOML file (``[model]``, ``[dataset]``, ``[columns]``) or its CSV.
     holdout_start_s : float, optional
-        Start of the hold-out [s] (default: the last third of the record, moved back to
-        the last change of the input before it).
+        Start of the hold-out [s] (default: the rod's rule,
+        :func:`arfem.models.diagnosis.holdout.default_holdout`).
     progress : bool or callable
         True: show the step under way on stderr; a callable is called with each step's
         name instead.
 
     Returns
     -------
-    GeoDiagnosis
+    DiagnosisResult
         ``verdict``, ``established`` (the causes, each with its parameters and 95 %
-        interval), ``holdout_rmse`` per channel [µm, K], ``text`` (the verdict in words).
+        interval), ``holdout`` (the scores per channel [µm, K]), ``text`` (the verdict
+        in words).
 
     Raises
     ------
     InputError
         The record or its scenario is malformed, names a sensor or group the scenario
-        lacks, or its hold-out start lies outside it; the message names the file and key.
+        lacks, is not a mesh record, or its hold-out start lies outside it; the message
+        names the file and key.
 
     Examples
     --------
@@ -1299,40 +1338,28 @@ def diagnose_mesh(record: str | Path, *, holdout_start_s: float | None = None,
     >>> d.established                  # the FEM's own record  # doctest: +SKIP
     ()
     """
-    from arfem.models.geodiagnosis.engine import diagnose_geometry
-    from arfem.scenarios.diagnosis.mesh import load_mesh_record
     if not callable(progress):
         from arfem.scenarios.progress import Progress
         with Progress(8, "arfem.diagnose_mesh", enabled=bool(progress), tty=True) as bar:
             return diagnose_mesh(record, holdout_start_s=holdout_start_s, progress=bar)
-    rec, model, _plant, _sc, _tm = load_mesh_record(record, progress)
-    if holdout_start_s is not None and not rec.time_s[0] < holdout_start_s < rec.time_s[-1]:
-        raise InputError(f"{holdout_start_s:g} s is outside the record "
-                         f"({rec.time_s[0]:g}-{rec.time_s[-1]:g} s)", "holdout_start_s")
-    return diagnose_geometry(model, rec, holdout_start_s, progress)
+    from arfem.scenarios.records.georecord import read_mesh_record
+    return _diagnose_mesh(read_mesh_record(record), holdout_start_s, progress)
 
 
 def _dataset_of(data, rod: Rod | None, initial: str | None, name: str) -> tuple:
     """The loaded dataset of :func:`diagnose`'s ``data`` and the warnings of what was
-    assumed: a :class:`Record` or TOML path keeps its own ``initial`` (a contradicting
+    assumed: a :class:`Record` or a TOML as read keeps its own ``initial`` (a contradicting
     ``initial`` is refused); samples are read in memory, ``"equilibrium"`` assumed and
     said where ``initial`` is not given."""
-    from arfem.scenarios.records.dataset import dataset_from_columns, load_dataset
-    if isinstance(data, (str, Path, Record)):
+    from arfem.scenarios.records.dataset import RecordDoc, dataset_from_columns, load_dataset
+    if isinstance(data, (RecordDoc, Record)):
         if rod is not None:
             raise InputError("give the rod in the dataset TOML's [rod] table, not here", "rod")
         if isinstance(data, Record):
             ds = data._dataset
-        else:
-            from arfem.scenarios.records.dataset import read_record_doc
+        else:                                          # the TOML as read (a RecordDoc)
             from arfem.scenarios.records.georecord import refuse_mesh_channels
-            doc = read_record_doc(data)                # the TOML, read once
-            if doc.is_mesh:
-                raise InputError("names a mesh scenario ([model]): a contract-v3 record is "
-                                 "diagnosed by arfem.diagnose_mesh(path), not by the rod's "
-                                 "diagnosis",
-                                 str(data))
-            ds = load_dataset(doc)
+            ds = load_dataset(data)
             refuse_mesh_channels(ds)
         recorded = "equilibrium" if ds.initial_known else "unknown"
         _initial_of(initial, recorded, str(ds.source))

@@ -43,6 +43,7 @@ from arfem.models.diagnosis.synth import CAUSES, generate
 from arfem.models.diagnosis.verdict import selected_causes
 from arfem.params import InputError, Rod
 from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.synth_files import write_case
 
 PAIRS = ("ambient_drift+sensor_drift", "heat_input_scale+sensor_drift",
@@ -114,7 +115,7 @@ def _one(job):
     toml = write_case(case, Path(tmp) / f"s{seed}")
     t0 = time.perf_counter()
     try:
-        s = diagnose_file(toml).summary
+        s = document(diagnose_file(toml))
     except InputError as e:
         s = {"cause": "none", "causes": [], "warnings": [f"refused: {e}"], "input_error": True}
     return case, s, time.perf_counter() - t0
@@ -207,7 +208,7 @@ def main(argv=None):
     case = generate("speed_dependent_convection", 7, duration_h=72.0)
     toml = write_case(case, tmp / "long")
     t0 = time.perf_counter()
-    s = diagnose_file(toml).summary
+    s = document(diagnose_file(toml))
     wall = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"one 72 h diagnose ({len(case.time_s)} rows): {wall:.1f} s (target <= 10 s, ratio "

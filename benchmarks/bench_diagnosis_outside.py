@@ -158,6 +158,7 @@ _MODEL = None
 def _one(job):
     global _MODEL
     from arfem.fem.heat import build_3d
+    from arfem.scenarios.diagnosis.document import document
     from arfem.scenarios.diagnosis.run import diagnose_file
     from arfem.scenarios.records.synth_files import write_case
     kind, noise, seed, tmp = job
@@ -167,7 +168,7 @@ def _one(job):
     toml = write_case(case, Path(tmp) / f"s{seed}")
     t0 = time.perf_counter()
     try:
-        s = diagnose_file(toml).summary
+        s = document(diagnose_file(toml))
     except InputError as e:
         s = {"cause": "none", "causes": [], "warnings": [f"refused: {e}"]}
     return case, s, time.perf_counter() - t0

@@ -285,7 +285,7 @@ procedure, each fixed as a procedure (no threshold moved, no seed special-cased)
   weighted RMS, which under a random walk is mostly the walk's level on the hold-out
   (100016: -10.8 % on it, from T_housing_C 0.032 -> 0.057 K) while the whitened
   one-step error, step 3's own score, fell (0.981 -> 0.975). Fix: the check is on the
-  whitened hold-out (``GeoDiagnosis.gain_whitened_pct``); the raw gain is still
+  whitened hold-out (``Diagnosis.holdout.gain_whitened_pct``); the raw gain is still
   reported.
 * 100027 (quantised pair missing source spindle_bore + warm start, named a housing
   source alone): beside the housing source the lowest-BIC partner (a bore convection,
@@ -425,17 +425,16 @@ def _score(d, hidden, rec, truth=None) -> dict:
     """One record's scores; ``truth`` (N, r), the noise-free readings, adds the
     residuals against it (``*_true``): what the compensation leaves on the machine,
     the probes' noise taken out."""
-    est = {(c.kind, c.target) for c in d.established}
+    est = {(c.cause, c.target) for c in d.established}
     truth_set = {(h.kind, h.target) for h in hidden}
     cover = []
     if d.verdict == "established":
-        cover = [c for c in (covers(d.named, h) for h in hidden) if c is not None]
-    train = rec.time_s < d.holdout_start_s
+        cover = [c for c in (covers(d.causes, h) for h in hidden) if c is not None]
+    train = rec.time_s < d.holdout.start_s
     hold = ~train
     mlr = mlr_holdout(rec, train)
     disp = [j for j, c in enumerate(rec.channels) if c.kind == "displacement"]
-    ext = d.named.prediction if d.named is not None and d.verdict == "established" \
-        else d.baseline.prediction
+    ext = d.series["extended"] if d.established else d.series["baseline"]
 
     def rms(P, Y=rec.data):
         return float(np.sqrt(np.mean((Y[hold][:, disp] - P[hold][:, disp]) ** 2)))
@@ -444,10 +443,10 @@ def _score(d, hidden, rec, truth=None) -> dict:
     if m is not None:
         mp[:, disp] = m
     out = {"right": est == truth_set, "established": sorted(est), "verdict": d.verdict,
-           "cover": cover, "base": rms(d.baseline.prediction), "ext": rms(ext),
+           "cover": cover, "base": rms(d.evidence.baseline.prediction), "ext": rms(ext),
            "mlr": rms(mp) if m is not None else float("nan")}
     if truth is not None:
-        out.update(base_true=rms(d.baseline.prediction, truth), ext_true=rms(ext, truth),
+        out.update(base_true=rms(d.evidence.baseline.prediction, truth), ext_true=rms(ext, truth),
                    mlr_true=rms(mp, truth) if m is not None else float("nan"))
     return out
 

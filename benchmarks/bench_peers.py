@@ -95,7 +95,7 @@ def score_record(ds):
     from arfem.scenarios.diagnosis.run import compensator_models
     from arfem.params import InputError
     d = diagnose(ds, None, intervals=False)
-    hs = float(d.summary["holdout"]["start_s"])
+    hs = d.holdout.start_s
     models = compensator_models(ds, hs, d)
     peers, why = peers_for(ds, hs)
     want = {"ar1": models.get("model.json"), "mlr": models.get("model_mlr.json"),
@@ -113,7 +113,7 @@ def score_record(ds):
             why[k] = str(exc)
             continue
         sc[k] = float(np.sqrt(np.mean(r[ok] ** 2)))
-    return sc, d.summary["cause"], why
+    return sc, d.cause, why
 
 
 _MODEL = None

@@ -114,15 +114,17 @@ def captured(monkeypatch):
     """The engine replaced by a recorder of the Dataset it is given: what diagnose
     hands the engine is the property tested, not the diagnosis (tested elsewhere)."""
     from arfem.models.diagnosis import engine
+    from arfem.models.diagnosis.result import Diagnosis, Holdout, frozen_mapping
     seen = []
-
-    class _Diag:
-        summary = {"cause": "none", "warnings": []}
-        series = {"time_s": [0.0]}
+    doc = {"cause": "none", "warnings": []}
+    diag = Diagnosis("d", "rod_fem", "explained", "", (), None, (), (), (),
+                     Holdout(0.0, "", 0, 0.0, None, ()), (), (), False, False,
+                     frozen_mapping({"time_s": [0.0]}),
+                     engine.RodEvidence(frozen_mapping(doc), (), None))
 
     def fake(ds, *args, **kwargs):
         seen.append(ds)
-        return _Diag()
+        return diag
     monkeypatch.setattr(engine, "diagnose", fake)
     return seen
 

@@ -145,6 +145,7 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
 
     from arfem.models.diagnosis.engine import diagnose
     from arfem.scenarios.records.dataset import load_dataset
+    from arfem.scenarios.diagnosis.document import document
     from arfem.scenarios.diagnosis.run import compensator_models
     root = Path(__file__).parents[1]
     ds = load_dataset(root / "scenarios" / "data" / "fl_thermal" / f"fl_thermal_ch{ch}.toml")
@@ -152,7 +153,7 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
     # named by the selection rules, but without intervals not established (issue 30):
     # the extended model is still exported, as the best candidate's
     from arfem.models.diagnosis.verdict import named_cause
-    assert named_cause(d.summary) == "frame_expansion" and d.summary["cause"] == "none"
+    assert named_cause(document(d)) == "frame_expansion" and document(d)["cause"] == "none"
     models = compensator_models(ds, 100800.0, d)
     m = models["model_extended.json"]
     assert (m.n_states > 1) == (ch == 5)
@@ -163,7 +164,7 @@ def test_speed_record_frame_model_export_reproduces_the_fit(ch):
     c = Compensator(m)
     pred = [c.step({i.name: float(cols[i.name][k]) for i in m.inputs}).predicted_growth_um
             for k in range(1, ds.time_s.size)]
-    ref = d.models["extended"].prediction[1:]
+    ref = d.evidence.extended.prediction[1:]
     assert np.max(np.abs(np.array(pred) - ref)) <= 1e-9 * np.max(np.abs(ref))
 
 

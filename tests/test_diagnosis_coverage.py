@@ -8,6 +8,7 @@ from arfem.models.diagnosis.candidates import FemPhysics, fit_candidate, paramet
 from arfem.models.diagnosis.synth import generate
 from arfem.params import Rod
 from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.synth_files import write_case
 
 
@@ -54,7 +55,7 @@ def test_heat_scale_and_frame_both_named_with_covering_intervals(tmp_path):
     holds its injected value -- the frame gain included, which is per unit of the rod's
     *true* growth (the fitted coefficient divided by the scale)."""
     case = generate("heat_input_scale+frame_expansion", 1051)
-    s = diagnose_file(write_case(case, tmp_path / "d")).summary
+    s = document(diagnose_file(write_case(case, tmp_path / "d")))
     assert sorted(c["cause"] for c in s["causes"]) == ["frame_expansion", "heat_input_scale"]
     ci = {k: v for c in s["causes"] for k, v in c["ci95"].items()}
     for k, v in case.parameters.items():
@@ -73,5 +74,5 @@ def test_unknown_initial_state_decays_at_the_h_in_force(tmp_path):
     assert np.allclose(_nuisance(t, False, np.full(4, 1e-3))[1], const, rtol=1e-12)
     case = generate("speed_dependent_convection", 5058, warm_start_h=1.0157959136967243)
     assert not case.initial_known
-    s = diagnose_file(write_case(case, tmp_path / "d")).summary
+    s = document(diagnose_file(write_case(case, tmp_path / "d")))
     assert [c["cause"] for c in s["causes"]] == ["speed_dependent_convection"]

@@ -13,6 +13,7 @@ from arfem.models.diagnosis.dataset import hampel_outliers
 from arfem.models.diagnosis.engine import diagnose
 from arfem.models.diagnosis.stats import resolution
 from arfem.scenarios.records.dataset import load_dataset
+from arfem.scenarios.diagnosis.document import document
 
 QUANTUM = 0.255
 
@@ -72,7 +73,7 @@ def test_noise_scale_is_floored_at_quantisation_noise(quantised):
     from arfem.models.diagnosis.stats import noise_sigma
     assert noise_sigma(quantised.growth_um) < QUANTUM / np.sqrt(12)     # what was used
     d = diagnose(quantised)
-    assert d.summary["selection"]["noise_sigma_um"] >= QUANTUM / np.sqrt(12) * 0.99
+    assert document(d)["selection"]["noise_sigma_um"] >= QUANTUM / np.sqrt(12) * 0.99
 
 
 def test_unquantised_record_has_no_resolution():

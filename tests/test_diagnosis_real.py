@@ -7,6 +7,7 @@ import pytest
 
 from arfem.models.diagnosis.verdict import named_cause
 from arfem.scenarios.diagnosis.run import diagnose_file
+from arfem.scenarios.diagnosis.document import document
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "scenarios" / "data" / "fl_thermal"
@@ -43,7 +44,7 @@ def test_committed_table_matches_fresh_run_ch2(first28h):
     hold-out RMSE, the CV-selected frame structure and the verdict -- is what the code
     gives now; tolerance 0.01 µm = the table's rounding."""
     cells = _table_row(2)
-    s = diagnose_file(first28h / "fl_thermal_ch2.toml", 72000.0).summary
+    s = document(diagnose_file(first28h / "fl_thermal_ch2.toml", 72000.0))
     assert cells[1] == named_cause(s)
     assert abs(float(cells[2]) - s["holdout"]["baseline_rmse_um"]) <= 0.01
     assert abs(float(cells[3]) - s["mlr"]["holdout_rmse_um"]) <= 0.01

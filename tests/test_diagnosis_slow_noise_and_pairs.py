@@ -23,12 +23,13 @@ from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.engine import diagnose
 from arfem.models.diagnosis.rules import _unconfirmed
 from arfem.models.diagnosis.synth import generate
+from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.dataset import load_dataset
 from arfem.scenarios.records.synth_files import write_case
 
 
 def _diagnose(case, tmp_path):
-    return diagnose(load_dataset(write_case(case, tmp_path / case.name))).summary
+    return document(diagnose(load_dataset(write_case(case, tmp_path / case.name))))
 
 
 def test_effective_sample_size_sees_slow_wander():

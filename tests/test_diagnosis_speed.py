@@ -189,6 +189,6 @@ def test_on_fit_reports_every_candidate_without_changing_the_diagnosis(tmp_path)
     plain = diagnose(ds, HOLDOUT_S, intervals=False)
     assert set(SPEED_CAUSES) <= {c for c, _, _ in seen}
     assert all(dt == bool for _, dt, _ in seen)
-    assert watched.summary["cause"] == plain.summary["cause"]
+    assert watched.cause == plain.cause
     assert np.array_equal(watched.series["extended_um"], plain.series["extended_um"],
                           equal_nan=True)

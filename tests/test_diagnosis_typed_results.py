@@ -96,7 +96,13 @@ def test_the_public_result_typed_views_read_the_written_document():
     assert [c.cause for c in d.causes] == [c["cause"] for c in s["causes"]]
     assert d.causes and d.causes[0].parameters == s["causes"][0]["parameters"]
     assert {k: list(v) for k, v in d.causes[0].ci95.items()} == s["causes"][0]["ci95"]
-    assert d.holdout._asdict() == {k: s["holdout"][k] for k in d.holdout._fields}
+    h = s["holdout"]
+    assert (d.holdout.start_s, d.holdout.how_chosen, d.holdout.gain_pct,
+            d.holdout.n_samples) == (h["start_s"], h["how_chosen"], h["gain_pct"],
+                                     h["n_samples"])
+    g = d.holdout.channel("growth_um")
+    assert (g.baseline_rmse, g.extended_rmse) == (h["baseline_rmse_um"], h["extended_rmse_um"])
+    assert d.causes[0].no_effect == {"h_W_m2K": 55.0}        # the [rod]'s nominal h
     assert d.warnings == tuple(s["warnings"]) and d.verdict == s["verdict"]
     for k in ("time_s", "growth_um", "baseline_um", "extended_um", "outlier"):
         np.testing.assert_array_equal(getattr(d.arrays, k), d.series[k])

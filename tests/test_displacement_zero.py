@@ -41,18 +41,18 @@ def test_zeroed_warm_start_is_found_with_its_size(setup):  # noqa: F811
                       plant.reference_C, displacement_zero="first_row")
     d = diagnose_geometry(model, rec)
     assert d.verdict == "established", d.text
-    c = d.named.causes[0]
+    c = d.evidence.named.causes[0]
     assert c.kind == "warm_start", d.text
-    lo, hi = d.named.ci95[0]["initial_offset_K"]
-    assert lo <= 3.0 <= hi, (d.named.params[0], (lo, hi))
+    lo, hi = d.evidence.named.ci95[0]["initial_offset_K"]
+    assert lo <= 3.0 <= hi, (d.evidence.named.params[0], (lo, hi))
     # the control: the same zeroed readings taken as from the reference (the issue's
     # "unconfirmed ... a ring sensor drift plus a front contact") do not give 3 K
     ref = make_record("zeroed-as-reference", t, y, cols, plant.names, plant.kinds, power,
                       speed, amb, plant.reference_C)
     r = diagnose_geometry(model, ref)
-    found = (r.verdict == "established" and r.named.causes[0].kind == "warm_start"
-             and r.named.ci95[0]["initial_offset_K"][0] <= 3.0
-             <= r.named.ci95[0]["initial_offset_K"][1])
+    found = (r.verdict == "established" and r.evidence.named.causes[0].kind == "warm_start"
+             and r.evidence.named.ci95[0]["initial_offset_K"][0] <= 3.0
+             <= r.evidence.named.ci95[0]["initial_offset_K"][1])
     assert not found, r.text
 
 

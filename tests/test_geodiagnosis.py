@@ -83,12 +83,12 @@ def test_hidden_cause_named_on_its_group_with_interval(setup, hidden):
     sc, spec, plant, model = setup
     rec, _ = _record(plant, [hidden], 1001)
     d = diagnose_geometry(model, rec)
-    assert d.verdict == "established", (d.text, d.ranking[:3])
-    c = d.named.causes[0]
+    assert d.verdict == "established", (d.text, d.evidence.ranking[:3])
+    c = d.evidence.named.causes[0]
     assert (c.kind, c.target) == (hidden.kind, hidden.target), d.text
     key = hidden.parameter
-    lo, hi = d.named.ci95[0][key]
-    assert lo <= hidden.value <= hi, (key, d.named.params[0][key], (lo, hi))
+    lo, hi = d.evidence.named.ci95[0][key]
+    assert lo <= hidden.value <= hi, (key, d.evidence.named.params[0][key], (lo, hi))
 
 
 @pytest.mark.parametrize("noise", ["walk", "quantised"])
@@ -107,7 +107,7 @@ def test_hidden_cause_under_slow_and_quantised_noise(setup, noise):
     sc, spec, plant, model = setup
     rec, _ = _record(plant, [Hidden("convection_scale", "housing_outer", 2.0)], 1002, noise)
     d = diagnose_geometry(model, rec)
-    assert d.named is not None and [c.name for c in d.named.causes] == [
+    assert d.evidence.named is not None and [c.name for c in d.evidence.named.causes] == [
         "convection_scale:housing_outer"], d.text
 
 
@@ -271,10 +271,10 @@ def test_random_walk_record_with_a_clear_cause_gets_it(setup):
     sc, spec, plant, model = setup
     rec, _ = _record(plant, [Hidden("source_scale", "rear_bearing", 0.7)], 1005, "walk")
     d = diagnose_geometry(model, rec)
-    assert d.verdict == "established", (d.text, d.ranking[:3])
-    assert [c.name for c in d.named.causes] == ["source_scale:rear_bearing"], d.text
-    lo, hi = d.named.ci95[0]["scale"]
-    assert lo <= 0.7 <= hi, (d.named.params, (lo, hi))
+    assert d.verdict == "established", (d.text, d.evidence.ranking[:3])
+    assert [c.name for c in d.evidence.named.causes] == ["source_scale:rear_bearing"], d.text
+    lo, hi = d.evidence.named.ci95[0]["scale"]
+    assert lo <= 0.7 <= hi, (d.evidence.named.params, (lo, hi))
 
 
 def test_clean_walk_record_names_no_drift_on_a_thermometer(setup):
@@ -290,11 +290,11 @@ def test_clean_walk_record_names_no_drift_on_a_thermometer(setup):
     rec, _ = _record(plant, [], 70019, "walk")       # the benchmark's recipe
     d = diagnose_geometry(model, rec)
     assert d.established == (), d.text
-    assert d.named is None or all(c.kind != "sensor_drift" for c in d.named.causes), d.text
+    assert d.evidence.named is None or all(c.kind != "sensor_drift" for c in d.evidence.named.causes), d.text
     j = [c.column for c in rec.channels].index("T_housing_C")
-    train = rec.time_s < d.holdout_start_s
+    train = rec.time_s < d.holdout.start_s
     idx = np.flatnonzero(train & np.isfinite(rec.data[:, j]))
-    y = rec.data[idx, j] - d.baseline.prediction[idx, j]
+    y = rec.data[idx, j] - d.evidence.baseline.prediction[idx, j]
     assert drift_vs_walk_p(y, idx, rec.time_s[idx] / 3600.0) >= 1e-3
 
 
@@ -313,9 +313,9 @@ def test_drift_vs_walk_keeps_a_real_drift_under_a_walk(setup):
     d = diagnose_geometry(model, rec)
     level = ALPHA / len(candidate_causes(make_context(model, rec)))
     j = [c.column for c in rec.channels].index("d_tcp_z_um")
-    train = rec.time_s < d.holdout_start_s
+    train = rec.time_s < d.holdout.start_s
     idx = np.flatnonzero(train & np.isfinite(rec.data[:, j]))
-    y = rec.data[idx, j] - d.baseline.prediction[idx, j]
+    y = rec.data[idx, j] - d.evidence.baseline.prediction[idx, j]
     assert drift_vs_walk_p(y, idx, rec.time_s[idx] / 3600.0) < level
     assert [c.name for c in d.established] == ["sensor_drift:d_tcp_z_um"], d.text
 
@@ -353,7 +353,7 @@ def test_pair_first_cause_revisited_beside_the_second(setup):
     d = diagnose_geometry(model, rec)
     assert sorted(c.name for c in d.established) == [
         "contact_conductance:front_bearing", "missing_source:spindle_bore"], d.text
-    assert [covers(d.named, h) for h in hidden] == [True, True]
+    assert [covers(d.causes, h) for h in hidden] == [True, True]
 
 
 def test_quantiser_bias_bounds_the_mean_reading_error():
@@ -394,7 +394,7 @@ def test_quantised_contact_at_its_true_size_is_named(setup):
     rec = _rng_record(plant, hidden, rng, "s90023", "quantised")
     d = diagnose_geometry(model, rec)
     assert [c.name for c in d.established] == ["contact_conductance:rear_bearing"], d.text
-    assert covers(d.named, hidden[0]) is True
+    assert covers(d.causes, hidden[0]) is True
 
 
 def test_pair_out_of_reach_of_the_best_single_is_found(setup):
@@ -426,7 +426,7 @@ def test_pair_out_of_reach_of_the_best_single_is_found(setup):
     d = diagnose_geometry(model, rec)
     assert sorted(c.name for c in d.established) == [
         "contact_conductance:front_bearing", "missing_source:housing_outer"], d.text
-    assert [covers(d.named, h) for h in hidden] == [True, True]
+    assert [covers(d.causes, h) for h in hidden] == [True, True]
 
 
 def test_warm_start_under_a_walk_is_judged_on_the_whitened_hold_out(setup):
@@ -449,8 +449,8 @@ def test_warm_start_under_a_walk_is_judged_on_the_whitened_hold_out(setup):
     rec = _rng_record(plant, hidden, rng, "s100016", "walk")
     d = diagnose_geometry(model, rec)
     assert [c.name for c in d.established] == ["warm_start"], d.text
-    assert covers(d.named, hidden[0]) is True
-    assert d.gain_whitened_pct > 0 > d.gain_pct
+    assert covers(d.causes, hidden[0]) is True
+    assert d.holdout.gain_whitened_pct > 0 > d.holdout.gain_pct
     assert "one-step hold-out error" in d.text
 
 
@@ -479,7 +479,7 @@ def test_partner_failing_the_hold_out_does_not_end_the_pair_search(setup):
     d = diagnose_geometry(model, rec)
     assert sorted(c.name for c in d.established) == [
         "missing_source:spindle_bore", "warm_start"], d.text
-    assert [covers(d.named, h) for h in hidden] == [True, True]
+    assert [covers(d.causes, h) for h in hidden] == [True, True]
 
 
 def test_first_cause_without_evidence_beside_the_second_is_dropped(setup):
@@ -504,7 +504,7 @@ def test_first_cause_without_evidence_beside_the_second_is_dropped(setup):
     rec = _rng_record(plant, hidden, rng, "s70015", "walk")
     d = diagnose_geometry(model, rec)
     assert [c.name for c in d.established] == ["sensor_drift:d_tcp_z_um"], d.text
-    assert covers(d.named, hidden[0]) is True
+    assert covers(d.causes, hidden[0]) is True
 
 
 def test_named_pair_of_two_nonlinear_causes_is_at_its_joint_optimum(setup):
@@ -533,7 +533,7 @@ def test_named_pair_of_two_nonlinear_causes_is_at_its_joint_optimum(setup):
     d = diagnose_geometry(model, rec)
     assert sorted(c.name for c in d.established) == [
         "contact_conductance:rear_bearing", "convection_scale:shaft_exposed"], d.text
-    assert [covers(d.named, h) for h in hidden] == [True, True]
+    assert [covers(d.causes, h) for h in hidden] == [True, True]
 
 
 def test_channel_far_from_white_is_not_within_the_noise():

@@ -253,6 +253,8 @@ def test_a_cause_that_cannot_be_built_in_writes_no_extended_model(plant):
     marks the other as not built in."""
     from types import SimpleNamespace as N
 
+    from arfem.models.diagnosis.result import Diagnosis, Holdout
+    from arfem.models.geodiagnosis.engine import MeshEvidence, named_causes
     from arfem.models.geodiagnosis.fit import Cause, Fit, make_context, _setting
     from arfem.models.geodiagnosis.problem import make_record
     from arfem.scenarios.diagnosis.mesh_export import diagnosis_models
@@ -274,7 +276,9 @@ def test_a_cause_that_cannot_be_built_in_writes_no_extended_model(plant):
              ({"scale": 1.5}, {"offset_um": 1.0, "drift_um_per_h": 0.1}), True)):
         fit = Fit(causes, params, tuple({k: (v, v) for k, v in p.items()} for p in params),
                   np.zeros((t.size, len(cols))), 0.0, 0, _setting(ctx, causes, {}))
-        d = N(verdict="established", named=fit, holdout_start_s=float(t[-100]))
+        d = Diagnosis("r", "mesh", "established", "", named_causes(fit), None, (), (), (),
+                      Holdout(float(t[-100]), "", 0, 0.0, None, ()), (), (), False, False,
+                      {}, MeshEvidence(fit, fit, (), {}, {}))
         m = diagnosis_models(d, model, rec, sc, files, have)
         st = m.statement
         assert m.nominal is not None and (m.extended is not None) == written, st

@@ -107,22 +107,22 @@ def test_missing_source_near_the_motor_is_found_without_a_table(coarse):
     hidden = Hidden("missing_source", "spindle_bore", 10.0)
     d = diagnose_geometry(model, _record(plant, [hidden], 1102))
     assert d.verdict == "established", d.text
-    assert [c.name for c in d.named.causes] == ["missing_source:spindle_bore"], d.text
-    assert covers(d.named, hidden), d.named.ci95
+    assert [c.name for c in d.evidence.named.causes] == ["missing_source:spindle_bore"], d.text
+    assert covers(d.causes, hidden), d.evidence.named.ci95
 
 
 def test_a_narrowed_search_says_what_went_unsearched(coarse, tmp_path):
     """The same record against a table that lists only the housing: the verdict text
     and diagnosis.json name every cause left out, the true one among them, and no
     missing source is claimed on the group actually searched."""
-    from arfem.scenarios.diagnosis.mesh import summary_of
+    from arfem.scenarios.diagnosis.document import mesh_document
     sc, plant, _ = coarse
     narrow, _ = reduced_model(plant, sc, DiagnosisSpec(("housing_outer",), ()), 8000.0)
     d = diagnose_geometry(narrow, _record(plant, [Hidden("missing_source", "spindle_bore",
                                                          10.0)], 1102))
     assert "Not searched" in d.text and "missing_source:spindle_bore" in d.text, d.text
     assert "missing_source:housing_outer" not in [c.name for c in d.established]
-    s = summary_of(d, narrow, {})
+    s = mesh_document(d, {})
     assert "missing_source:spindle_bore" in s["not_searched"]
     assert json.loads(json.dumps(s["not_searched"])) == list(narrow.unsearched)
 
@@ -140,7 +140,7 @@ def test_causes_that_fit_alike_are_reported_together_and_not_established(coarse)
                                candidates=("spindle_bore", "spindle_bore_twin"))
     d = diagnose_geometry(twin, _record(plant, [Hidden("missing_source", "spindle_bore",
                                                        10.0)], 1102))
-    names = {c.name for c in d.named.causes} | set(d.alternatives)
+    names = {c.name for c in d.evidence.named.causes} | set(d.alternatives)
     assert names == {"missing_source:spindle_bore", "missing_source:spindle_bore_twin"}, \
         (d.text, d.alternatives)
     assert d.verdict != "established" and d.established == ()
@@ -172,8 +172,8 @@ def test_an_error_outside_the_vocabulary_that_a_regression_explains_is_not_expla
     assert d.verdict == "not_explained", d.text
     assert d.established == ()
     assert "temperatures" in d.text or "regression" in d.text, d.text
-    if d.named is not None:      # a best candidate: the regression beats its extended model
-        assert d.beaten_by_mlr and "regression on the thermometers" in d.text, d.text
+    if d.evidence.named is not None:      # a best candidate: the regression beats its extended model
+        assert d.beaten_by_regression and "regression on the thermometers" in d.text, d.text
 
 
 @pytest.mark.parametrize("unit", [

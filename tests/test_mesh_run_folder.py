@@ -100,14 +100,16 @@ def test_rerun_into_the_folder_itself_is_refused(run_dir):
 
 
 def test_rod_diagnosis_refuses_a_mesh_record(run_dir, tmp_path):
-    """The rod's diagnosis never reads a mesh record: with [model] (library and Python
-    API) it names the [model] table; the same record without [model] names its
-    displacement channels; the command, exit 2 and one line, --out not created."""
+    """The rod's diagnosis never reads a mesh record: with [model] (library and the rod's
+    read_record) it names the [model] table (arfem.diagnose takes it to the mesh's
+    diagnosis instead: test_python_api_diagnoses_the_runs_record_on_its_mesh); the same
+    record without [model] names its displacement channels; the command, exit 2 and one
+    line, --out not created."""
     import arfem
     from arfem.scenarios.diagnosis.run import diagnose_file, run_diagnosis
     rec = run_dir / "out" / "record.toml"
     for call in (lambda: diagnose_file(rec), lambda: run_diagnosis(rec, tmp_path / "o"),
-                 lambda: arfem.read_record(rec), lambda: arfem.diagnose(rec)):
+                 lambda: arfem.read_record(rec)):
         with pytest.raises(InputError, match=r"names a mesh scenario \(\[model\]\)"):
             call()
     bare = tmp_path / "bare.toml"
@@ -154,22 +156,28 @@ def test_diagnose_routes_the_runs_record_to_the_mesh_and_names_no_cause(run_dir,
 def test_python_api_diagnoses_the_runs_record_on_its_mesh(run_dir):
     """arfem.diagnose_mesh(record.toml), the Python door to the mesh diagnosis, on the
     FEM's own record: no cause established (the nominal model is the record), the verdict
-    one of the four words; arfem.diagnose on it points to diagnose_mesh."""
+    one of the four words; arfem.diagnose on the same path gives the same result (one
+    API, one result type for the rod and a mesh, issue 41), and refuses the rod's
+    options there."""
     import arfem
     rec = run_dir / "out" / "record.toml"
     d = arfem.diagnose_mesh(rec)
+    assert isinstance(d, arfem.DiagnosisResult)
     assert d.verdict in ("established", "explained", "unconfirmed", "not_explained")
     assert d.established == (), d.text
-    assert set(d.holdout_rmse) >= {"d_tcp_x_um", "d_tcp_y_um", "d_tcp_z_um"}
+    assert {c.column for c in d.holdout.channels} >= {"d_tcp_x_um", "d_tcp_y_um", "d_tcp_z_um"}
     # how the hold-out was chosen is said as it was (an audit found "the last third"
     # written for a hold-out the caller gave); the default is the rod's rule and words
     # since issue 41 (models/diagnosis/holdout.py)
-    assert d.holdout_how.startswith("not given: the last"), d.holdout_how
-    given = arfem.diagnose_mesh(rec, holdout_start_s=0.5 * d.holdout_start_s)
-    assert given.holdout_start_s == 0.5 * d.holdout_start_s
-    assert given.holdout_how.startswith("given by the caller"), given.holdout_how
-    with pytest.raises(InputError, match=r"arfem\.diagnose_mesh"):
-        arfem.diagnose(rec)
+    assert d.holdout.how_chosen.startswith("not given: the last"), d.holdout.how_chosen
+    given = arfem.diagnose_mesh(rec, holdout_start_s=0.5 * d.holdout.start_s)
+    assert given.holdout.start_s == 0.5 * d.holdout.start_s
+    assert given.holdout.how_chosen.startswith("given by the caller"), given.holdout.how_chosen
+    same = arfem.diagnose(rec)
+    assert same.summary == d.summary and same.summary["contract_version"] == 3
+    assert same.to_dataframe().shape[0] == d.diagnosis.series["time_s"].size
+    with pytest.raises(InputError, match="initial"):
+        arfem.diagnose(rec, initial="unknown")
     with pytest.raises(InputError, match="holdout_start_s"):
         arfem.diagnose_mesh(rec, holdout_start_s=-5.0)
 

@@ -1,9 +1,11 @@
 """The diagnosis: what the nominal simulation gets wrong on a measured record, which cause
 explains it, and how much the model extended by that cause gains on a hold-out.
 
-Data flow: :class:`arfem.models.diagnosis.dataset.Dataset` → :func:`diagnose` → :class:`Diagnosis`
-(the contract's ``diagnosis.json`` content plus the series for figures) → writers in
-:mod:`arfem.models.diagnosis.report`.
+Data flow: :class:`arfem.models.diagnosis.dataset.Dataset` → :func:`diagnose` → the one
+typed :class:`~arfem.models.diagnosis.result.Diagnosis` of every plant (its ``evidence`` a
+:class:`RodEvidence`) → ``diagnosis.json`` at the edge
+(:func:`arfem.scenarios.diagnosis.document.document`) and the writers of
+:mod:`arfem.scenarios.diagnosis.report`.
 
 Selection rule (documented in every report; each rule has its one home in
 :mod:`arfem.models.diagnosis.rules`, this module runs them):
@@ -71,7 +73,7 @@ warning.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import NamedTuple
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -94,8 +96,10 @@ from arfem.params import InputError
 from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
 from arfem.models.diagnosis.holdout import default_holdout
+from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
+                                           NamedCause, frozen_mapping)
 
-__all__ = ["Diagnosis", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
+__all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
            "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
            "INFORMATIVE_NOISE_LEVELS"]
 
@@ -115,18 +119,79 @@ CONTRACT_PARAMETERS = {
 }
 
 
-@dataclass
-class Diagnosis:
-    """Result: ``summary`` is the JSON document; ``series`` the arrays for figures/CSV."""
+@dataclass(frozen=True)
+class RodEvidence:
+    """What only the rod's engine has, beside the shared
+    :class:`~arfem.models.diagnosis.result.Diagnosis`.
 
-    summary: dict
-    series: dict
-    text: list = field(default_factory=list)
-    #: the fitted extended model and what it ran on, for export as a compensator
-    #: (:mod:`arfem.models.diagnosis.export`): ``extended`` (CandidateFit), ``causes``,
-    #: ``physics`` (FemPhysics, q_W_m2 records) or ``speed`` (SpeedFrameInputs: what a
-    #: speed record's thermometer frame fit ran on), None where not applicable
-    models: dict = field(default_factory=dict)
+    Attributes
+    ----------
+    document : mapping
+        The rod's evidence as contract v2 lays it out (read-only): the residual analyses
+        of the baseline and the extended model, every candidate's score and naming test,
+        the selection, the AR forms, the MLR, the parsimony and second-cause records and
+        the verdict's detail. :func:`arfem.scenarios.diagnosis.document.document` writes
+        diagnosis.json from it; nothing changes it after :func:`diagnose` returns.
+    notes : tuple of str
+        What the speed-only branch calibrated (its speed-to-heat mapping, the paper
+        AR(1)), in words, for report.md.
+    extended : CandidateFit
+        The fitted extended model (the baseline where nothing was named), for export as a
+        compensator (:mod:`arfem.models.diagnosis.export`).
+    physics : FemPhysics or None
+        The FEM rod the fits ran on (``q_W_m2`` records).
+    speed : SpeedFrameInputs or None
+        What a speed record's thermometer frame fit ran on.
+    """
+
+    document: Mapping
+    notes: tuple
+    extended: CandidateFit
+    physics: FemPhysics | None = None
+    speed: SpeedFrameInputs | None = None
+
+
+def _no_effect(names, nominal_h) -> dict:
+    """The no-effect value of each of ``names`` that has one (:data:`verdict.NO_EFFECT`,
+    the rod's nominal h for ``nominal_h``)."""
+    from arfem.models.diagnosis.verdict import NO_EFFECT
+    return {k: (nominal_h if NO_EFFECT[k] == "nominal_h" else NO_EFFECT[k])
+            for k in names if k in NO_EFFECT}
+
+
+def typed_result(summary: dict, series: dict, evidence_of, nominal_h) -> Diagnosis:
+    """The shared typed result of a rod diagnosis from its contract-v2 ``summary`` (after
+    the verdict), the figures' ``series`` and ``evidence_of(frozen document)`` → its
+    :class:`RodEvidence`."""
+    from arfem.models.diagnosis.verdict import selected_causes
+    vdet = summary["verdict_detail"]
+    wn = vdet["residual_within_noise"]
+    causes = tuple(NamedCause(c["cause"], c["cause"], "", frozen_mapping(c["parameters"]),
+                              frozen_mapping({k: tuple(v) for k, v in c["ci95"].items()}),
+                              frozen_mapping(_no_effect(c["parameters"], nominal_h)),
+                              tuple(c.get("ci95_model_choice", ())))
+                   for c in selected_causes(summary))
+    eq = summary.get("equivalent_alternative")
+    h = summary["holdout"]
+    mlr_h = (summary.get("mlr") or {}).get("holdout_rmse_um")
+    holdout = Holdout(float(h["start_s"]), h["how_chosen"], int(h["n_samples"]),
+                      float(h["gain_pct"]), None,
+                      (ChannelHoldout("growth_um", "um", h["baseline_rmse_um"],
+                                      h["extended_rmse_um"], mlr_h),))
+    channel = ChannelEvidence("growth_um", "um",
+                              float(summary["selection"].get("noise_sigma_um", np.nan)),
+                              float(wn["ljung_box_p_neff"]),
+                              tuple(wn["thermometers_beyond_bound"]))
+    plant = "rod_fem" if summary["input_kind"] == "q_W_m2" else "rod_speed"
+    return Diagnosis(
+        dataset=summary["dataset"], plant=plant, verdict=summary["verdict"],
+        text=vdet["text"], causes=causes, subject=vdet["subject"],
+        failed=tuple(vdet["failed_checks"]),
+        alternatives=(eq["cause"],) if eq and eq.get("excluded_by", "parsimony") is None else (),
+        not_searched=tuple(summary["not_applicable"]), holdout=holdout, channels=(channel,),
+        warnings=tuple(summary["warnings"]), below_resolution=bool(wn["below_resolution"]),
+        beaten_by_regression=bool(vdet["best_candidate_beaten_by_mlr"]),
+        series=frozen_mapping(series), evidence=evidence_of(frozen_mapping(summary)))
 
 
 def _phases(t, running, tau_s):
@@ -922,9 +987,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
     add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
                 getattr(ds, "growth_resolution_um", 0.0))
-    models = {"extended": ext, "causes": tuple(branch.causes),
-              "physics": branch.physics, "speed": branch.speed_inputs}
-    return Diagnosis(summary, series, text, models)
+    return typed_result(summary, series, lambda doc: RodEvidence(
+        doc, tuple(text), ext, branch.physics, branch.speed_inputs), ds.rod.convection_W_m2K)
 
 
 class _Record(NamedTuple):

@@ -171,7 +171,7 @@ def speed_state_space(fit, info, dtau_s: float, *, R_um2: float = 0.0,
         The ``frame_expansion`` fit (its ``frame.coefficients`` and ``time_constant_h``).
     info : SpeedFrameInputs
         What the fit ran on (what :func:`arfem.models.diagnosis.engine.diagnose` keeps in
-        ``Diagnosis.models["speed"]``).
+        ``Diagnosis.evidence.speed``).
     dtau_s : float
         Interval Δτ [s] (the record's).
     R_um2 : float

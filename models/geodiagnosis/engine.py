@@ -71,7 +71,7 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -89,8 +89,10 @@ from arfem.models.geodiagnosis.fit import (BOUNDS, PLAUSIBLE, Fit, FitContext,
                                            implausible,
                                            make_context, whitened, with_noise)
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
+from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
+                                           NamedCause, frozen_mapping)
 
-__all__ = ["GeoDiagnosis", "diagnose_geometry", "mlr_holdout",
+__all__ = ["MeshEvidence", "diagnose_geometry", "named_causes", "mlr_holdout",
            "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
@@ -100,63 +102,25 @@ DELTA_BIC = 10.0
 
 
 @dataclass(frozen=True)
-class GeoDiagnosis:
-    """The diagnosis of one record on a mesh model.
+class MeshEvidence:
+    """What only the mesh engine has, beside the shared :class:`~arfem.models.diagnosis.result.Diagnosis`.
 
     Attributes
     ----------
-    record : str
-    verdict : str, ``established`` | ``explained`` | ``unconfirmed`` | ``not_explained``
     named : Fit or None, the causes the selection rules named (with intervals)
     baseline : Fit, the nominal model
-    holdout_start_s : float
-    holdout_rmse : dict, per channel {column: (baseline, extended, mlr or None)} in
-        record units (µm, K) on the hold-out
-    gain_pct : float, 100 (1 − extended/baseline) of the weighted hold-out RMS
-    gain_whitened_pct : float, the same of the whitened hold-out RMS (each channel's
-        one-step errors under its fitted noise): the gain the verdict requires
-    holdout_how : str, how the hold-out's start was chosen, in words
-    below_resolution : bool, the nominal residual stays below every sensor's resolution
-        (the verdict's practical floor: "explained")
-    beaten_by_mlr : bool, the MLR of eq. 18 beats the best candidate's extended model
-        on the whitened hold-out (so "not explained", not "unconfirmed")
-    unsearched : tuple of str, what the scenario's ``[diagnosis]`` table left out of
-        the search (``missing_source:<group>``, ``contact_conductance:<group>``)
-    alternatives : tuple of str, causes (``a + b`` for a pair) that fit the data as well
-        as the named ones: reported together with them, and the named ones are then
-        not established
-    failed : tuple of str, the checks of ``established`` the named causes fail
-    ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-], the
-        one-step errors over their σ under each channel's fitted noise)
+    ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-]), every
+        single cause screened
+    sigma : dict, per channel noise σ [record unit]
     within_noise : dict, per channel Ljung–Box p on N_eff of the nominal residual
         whitened by the channel's fitted noise
-    text : str, the verdict in words
-    sigma : dict, per channel noise σ [record unit]
     """
 
-    record: str
-    verdict: str
     named: Fit | None
     baseline: Fit
-    holdout_start_s: float
-    holdout_rmse: dict
-    gain_pct: float
-    failed: tuple
     ranking: tuple
+    sigma: dict
     within_noise: dict
-    text: str
-    sigma: dict = field(default_factory=dict)
-    gain_whitened_pct: float = float("nan")
-    holdout_how: str = ""
-    below_resolution: bool = False
-    beaten_by_mlr: bool = False
-    unsearched: tuple = ()
-    alternatives: tuple = ()
-
-    @property
-    def established(self) -> tuple:
-        """The established causes (empty unless the verdict is ``established``)."""
-        return self.named.causes if self.verdict == "established" and self.named else ()
 
 
 def _weighted_rms(ctx: FitContext, pred, rows) -> float:
@@ -503,7 +467,7 @@ def _effect_failures(fit: Fit) -> list:
 def establishment_failures(named: Fit, gain_pct: float) -> tuple:
     """The checks of ``established`` (rule 1 of :mod:`arfem.models.diagnosis.verdict`)
     the named causes fail, in words; ``gain_pct`` is the gain on the whitened hold-out
-    (``GeoDiagnosis.gain_whitened_pct``)."""
+    (``Diagnosis.holdout.gain_whitened_pct``)."""
     failed = _effect_failures(named)
     if not gain_pct > 0:
         failed.append(f"the extended model does not beat the nominal on the whitened "
@@ -582,8 +546,10 @@ def _not_within_noise(v: _Judgement) -> str:
 
 
 def diagnose_geometry(model: GeoModel, rec: GeoRecord, holdout_start_s: float | None = None,
-                      progress=None) -> GeoDiagnosis:
-    """Diagnose ``rec`` against ``model`` (module docstring)."""
+                      progress=None) -> Diagnosis:
+    """Diagnose ``rec`` against ``model`` (module docstring): the shared
+    :class:`~arfem.models.diagnosis.result.Diagnosis`, its ``evidence`` a
+    :class:`MeshEvidence`."""
     import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS first, so that the limit reaches it)
     from threadpoolctl import threadpool_limits
     # one BLAS thread: hundreds of small eigenproblems (k ~ 100-300) ran 40x slower with
@@ -599,7 +565,7 @@ def _regrown(ctx: FitContext, model: GeoModel, s, train):
     return ctx, fit_mesh_causes(ctx, (), train)
 
 
-def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
+def _diagnose(model, rec, holdout_start_s, progress) -> Diagnosis:
     progress = progress or (lambda s: None)
     ctx = make_context(model, rec)
     if holdout_start_s is None:
@@ -649,12 +615,49 @@ def _diagnose(model, rec, holdout_start_s, progress) -> GeoDiagnosis:
     gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
     alts = _alternatives(ctx, named, near, train, hold) if named is not None else ()
     v = _judge(ctx, rec, base, named, train, hold, gain_w, alts)
-    return GeoDiagnosis(rec.name, v.verdict, named, base, float(h0), v.table, float(gain),
-                        v.failed, ranking, v.within,
-                        _text(v, named, gain, model.unsearched),
-                        {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)},
-                        float(gain_w), how, v.below_resolution, v.beaten_by_mlr,
-                        tuple(model.unsearched), tuple(a for a, _, _ in alts))
+    return _result(ctx, rec, model, base, named, v, ranking, alts,
+                   _text(v, named, gain, model.unsearched), float(h0), how, hold,
+                   float(gain), float(gain_w))
+
+
+def named_causes(fit: Fit | None) -> tuple:
+    """The causes of ``fit`` as the shared result names them
+    (:class:`~arfem.models.diagnosis.result.NamedCause`: kind, ``kind:target``, target,
+    parameters, 95 % intervals, each parameter's no-effect value); () for None."""
+    if fit is None:
+        return ()
+    return tuple(NamedCause(c.kind, c.name, c.target, frozen_mapping(p),
+                            frozen_mapping({k: tuple(iv) for k, iv in ci.items()}),
+                            frozen_mapping({k: NO_EFFECT.get(k) for k in p}))
+                 for c, p, ci in zip(fit.causes, fit.params, fit.ci95))
+
+
+def _result(ctx: FitContext, rec: GeoRecord, model: GeoModel, base: Fit, named, v,
+            ranking, alts, text: str, h0: float, how: str, hold, gain: float,
+            gain_w: float) -> Diagnosis:
+    """The shared typed result of a mesh diagnosis."""
+    causes = named_causes(named)
+    ext = named if named is not None else base
+    sigma = {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)}
+    holdout = Holdout(h0, how, int((ctx.valid & hold[:, None]).sum()), gain, gain_w, tuple(
+        ChannelHoldout(c.column, c.unit, *v.table[c.column]) for c in rec.channels))
+    beyond = {}
+    for d, t in v.thermometers_beyond:
+        beyond.setdefault(d, []).append(t)
+    channels = tuple(ChannelEvidence(c.column, c.unit, sigma[c.column], v.within[c.column],
+                                     tuple(beyond.get(c.column, ())))
+                     for c in rec.channels)
+    return Diagnosis(
+        dataset=rec.name, plant="mesh", verdict=v.verdict, text=text, causes=causes,
+        subject=(None if named is None else " + ".join(c.name for c in named.causes)),
+        failed=v.failed, alternatives=tuple(a for a, _, _ in alts),
+        not_searched=tuple(model.unsearched), holdout=holdout, channels=channels,
+        warnings=(), below_resolution=v.below_resolution,
+        beaten_by_regression=v.beaten_by_mlr,
+        series=frozen_mapping({"time_s": rec.time_s, "measured": rec.data,
+                               "baseline": base.prediction, "extended": ext.prediction}),
+        evidence=MeshEvidence(named, base, ranking, frozen_mapping(sigma),
+                              frozen_mapping(v.within)))
 
 
 @dataclass(frozen=True)

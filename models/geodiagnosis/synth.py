@@ -86,12 +86,13 @@ class Hidden:
         return EFFECT_PARAMETER[self.kind]
 
 
-def covers(fit, hidden: Hidden) -> bool | None:
-    """Whether the 95 % interval of ``hidden``'s parameter in ``fit`` (a :class:`.fit.Fit`)
-    holds its true value; None when ``fit`` does not name that cause (kind and target)."""
-    for c, ci in zip(fit.causes, fit.ci95):
-        if (c.kind, c.target) == (hidden.kind, hidden.target):
-            lo, hi = ci[hidden.parameter]
+def covers(causes, hidden: Hidden) -> bool | None:
+    """Whether the 95 % interval of ``hidden``'s parameter among ``causes`` (a
+    diagnosis's named causes, :class:`arfem.models.diagnosis.result.NamedCause`) holds
+    its true value; None when they do not name that cause (kind and target)."""
+    for c in causes:
+        if (c.cause, c.target) == (hidden.kind, hidden.target):
+            lo, hi = c.ci95[hidden.parameter]
             return bool(lo <= hidden.value <= hi)
     return None
 

@@ -35,6 +35,7 @@ from arfem.io import atomic_write_text, write_json
 from arfem.scenarios.compensation.replay import replay
 from arfem.scenarios.records.dataset import load_dataset
 from arfem.scenarios.diagnosis.run import compensator_models
+from arfem.scenarios.diagnosis.document import document
 from arfem.models.diagnosis.verdict import named_cause
 
 HERE = Path(__file__).resolve().parent
@@ -52,7 +53,7 @@ def run() -> dict:
         models = compensator_models(ds, FIT_END_S, diag)
         # the cause the selection rules named, whether or not established (issue 30:
         # without intervals no speed-only cause is; the verdicts are in ch*/report.md)
-        entry = {"channel": f"ch{ch}", "cause": named_cause(diag.summary)}
+        entry = {"channel": f"ch{ch}", "cause": named_cause(document(diag))}
         if "not_exported" in models:
             entry["not_exported"] = list(models["not_exported"])
         for key, fname in (("ar1", "model.json"), ("extended", "model_extended.json"),

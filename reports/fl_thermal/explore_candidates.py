@@ -55,14 +55,14 @@ def one(ch, o_idx, search="average"):
     def rm(p):
         return float(np.sqrt(np.mean((y - p)[m] ** 2)))
     s = d.series
-    return {"ch": ch, "origin_h": org[o_idx] / 3600, "cause": d.summary["cause"],
+    return {"ch": ch, "origin_h": org[o_idx] / 3600, "cause": d.cause,
             "paper_ar": rm(s["baseline_um"]), "mlr": rm(s["mlr_um"]),
             "extended": rm(s["extended_um"]),
             "candidates_block_rmse_um": {c: rm(f.prediction) for c, f in _CAUGHT.items()
                                          if isinstance(c, str)},
             "tests": {c["cause"]: {k: c.get(k) for k in ("score", "cv_per_block_um",
                                                          "median_block_ratio", "significant")}
-                      for c in d.summary["candidates"]}}
+                      for c in d.evidence.document["candidates"]}}
 
 
 def main(argv=None) -> int:

@@ -115,7 +115,7 @@ def one_split(job):
     models = compensator_models(ds_o, float(t[n_train]), diag)
     peers, info = peer_models(ds_o, n_train)
     entry = {"channel": f"ch{ch}", "split_s": split, "block_end_s": end,
-             "cause": diag.summary["cause"], "not_exported": list(models.get("not_exported", [])),
+             "cause": diag.cause, "not_exported": list(models.get("not_exported", [])),
              "peers": info, "scores": {}, "probes": {}}
     want = {"ar1": models.get("model.json"), "mlr": models.get("model_mlr.json"),
             "extended": models.get("model_extended.json"), **peers}

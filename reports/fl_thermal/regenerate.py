@@ -60,6 +60,7 @@ FIRST_28H_ROWS = 6721
 
 from arfem.scenarios.diagnosis.run import diagnose_file
 from arfem.scenarios.diagnosis.run import run_diagnosis
+from arfem.scenarios.diagnosis.document import document
 from arfem.io import atomic_write_text
 from arfem.models.diagnosis.verdict import named_cause
 
@@ -104,7 +105,7 @@ def _one(job):
     job_stability = rest[1] if len(rest) > 1 else STABILITY_ORIGINS
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
-        return job[1:4], diagnose_file(toml, hs, search, limits=limits).summary
+        return job[1:4], document(diagnose_file(toml, hs, search, limits=limits))
     return job[1:4], run_diagnosis(toml, out, hs, True, search, limits=limits,
                                    stability=job_stability)
 
@@ -262,9 +263,9 @@ def _roll_fit(toml, search, n_train, y_train):
     d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
                  intervals=False)     # predictions only: no jackknife refits
     s = d.series
-    fs = d.summary["selection"].get("frame_structure") or {}
+    fs = d.evidence.document["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},
-            {"cause": named_cause(d.summary), "frame_structure": fs.get("label")})
+            {"cause": named_cause(d.evidence.document), "frame_structure": fs.get("label")})
 
 
 def rolling_scores(data, channels=range(1, 6), search="narrow", jobs=2, origins=None,

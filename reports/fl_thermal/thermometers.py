@@ -134,7 +134,7 @@ def base_models(ch: int, split_s: float):
     diag = diagnose(ds_o, float(t[n_train]), "narrow", intervals=False)
     models = compensator_models(ds_o, float(t[n_train]), diag)
     peers, info = peer_models(ds_o, n_train)
-    return ds, ds_o, n_train, models, peers, info, diag.summary["cause"]
+    return ds, ds_o, n_train, models, peers, info, diag.cause
 
 
 def _speed_part(m):

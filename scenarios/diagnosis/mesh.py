@@ -13,22 +13,22 @@ line, exit 2, ``--out`` untouched.
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from arfem.fem.body import SENSOR_QUANTITIES
-from arfem.io import atomic_write_text, write_csv, write_json
-from arfem.models.geodiagnosis.engine import GeoDiagnosis, diagnose_geometry
+from arfem.io import write_json
+from arfem.models.geodiagnosis.engine import diagnose_geometry
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, trial_for, Setting
 from arfem.params import InputError
+from arfem.scenarios.diagnosis.document import mesh_document
 from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
 from arfem.scenarios.records.georecord import (MeshRecord, is_mesh_record, read_mesh_record,
                                               refuse_unit_slip, sensor_columns)
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
-           "summary_of", "mesh_terminal_line", "main_geodiagnose"]
+           "mesh_terminal_line", "main_geodiagnose"]
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
@@ -105,43 +105,6 @@ def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
             refuse_unit_slip(c.column, rec.data[:, j], nom[:, j], where)
 
 
-def _entries(fit) -> list:
-    return [{"cause": c.kind, "target": c.target, "name": c.name,
-             "parameters": dict(p), "ci95": {k: list(v) for k, v in ci.items()}}
-            for c, p, ci in zip(fit.causes, fit.params, fit.ci95)]
-
-
-def summary_of(d: GeoDiagnosis, model: GeoModel, rom_statement: dict) -> dict:
-    """diagnosis.json's content (contract v3 keys; the rod's verdict keys)."""
-    est = d.verdict == "established"
-    ent = _entries(d.named) if d.named is not None else []
-    s = {"contract_version": 3, "dataset": d.record, "model": "mesh", "verdict": d.verdict,
-         "verdict_text": d.text,
-         "cause": ent[0]["name"] if est else "none", "causes": ent if est else [],
-         "parameters": ent[0]["parameters"] if est else {},
-         "parameters_ci95": ent[0]["ci95"] if est else {},
-         "holdout": {"start_s": d.holdout_start_s, "gain_pct": d.gain_pct,
-                     "gain_whitened_pct": d.gain_whitened_pct,
-                     "per_channel": {k: {"baseline_rmse": b, "extended_rmse": e,
-                                         "mlr_rmse": m}
-                                     for k, (b, e, m) in d.holdout_rmse.items()},
-                     "how_chosen": d.holdout_how},
-         "noise_sigma": d.sigma, "nominal_ljung_box_p_neff": d.within_noise,
-         "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": h}
-                     for n, b, p, h in d.ranking],
-         "below_resolution": d.below_resolution,
-         "best_candidate_beaten_by_mlr": d.beaten_by_mlr,
-         "not_searched": list(d.unsearched),
-         "reduced_model": rom_statement}
-    s["alternatives"] = list(d.alternatives)
-    if not est and d.named is not None:
-        s["best_candidate"] = {"cause": " + ".join(c.name for c in d.named.causes)
-                               + "".join(f" or {a}" for a in d.alternatives),
-                               "causes": ent, "named_by_selection_rules": True,
-                               "not_established_because": list(d.failed)}
-    return s
-
-
 def mesh_terminal_line(s: dict) -> str:
     """The command's first line.
 
@@ -212,7 +175,7 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
     tm["diagnose_s"] = time.perf_counter() - t1
     progress("stating the reduced model's error")
     rom = _rom_statement(model, plant, rec)
-    s = summary_of(d, model, rom)
+    s = mesh_document(d, rom)
     progress("exporting the compensators")
     t2 = time.perf_counter()
     models = _export_models(case, d, model, rec, sc, progress)
@@ -241,7 +204,7 @@ def _export_models(case, d, model, rec, sc, progress):
     ds = load_axes_record(case)             # the record as read, not read again
     models = diagnosis_models(d, model, rec, sc, case.files, set(ds.extra_columns),
                               __version__, progress)
-    models.statement["replay"] = replay_table(models, ds, d.holdout_start_s,
+    models.statement["replay"] = replay_table(models, ds, d.holdout.start_s,
                                               str(case.files.toml))
     return models
 

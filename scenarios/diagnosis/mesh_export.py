@@ -72,12 +72,12 @@ def _inputs(model, rec, sc, fit, columns) -> tuple[list, str]:
 def _provenance(d, files, rec, what: str) -> str:
     parts = [f"{what} of {files.scenario.name} fitted by arfem diagnose on record "
              f"{rec.name!r} ({files.toml.name}), fit window {rec.time_s[0]:g}-"
-             f"{float(rec.time_s[rec.time_s < d.holdout_start_s][-1]):g} s, hold-out from "
-             f"{d.holdout_start_s:g} s (verdict {d.verdict})"]
-    if d.named is not None and d.verdict == "established":
-        for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
-            parts.append(c.name + ": " + ", ".join(
-                f"{k} = {v:.4g} [{ci[k][0]:.4g}, {ci[k][1]:.4g}]" for k, v in p.items()))
+             f"{float(rec.time_s[rec.time_s < d.holdout.start_s][-1]):g} s, hold-out from "
+             f"{d.holdout.start_s:g} s (verdict {d.verdict})"]
+    for c in d.established:
+        parts.append(c.name + ": " + ", ".join(
+            f"{k} = {v:.4g} [{c.ci95[k][0]:.4g}, {c.ci95[k][1]:.4g}]"
+            for k, v in c.parameters.items()))
     return "; ".join(parts)
 
 
@@ -87,7 +87,8 @@ def diagnosis_models(d, model, rec, sc, files, columns, arfem_version: str = "",
 
     Parameters
     ----------
-    d : GeoDiagnosis
+    d : Diagnosis, a mesh diagnosis (its ``evidence`` the engine's
+        :class:`~arfem.models.geodiagnosis.engine.MeshEvidence`)
     model : GeoModel, the nominal parametric reduced model of the diagnosis
     rec : GeoRecord
     sc : GeometryScenario
@@ -97,14 +98,15 @@ def diagnosis_models(d, model, rec, sc, files, columns, arfem_version: str = "",
     progress = progress or (lambda s: None)
     dt = np.diff(rec.time_s)
     dtau = float(np.median(dt))
-    train_end = float(rec.time_s[rec.time_s < d.holdout_start_s][-1])
-    est = d.verdict == "established" and d.named is not None
+    train_end = float(rec.time_s[rec.time_s < d.holdout.start_s][-1])
+    named = d.evidence.named
+    est = bool(d.established)
     outs = _outputs(rec, sc)
     st = {"written": False, "file": None, "nominal_file": None, "kind": None,
           "record": files.toml.name, "scenario": files.scenario.name,
           "dtau_s": dtau, "fit_window_s": [float(rec.time_s[0]), train_end],
           "causes": [], "why_not": ""}
-    ins, why = _inputs(model, rec, sc, d.named if est else None, columns)
+    ins, why = _inputs(model, rec, sc, named if est else None, columns)
     if why:
         st["why_not"] = why
         return DiagnosisModels(None, None, st)
@@ -123,19 +125,18 @@ def diagnosis_models(d, model, rec, sc, files, columns, arfem_version: str = "",
                          "model (model_nominal.json is the scenario's model as it is)")
         return DiagnosisModels(nom.model, None, st)
     used = model
-    s = d.named.setting
-    if model.regrow is not None and any(c.nonlinear for c in d.named.causes):
+    s = named.setting
+    if model.regrow is not None and any(c.nonlinear for c in named.causes):
         progress("regrowing the reduced basis at the named setting for the export")
         from arfem.models.geodiagnosis.problem import GeoModel
         used = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
-    kind = "extended:" + "+".join(c.name for c in d.named.causes)
-    ext = export_reduced(used, rec, d.named, dtau_s=dtau, outputs=outs, inputs=ins, kind=kind,
+    kind = "extended:" + "+".join(c.name for c in d.causes)
+    ext = export_reduced(used, rec, named, dtau_s=dtau, outputs=outs, inputs=ins, kind=kind,
                          description=_provenance(d, files, rec, "extended reduced model"),
                          arfem_version=arfem_version,
                          fit_window_s=(float(rec.time_s[0]), train_end))
-    st["causes"] = [{"cause": c.name, "parameters": dict(p),
-                     "ci95": {k: list(v) for k, v in ci.items()}}
-                    for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95)]
+    st["causes"] = [{"cause": c.name, "parameters": dict(c.parameters),
+                     "ci95": {k: list(v) for k, v in c.ci95.items()}} for c in d.causes]
     for e, (nm, how, built) in zip(st["causes"], ext.entered):
         e["enters_as"], e["built_in"] = how, built
     if ext.model is None:

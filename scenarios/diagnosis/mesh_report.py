@@ -17,14 +17,12 @@ __all__ = ["write_report", "highlighted_picture", "named_groups"]
 def named_groups(d, model) -> tuple[list, list]:
     """(surface groups, volume groups) the named causes sit on."""
     surf, vol = [], []
-    if d.named is None:
-        return surf, vol
-    for c in d.named.causes:
-        if c.kind == "convection_scale":
+    for c in d.causes:
+        if c.cause == "convection_scale":
             surf.append(model.convection_groups[model.convections.index(c.target)])
-        elif c.kind == "missing_source":
+        elif c.cause == "missing_source":
             surf.append(c.target)
-        elif c.kind == "contact_conductance":
+        elif c.cause == "contact_conductance":
             vol.append(c.target)
     return surf, vol
 
@@ -83,15 +81,15 @@ def _channels_figure(rec, d, path: Path) -> None:
     n = len(rec.channels)
     fig, axes = plt.subplots(n, 1, figsize=(9, 1.9 * n + 0.6), sharex=True, squeeze=False)
     th = rec.time_s / 3600.0
-    ext = d.named.prediction if d.named is not None else None
+    ext = d.series["extended"] if d.causes else None
     for j, (ax, c) in enumerate(zip(axes[:, 0], rec.channels)):
         ax.plot(th, rec.data[:, j], ".", ms=1.5, color="0.5", label="measured")
-        ax.plot(th, d.baseline.prediction[:, j], color="C0", lw=1.0, label="nominal model")
+        ax.plot(th, d.series["baseline"][:, j], color="C0", lw=1.0, label="nominal model")
         if ext is not None:
             ax.plot(th, ext[:, j], color="C3", lw=1.0,
                     label="extended" if d.verdict == "established" else
                     "best candidate (not established)")
-        ax.axvline(d.holdout_start_s / 3600.0, color="k", ls=":", lw=0.8)
+        ax.axvline(d.holdout.start_s / 3600.0, color="k", ls=":", lw=0.8)
         ax.set_ylabel(f"{c.column}\n[{'µm' if c.unit == 'um' else 'K above ref.'}]",
                       fontsize=8)
     axes[0, 0].legend(fontsize=7, loc="upper right")
@@ -156,24 +154,24 @@ def _markdown(s: dict, d, sc) -> str:
               if s["verdict"] == "established" else
               "![the geometry: no cause established, no group highlighted]"
               "(geometry_named.png)"), ""]
-    if d.named is not None:
+    if d.causes:
         lines += ["| cause | parameter | value | 95 % interval |", "|---|---|---|---|"]
-        for c, p, ci in zip(d.named.causes, d.named.params, d.named.ci95):
-            for k, v in p.items():
-                lo, hi = ci.get(k, (float("nan"), float("nan")))
+        for c in d.causes:
+            for k, v in c.parameters.items():
+                lo, hi = c.ci95.get(k, (float("nan"), float("nan")))
                 lines.append(f"| {c.name} | {k} | {v:.4g} | [{lo:.4g}, {hi:.4g}] |")
         lines.append("")
     lines += _compensator_gist(s.get("extended_model"))
     lines += ["## Hold-out", "",
-              f"Hold-out from {d.holdout_start_s / 3600:.2f} h (the fits saw only the data "
-              f"before it); weighted gain {d.gain_pct:.1f} %; on the whitened hold-out "
-              f"(each channel's one-step errors under its fitted noise, the gain the "
-              f"verdict requires) {d.gain_whitened_pct:.1f} %.", "",
+              f"Hold-out from {d.holdout.start_s / 3600:.2f} h (the fits saw only the data "
+              f"before it); weighted gain {d.holdout.gain_pct:.1f} %; on the whitened "
+              f"hold-out (each channel's one-step errors under its fitted noise, the gain the "
+              f"verdict requires) {d.holdout.gain_whitened_pct:.1f} %.", "",
               "| channel | nominal RMSE | extended RMSE | MLR (eq. 18) RMSE |",
               "|---|---|---|---|"]
-    for k, (b, e, m) in d.holdout_rmse.items():
-        ms = "-" if m is None else f"{m:.3g}"
-        lines.append(f"| {k} | {b:.3g} | {e:.3g} | {ms} |")
+    for h in d.holdout.channels:
+        ms = "-" if h.mlr_rmse is None else f"{h.mlr_rmse:.3g}"
+        lines.append(f"| {h.column} | {h.baseline_rmse:.3g} | {h.extended_rmse:.3g} | {ms} |")
     lines += _compensator_lines(s.get("extended_model"))
     rm = s["reduced_model"]
     lines += ["", "![channels](channels.png)", "",
@@ -203,18 +201,20 @@ def _markdown(s: dict, d, sc) -> str:
     return "\n".join(lines)
 
 
-def _cause_words(c, p: dict, ci: dict) -> str:
-    """A named cause with its first parameter and 95 % interval, for the picture's
-    title (in words: VTK's font draws square brackets like parentheses).
+def _cause_words(c) -> str:
+    """A named cause (:class:`arfem.models.diagnosis.result.NamedCause`) with its first
+    parameter and 95 % interval, for the picture's title (in words: VTK's font draws
+    square brackets like parentheses).
 
     >>> from types import SimpleNamespace as N
-    >>> _cause_words(N(name="source_scale:motor"), {"scale": 1.5}, {"scale": (1.4, 1.6)})
+    >>> _cause_words(N(name="source_scale:motor", parameters={"scale": 1.5},
+    ...                ci95={"scale": (1.4, 1.6)}))
     'source_scale:motor, scale = 1.5 (95 % interval 1.4 to 1.6)'
     """
-    if not p:
+    if not c.parameters:
         return c.name
-    k, v = next(iter(p.items()))
-    lo, hi = ci.get(k, (float("nan"), float("nan")))
+    k, v = next(iter(c.parameters.items()))
+    lo, hi = c.ci95.get(k, (float("nan"), float("nan")))
     return f"{c.name}, {k} = {v:.4g} (95 % interval {lo:.4g} to {hi:.4g})"
 
 
@@ -222,17 +222,15 @@ def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
     """report.md, report.html, geometry_named.png, channels.png and series.csv."""
     # red only for an established cause: a best candidate that failed a check of
     # "established" is not painted as if it were named (the verdict never claims more)
-    est = d.verdict == "established" and d.named is not None
+    est = bool(d.established)
     surf, vol = named_groups(d, model) if est else ([], [])
     if est:
-        surf += _source_groups(sc, [c.target for c in d.named.causes
-                                    if c.kind == "source_scale"])
+        surf += _source_groups(sc, [c.target for c in d.causes if c.cause == "source_scale"])
     title = f"{s['verdict']}: " + (
-        " + ".join(_cause_words(c, p, ci) for c, p, ci in
-                   zip(d.named.causes, d.named.params, d.named.ci95)) if est
-        else "no cause named" + (f" (best candidate {' + '.join(c.name for c in d.named.causes)}"
+        " + ".join(_cause_words(c) for c in d.causes) if est
+        else "no cause named" + (f" (best candidate {' + '.join(c.name for c in d.causes)}"
                                  ", not established: not highlighted)"
-                                 if d.named is not None else ""))
+                                 if d.causes else ""))
     highlighted_picture(plant.body.gmesh, stage / "geometry_named.png", surf, vol,
                         [x for x in sc.sensors if x.point is not None], title)
     _channels_figure(rec, d, stage / "channels.png")
@@ -240,9 +238,9 @@ def write_report(stage: Path, s: dict, d, rec, model, plant, sc) -> None:
     for j, c in enumerate(rec.channels):
         off = sc.reference_C if c.kind == "temperature" else 0.0      # θ back to °C
         cols[f"{c.column}"] = rec.data[:, j] + off
-        cols[f"{c.column}_nominal"] = d.baseline.prediction[:, j] + off
-        if d.named is not None:
-            cols[f"{c.column}_extended"] = d.named.prediction[:, j] + off
+        cols[f"{c.column}_nominal"] = d.series["baseline"][:, j] + off
+        if d.causes:
+            cols[f"{c.column}_extended"] = d.series["extended"][:, j] + off
     write_csv(stage / "series.csv", cols)
     atomic_write_text(stage / "report.md", _markdown(s, d, sc))
     write_html_report(stage, title=f"Diagnosis of {s['dataset']}")

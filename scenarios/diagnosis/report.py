@@ -12,6 +12,7 @@ from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.rules import MIN_GAIN, blocks_needed
 from arfem.models.diagnosis.speed_intervals import at_search_edge
 from arfem.io import atomic_write_text, write_csv, write_json
+from arfem.scenarios.diagnosis.document import document
 
 __all__ = ["write_all"]
 
@@ -33,12 +34,11 @@ def _plain(text: str) -> str:
     return str(text).replace("$", r"\$")
 
 
-def _figures(diag, out: Path):
+def _figures(diag, j: dict, out: Path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     s = diag.series
-    j = diag.summary
     th = s["time_s"] / 3600.0
     good = s["outlier"] == 0
     hs = j["holdout"]["start_s"] / 3600.0
@@ -72,16 +72,16 @@ def _figures(diag, out: Path):
     fig.savefig(out / "growth_residual.png", dpi=110)
     plt.close(fig)
 
-    _correlation_figure(plt, diag, out)
+    _correlation_figure(plt, diag, j, out)
 
 
-def _correlation_figure(plt, diag, out: Path):
+def _correlation_figure(plt, diag, j: dict, out: Path):
     """Residual diagnostics an engineer can read: left, the autocorrelation of each
     residual against lag [h] (how long a misfit persists); right, the cross-correlation
     of the baseline residual with each recorded input against lag [h] (what the misfit
     follows, and how late). Bands: the 95 % significance bound of a correlation on the
     effective number of independent samples (always <= 1)."""
-    s, j = diag.series, diag.summary
+    s = diag.series
     good = s["outlier"] == 0
     good = good & np.isfinite(s["growth_um"])
     t = s["time_s"][good]
@@ -391,15 +391,14 @@ def _naming_lines(j: dict) -> list[str]:
     return L
 
 
-def _markdown(diag) -> str:
-    j = diag.summary
+def _markdown(diag, j: dict) -> str:
     L = [f"# Diagnosis of `{j['dataset']}`", ""] + verdict(j)
     for w in j.get("warnings", []):
         L += [f"> **Warning:** {w}", ""]
     L += _cause_lines(j) + _residual_lines(j) + _naming_lines(j)
     L += _holdout_section(j)
     L += ["", "## Data notes", ""] + [f"- {x}" for n in j["data_notes"] for x in _sentences(n)] + \
-         [f"- {x}" for t in diag.text for x in _sentences(t)] + \
+         [f"- {x}" for t in diag.evidence.notes for x in _sentences(t)] + \
          ["", "Figures: `growth_residual.png` (the record, both models, and their residuals), "
           "`correlations.png` (residual autocorrelation, and cross-correlation with each "
           "input, against lag in hours)."]
@@ -407,13 +406,15 @@ def _markdown(diag) -> str:
 
 
 def write_all(diag, out) -> None:
-    """Write diagnosis.json, series.csv, report.md and the figures into ``out``."""
+    """Write diagnosis.json (:func:`arfem.scenarios.diagnosis.document.document`), series.csv,
+    report.md and the figures of the rod's diagnosis ``diag`` into ``out``."""
     out = Path(out)
-    write_json(out / "diagnosis.json", diag.summary)
+    j = document(diag)
+    write_json(out / "diagnosis.json", j)
     cols = {k: v for k, v in diag.series.items()}
     write_csv(out / "series.csv", cols)
-    atomic_write_text(out / "report.md", _markdown(diag))
-    _figures(diag, out)
+    atomic_write_text(out / "report.md", _markdown(diag, j))
+    _figures(diag, j, out)
 
 
 def _unseen_note(h: dict) -> str:

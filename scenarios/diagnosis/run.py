@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from arfem.models.diagnosis.engine import Diagnosis, diagnose
 from arfem.params import InputError
+from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.dataset import RecordDoc, load_dataset, read_record_doc
 from arfem.scenarios.records.georecord import refuse_mesh_channels, refuse_mesh_record
 from arfem.scenarios.html_report import write_html_report
@@ -67,24 +68,24 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
             why.append(f"model.json: {exc}")
     # the extended model of the cause the selection rules named, established or not
     # (an unconfirmed one is ``best_candidate`` in diagnosis.json; its file says so)
-    if diag is not None and diag.models.get("causes"):
+    if diag is not None and diag.causes:
         from arfem.models.diagnosis import stats as st
         from arfem.models.diagnosis.export import fem_state_space, speed_state_space
-        causes = " + ".join(diag.models["causes"])
-        verdict = diag.summary.get("verdict", "established")
+        causes = " + ".join(c.name for c in diag.causes)
+        verdict = diag.verdict
         label = ("" if verdict == "established" else
                  f"; the best candidate, {verdict}: not established")
         kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
               "arfem_version": __version__}
         try:
-            if diag.models.get("physics") is not None:
+            if diag.evidence.physics is not None:
                 out["model_extended.json"] = fem_state_space(
-                    diag.models["extended"], diag.models["physics"], dt,
+                    diag.evidence.extended, diag.evidence.physics, dt,
                     description=f"FEM rod with {causes} (the diagnosis's extended "
                                 f"model{label}), {span}", **kw)
-            elif diag.models.get("speed") is not None:
+            elif diag.evidence.speed is not None:
                 out["model_extended.json"] = speed_state_space(
-                    diag.models["extended"], diag.models["speed"], dt,
+                    diag.evidence.extended, diag.evidence.speed, dt,
                     description=f"AR(1) of the speed + frame from thermometers (the "
                                 f"diagnosis's extended model{label}), {span}", **kw)
             else:
@@ -128,31 +129,33 @@ def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
         progress("reading the dataset")
     ds = _rod_dataset(toml_path, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
-    add_stability(diag, ds, stability, frame_search, drift_last, progress)
-    return diag
+    return add_stability(diag, ds, stability, frame_search, drift_last, progress)
 
 
 def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narrow",
-                  drift_last: bool = False, progress=None, mapper=map) -> None:
-    """The verdict's stability across hold-out splits, written into ``diag.summary``
-    (``verdict_detail.stability`` and the verdict's text): the diagnosis rerun with its
+                  drift_last: bool = False, progress=None, mapper=map) -> Diagnosis:
+    """``diag`` with the verdict's stability across hold-out splits (in its document's
+    ``verdict_detail.stability`` and the verdict's text): the diagnosis rerun with its
     hold-out from each of up to ``n_origins`` rolling origins
     (:func:`arfem.models.diagnosis.rolling.stability_origins`), without intervals
-    (:func:`arfem.models.diagnosis.rolling.verdict_stability`). ``n_origins`` 0: nothing.
-    Each rerun costs about one diagnosis without intervals."""
+    (:func:`arfem.models.diagnosis.rolling.verdict_stability`). ``n_origins`` 0: ``diag``
+    as it is. Each rerun costs about one diagnosis without intervals."""
     if not n_origins:
-        return
+        return diag
+    import dataclasses
+
     from arfem.models.diagnosis import verdict as vd
+    from arfem.models.diagnosis.engine import typed_result
     from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
     u = ds.q_W_m2 if ds.input_kind == "q_W_m2" else ds.speed_rpm
     origins = stability_origins(ds.time_s, u, n_origins)
-    s = diag.summary
+    s = document(diag)
 
     def at(origin_s):
         if progress is not None:
             progress(f"stability: hold-out from {origin_s / 3600:.2f} h")
         return diagnose(ds, origin_s, frame_search, None, intervals=False,
-                        drift_last=drift_last).summary
+                        drift_last=drift_last).evidence.document
 
     subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
     if s["verdict"] == "explained" and not s.get("causes"):
@@ -164,6 +167,9 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
     st = verdict_stability(at, origins, subject, mapper)
     s["verdict_detail"]["stability"] = st
     s["verdict_detail"]["text"] = vd.text(s)
+    return typed_result(s, diag.series,
+                        lambda doc: dataclasses.replace(diag.evidence, document=doc),
+                        ds.rod.convection_W_m2K)
 
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
@@ -179,10 +185,10 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
         progress("reading the dataset")
     ds = _rod_dataset(doc, limits)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
-    add_stability(diag, ds, stability, frame_search, drift_last, progress)
+    diag = add_stability(diag, ds, stability, frame_search, drift_last, progress)
     if progress is not None:
         progress("writing outputs")
-    models = compensator_models(ds, diag.summary["holdout"]["start_s"], diag)
+    models = compensator_models(ds, diag.holdout.start_s, diag)
     for why in models.pop("not_exported", []):
         print(f"note: {why}")
     with staged_out_dir(out, force) as stage:
@@ -190,7 +196,7 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
         for name, m in models.items():
             write_model(stage / name, m)
         write_html_report(stage)
-    return diag.summary
+    return document(diag)
 
 
 def rod_terminal_line(s: dict) -> str:
