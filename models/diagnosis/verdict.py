@@ -643,7 +643,7 @@ def text(summary) -> str:
     if v == "established":
         causes = summary.get("causes") or []
         acts = "; ".join(ACTIONS[c["cause"]] for c in causes if c["cause"] in ACTIONS)
-        return (f"The simulation misses "
+        return ("The simulation misses "
                 + " and ".join(f"`{c['cause']}` ({_params(c)})" for c in causes)
                 + f", with 95 % intervals in brackets; adding it cuts the hold-out error from "
                 f"{_f(h['baseline_rmse_um'])} to {_f(h['extended_rmse_um'])} µm RMSE "

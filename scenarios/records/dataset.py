@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,9 @@ import numpy as np
 from arfem.io import CsvTable, TomlFile, read_csv_table, read_toml_file
 from arfem.limits import Limits, resolve
 from arfem.ranges import check_range, first_outside, reading_quantity
+
+if TYPE_CHECKING:
+    from arfem.models.diagnosis.dataset import Dataset
 from arfem.strict import check_keys
 # the rod's Dataset and its robust flags (arfem.models.diagnosis.dataset, .stats) are
 # imported where a Dataset is built: they load scipy.stats (~1 s), which a replay of a
