@@ -20,7 +20,8 @@ gives
   values into the plant's own setting, and :meth:`Plant.design` gives at that setting
   the nominal prediction (N, C) and one column (N, C) per linear parameter (the
   response to a unit change of it), so that the linear parameters are a least-squares
-  fit: prediction = base + Σ_k β_k column_k, parameter = no-effect + β.
+  fit: prediction = base + Σ_k β_k column_k, parameter = no-effect + β (and, where
+  the nominal model has unknowns of its own, its nuisance columns, fitted alike).
 
 Two plants implement it: the user's mesh (:class:`arfem.models.geodiagnosis.plant.MeshPlant`,
 the parametric reduced model of a Gmsh unit) and the seed paper's rod
@@ -156,11 +157,17 @@ class Design:
         the change of the prediction per unit of the parameter.
     setting : object
         The plant's own setting (what its nonlinear values mean to it).
+    nuisance : tuple of ndarray (N, C)
+        Columns of the nominal model's own unknowns (e.g. the free response of an
+        unknown initial state), fitted by least squares in every fit, the nominal's
+        included, and never reported as a cause; () for a plant whose nominal model is
+        fully given.
     """
 
     base: np.ndarray
     columns: tuple
     setting: Any
+    nuisance: tuple = ()
 
 
 def linear_value(p: Parameter, beta: float) -> float:

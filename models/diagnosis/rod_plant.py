@@ -21,6 +21,10 @@ Causes (the one vocabulary, :func:`arfem.models.plant.cause`):
 * ``warm_start``: the rod starts uniformly initial_offset_K [K] above the reference
   (the free response of a uniform 1 K start is αL·10⁶ minus the growth response to a
   1 K ambient step: linearity, a uniform 1 K with a 1 K ambient being equilibrium).
+  A record that says ``initial = "unknown"`` (contract) declares it: there the
+  uniform start's free response is a nuisance column of the nominal model
+  (:attr:`arfem.models.plant.Design.nuisance`), not a cause, as the rod engine's own
+  nuisance columns are.
 
 Its reduction is exact at every h (:mod:`.forward`), so it never regrows. Named
 properties where the rod differs from the mesh: one channel and no modelled
@@ -76,6 +80,7 @@ class RodPlant:
     q_W_m2 : ndarray (N,), recorded end flux [W/m²]
     ambient_C : ndarray (N,) or None, recorded ambient [°C]
     load_shape : ndarray (N,), q / max q [-]
+    initial_known : bool, False: the record declares an unknown (warm) start
     cache : dict, growth responses per (h_scale, lag_s)
     """
 
@@ -86,6 +91,7 @@ class RodPlant:
     q_W_m2: np.ndarray
     ambient_C: np.ndarray | None
     load_shape: np.ndarray
+    initial_known: bool = True
     cache: dict = field(default_factory=dict, repr=False)
     kind: str = "rod"
     channels: tuple = (Channel(GROWTH_COLUMN, "growth", "displacement", 0, 1.0, "um"),)
@@ -94,8 +100,9 @@ class RodPlant:
 
     def candidate_causes(self) -> tuple:
         """Every single cause the rod and this record can tell (module docstring)."""
-        return (cause("convection_scale", "lateral_surface"), cause("source_scale", "end_flux"),
-                cause("sensor_drift", GROWTH_COLUMN, "um"), cause("warm_start"))
+        out = (cause("convection_scale", "lateral_surface"), cause("source_scale", "end_flux"),
+               cause("sensor_drift", GROWTH_COLUMN, "um"))
+        return out + ((cause("warm_start"),) if self.initial_known else ())
 
     def setting(self, causes, values: dict) -> RodSetting:
         """The :class:`RodSetting` of ``causes`` at ``values`` {cause name: value}."""
@@ -141,7 +148,8 @@ class RodPlant:
                 cols.append(gw[:, None])
             elif c.kind == "sensor_drift":
                 cols += [np.ones((th.size, 1)), th[:, None].copy()]
-        return Design((gq + ga)[:, None], tuple(cols), setting)
+        return Design((gq + ga)[:, None], tuple(cols), setting,
+                      () if self.initial_known else (gw[:, None],))
 
     def regrown(self, setting: RodSetting) -> "RodPlant":
         """The rod itself: its reduction is exact at every h (never called)."""
@@ -161,4 +169,4 @@ def rod_plant(ds, model: RodModel | None = None) -> RodPlant:
     shape = q / float(np.max(q)) if np.max(q) > 0 else np.zeros_like(q)
     return RodPlant(model or RodModel(ds.rod), ds.name, np.asarray(ds.time_s, float),
                     y[:, None], q, None if ds.ambient_C is None else np.asarray(ds.ambient_C),
-                    shape)
+                    shape, bool(ds.initial_known))

@@ -223,13 +223,15 @@ def _setting(ctx: FitContext, causes, nl: dict):
 
 
 def _design(ctx: FitContext, causes, s):
-    """(base prediction (N, C), linear columns [(N, C)], their (cause index, parameter))."""
+    """(base prediction (N, C), linear columns [(N, C)], their (cause index, parameter)):
+    the causes' columns, then the plant's nuisance columns (``(None, None)``: fitted in
+    every fit, the nominal's included, and never reported)."""
     d = ctx.plant.design(causes, s)
     names = [(i, p) for i, c in enumerate(causes) for p in c.linear_parameters]
     if len(names) != len(d.columns):
         raise ValueError(f"{ctx.plant.kind} plant: {len(d.columns)} columns for "
                          f"{len(names)} linear parameters")
-    return d.base, list(d.columns), names
+    return d.base, list(d.columns) + list(d.nuisance), names + [(None, None)] * len(d.nuisance)
 
 
 def _lstsq(ctx: FitContext, base, cols, rows):
@@ -423,6 +425,8 @@ def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool =
                 ci[i][c.nonlinear] = (v - _Z95 * se[k], v + _Z95 * se[k])
             k += 1
     for j, (i, par) in enumerate(names):
+        if par is None:                 # a nuisance column of the plant
+            continue
         v = linear_value(par, beta[j])
         nm = par.name
         params[i][nm] = v
