@@ -1242,16 +1242,23 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
                             name=name, frame_search=frame_search, progress=bar)
     progress("reading the dataset")
     if isinstance(data, (str, Path)):
-        from arfem.scenarios.records.dataset import read_record_doc
-        doc = read_record_doc(data)                # the TOML, read once
-        if doc.is_mesh:
-            for key, v in (("rod", rod), ("initial", initial)):
-                if v is not None:
-                    raise InputError(f"applies to the rod's records; {data} names a mesh "
-                                     "scenario ([model]), whose model is that scenario", key)
-            return _diagnose_mesh(doc, holdout_start_s, progress)
-        data = doc
+        data = _record_doc(data, rod=rod, initial=initial)     # the TOML, read once
+        if data.is_mesh:
+            return _diagnose_mesh(data, holdout_start_s, progress)
     return _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search, progress)
+
+
+def _record_doc(path, **rod_only):
+    """A record's TOML, read once; ``rod_only`` (the rod's own options) refused, each
+    by its key, where the record names a mesh scenario."""
+    from arfem.scenarios.records.dataset import read_record_doc
+    doc = read_record_doc(path)
+    if doc.is_mesh:
+        for key, v in rod_only.items():
+            if v is not None:
+                raise InputError(f"applies to the rod's records; {path} names a mesh "
+                                 "scenario ([model]), whose model is that scenario", key)
+    return doc
 
 
 def _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search,

@@ -72,6 +72,16 @@ class InputError(ValueError):
         loc = f"{where}: {self.where}" if self.where else where
         return InputError(self.message, loc)
 
+    def in_table(self, table: str) -> "InputError":
+        """Return a copy located at the key ``<table>.<where>`` (a field of a table, e.g.
+        :class:`Rod`'s ``poisson_ratio`` read from ``[rod]``), as every other key is
+        named; ``table`` itself where it has no location.
+
+        >>> str(InputError("must lie in (-1, 0.5), got 0.6", "poisson_ratio").in_table("rod"))
+        'rod.poisson_ratio: must lie in (-1, 0.5), got 0.6'
+        """
+        return InputError(self.message, f"{table}.{self.where}" if self.where else table)
+
 
 #: Plausible ranges [lo, hi] of the quantities a user types or records, with the unit
 #: they must be in: a value outside is almost certainly in the wrong unit, or no reading.

@@ -68,7 +68,7 @@ def test_scenario_source_is_the_law_at_each_phase_speed(tmp_path):
     np.testing.assert_allclose(src.values, 0.01 * b.power_W([4000.0, 12000.0, 0.0]),
                                rtol=1e-14)
     assert src.values[2] == 0.0 and 2.0 < src.values[0] < src.values[1] < 20.0
-    sc = load_geometry_scenario(_scenario(tmp_path, "power_W = { a = 1.0, b = 0.003 }"))
+    sc = load_geometry_scenario(_scenario(tmp_path, "power_W = { a = 1.0, b = 0.003, m = 1.0 }"))
     np.testing.assert_allclose(sc.sources[0].values, [13.0, 37.0, 1.0])
     assert sc.sources[0].law == PowerLaw(1.0, 0.003, 1.0)
 
@@ -92,6 +92,30 @@ def test_bad_speed_power_data_is_one_line(tmp_path, source, says):
     assert r.returncode == 2 and len(err) == 1, r.stderr
     assert "box.toml" in err[0] and "heat_source[0]" in err[0] and says in err[0], err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("source, h_law, key", [
+    ("power_W = { a = 1.0, b = 0.003 }", None, "heat_source[0].power_W"),
+    ("power_W = 5.0", "h_W_m2K = { a = 10.0, b = 0.01 }", "convection[0].h_W_m2K"),
+])
+def test_a_speed_law_without_its_exponent_is_refused(tmp_path, source, h_law, key):
+    """A speed term b·n^m without m: the exponent sets how the heat (or h) grows with
+    the speed, so the reader refuses it in one line naming the file and the key rather
+    than take m = 1 (a new user's audit found it taken silently); a law without a
+    speed term (b absent or 0) needs no m."""
+    toml = _scenario(tmp_path, source)
+    if h_law is not None:
+        toml.write_text(toml.read_text().replace("h_W_m2K = { a = 10.0, b = 0.01, m = 1.0 }",
+                                                 h_law))
+    r = subprocess.run([sys.executable, "-m", "arfem.scenarios.cli", "run", str(toml),
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    err = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(err) == 1, r.stderr
+    assert err[0].startswith(f"arfem: error: {toml}: {key}: b is given but not m"), err
+    assert not (tmp_path / "o").exists()
+    from arfem.scenarios.geometry.scenario import load_geometry_scenario
+    toml = _scenario(tmp_path, "power_W = { a = 1.0, b = 0.0 }")
+    assert load_geometry_scenario(toml).sources[0].law == PowerLaw(1.0, 0.0, 1.0)
 
 
 @pytest.fixture(scope="module")

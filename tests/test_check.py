@@ -177,7 +177,7 @@ def test_a_directory_checks_its_scenarios_and_says_what_it_skipped(tmp_path, cap
     ([], "\n[check]\nmax_abs_diff_pct_of_peak = 200.0\n", "must be in (0, 100]"),
     ([], "\n[check]\nmodel = \"fancy\"\n", "check.model: must be one of"),
     ([], "\n[check]\nar_rod = { convection_W_m2k = 80.0 }\n", "check.ar_rod.convection_W_m2k"),
-    ([], "\n[check]\nar_rod = { poisson_ratio = 0.6 }\n", "check.ar_rod: poisson_ratio"),
+    ([], "\n[check]\nar_rod = { poisson_ratio = 0.6 }\n", "check.ar_rod.poisson_ratio: must lie"),
 ])
 def test_bad_input_is_one_line_and_status_2(tmp_path, capsys, args, extra, needle):
     """Bad limits (flags or [check]) end with one error line, status 2, and no report."""

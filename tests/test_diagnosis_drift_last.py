@@ -79,7 +79,14 @@ def test_speed_only_options_on_a_heat_flux_record_are_reported_as_ignored(tmp_pa
                "warnings": [], "holdout": {"baseline_rmse_um": 1.0, "extended_rmse_um": 1.0,
                                            "gain_pct": 0.0, "start_s": 0.0,
                                            "how_chosen": "given"}}
-    monkeypatch.setattr(d, "run_diagnosis", lambda *a, **k: summary)
+    from types import SimpleNamespace
+
+    from arfem.models.diagnosis.result import ChannelHoldout, Diagnosis, Holdout
+    diag = Diagnosis("x", "rod_fem", "explained", "text", (), None, (), (), (),
+                     Holdout(0.0, "given", 10, 0.0, None,
+                             (ChannelHoldout("growth_um", "um", 1.0, 1.0, None),)),
+                     (), (), False, False, {}, SimpleNamespace(document=summary))
+    monkeypatch.setattr(d, "diagnose_and_write", lambda *a, **k: diag)
     monkeypatch.chdir(tmp_path)          # the command reads the record's TOML first
     (tmp_path / "x.toml").write_text("")
     for extra, note in (([], None), (["--drift-last"], "--drift-last apply"),

@@ -50,6 +50,19 @@ def test_rod_convection_in_kw_is_refused_in_one_line(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_rod_value_the_rod_refuses_is_named_as_its_key(tmp_path, capsys):
+    """A [rod] value that passes the reader's number check but not the rod's own
+    (a negative radius) is named ``rod.radius_m`` as every other key is (a new user's
+    audit: it read ``rod: radius_m``)."""
+    toml = write_case(generate("none", 11, duration_h=3.0), tmp_path / "data")
+    toml.write_text(toml.read_text().replace("radius_m = 0.1", "radius_m = -0.1"))
+    rc = cli(["diagnose", str(toml), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert err[0].startswith(f"arfem: error: {toml}: rod.radius_m: must be > 0"), err
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("value", ["0.000", "12.500"])
 def test_dead_growth_sensor_is_one_clear_line(tmp_path, capsys, value):
     """A constant or all-zero growth_um (a dead sensor) once raised a TypeError traceback

@@ -16,7 +16,8 @@ import pytest
 from arfem.models.diagnosis import verdict as vd
 from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.diagnosis.run import add_stability, run_diagnosis, rod_terminal_line
+from arfem.scenarios.diagnosis.run import add_stability, run_diagnosis
+from arfem.scenarios.diagnosis.terminal import diagnosis_terminal_line
 from arfem.scenarios.diagnosis.report import verdict as report_verdict
 from arfem.scenarios.records.synth_files import write_case
 
@@ -148,12 +149,24 @@ def test_a_thermometer_beyond_its_bound_is_not_within_noise():
     assert out["verdict_detail"]["residual_within_noise"]["thermometers_beyond_bound"] == ["T_a_C"]
 
 
+def _typed(s):
+    """The typed result of the hand-made summary ``s`` after the verdict, as the engine
+    makes it (:func:`arfem.models.diagnosis.engine.typed_result`); the keys the engine
+    adds and the rules do not read filled in."""
+    from types import SimpleNamespace
+
+    from arfem.models.diagnosis.engine import typed_result
+    full = dict(s, holdout=dict(s["holdout"], n_samples=100, how_chosen="given"),
+                selection={}, input_kind="speed_rpm", not_applicable=[], warnings=[])
+    return typed_result(full, {}, lambda doc: SimpleNamespace(document=doc), 55.0)
+
+
 def test_terminal_line_and_report_carry_the_json_verdict():
     """The three outputs agree: the terminal line names the verdict and reads
     ``cause = none`` for an unconfirmed cause (the best candidate marked as such), and
     report.md opens with diagnosis.json's own verdict text."""
     s = _verdict(_summary(ci=(-0.1, 0.6)), MISFIT)
-    line = rod_terminal_line(s)
+    line = diagnosis_terminal_line(_typed(s))
     assert "verdict = unconfirmed" in line and "cause = none" in line
     assert "best candidate frame_expansion, not established" in line
     head = "\n".join(report_verdict(s))

@@ -552,16 +552,6 @@ def test_channel_far_from_white_is_not_within_the_noise():
     assert np.isnan(whiteness_p(rng.normal(size=8)))
 
 
-def test_terminal_line_names_the_gain_the_verdict_uses():
-    """The first line shows the raw hold-out gain and the whitened one the verdict
-    requires, labelled (an audit found the raw one alone, unlabelled)."""
-    from arfem.scenarios.diagnosis.mesh import mesh_terminal_line
-    line = mesh_terminal_line({"dataset": "r", "verdict": "established", "cause": "x",
-                          "causes": [{"name": "warm_start"}],
-                          "holdout": {"gain_pct": -10.8, "gain_whitened_pct": 0.5}})
-    assert "hold-out gain -10.8 % (whitened 0.5 %, the one the verdict uses)" in line
-
-
 def _rng_record(plant, hidden, rng, name, noise):
     t, speed, power, amb = duty_cycle(rng, 24.0, 120.0, plant.sources)
     y = generate(plant, hidden, t, speed, power, amb, rng, noise)

@@ -365,6 +365,9 @@ def test_a_mesh_meshio_cannot_parse_is_one_line(tmp_path, capsys):
      ("rod.specific_heat_J_kgK", "J/(kg·K)")),
     (_sub('q_W_m2 = 0.0,    label = "pause"', 'q_W_m2 = 0.0, ambient_C = 1e300'),
      ("cycle.phases[1].ambient_C", "[-10, 50]")),
+    # the key as every other is named (it read "rod: poisson_ratio: ...")
+    (_sub("poisson_ratio = 0.3", "poisson_ratio = 0.6"),
+     ("s.toml: rod.poisson_ratio: must lie in",)),
 ])
 def test_the_rod_scenario_uses_the_same_ranges(tmp_path, capsys, edit, needles):
     from arfem.scenarios.rod.scenario import builtin_scenario_path

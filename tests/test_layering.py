@@ -344,3 +344,86 @@ def test_no_import_cycle_even_inside_functions():
     functions stay allowed for start-up time, never to hide a cycle."""
     sources = {module: path.read_text(encoding="utf-8") for path, module in package_modules()}
     assert cycles(import_graph(sources)) == []
+
+
+#: public function names a module of any room may define: the entry point of a command
+#: module or of a ``python -m`` module (the CLI calls each by its module)
+PROTOCOL_NAMES = {"main"}
+#: the names that once collided across the rod's and the mesh's worlds (issue 41 item 6);
+#: never allowed twice, whatever the allow-list below says
+ONCE_COLLIDED = {"terminal_line", "solve_theta", "solve_reduced", "fit_causes"}
+#: public top-level functions defined in modules of different rooms, each with exactly
+#: the modules that define it and why it may stay so. The test fails when a name gains
+#: or loses a module: a new collision must be resolved or argued here, and an entry
+#: whose collision is gone must be deleted.
+SHARED_NAMES = {
+    # the Python front door names what a user calls; each body calls the one below it
+    "diagnose": ({"arfem.api", "arfem.models.diagnosis.engine"}, "front door"),
+    "load_scenario": ({"arfem.api", "arfem.scenarios.rod.scenario"}, "front door"),
+    "read_model": ({"arfem.api", "arfem.scenarios.compensation.model_file"}, "front door"),
+    # the two engines' doubles, merged by issue 41 item 1 (the one diagnosis pipeline)
+    "establishment_failures": ({"arfem.models.diagnosis.verdict",
+                                "arfem.models.geodiagnosis.engine"}, "issue 41 item 1"),
+    "generate": ({"arfem.models.diagnosis.synth", "arfem.models.geodiagnosis.synth"},
+                 "issue 41 item 1"),
+    # different things under one verb; not yet renamed (issue 41 item 6)
+    "check_size": ({"arfem.scenarios.rod.scenario", "arfem.scenarios.sweep.spec"},
+                   "a scenario's cost vs a sweep grid's size"),
+    "record_columns": ({"arfem.scenarios.compensation.replay",
+                        "arfem.scenarios.geometry.export"},
+                       "a model's columns read from a record vs a run written as one"),
+    "verdict": ({"arfem.scenarios.allocation.run", "arfem.scenarios.diagnosis.report"},
+                "each report's opening section"),
+    "write_outputs": ({"arfem.scenarios.rod.outputs", "arfem.scenarios.sweep.report"},
+                      "a rod run's files vs a sweep's"),
+    "write_record": ({"arfem.scenarios.live.twin_record", "arfem.scenarios.records.georecord"},
+                     "the twin's history vs a v3 record from columns"),
+}
+
+
+def public_functions(source: str) -> set[str]:
+    """The public (no leading underscore) functions ``source`` defines at its top level."""
+    return {n.name for n in ast.parse(source).body
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and not n.name.startswith("_")}
+
+
+def shared_names(sources: dict) -> dict:
+    """{name: set of modules} for every public top-level function name that modules of
+    two or more rooms (a room: the package a module sits in) define, but
+    :data:`PROTOCOL_NAMES`."""
+    where: dict = {}
+    for module, src in sources.items():
+        for name in public_functions(src) - PROTOCOL_NAMES:
+            where.setdefault(name, set()).add(module)
+    return {n: ms for n, ms in where.items()
+            if len({m.rsplit(".", 1)[0] for m in ms}) > 1}
+
+
+def test_the_name_checker_sees_a_name_in_two_rooms():
+    """The check below is itself checked: one name in two rooms is seen, two modules of
+    one room (the commands' ``add_parser``), a private name and ``main`` are not."""
+    src = {"arfem.scenarios.diagnosis.run": "def terminal_line(s):\n    pass\n",
+           "arfem.scenarios.compensation.report": "def terminal_line(r, o):\n    pass\n",
+           "arfem.scenarios.commands.run": "def add_parser(p):\n    pass\ndef main(a):\n    pass\n",
+           "arfem.scenarios.commands.check": "def add_parser(p):\n    pass\ndef main(a):\n    pass\n",
+           "arfem.scenarios.cli": "def main(a):\n    pass\ndef _helper():\n    pass\n",
+           "arfem.fem.heat": "def _helper():\n    pass\n"}
+    assert shared_names(src) == {"terminal_line": {"arfem.scenarios.diagnosis.run",
+                                                   "arfem.scenarios.compensation.report"}}
+
+
+def test_no_function_name_is_defined_in_two_rooms():
+    """Issue 41 item 6: the rod's and the mesh's worlds grew functions of one name
+    (``solve_theta``, ``solve_reduced``, ``fit_causes``, four ``terminal_line``): a
+    traceback, a grep or an import could not tell which was meant, and two of them were
+    a rule written twice. A public top-level function name is defined in one room only,
+    but the entries of :data:`SHARED_NAMES`, each with its modules and why."""
+    assert not ONCE_COLLIDED & set(SHARED_NAMES)
+    sources = {module: path.read_text(encoding="utf-8") for path, module in package_modules()}
+    found = shared_names(sources)
+    allowed = {n: ms for n, (ms, _) in SHARED_NAMES.items()}
+    new = {n: sorted(ms) for n, ms in found.items() if allowed.get(n) != ms}
+    gone = sorted(n for n in allowed if n not in found)
+    assert not new, f"defined in modules of two rooms (rename, or argue it in SHARED_NAMES): {new}"
+    assert not gone, f"no longer shared: delete from SHARED_NAMES: {gone}"

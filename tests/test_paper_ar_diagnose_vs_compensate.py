@@ -21,7 +21,6 @@ from arfem.models.ar1 import ar1_simulate, fit_ar1
 from arfem.models.compensator import Compensator, fit_speed_ar1_model
 from arfem.models.diagnosis.speed import paper_ar, speed_to_heat_map
 from arfem.scenarios.diagnosis.report import _unseen_note
-from arfem.scenarios.diagnosis.run import rod_terminal_line
 
 DT = 15.0
 C1 = 0.995
@@ -93,22 +92,15 @@ def test_unseen_speeds_are_the_whole_difference():
 
 
 def test_outputs_say_where_the_two_numbers_part():
-    """The terminal line and the report's hold-out section name the hold-out's window,
-    its scored rows and the speeds not seen before it, and say that compensate scores
-    model.json differently there; with none, they say nothing of it."""
+    """The report's hold-out section names the hold-out's scored rows and the speeds not
+    seen before it, and says that compensate scores model.json differently there; with
+    none, it says nothing of it (the terminal line's:
+    tests/test_diagnosis_terminal_line.py)."""
     h = {"baseline_rmse_um": 5.36, "extended_rmse_um": 5.36, "gain_pct": 0.0,
          "start_s": 111140.0, "n_samples": 3701,
          "speeds_not_seen_before_rpm": [500.0, 1500.0, 3500.0, 4500.0],
          "n_samples_at_speeds_not_seen": 2157}
-    line = rod_terminal_line({"dataset": "ch2", "verdict": "not_explained", "cause": "none",
-                          "holdout": h})
-    assert "hold-out (from 30.87 h, 3701 rows) RMSE 5.36 -> 5.36 µm" in line
-    assert ("maps speeds not seen before the hold-out (500, 1500, 3500, 4500 rpm) by "
-            "eqs. 20-21, model.json inter- or extrapolates their C2 linearly") in line
     note = _unseen_note(h)
     assert "2157 of them (58 %) run at speeds not seen before it" in note
     assert "`arfem compensate` scores it differently" in note
     assert _unseen_note(dict(h, speeds_not_seen_before_rpm=[])) == ""
-    assert "extrapolates" not in rod_terminal_line({"dataset": "d", "verdict": "explained",
-                                                "cause": "none",
-                                                "holdout": dict(h, speeds_not_seen_before_rpm=[])})

@@ -111,6 +111,10 @@ def test_check_reports_the_tilt_on_its_own_peak(run_dir):
     note = next(n for n in res.notes if n.startswith("tilts"))
     assert "B: max|slowest-mode AR - FEM|" in note and "largest FEM tilt" in note
     assert "µrad" in note
+    # not gated, so no limit is quoted for it (a new user read "limit 15 %" beside a
+    # 40 % tilt error in a passing check); the displacements keep theirs
+    assert "limit" not in note
+    assert all(c.message.endswith(f"limit {c.limit:g} %") for c in res.criteria)
 
 
 def test_diagnosis_reads_the_tilt_as_evidence(run_dir):

@@ -31,7 +31,8 @@ from arfem.params import InputError
 from arfem.scenarios.allocation.file import load_allocation_scenario
 from arfem.scenarios.html_report import write_html_report
 
-__all__ = ["run_allocation", "write_allocation", "terminal_line", "WRITES", "CONVERGED"]
+__all__ = ["run_allocation", "write_allocation", "allocation_terminal_line", "WRITES",
+           "CONVERGED"]
 
 #: Okabe-Ito colours (distinguishable with the common colour-vision deficiencies)
 OKABE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
@@ -587,8 +588,9 @@ def write_allocation(run: dict, out_dir: Path, command: str) -> dict:
     return alloc
 
 
-def terminal_line(run: dict, alloc: dict, out) -> str:
-    """The one line ``arfem allocate`` prints: the pick's key figures and where it went."""
+def allocation_terminal_line(run: dict, alloc: dict, out) -> str:
+    """The one line ``arfem allocate`` prints: the pick's key figures and where it went
+    (named for its command: ``arfem compensate`` and ``arfem diagnose`` have their own)."""
     r = run["result"]
     st = r.settings
     if st.formula == "screw":

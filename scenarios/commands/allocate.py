@@ -6,7 +6,8 @@ The command's parser and printed line only; the allocation and its files are the
 from __future__ import annotations
 
 from arfem.models.allocation.problem import MAX_EVALUATIONS
-from arfem.scenarios.allocation.run import WRITES, run_allocation, terminal_line, write_allocation
+from arfem.scenarios.allocation.run import (WRITES, allocation_terminal_line, run_allocation,
+                                           write_allocation)
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 
@@ -35,5 +36,5 @@ def main(args) -> int:
     command = f"arfem allocate {args.scenario} --out {args.out}" + (" --force" if args.force else "")
     with staged_out_dir(out, args.force) as stage:
         alloc = write_allocation(run, stage, command)
-    print(terminal_line(run, alloc, out))
+    print(allocation_terminal_line(run, alloc, out))
     return 0

@@ -23,7 +23,7 @@ import re
 from arfem.params import InputError
 from arfem.scenarios.compensation.model_file import read_model
 from arfem.scenarios.compensation.replay import axis_limits, replay
-from arfem.scenarios.compensation.report import terminal_line, write_replay
+from arfem.scenarios.compensation.report import replay_terminal_line, write_replay
 from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
@@ -167,5 +167,5 @@ def _main(args) -> int:
     with staged_out_dir(args.out, args.force) as stage:
         write_replay(res, stage, args.model, args.record)
         write_html_report(stage)
-    print(terminal_line(res, args.out))
+    print(replay_terminal_line(res, args.out))
     return 0

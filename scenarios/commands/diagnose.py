@@ -9,7 +9,8 @@ temperatures; see ``arfem compensate``), atomically. Bad input: one line, exit 2
 from __future__ import annotations
 
 from arfem.scenarios.diagnosis import run as diagnosis_run
-from arfem.scenarios.diagnosis.run import rod_terminal_line
+from arfem.scenarios.diagnosis.document import document
+from arfem.scenarios.diagnosis.terminal import diagnosis_terminal_line
 from arfem.scenarios.progress import Progress, add_progress_flag
 
 __all__ = ["add_parser", "main"]
@@ -69,10 +70,11 @@ def main(args) -> int:
         return rc
     with Progress(12 + max(args.stability, 0), "arfem diagnose",
                   enabled=not args.no_progress) as progress:
-        s = diagnosis_run.run_diagnosis(doc, args.out, args.holdout_start, args.force,
-                          args.frame_search, progress, args.drift_last, args.limits,
-                          args.stability)
-    print(rod_terminal_line(s) + f"; wrote {args.out}")
+        d = diagnosis_run.diagnose_and_write(doc, args.out, args.holdout_start, args.force,
+                                             args.frame_search, progress, args.drift_last,
+                                             args.limits, args.stability)
+    s = document(d)
+    print(diagnosis_terminal_line(d) + f"; wrote {args.out}")
     if s.get("verdict_detail"):
         print(f"verdict ({s['verdict']}): {s['verdict_detail']['text']}")
     h = s["holdout"]

@@ -10,7 +10,7 @@ import textwrap
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.scenarios.compensation.replay import Replay
 
-__all__ = ["write_replay", "replay_figure", "replay_markdown", "terminal_line",
+__all__ = ["write_replay", "replay_figure", "replay_markdown", "replay_terminal_line",
            "own_output", "reproduced_to_roundoff", "file_link", "OWN_OUTPUT_REL",
            "observer_paragraph"]
 
@@ -242,9 +242,9 @@ def write_replay(res: Replay, stage, model_path=None, record_path=None) -> None:
     replay_figure(res, stage / "figure.png")
 
 
-def terminal_line(res: Replay, out) -> str:
-    """The command's line: the model, the observer, the rows scored and each axis's RMS
-    (and a one-axis replay's peak to peak) without → with compensation."""
+def replay_terminal_line(res: Replay, out) -> str:
+    """``arfem compensate``'s line: the model, the observer, the rows scored and each
+    axis's RMS (and a one-axis replay's peak to peak) without → with compensation."""
     m = res.summary
     if len(m.axes) == 1:
         a = m.axes[0]

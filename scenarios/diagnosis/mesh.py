@@ -23,12 +23,13 @@ from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, make_record, 
 from arfem.params import InputError
 from arfem.scenarios.diagnosis.document import mesh_document
 from arfem.scenarios.diagnosis.mesh_model import load_diagnosis_scenario, plant_of, reduced_model
+from arfem.scenarios.diagnosis.terminal import diagnosis_terminal_line
 from arfem.scenarios.records.georecord import (MeshRecord, is_mesh_record, read_mesh_record,
                                               refuse_unit_slip, sensor_columns)
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "is_mesh_record", "load_mesh_record", "run_geodiagnosis",
-           "mesh_terminal_line", "main_geodiagnose"]
+           "main_geodiagnose"]
 
 #: Files a mesh diagnosis writes.
 WRITES = ("diagnosis.json", "report.md", "report.html", "series.csv", "geometry_named.png",
@@ -105,24 +106,6 @@ def _check_units(model: GeoModel, rec: GeoRecord, where: str) -> None:
             refuse_unit_slip(c.column, rec.data[:, j], nom[:, j], where)
 
 
-def mesh_terminal_line(s: dict) -> str:
-    """The command's first line.
-
-    >>> mesh_terminal_line({"dataset": "r", "verdict": "explained", "cause": "none",
-    ...                "holdout": {"gain_pct": 0.0}})
-    'r: verdict = explained; cause = none; hold-out gain 0.0 %'
-    """
-    named = " + ".join(c["name"] for c in s.get("causes", [])) or s["cause"]
-    line = f"{s['dataset']}: verdict = {s['verdict']}; cause = {named}"
-    if s.get("best_candidate"):
-        line += f" (best candidate {s['best_candidate']['cause']}, not established)"
-    h = s["holdout"]
-    line += f"; hold-out gain {h['gain_pct']:.1f} %"
-    if h.get("gain_whitened_pct") is not None:
-        line += f" (whitened {h['gain_whitened_pct']:.1f} %, the one the verdict uses)"
-    return line
-
-
 def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
     """The reduced model against the full solve (fresh Krylov basis at each h, the
     project's reduced-modal solver) on this record's nominal inputs: largest error per
@@ -159,7 +142,13 @@ def _rom_statement(model: GeoModel, plant, rec: GeoRecord) -> dict:
 def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None,
                      limits=None) -> dict:
     """Diagnose a v3 record (its path, or a :class:`~arfem.scenarios.records.georecord.MeshRecord`
-    read once) and write every output into ``out``; returns the summary."""
+    read once) and write every output into ``out``; returns the summary (diagnosis.json's
+    content)."""
+    return _diagnose_and_write(case, out, holdout_start_s, force, progress, limits)[1]
+
+
+def _diagnose_and_write(case, out, holdout_start_s, force, progress, limits):
+    """:func:`run_geodiagnosis`'s work: (the typed result, diagnosis.json's content)."""
     from arfem.scenarios.diagnosis.mesh_report import write_report
     progress = progress or (lambda s: None)
     progress("reading the record")
@@ -192,7 +181,7 @@ def run_geodiagnosis(case, out, holdout_start_s=None, force=False, progress=None
             write_model(stage / "model_nominal.json", models.nominal)
         if models.extended is not None:
             write_model(stage / "model_extended.json", models.extended)
-    return s
+    return d, s
 
 
 def _export_models(case, d, model, rec, sc, progress):
@@ -216,10 +205,10 @@ def main_geodiagnose(args, record=None) -> int:
     limits = getattr(args, "limits", None)
     with Progress(10, "arfem diagnose", enabled=not args.no_progress) as progress:
         case = args.case if record is None else read_mesh_record(args.case, limits, record)
-        s = run_geodiagnosis(case, args.out, args.holdout_start, args.force, progress,
-                             limits)
-    print(mesh_terminal_line(s) + f"; wrote {args.out}")
-    print(f"verdict ({s['verdict']}): {s['verdict_text']}")
+        d, _ = _diagnose_and_write(case, args.out, args.holdout_start, args.force,
+                                   progress, limits)
+    print(diagnosis_terminal_line(d) + f"; wrote {args.out}")
+    print(f"verdict ({d.verdict}): {d.text}")
     for n in (case.table.notes if isinstance(case, MeshRecord) else ()):
         print(f"note: {n}")               # what the record reader did (e.g. filled cells)
     return 0

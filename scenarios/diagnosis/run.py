@@ -16,7 +16,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "compensator_models", "diagnose_file", "add_stability",
-           "run_diagnosis", "rod_terminal_line"]
+           "run_diagnosis", "diagnose_and_write"]
 
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
@@ -173,9 +173,19 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
 
 
 def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
-                  progress=None, drift_last=False, limits=None, stability=0):
+                  progress=None, drift_last=False, limits=None, stability=0) -> dict:
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
-    ``out``; returns the summary. ``progress`` as in :func:`diagnose_file`."""
+    ``out``; returns the summary (diagnosis.json's content). ``progress`` as in
+    :func:`diagnose_file`; the typed result: :func:`diagnose_and_write`."""
+    return document(diagnose_and_write(case, out, holdout_start_s, force, frame_search,
+                                       progress, drift_last, limits, stability))
+
+
+def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_search="narrow",
+                       progress=None, drift_last=False, limits=None,
+                       stability=0) -> Diagnosis:
+    """:func:`run_diagnosis`, returning the typed result (what ``arfem diagnose`` prints
+    from, :func:`arfem.scenarios.diagnosis.terminal.diagnosis_terminal_line`)."""
     from arfem.scenarios.diagnosis.report import write_all
     from arfem.scenarios.compensation.model_file import write_model
     doc = case if isinstance(case, RecordDoc) else read_record_doc(case, limits)
@@ -196,37 +206,4 @@ def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="na
         for name, m in models.items():
             write_model(stage / name, m)
         write_html_report(stage)
-    return document(diag)
-
-
-def rod_terminal_line(s: dict) -> str:
-    """The command's first line, from diagnosis.json's content: the verdict, the cause
-    only where it is established (else the best candidate, marked as such), and the
-    hold-out scores.
-
-    >>> rod_terminal_line({"dataset": "d", "verdict": "unconfirmed", "cause": "none",
-    ...                "best_candidate": {"cause": "frame_expansion",
-    ...                                   "causes": [{"cause": "frame_expansion"}]},
-    ...                "holdout": {"baseline_rmse_um": 3.0, "extended_rmse_um": 4.0,
-    ...                            "gain_pct": -33.3}})
-    "d: verdict = unconfirmed; cause = none (best candidate frame_expansion, not established); hold-out RMSE 3 -> 4 µm (best candidate's extended model, gain -33.3 %)"
-    """
-    h = s["holdout"]
-    named = " + ".join(c["cause"] for c in s.get("causes", [])) or s["cause"]
-    bc = s.get("best_candidate")
-    est = s.get("verdict", "established") == "established"
-    line = f"{s['dataset']}: verdict = {s.get('verdict', '?')}; cause = {named}"
-    if bc and not est:
-        line += f" (best candidate {bc['cause']}, not established)"
-    ext = ("extended model" if est else "best candidate's extended model"
-           if bc and bc.get("causes") else "no extended model: the baseline")
-    where = (f" (from {h['start_s'] / 3600:.2f} h, {h['n_samples']} rows)"
-             if "n_samples" in h else "")
-    line += (f"; hold-out{where} RMSE {h['baseline_rmse_um']:.3g} -> "
-             f"{h['extended_rmse_um']:.3g} µm ({ext}, gain {h['gain_pct']:.1f} %)")
-    if h.get("speeds_not_seen_before_rpm"):
-        line += (f"; the baseline maps speeds not seen before the hold-out "
-                 f"({', '.join(f'{v:g}' for v in h['speeds_not_seen_before_rpm'])} rpm) by "
-                 "eqs. 20-21, model.json inter- or extrapolates their C2 linearly, so "
-                 "arfem compensate scores it differently")
-    return line
+    return diag

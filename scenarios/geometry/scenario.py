@@ -459,10 +459,21 @@ def _speed_law(s: dict, w: str):
             raise InputError("gives both power_W = {a, b, m} (from the speed) and phases",
                              w)
         _unknown(p, {"a", "b", "m"}, f"{w}.power_W")
+        _require_exponent(p, f"{w}.power_W")
         abm = {k: check_range(k, _number(p.get(k, d), f"{w}.power_W.{k}"), f"{w}.power_W.{k}")
                for k, d in (("a", 0.0), ("b", 0.0), ("m", 1.0))}
         return PowerLaw(**abm)
     return None
+
+
+def _require_exponent(law: dict, where: str) -> None:
+    """Refuse a speed law ``{a, b, m}`` (a + b·n^m) with a speed term (b given, not 0)
+    but no exponent ``m``: m sets how the heat or the h grows with the speed, so no
+    default can stand in for it (a, and b, default to 0: no term)."""
+    b = law.get("b", 0.0)
+    if "m" not in law and isinstance(b, (int, float)) and b != 0.0:
+        raise InputError("b is given but not m, the exponent of b·n^m: give it (m = 1 for "
+                         "a law linear in the speed)", where)
 
 
 def source_power_at_speed(sc: "GeometryScenario", src: SourceSetting, speed_rpm,
@@ -555,6 +566,7 @@ def _convections(data: dict) -> list:
         h = c.get("h_W_m2K")
         if isinstance(h, dict):
             _unknown(h, {"a", "b", "m"}, f"{w}.h_W_m2K")
+            _require_exponent(h, f"{w}.h_W_m2K")
             abm = (_number(h.get("a", 0.0), f"{w}.h_W_m2K.a", positive=True, allow_zero=True),
                    _number(h.get("b", 0.0), f"{w}.h_W_m2K.b", positive=True, allow_zero=True),
                    _number(h.get("m", 1.0), f"{w}.h_W_m2K.m", positive=True))

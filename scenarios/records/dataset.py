@@ -215,7 +215,7 @@ def _rod_table(rod_doc: dict, where: str) -> Rod:
     try:
         rod = Rod(**rod_doc)
     except InputError as e:
-        raise e.at(f"{where}: rod") from None
+        raise e.in_table("rod").at(where) from None
     for key, value in rod_doc.items():       # physical, so now: in the right unit?
         check_range(key, float(value), f"{where}: rod.{key}")
     return rod

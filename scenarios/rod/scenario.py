@@ -199,7 +199,7 @@ def _rod_from(data: dict) -> Rod:
     try:
         rod = Rod(**rod_kw)
     except InputError as exc:
-        raise exc.at("rod") from None
+        raise exc.in_table("rod") from None
     return rod
 
 
@@ -363,7 +363,7 @@ def _check_limits(d: dict, rod: Rod) -> CheckLimits:
     try:
         rod.with_(**dict(kw["ar_rod"]))         # the AR's rod must be a valid rod too
     except InputError as exc:
-        raise exc.at("check.ar_rod") from None
+        raise exc.in_table("check.ar_rod") from None
     return CheckLimits(**kw)
 
 
