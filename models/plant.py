@@ -21,7 +21,8 @@ gives
   the nominal prediction (N, C) and one column (N, C) per linear parameter (the
   response to a unit change of it), so that the linear parameters are a least-squares
   fit: prediction = base + Σ_k β_k column_k, parameter = no-effect + β (and, where
-  the nominal model has unknowns of its own, its nuisance columns, fitted alike).
+  the nominal model has unknowns of its own, its nuisance columns, fitted alike, and
+  its ``nominal_parameters``, searched alike).
 
 Two plants implement it: the user's mesh (:class:`arfem.models.geodiagnosis.plant.MeshPlant`,
 the parametric reduced model of a Gmsh unit) and the seed paper's rod
@@ -41,6 +42,7 @@ contact_conductance  interface group    ``conductivity_scale`` [-],      1
 ambient_lag          (all surfaces)     ``lag_h`` [h], nonlinear         0
 sensor_drift         a channel          ``offset_<u>``, ``drift_<u>_per_h`` 0, 0
 warm_start           (whole body)       ``initial_offset_K`` [K]         0
+frame_expansion      a thermometer      ``frame_gain_um_per_K`` [µm/K]   0
 ==================== ================== ================================ ===========
 
 The no-effect values are the verdict's (:data:`arfem.models.diagnosis.verdict.NO_EFFECT`,
@@ -192,7 +194,8 @@ _PROBE = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0}
 _NONLINEAR = {"convection_scale": ("h_scale", "-"),
               "contact_conductance": ("conductivity_scale", "-"), "ambient_lag": ("lag_h", "h")}
 _LINEAR = {"source_scale": (("scale", "-"),), "missing_source": (("power_W", "W"),),
-           "warm_start": (("initial_offset_K", "K"),)}
+           "warm_start": (("initial_offset_K", "K"),),
+           "frame_expansion": (("frame_gain_um_per_K", "um/K"),)}
 
 
 def _nonlinear(name: str, unit: str) -> Parameter:
@@ -254,6 +257,11 @@ class Plant(Protocol):
         The heat input's schedule, 1 at its largest [-]; zeros when nothing heats.
     not_searched : tuple of str
         Causes left out of the search by the user (said in the verdict).
+    nominal_parameters : tuple of Parameter
+        Nonlinear unknowns of the nominal model itself (e.g. a speed-only record's
+        time constant), searched within their bounds in every fit, the nominal's
+        included, and never reported as a cause; () for a plant whose nominal model
+        is fully given.
     regrows : bool
         True when the plant's reduced model is rebuilt at a named nonlinear setting
         (:meth:`regrown`) to remove its reduction bias there; False when the reduction
@@ -268,6 +276,7 @@ class Plant(Protocol):
     ambient_C: np.ndarray | None
     load_shape: np.ndarray
     not_searched: tuple
+    nominal_parameters: tuple
     regrows: bool
 
     def candidate_causes(self) -> tuple:

@@ -97,6 +97,7 @@ class RodPlant:
     channels: tuple = (Channel(GROWTH_COLUMN, "growth", "displacement", 0, 1.0, "um"),)
     not_searched: tuple = ()
     regrows: bool = False
+    nominal_parameters: tuple = ()
 
     def candidate_causes(self) -> tuple:
         """Every single cause the rod and this record can tell (module docstring)."""

@@ -54,6 +54,7 @@ class MeshPlant:
     ambient_C = property(lambda self: self.rec.ambient_C)
     not_searched = property(lambda self: tuple(self.model.unsearched))
     regrows = property(lambda self: self.model.regrow is not None)
+    nominal_parameters = ()
 
     def candidate_causes(self) -> tuple:
         """Every single cause the record and the model can tell (module table)."""
