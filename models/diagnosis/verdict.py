@@ -118,7 +118,7 @@ EQUIVALENCE_P = 0.05
 NO_EFFECT = {"frame_gain": 0.0, "drift_um_per_h": 0.0, "ambient_gain_um_per_K": 0.0,
              "scale": 1.0, "h_W_m2K": "nominal_h", "exponent": 0.0,
              "h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 0.0, "power_W": 0.0,
-             "initial_offset_K": 0.0}
+             "initial_offset_K": 0.0, "frame_gain_um_per_K": 0.0}
 
 #: what an engineer can do about each established cause (the verdict's last sentence)
 ACTIONS = {

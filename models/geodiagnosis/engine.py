@@ -84,16 +84,18 @@ from arfem.models.diagnosis.verdict import (EQUIVALENCE_P, beaten_text, NO_EFFEC
                                             correlation_bound, WHITE_P,
                                             holdout_tells_apart_p, naming_level, outcome,
                                             reaches_edge, whiteness_p)
-from arfem.models.geodiagnosis.fit import (BOUNDS, PLAUSIBLE, Fit, FitContext,
+from arfem.models.geodiagnosis.fit import (Fit, FitContext,
                                            candidate_causes, channel_rows, fit_mesh_causes,
                                            implausible,
                                            make_context, whitened, with_noise)
+from arfem.models.geodiagnosis.plant import mesh_plant
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
+from arfem.models.plant import Plant
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["MeshEvidence", "diagnose_geometry", "named_causes", "mlr_holdout",
-           "establishment_failures"]
+__all__ = ["MeshEvidence", "diagnose_geometry", "diagnose_plant", "named_causes",
+           "mlr_holdout", "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself
@@ -125,15 +127,15 @@ class MeshEvidence:
 
 def _weighted_rms(ctx: FitContext, pred, rows) -> float:
     ok = ctx.valid & rows[:, None]
-    r = (ctx.rec.data - pred)[ok] * np.broadcast_to(ctx.weights, ok.shape)[ok]
+    r = (ctx.plant.data - pred)[ok] * np.broadcast_to(ctx.weights, ok.shape)[ok]
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
 def _holdout_errors(ctx: FitContext, pred, hold) -> np.ndarray:
     """The hold-out residual whitened by each channel's fitted noise (its one-step
     prediction errors over their standard deviations), all channels in a row [-]."""
-    return np.concatenate([whitened(ctx, ctx.rec.data - pred, j, hold)
-                           for j in range(ctx.rec.data.shape[1])])
+    return np.concatenate([whitened(ctx, ctx.plant.data - pred, j, hold)
+                           for j in range(ctx.plant.data.shape[1])])
 
 
 def _holdout_score(ctx: FitContext, pred, hold) -> float:
@@ -146,10 +148,10 @@ def _holdout_score(ctx: FitContext, pred, hold) -> float:
 def _n_eff(ctx: FitContext, pred, rows) -> float:
     """Σ_c N_eff,c of the residual whitened by each channel's fitted noise."""
     tot = 0.0
-    for j in range(ctx.rec.data.shape[1]):
+    for j in range(ctx.plant.data.shape[1]):
         ok = ctx.valid[:, j] & rows
         if ok.sum() > 10:
-            tot += noise_n_eff(whitened(ctx, ctx.rec.data - pred, j, rows))
+            tot += noise_n_eff(whitened(ctx, ctx.plant.data - pred, j, rows))
     return max(tot, 3.0)
 
 
@@ -187,8 +189,8 @@ def below_floor(ctx: FitContext, pred, ref, rows) -> bool:
     pre-registration the floor was q/2 whatever the noise, five times the bias at the
     benchmark's 4 σ quantum: a rear contact fitted at κ 0.40 (truth 0.41, F test
     p = 7e-62, best BIC by 73) was refused on development seed 90023."""
-    q = ctx.quantum if ctx.quantum is not None else np.zeros(ctx.rec.data.shape[1])
-    for j in range(ctx.rec.data.shape[1]):
+    q = ctx.quantum if ctx.quantum is not None else np.zeros(ctx.plant.data.shape[1])
+    for j in range(ctx.plant.data.shape[1]):
         ok = ctx.valid[:, j] & rows
         if not ok.any():
             continue
@@ -213,12 +215,12 @@ def walk_explains(ctx: FitContext, cause, ref, rows, level: float) -> bool:
     from arfem.models.geodiagnosis.noise import drift_vs_walk_p
     if cause.kind != "sensor_drift":
         return False
-    j = [ch.column for ch in ctx.rec.channels].index(cause.target)
+    j = [ch.column for ch in ctx.plant.channels].index(cause.target)
     idx = np.flatnonzero(ctx.valid[:, j] & rows)
     if idx.size <= 20:
         return True
-    y = ctx.rec.data[idx, j] - ref[idx, j]
-    return drift_vs_walk_p(y, idx, ctx.rec.time_s[idx] / 3600.0) >= level
+    y = ctx.plant.data[idx, j] - ref[idx, j]
+    return drift_vs_walk_p(y, idx, ctx.plant.time_s[idx] / 3600.0) >= level
 
 
 def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
@@ -235,13 +237,13 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
     if not chans:
         return 1.0
     js = [j for j, _ in chans]
-    return walk_profiled_lr_p([ctx.rec.data[idx, j] - pred0[idx, j] for j, idx in chans],
-                              [ctx.rec.data[idx, j] - pred1[idx, j] for j, idx in chans],
+    return walk_profiled_lr_p([ctx.plant.data[idx, j] - pred0[idx, j] for j, idx in chans],
+                              [ctx.plant.data[idx, j] - pred1[idx, j] for j, idx in chans],
                               [idx for _, idx in chans], np.asarray(ctx.sigma)[js],
-                              [ctx.rec.channels[j].kind for j in js], df)
+                              [ctx.plant.channels[j].kind for j in js], df)
 
 
-def mlr_holdout(rec: GeoRecord, rows: np.ndarray, ref: np.ndarray | None = None) -> dict:
+def mlr_holdout(rec: GeoRecord | Plant, rows: np.ndarray, ref: np.ndarray | None = None) -> dict:
     """The MLR of paper eq. 18 per displacement channel on the thermometers and the
     ambient -- the rod's own (:func:`arfem.models.diagnosis.speed.mlr`: one MLR baseline
     for every plant; a thermometer with an empty cell is left out) -- fitted on
@@ -443,22 +445,26 @@ def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
 def _effect_failures(fit: Fit) -> list:
     out = []
     for c, p, ci in zip(fit.causes, fit.params, fit.ci95):
-        if c.kind == "sensor_drift":
-            if all(lo <= 0.0 <= hi for lo, hi in ci.values()):
-                out.append(f"{c.name}: the intervals of offset and drift both hold 0")
+        if len(c.parameters) > 1:
+            # a cause of several linear parameters (a sensor's offset and drift) has an
+            # effect when any one of its intervals excludes that parameter's no effect
+            if all(lo <= c.parameter(k).no_effect <= hi for k, (lo, hi) in ci.items()):
+                out.append(f"{c.name}: the intervals of "
+                           f"{' and '.join(k for k in ci)} all hold 'no effect'")
             continue
         for k, (lo, hi) in ci.items():
-            if k in NO_EFFECT and lo <= NO_EFFECT[k] <= hi:
+            par = c.parameter(k)
+            if lo <= par.no_effect <= hi:
                 out.append(f"{c.name}: the 95 % interval of {k} [{lo:.3g}, {hi:.3g}] holds "
-                           f"'no effect' ({NO_EFFECT[k]:g})")
-            if k in BOUNDS:
-                a, b = BOUNDS[k]
+                           f"'no effect' ({par.no_effect:g})")
+            if par.bounds is not None:
+                a, b = par.bounds
                 if reaches_edge((lo, hi), (a, b)):
                     out.append(f"{c.name}: the interval of {k} reaches an end of the range "
                                f"the fit can return [{a:g}, {b:g}]")
-            if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= p[k] <= PLAUSIBLE[k][1]:
+            if par.plausible is not None and not par.plausible[0] <= p[k] <= par.plausible[1]:
                 out.append(f"{c.name}: {k} = {p[k]:.3g} is implausible (outside "
-                           f"{PLAUSIBLE[k]}): check the record's units")
+                           f"{par.plausible}): check the record's units")
             if not np.isfinite(lo) or not np.isfinite(hi):
                 out.append(f"{c.name}: no finite interval for {k}")
     return out
@@ -547,27 +553,40 @@ def _not_within_noise(v: _Judgement) -> str:
 
 def diagnose_geometry(model: GeoModel, rec: GeoRecord, holdout_start_s: float | None = None,
                       progress=None) -> Diagnosis:
-    """Diagnose ``rec`` against ``model`` (module docstring): the shared
-    :class:`~arfem.models.diagnosis.result.Diagnosis`, its ``evidence`` a
-    :class:`MeshEvidence`."""
+    """Diagnose ``rec`` against the mesh scenario's ``model`` (module docstring): the
+    pipeline (:func:`diagnose_plant`) on their :class:`.plant.MeshPlant`."""
+    return diagnose_plant(mesh_plant(model, rec), holdout_start_s, progress)
+
+
+def diagnose_plant(plant: Plant, holdout_start_s: float | None = None,
+                   progress=None) -> Diagnosis:
+    """Diagnose a :class:`arfem.models.plant.Plant`'s record against its model (module
+    docstring): the shared :class:`~arfem.models.diagnosis.result.Diagnosis`, its
+    ``evidence`` a :class:`MeshEvidence`."""
     import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS first, so that the limit reaches it)
     from threadpoolctl import threadpool_limits
     # one BLAS thread: hundreds of small eigenproblems (k ~ 100-300) ran 40x slower with
     # threads contending on a busy 2-core machine
     with threadpool_limits(limits=1):
-        return _diagnose(model, rec, holdout_start_s, progress)
+        return _diagnose(plant, holdout_start_s, progress)
 
 
-def _regrown(ctx: FitContext, model: GeoModel, s, train):
-    """(``ctx`` on the reduced model regrown at setting ``s``, its nominal fit)."""
-    regrown = GeoModel(**{**vars(model), "rb": model.regrow(s.h_scale, s.kappa)})
-    ctx = with_fields(ctx, model=regrown, cache={})
+def _regrown(ctx: FitContext, fit: Fit, train, say):
+    """(``ctx`` on the plant regrown at ``fit``'s setting, its nominal fit), or None when
+    the plant does not regrow (its reduction is exact) or ``fit`` has no nonlinear
+    cause; ``say()``
+    reports the regrowth before it starts."""
+    if not ctx.plant.regrows or not any(c.nonlinear for c in fit.causes):
+        return None
+    say()
+    ctx = with_fields(ctx, plant=ctx.plant.regrown(fit.setting))
     return ctx, fit_mesh_causes(ctx, (), train)
 
 
-def _diagnose(model, rec, holdout_start_s, progress) -> Diagnosis:
+def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
     progress = progress or (lambda s: None)
-    ctx = make_context(model, rec)
+    rec = plant
+    ctx = make_context(plant)
     if holdout_start_s is None:
         h0, how = default_holdout(rec.time_s, ctx.shape)
     else:
@@ -583,11 +602,12 @@ def _diagnose(model, rec, holdout_start_s, progress) -> Diagnosis:
     ranking, first, leads, near = _screen(ctx, singles, train, hold, base, n_tests)
     named = None
     if first is not None:
-        if model.regrow is not None and any(c.nonlinear for c in first.causes):
-            # the reduced model's bias at the first cause's setting is removed before a
-            # second cause is screened: else the second soaks up that bias
-            progress("regrowing the reduced basis at the first cause's setting")
-            ctx, base = _regrown(ctx, model, first.setting, train)
+        # the reduced model's bias at the first cause's setting is removed before a
+        # second cause is screened: else the second soaks up that bias
+        grown = _regrown(ctx, first, train, lambda: progress(
+            "regrowing the reduced basis at the first cause's setting"))
+        if grown is not None:
+            ctx, base = grown
             first = fit_mesh_causes(ctx, first.causes, train, intervals=False)
         progress("screening a second cause")
         pair, near_pairs = _best_pair(ctx, first, leads, singles, train, hold, n_tests)
@@ -599,10 +619,10 @@ def _diagnose(model, rec, holdout_start_s, progress) -> Diagnosis:
         if pair is not None:
             progress("testing each cause of the pair beside the other")
             named = _prune(ctx, named, train, n_tests)
-        if model.regrow is not None and pair is not None and any(
-                c.nonlinear for c in named.causes):
-            progress("regrowing the reduced basis at the named setting")
-            ctx, base = _regrown(ctx, model, named.setting, train)
+        grown = None if pair is None else _regrown(ctx, named, train, lambda: progress(
+            "regrowing the reduced basis at the named setting"))
+        if grown is not None:
+            ctx, base = grown
         named = fit_mesh_causes(ctx, named.causes, train)
     ext = named if named is not None else base
     wb, we = _weighted_rms(ctx, base.prediction, hold), _weighted_rms(ctx, ext.prediction, hold)
@@ -615,8 +635,8 @@ def _diagnose(model, rec, holdout_start_s, progress) -> Diagnosis:
     gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
     alts = _alternatives(ctx, named, near, train, hold) if named is not None else ()
     v = _judge(ctx, rec, base, named, train, hold, gain_w, alts)
-    return _result(ctx, rec, model, base, named, v, ranking, alts,
-                   _text(v, named, gain, model.unsearched), float(h0), how, hold,
+    return _result(ctx, base, named, v, ranking, alts,
+                   _text(v, named, gain, plant.not_searched), float(h0), how, hold,
                    float(gain), float(gain_w))
 
 
@@ -632,10 +652,10 @@ def named_causes(fit: Fit | None) -> tuple:
                  for c, p, ci in zip(fit.causes, fit.params, fit.ci95))
 
 
-def _result(ctx: FitContext, rec: GeoRecord, model: GeoModel, base: Fit, named, v,
-            ranking, alts, text: str, h0: float, how: str, hold, gain: float,
-            gain_w: float) -> Diagnosis:
-    """The shared typed result of a mesh diagnosis."""
+def _result(ctx: FitContext, base: Fit, named, v, ranking, alts, text: str, h0: float,
+            how: str, hold, gain: float, gain_w: float) -> Diagnosis:
+    """The shared typed result of a plant's diagnosis."""
+    rec = ctx.plant
     causes = named_causes(named)
     ext = named if named is not None else base
     sigma = {c.column: float(s) for c, s in zip(rec.channels, ctx.sigma)}
@@ -648,10 +668,10 @@ def _result(ctx: FitContext, rec: GeoRecord, model: GeoModel, base: Fit, named, 
                                      tuple(beyond.get(c.column, ())))
                      for c in rec.channels)
     return Diagnosis(
-        dataset=rec.name, plant="mesh", verdict=v.verdict, text=text, causes=causes,
+        dataset=rec.name, plant=rec.kind, verdict=v.verdict, text=text, causes=causes,
         subject=(None if named is None else " + ".join(c.name for c in named.causes)),
         failed=v.failed, alternatives=tuple(a for a, _, _ in alts),
-        not_searched=tuple(model.unsearched), holdout=holdout, channels=channels,
+        not_searched=tuple(rec.not_searched), holdout=holdout, channels=channels,
         warnings=(), below_resolution=v.below_resolution,
         beaten_by_regression=v.beaten_by_mlr,
         series=frozen_mapping({"time_s": rec.time_s, "measured": rec.data,
@@ -675,7 +695,7 @@ class _Judgement:
 
 
 def _whitened_rms(ctx: FitContext, pred, j: int, ok) -> float:
-    r = whitened(ctx, ctx.rec.data - pred, j, ok)
+    r = whitened(ctx, ctx.plant.data - pred, j, ok)
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
@@ -707,7 +727,7 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
     return tuple(out)
 
 
-def _thermometers_beyond(ctx: FitContext, rec: GeoRecord, base: Fit) -> tuple:
+def _thermometers_beyond(ctx: FitContext, rec: Plant, base: Fit) -> tuple:
     """The (displacement channel, thermometer) pairs whose nominal residual correlates
     with the thermometer's reading (or the ambient) beyond the bound on the residual's
     N_eff, Bonferroni over the pairs (:func:`arfem.models.diagnosis.verdict.correlation_bound`):
@@ -732,7 +752,7 @@ def _thermometers_beyond(ctx: FitContext, rec: GeoRecord, base: Fit) -> tuple:
     return tuple(out)
 
 
-def _judge(ctx: FitContext, rec: GeoRecord, base: Fit, named, train, hold,
+def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
            gain_w: float, alternatives=()) -> _Judgement:
     """The verdict by the rules of :mod:`arfem.models.diagnosis.verdict`: the hold-out
     table per channel (nominal, extended, MLR of eq. 18), the whiteness of the nominal

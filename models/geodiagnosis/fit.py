@@ -1,4 +1,8 @@
-"""Causes on the model's own parts and their fits with 95 % intervals (issue 33 item 2).
+"""Causes on the model's own parts and their fits with 95 % intervals (issue 33 item 2);
+the fitting half of the one diagnosis pipeline, over any :class:`arfem.models.plant.Plant`
+(issue 41: it calls its plant only through that protocol; the mesh's vocabulary below is
+:class:`arfem.models.geodiagnosis.plant.MeshPlant`'s, the rod's is
+:class:`arfem.models.diagnosis.rod_plant.RodPlant`'s).
 
 A cause changes one named part of the user's model:
 
@@ -50,65 +54,47 @@ from scipy.stats import norm
 
 from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.diagnosis.verdict import NO_EFFECT, reaches_edge
-from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
+from arfem.models.geodiagnosis.plant import BOUNDS, PLAUSIBLE, Cause, mesh_plant
+from arfem.models.plant import CandidateCause, Plant, linear_value
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
            "candidate_causes", "channel_rows", "fit_mesh_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
-#: Ranges the fit can return (natural units); an interval reaching one is not a cause.
-BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
-          "lag_h": (0.02, 48.0)}
-#: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
-PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
-
-
 def implausible(fit) -> str | None:
-    """Why a fitted cause is not physical (a magnitude outside :data:`PLAUSIBLE`, e.g. a
-    missing "source" of negative power, which is a sink; a nonlinear parameter at an
-    end of :data:`BOUNDS`), or None."""
+    """Why a fitted cause is not physical (a magnitude outside its parameter's
+    plausible range, e.g. a missing "source" of negative power, which is a sink; a
+    nonlinear parameter at an end of its bounds), or None."""
     for c, p in zip(fit.causes, fit.params):
         for k, v in p.items():
-            if k in PLAUSIBLE and not PLAUSIBLE[k][0] <= v <= PLAUSIBLE[k][1]:
-                return f"{c.name}: {k} = {v:.3g} outside {PLAUSIBLE[k]}"
-            if k in BOUNDS and reaches_edge((v, v), BOUNDS[k]):
-                return f"{c.name}: {k} = {v:.3g} at an end of {BOUNDS[k]}"
+            par = c.parameter(k)
+            if par.plausible is not None and not par.plausible[0] <= v <= par.plausible[1]:
+                return f"{c.name}: {k} = {v:.3g} outside {par.plausible}"
+            if par.bounds is not None and reaches_edge((v, v), par.bounds):
+                return f"{c.name}: {k} = {v:.3g} at an end of {par.bounds}"
     return None
+
+
 _Z95 = float(norm.ppf(0.975))
 
 
 @dataclass(frozen=True)
-class Cause:
-    """One cause: its ``kind`` (module table) and ``target`` (a group, source or
-    channel name; empty for whole-body causes)."""
-
-    kind: str
-    target: str = ""
-
-    @property
-    def name(self) -> str:
-        return f"{self.kind}:{self.target}" if self.target else self.kind
-
-    @property
-    def nonlinear(self) -> str | None:
-        return {"convection_scale": "h_scale", "contact_conductance": "conductivity_scale",
-                "ambient_lag": "lag_h"}.get(self.kind)
-
-
-@dataclass(frozen=True)
 class FitContext:
-    """A record and its model, with the weights and the nominal responses cached."""
+    """A plant (a model bound to its record; it caches its own responses), with each
+    channel's weight, resolution and fitted noise."""
 
-    model: GeoModel
-    rec: GeoRecord
+    plant: Plant
     weights: np.ndarray           # (C,) 1/σ_c
     sigma: np.ndarray             # (C,) σ_c [µm or K]
-    shape: np.ndarray             # (N,) the missing source's schedule
     valid: np.ndarray             # (N, C) finite readings
-    cache: dict = field(default_factory=dict, repr=False)
     quantum: np.ndarray | None = None   # (C,) resolution [µm or K], 0: not quantised
     noise: tuple | None = None          # per channel LevelNoise; None: white, σ_c
     wcache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def shape(self) -> np.ndarray:
+        """(N,) the plant's load schedule (a missing source's), 1 at its largest [-]."""
+        return self.plant.load_shape
 
 
 @dataclass(frozen=True)
@@ -117,13 +103,13 @@ class Fit:
 
     Attributes
     ----------
-    causes : tuple of Cause
+    causes : tuple of CandidateCause
     params : tuple of dict, per cause {name: value}
     ci95 : tuple of dict, per cause {name: (low, high)}
     prediction : ndarray (N, C), record units
     sse_w : float, weighted SSE on the fit rows [-]
     n_params : int
-    setting : Setting
+    setting : the plant's setting of the fit (:meth:`arfem.models.plant.Plant.setting`)
     """
 
     causes: tuple
@@ -132,7 +118,7 @@ class Fit:
     prediction: np.ndarray = field(repr=False)
     sse_w: float
     n_params: int
-    setting: Setting
+    setting: object
 
 
 def _sigma(y: np.ndarray, unit: str) -> float:
@@ -144,25 +130,27 @@ def _sigma(y: np.ndarray, unit: str) -> float:
     return float(max(s if np.isfinite(s) else floor, q, floor))
 
 
-def make_context(model: GeoModel, rec: GeoRecord) -> FitContext:
-    """Weights, the missing-source schedule and the validity mask of a record."""
+def make_context(plant, rec=None) -> FitContext:
+    """Weights, resolutions and the validity mask of a plant's record.
+
+    ``plant`` is a :class:`arfem.models.plant.Plant`; ``make_context(model, rec)`` with a
+    mesh :class:`.problem.GeoModel` and its :class:`.problem.GeoRecord` binds them as a
+    :class:`.plant.MeshPlant` first."""
     from arfem.models.diagnosis.stats import resolution
-    sig = np.array([_sigma(rec.data[:, j], c.unit) for j, c in enumerate(rec.channels)])
+    if rec is not None:
+        plant = mesh_plant(plant, rec)
+    data = plant.data
+    sig = np.array([_sigma(data[:, j], c.unit) for j, c in enumerate(plant.channels)])
     q = np.array([resolution(y[np.isfinite(y)]) if np.isfinite(y).sum() > 20 else 0.0
-                  for y in rec.data.T])
-    if np.any(rec.speed_rpm > 0):
-        shape = rec.speed_rpm / float(np.max(rec.speed_rpm))
-    else:
-        tot = rec.power_W.sum(axis=1)
-        shape = tot / float(np.max(tot)) if np.max(tot) > 0 else np.zeros_like(tot)
-    return FitContext(model, rec, 1.0 / sig, sig, shape, np.isfinite(rec.data), quantum=q)
+                  for y in data.T])
+    return FitContext(plant, 1.0 / sig, sig, np.isfinite(data), quantum=q)
 
 
 def channel_rows(ctx: FitContext, rows: np.ndarray) -> list:
     """[(channel, its valid row indices in ``rows``)] for the channels with more than 20
     such rows: those whose noise is fitted and tested."""
     out = []
-    for j in range(ctx.rec.data.shape[1]):
+    for j in range(ctx.plant.data.shape[1]):
         idx = np.flatnonzero(ctx.valid[:, j] & rows)
         if idx.size > 20:
             out.append((j, idx))
@@ -181,26 +169,29 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
     from arfem.models.geodiagnosis.noise import reml_joint
     allc = candidate_causes(ctx)
     lin = tuple(c for c in allc if not c.nonlinear)
-    nom = _setting(ctx, (), {})
+    # the nominal model's own nonlinear parameters (none on the mesh and the rod) at
+    # their fit on ``rows``
+    nl0 = _optimise(ctx, (), rows, {}) if ctx.plant.nominal_parameters else {}
+    nom = _setting(ctx, (), nl0)
     base, cols, _ = _design(ctx, lin, nom)
     cols = list(cols)
     for c in allc:
         if c.nonlinear:
-            v = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0}[c.nonlinear]
-            cols.append(_design(ctx, (c,), _setting(ctx, (c,), {c.name: v}))[0] - base)
+            v = c.nonlinear_parameter.probe
+            cols.append(_design(ctx, (c,), _setting(ctx, (c,), {**nl0, c.name: v}))[0] - base)
     C3 = np.stack(cols, axis=2) if cols else np.zeros(base.shape + (0,))
     js, Y, Xs, idxs, floors = [], [], [], [], []
     for j, idx in channel_rows(ctx, rows):
         js.append(j)
-        Y.append(ctx.rec.data[idx, j] - base[idx, j])
+        Y.append(ctx.plant.data[idx, j] - base[idx, j])
         Xs.append(C3[idx, j])
         idxs.append(idx)
         floors.append(max(float(ctx.quantum[j]) / np.sqrt(12.0)
                           if ctx.quantum is not None else 0.0, 1e-3))
-    out = [None] * len(ctx.rec.channels)
+    out = [None] * len(ctx.plant.channels)
     if js:
         fitted = reml_joint(Y, Xs, idxs, ctx.sigma[js],
-                            [ctx.rec.channels[j].kind for j in js], floors)
+                            [ctx.plant.channels[j].kind for j in js], floors)
         for j, z in zip(js, fitted):
             out[j] = z
     return with_fields(ctx, noise=tuple(out), wcache={})
@@ -226,82 +217,29 @@ def whitened(ctx: FitContext, X: np.ndarray, ch: int, rows: np.ndarray) -> np.nd
 
 
 def candidate_causes(ctx: FitContext) -> list:
-    """Every single cause the record and the model can tell (module table)."""
-    m, rec = ctx.model, ctx.rec
-    out = [Cause("convection_scale", g) for g in m.convections]
-    out += [Cause("source_scale", s) for j, s in enumerate(m.sources)
-            if np.any(rec.power_W[:, j] != 0)]
-    if np.any(ctx.shape > 0):
-        out += [Cause("missing_source", g) for g in m.candidates]
-    out += [Cause("contact_conductance", g) for g in m.interfaces]
-    if rec.ambient_C is not None and np.ptp(rec.ambient_C) > 0:
-        out.append(Cause("ambient_lag"))
-    out += [Cause("sensor_drift", c.column) for c in rec.channels]
-    out.append(Cause("warm_start"))
-    return out
+    """Every single cause the plant can tell (:meth:`arfem.models.plant.Plant.candidate_causes`)."""
+    return list(ctx.plant.candidate_causes())
 
 
-def _setting(ctx: FitContext, causes, nl: dict) -> Setting:
-    m = ctx.model
-    hs = np.ones(len(m.convections))
-    kap = np.ones(len(m.interfaces))
-    lag = 0.0
-    for c in causes:
-        v = nl.get(c.name)
-        if c.kind == "convection_scale":
-            hs[m.convections.index(c.target)] = v
-        elif c.kind == "contact_conductance":
-            kap[m.interfaces.index(c.target)] = v
-        elif c.kind == "ambient_lag":
-            lag = v * 3600.0
-    return Setting(hs, kap, lag)
+def _setting(ctx: FitContext, causes, nl: dict):
+    return ctx.plant.setting(causes, nl)
 
 
-def _responses(ctx: FitContext, s: Setting, warm: bool):
-    key = (tuple(np.round(s.h_scale, 10)), tuple(np.round(s.kappa, 10)), round(s.lag_s, 6),
-           warm)
-    if key not in ctx.cache:
-        if len(ctx.cache) > 400:
-            ctx.cache.clear()
-        ctx.cache[key] = responses(ctx.model, ctx.rec, s, ctx.shape, warm)
-    return ctx.cache[key]
-
-
-def _design(ctx: FitContext, causes, s: Setting):
-    """(base prediction (N, C), linear columns [(N, C)], their (cause index, name))."""
-    m, rec = ctx.model, ctx.rec
-    warm = any(c.kind == "warm_start" for c in causes)
-    R, Rw = _responses(ctx, s, warm)
-    S, G = len(m.sources), len(m.convections)
-    base = R[:, :, :S + G].sum(axis=2)
-    cols, names = [], []
-    th = rec.time_s / 3600.0
-    for i, c in enumerate(causes):
-        if c.kind == "source_scale":
-            cols.append(R[:, :, m.sources.index(c.target)])
-            names.append((i, "scale"))
-        elif c.kind == "missing_source":
-            cols.append(R[:, :, S + G + m.candidates.index(c.target)])
-            names.append((i, "power_W"))
-        elif c.kind == "warm_start":
-            cols.append(Rw)
-            names.append((i, "initial_offset_K"))
-        elif c.kind == "sensor_drift":
-            j = [ch.column for ch in rec.channels].index(c.target)
-            u = rec.channels[j].unit
-            on = np.zeros((th.size, len(rec.channels)))
-            on[:, j] = 1.0
-            cols.append(on.copy())
-            names.append((i, f"offset_{u}"))
-            on[:, j] = th
-            cols.append(on)
-            names.append((i, f"drift_{u}_per_h"))
-    return base, cols, names
+def _design(ctx: FitContext, causes, s):
+    """(base prediction (N, C), linear columns [(N, C)], their (cause index, parameter)):
+    the causes' columns, then the plant's nuisance columns (``(None, None)``: fitted in
+    every fit, the nominal's included, and never reported)."""
+    d = ctx.plant.design(causes, s)
+    names = [(i, p) for i, c in enumerate(causes) for p in c.linear_parameters]
+    if len(names) != len(d.columns):
+        raise ValueError(f"{ctx.plant.kind} plant: {len(d.columns)} columns for "
+                         f"{len(names)} linear parameters")
+    return d.base, list(d.columns) + list(d.nuisance), names + [(None, None)] * len(d.nuisance)
 
 
 def _lstsq(ctx: FitContext, base, cols, rows):
     """Weighted least squares of the linear columns on ``rows``: (β, weighted SSE)."""
-    y = ctx.rec.data
+    y = ctx.plant.data
     if ctx.noise is not None:
         r0 = np.concatenate([whitened(ctx, y - base, c, rows) for c in range(y.shape[1])])
         if not cols:
@@ -341,18 +279,25 @@ def _search_1d(f, lo: float, hi: float) -> float:
     return float(np.exp(res.x)) if res.fun <= v[k] else float(np.exp(g[k]))
 
 
-def _optimise(ctx: FitContext, causes, rows, fixed: dict, polish: bool = False) -> dict:
-    nl = {c.name: NO_EFFECT[c.nonlinear] if c.nonlinear != "lag_h" else 1.0
-          for c in causes if c.nonlinear}
-    nl.update({k: v for k, v in fixed.items() if k in nl})
-    nls = [c for c in causes if c.nonlinear and c.name not in fixed]
-    for _ in range(2 if len(nls) > 1 else 1):
-        for c in nls:
-            lo, hi = BOUNDS[c.nonlinear]
+def _nonlinear(ctx: FitContext, causes) -> list:
+    """[(key, Parameter)] of every nonlinear parameter of a fit of ``causes``: each
+    cause's (keyed by the cause's name), then the plant's nominal ones (by their own
+    name; searched in every fit, the nominal's included, never reported)."""
+    return [(c.name, c.nonlinear_parameter) for c in causes if c.nonlinear] + \
+        [(p.name, p) for p in ctx.plant.nominal_parameters]
 
-            def f(v, c=c):
-                return _profile(ctx, causes, {**nl, c.name: v}, rows)[0]
-            nl[c.name] = _search_1d(f, lo, hi)
+
+def _optimise(ctx: FitContext, causes, rows, fixed: dict, polish: bool = False) -> dict:
+    nl = {k: p.start for k, p in _nonlinear(ctx, causes)}
+    nl.update({k: v for k, v in fixed.items() if k in nl})
+    nls = [(k, p) for k, p in _nonlinear(ctx, causes) if k not in fixed]
+    for _ in range(2 if len(nls) > 1 else 1):
+        for key, par in nls:
+            lo, hi = par.bounds
+
+            def f(v, key=key):
+                return _profile(ctx, causes, {**nl, key: v}, rows)[0]
+            nl[key] = _search_1d(f, lo, hi)
     if polish and len(nls) > 1:
         nl = _polish(ctx, causes, rows, nl, nls)
     return nl
@@ -368,8 +313,8 @@ def _polish(ctx: FitContext, causes, rows, nl: dict, nls) -> dict:
     SSE of 2879.8, while the truth (0.440, 0.270) gives 2870.7, and both 95 % intervals
     missed it (added before the sixth pre-registration)."""
     from scipy.optimize import minimize
-    names = [c.name for c in nls]
-    b = [(np.log(BOUNDS[c.nonlinear][0]), np.log(BOUNDS[c.nonlinear][1])) for c in nls]
+    names = [k for k, _ in nls]
+    b = [tuple(np.log(p.bounds)) for _, p in nls]
 
     def f(x):
         return _profile(ctx, causes, {**nl, **dict(zip(names, np.exp(x)))}, rows)[0]
@@ -396,20 +341,21 @@ def _channel_meat(J: np.ndarray, r: np.ndarray) -> list:
 
 
 def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarray:
-    """Standard errors of (nonlinear params in cause order, then β)."""
-    nls = [c for c in causes if c.nonlinear]
-    J_all = []
-    for c in nls:
-        v = nl[c.name]
+    """Standard errors of (the causes' nonlinear params in cause order, then β, then
+    the nominal model's own nonlinear params)."""
+    J_nl = []
+    for key, par in _nonlinear(ctx, causes):
+        v = nl[key]
         dv = 1e-3 * v
-        lo, hi = BOUNDS[c.nonlinear]
+        lo, hi = par.bounds
         up, dn = min(v + dv, hi * 1.001), max(v - dv, lo * 0.999)
-        pu = _predict(ctx, causes, {**nl, c.name: up}, beta)
-        pd = _predict(ctx, causes, {**nl, c.name: dn}, beta)
-        J_all.append((pu - pd) / (up - dn))
+        pu = _predict(ctx, causes, {**nl, key: up}, beta)
+        pd = _predict(ctx, causes, {**nl, key: dn}, beta)
+        J_nl.append((pu - pd) / (up - dn))
     s = _setting(ctx, causes, nl)
     _, cols, _ = _design(ctx, causes, s)
-    J_all += cols
+    n_causes = sum(1 for c in causes if c.nonlinear)
+    J_all = J_nl[:n_causes] + cols + J_nl[n_causes:]
     if not J_all:
         return np.zeros(0)
     if ctx.noise is not None:
@@ -417,7 +363,7 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
     p = len(J_all)
     bread = np.zeros((p, p))
     meats = None
-    y = ctx.rec.data
+    y = ctx.plant.data
     for ch in range(y.shape[1]):
         ok = ctx.valid[:, ch] & rows
         if ok.sum() < 10:
@@ -443,7 +389,7 @@ def _gls_se(ctx: FitContext, J_all, rows, pred) -> np.ndarray:
     s² (Σ_c J̃_cᵀ J̃_c)⁻¹ with J̃ the whitened Jacobian and s² the whitened residual's
     variance (1 when the noise model is right; estimated, not assumed)."""
     J3 = np.stack(J_all, axis=2)
-    y = ctx.rec.data
+    y = ctx.plant.data
     Jw = np.concatenate([whitened(ctx, J3, c, rows) for c in range(y.shape[1])])
     rw = np.concatenate([whitened(ctx, y - pred, c, rows) for c in range(y.shape[1])])
     p = Jw.shape[1]
@@ -474,7 +420,7 @@ def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool =
     # the joint polish of two nonlinear parameters where intervals are wanted (the named
     # fit): the screens compare BICs of coordinate-swept fits, as before
     nl = _optimise(ctx, causes, rows, fixed or {}, polish=intervals) \
-        if any(c.nonlinear for c in causes) else {}
+        if _nonlinear(ctx, causes) else {}
     sse, beta, base, cols, names, s = _profile(ctx, causes, nl, rows)
     pred = base.copy()
     for b, c in zip(beta, cols):
@@ -490,11 +436,14 @@ def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool =
             if se is not None:
                 ci[i][c.nonlinear] = (v - _Z95 * se[k], v + _Z95 * se[k])
             k += 1
-    for j, (i, nm) in enumerate(names):
-        v = float(beta[j]) + (1.0 if nm == "scale" else 0.0)
+    for j, (i, par) in enumerate(names):
+        if par is None:                 # a nuisance column of the plant
+            continue
+        v = linear_value(par, beta[j])
+        nm = par.name
         params[i][nm] = v
         if se is not None:
             e = se[k + j]
             ci[i][nm] = (v - _Z95 * e, v + _Z95 * e)
     return Fit(causes, tuple(params), tuple(ci), pred, sse,
-               len(beta) + sum(1 for c in causes if c.nonlinear), s)
+               len(beta) + len(_nonlinear(ctx, causes)), s)

@@ -1,0 +1,294 @@
+"""A plant: what the one diagnosis pipeline needs of a model checked against a record
+(issue 41, build item 1).
+
+The pipeline (:mod:`arfem.models.geodiagnosis.fit` for the fits and intervals,
+:mod:`arfem.models.geodiagnosis.engine` for the selection and the verdict) talks to
+its model only through :class:`Plant`: a model bound to one measured record. A plant
+gives
+
+* its **channels** (each with a ``column`` name, a ``kind``: ``"displacement"``,
+  ``"temperature"`` or ``"tilt"``, and a ``unit``: ``"um"``, ``"K"``, ``"urad"``) and
+  their readings per row, ``data`` (N, C) in those units (NaN: no reading);
+* its **inputs per row**: ``time_s``, the recorded ``ambient_C`` (or None), and
+  ``load_shape``, the schedule of its heat input (1 at its largest), from which the
+  default hold-out is chosen and a missing source follows;
+* its **candidate causes** (:class:`CandidateCause`): each a part of the model that
+  may be wrong, with its parameters (:class:`Parameter`: name with its unit, the value
+  that means "no effect", the range a fit can return, the plausible range, linear or
+  nonlinear);
+* its **responses at a setting**: :meth:`Plant.setting` turns the causes' nonlinear
+  values into the plant's own setting, and :meth:`Plant.design` gives at that setting
+  the nominal prediction (N, C) and one column (N, C) per linear parameter (the
+  response to a unit change of it), so that the linear parameters are a least-squares
+  fit: prediction = base + Σ_k β_k column_k, parameter = no-effect + β (and, where
+  the nominal model has unknowns of its own, its nuisance columns, fitted alike, and
+  its ``nominal_parameters``, searched alike).
+
+Two plants implement it: the user's mesh (:class:`arfem.models.geodiagnosis.plant.MeshPlant`,
+the parametric reduced model of a Gmsh unit) and the seed paper's rod
+(:class:`arfem.models.diagnosis.rod_plant.RodPlant`, the reduced FEM rod of Du et al.
+2021). Everything here is pure: no files, no state beyond the caches a plant keeps.
+
+The causes come from one vocabulary (:func:`cause`), whatever the plant:
+
+==================== ================== ================================ ===========
+kind                 target             parameters [unit]                no effect
+==================== ================== ================================ ===========
+convection_scale     convection group   ``h_scale`` [-], nonlinear       1
+source_scale         heat source        ``scale`` [-]                    1
+missing_source       candidate group    ``power_W`` [W]                  0
+contact_conductance  interface group    ``conductivity_scale`` [-],      1
+                                        nonlinear
+ambient_lag          (all surfaces)     ``lag_h`` [h], nonlinear         0
+sensor_drift         a channel          ``offset_<u>``, ``drift_<u>_per_h`` 0, 0
+warm_start           (whole body)       ``initial_offset_K`` [K]         0
+frame_expansion      a thermometer      ``frame_gain_um_per_K`` [µm/K]   0
+==================== ================== ================================ ===========
+
+The no-effect values are the verdict's (:data:`arfem.models.diagnosis.verdict.NO_EFFECT`,
+one table).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from arfem.models.diagnosis.verdict import NO_EFFECT
+
+__all__ = ["Parameter", "CandidateCause", "Design", "Plant", "linear_value", "cause",
+           "BOUNDS", "PLAUSIBLE"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter of a cause.
+
+    Attributes
+    ----------
+    name : str
+        Its name with its unit, as reported (``h_scale`` [-], ``power_W`` [W],
+        ``lag_h`` [h], ``drift_um_per_h`` [µm/h], ``initial_offset_K`` [K]).
+    unit : str
+        Its unit alone (``"-"`` for a factor).
+    no_effect : float
+        The value at which the cause changes nothing (1 for a factor, 0 for an added
+        quantity); a cause is established only when its 95 % interval excludes it.
+    linear : bool
+        True: the prediction is linear in it (fitted by least squares, value =
+        ``no_effect`` + β). False: searched on a log scale within ``bounds``.
+    bounds : (float, float) or None
+        The range a nonlinear fit can return, in the parameter's unit; an interval
+        reaching an end of it is not a cause. None for a linear parameter.
+    plausible : (float, float) or None
+        The physically plausible range; a fit outside is a sign of wrong units or of
+        another cause. None: any value.
+    start : float or None
+        A nonlinear parameter's value while another is searched first (its no-effect
+        value, or a point inside ``bounds`` where that lies outside them).
+    probe : float or None
+        A nonlinear parameter's secant point for the largest model of the noise fit
+        (:func:`arfem.models.geodiagnosis.fit.with_noise`).
+    """
+
+    name: str
+    unit: str
+    no_effect: float
+    linear: bool = True
+    bounds: tuple | None = None
+    plausible: tuple | None = None
+    start: float | None = None
+    probe: float | None = None
+
+
+@dataclass(frozen=True)
+class CandidateCause:
+    """One cause a plant can tell: a ``kind`` on a ``target`` (a group, source or
+    channel name; empty for a whole-body cause) with its :class:`Parameter` s.
+
+    A cause has at most one nonlinear parameter (the pipeline searches it); the others
+    are linear. Two causes are the same when kind, target and parameters agree.
+
+    >>> c = CandidateCause("convection_scale", "housing", (
+    ...     Parameter("h_scale", "-", 1.0, linear=False, bounds=(0.1, 10.0), start=1.0,
+    ...               probe=1.5),))
+    >>> c.name, c.nonlinear, c.linear_parameters
+    ('convection_scale:housing', 'h_scale', ())
+    """
+
+    kind: str
+    target: str = ""
+    parameters: tuple = ()
+
+    @property
+    def name(self) -> str:
+        """``kind:target`` (``kind`` alone for a whole-body cause)."""
+        return f"{self.kind}:{self.target}" if self.target else self.kind
+
+    @property
+    def nonlinear(self) -> str | None:
+        """The name of the nonlinear parameter, or None."""
+        return next((p.name for p in self.parameters if not p.linear), None)
+
+    @property
+    def nonlinear_parameter(self) -> Parameter | None:
+        """The nonlinear :class:`Parameter`, or None."""
+        return next((p for p in self.parameters if not p.linear), None)
+
+    @property
+    def linear_parameters(self) -> tuple:
+        """The linear :class:`Parameter` s, in the order of the plant's columns."""
+        return tuple(p for p in self.parameters if p.linear)
+
+    def parameter(self, name: str) -> Parameter | None:
+        """The parameter called ``name``, or None."""
+        return next((p for p in self.parameters if p.name == name), None)
+
+
+@dataclass(frozen=True)
+class Design:
+    """A plant's responses at one setting.
+
+    Attributes
+    ----------
+    base : ndarray (N, C)
+        The prediction with every linear parameter at its no-effect value [channel units].
+    columns : tuple of ndarray (N, C)
+        One per linear parameter of the causes, in cause order then parameter order:
+        the change of the prediction per unit of the parameter.
+    setting : object
+        The plant's own setting (what its nonlinear values mean to it).
+    nuisance : tuple of ndarray (N, C)
+        Columns of the nominal model's own unknowns (e.g. the free response of an
+        unknown initial state), fitted by least squares in every fit, the nominal's
+        included, and never reported as a cause; () for a plant whose nominal model is
+        fully given.
+    """
+
+    base: np.ndarray
+    columns: tuple
+    setting: Any
+    nuisance: tuple = ()
+
+
+def linear_value(p: Parameter, beta: float) -> float:
+    """A linear parameter's value from its least-squares coefficient β: no-effect + β.
+
+    >>> linear_value(Parameter("scale", "-", 1.0), 0.25)
+    1.25
+    """
+    return float(beta) + float(p.no_effect)
+
+
+#: Ranges the fit can return (natural units); an interval reaching one is not a cause.
+BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
+          "lag_h": (0.02, 48.0)}
+#: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
+PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
+#: Where a nonlinear parameter is held while another is searched (a lag of 0 h lies
+#: outside its log-scale range: 1 h) and its secant point for the noise fit's largest
+#: model (h × 1.5, κ × 0.5, a lag of 1 h).
+_START = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 1.0}
+_PROBE = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0}
+_NONLINEAR = {"convection_scale": ("h_scale", "-"),
+              "contact_conductance": ("conductivity_scale", "-"), "ambient_lag": ("lag_h", "h")}
+_LINEAR = {"source_scale": (("scale", "-"),), "missing_source": (("power_W", "W"),),
+           "warm_start": (("initial_offset_K", "K"),),
+           "frame_expansion": (("frame_gain_um_per_K", "um/K"),)}
+
+
+def _nonlinear(name: str, unit: str) -> Parameter:
+    return Parameter(name, unit, float(NO_EFFECT[name]), linear=False, bounds=BOUNDS[name],
+                     start=_START[name], probe=_PROBE[name])
+
+
+def _column_unit(column: str) -> str:
+    """A record column's unit, from its name (``d_*_um``, ``tilt_*_urad``, ``T_*_C``)."""
+    if column.endswith("_um"):
+        return "um"
+    return "urad" if column.endswith("_urad") else "K"
+
+
+def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCause:
+    """The cause ``kind`` on ``target`` with its parameters (module table), the same for
+    every plant; ``unit`` is a sensor drift's channel unit (from its column name when
+    not given).
+
+    >>> [p.name for p in cause("sensor_drift", "d_tcp_z_um").parameters]
+    ['offset_um', 'drift_um_per_h']
+    >>> cause("source_scale", "motor").parameters[0].plausible
+    (0.2, 5.0)
+    """
+    if kind in _NONLINEAR:
+        params = (_nonlinear(*_NONLINEAR[kind]),)
+    elif kind == "sensor_drift":
+        u = unit or _column_unit(target)
+        params = (Parameter(f"offset_{u}", u, 0.0), Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0))
+    elif kind in _LINEAR:
+        params = tuple(Parameter(n, u, float(NO_EFFECT[n]), plausible=PLAUSIBLE.get(n))
+                       for n, u in _LINEAR[kind])
+    else:
+        raise ValueError(f"unknown mesh cause {kind!r}")
+    return CandidateCause(kind, target, params)
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """A model bound to one measured record: what the diagnosis pipeline calls.
+
+    Attributes
+    ----------
+    kind : str
+        ``"mesh"`` or ``"rod"`` (``Diagnosis.plant``).
+    name : str
+        The record's name.
+    time_s : ndarray (N,)
+        Sample times [s], increasing.
+    data : ndarray (N, C)
+        Each channel's readings [channel unit] (thermometers as θ = T − reference [K]),
+        NaN where missing.
+    channels : tuple
+        One per column of ``data``, each with ``column`` (str), ``kind`` (str) and
+        ``unit`` (str).
+    ambient_C : ndarray (N,) or None
+        The recorded ambient air [°C], an input and a data baseline's regressor.
+    load_shape : ndarray (N,)
+        The heat input's schedule, 1 at its largest [-]; zeros when nothing heats.
+    not_searched : tuple of str
+        Causes left out of the search by the user (said in the verdict).
+    nominal_parameters : tuple of Parameter
+        Nonlinear unknowns of the nominal model itself (e.g. a speed-only record's
+        time constant), searched within their bounds in every fit, the nominal's
+        included, and never reported as a cause; () for a plant whose nominal model
+        is fully given.
+    regrows : bool
+        True when the plant's reduced model is rebuilt at a named nonlinear setting
+        (:meth:`regrown`) to remove its reduction bias there; False when the reduction
+        is exact at every setting.
+    """
+
+    kind: str
+    name: str
+    time_s: np.ndarray
+    data: np.ndarray
+    channels: tuple
+    ambient_C: np.ndarray | None
+    load_shape: np.ndarray
+    not_searched: tuple
+    nominal_parameters: tuple
+    regrows: bool
+
+    def candidate_causes(self) -> tuple:
+        """Every single :class:`CandidateCause` this record and model can tell."""
+
+    def setting(self, causes, values: dict) -> Any:
+        """The plant's setting for ``causes`` with their nonlinear parameters at
+        ``values`` {cause name: value}; every other part nominal."""
+
+    def design(self, causes, setting) -> Design:
+        """The :class:`Design` of ``causes`` at ``setting``."""
+
+    def regrown(self, setting) -> "Plant":
+        """The same plant with its reduced model rebuilt at ``setting`` (its reduction
+        bias there removed); called only when ``regrows``."""
