@@ -62,7 +62,7 @@ from arfem.models.diagnosis.speed_intervals import EDGE_TOL, SEARCH_RANGES
 __all__ = ["VERDICTS", "Verdict", "decide", "apply", "text", "whiteness_p",
            "ljung_box_p_neff", "NO_EFFECT", "ALPHA", "WHITE_P", "BETTER_CUT", "UNITS_RATIO",
            "MIN_INDEPENDENT_SAMPLES", "DEFAULT_RESOLUTION", "ACTIONS", "named_cause",
-           "naming_level", "channels_white", "correlation_bound", "better",
+           "naming_level", "channels_white", "correlation_bound", "signal_level", "better",
            "units_suspect", "below_resolution", "outcome", "reaches_edge",
            "RESOLUTION_DEFAULTS", "EQUIVALENCE_P", "holdout_tells_apart_p", "beaten_text"]
 
@@ -203,7 +203,20 @@ def correlation_bound(n_eff: float, n_signals: int) -> float:
     >>> round(correlation_bound(10000, 1), 4), round(correlation_bound(10000, 13), 4)
     (0.0196, 0.0289)
     """
-    return st.corr_bound(n_eff, 1.0 - WHITE_P / max(int(n_signals), 1))
+    return st.corr_bound(n_eff, 1.0 - signal_level(n_signals))
+
+
+def signal_level(n_signals: int) -> float:
+    """The level of the test that a residual follows one of ``n_signals`` recorded
+    signals (thermometers): WHITE_P / n (Bonferroni over them). The bound of
+    :func:`correlation_bound` is this test on independent samples; a plant whose noise
+    model has a random walk tests it with the walk profiled
+    (:func:`arfem.models.geodiagnosis.noise.columns_vs_walk_p`) at this level.
+
+    >>> signal_level(10)
+    0.005
+    """
+    return WHITE_P / max(int(n_signals), 1)
 
 
 def better(rmse, reference_rmse) -> bool:

@@ -78,10 +78,10 @@ import numpy as np
 from dataclasses import replace as with_fields
 
 from arfem.models.diagnosis.holdout import default_holdout
-from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff, xcorr
+from arfem.models.diagnosis.stats import bic, f_test_p, noise_n_eff
 from arfem.models.diagnosis.verdict import (EQUIVALENCE_P, beaten_text, NO_EFFECT, RESOLUTION_DEFAULTS,
                                             below_resolution, better, channels_white,
-                                            correlation_bound, WHITE_P,
+                                            signal_level, WHITE_P,
                                             holdout_tells_apart_p, naming_level, outcome,
                                             reaches_edge, whiteness_p)
 from arfem.models.geodiagnosis.fit import (Fit, FitContext,
@@ -542,7 +542,8 @@ def _not_within_noise(v: _Judgement) -> str:
     if untestable:
         why.append(f"too few independent samples to test on {', '.join(untestable)}")
     if v.thermometers_beyond:
-        why.append("it follows the temperatures beyond the N_eff bound ("
+        why.append("it follows the temperatures, beyond what its noise (white plus a "
+                   "random walk) explains ("
                    + ", ".join(f"{d} with {t}" for d, t in v.thermometers_beyond[:4])
                    + (", …" if len(v.thermometers_beyond) > 4 else "") + ")")
     if v.mlr_better:
@@ -728,27 +729,40 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
 
 
 def _thermometers_beyond(ctx: FitContext, rec: Plant, base: Fit) -> tuple:
-    """The (displacement channel, thermometer) pairs whose nominal residual correlates
-    with the thermometer's reading (or the ambient) beyond the bound on the residual's
-    N_eff, Bonferroni over the pairs (:func:`arfem.models.diagnosis.verdict.correlation_bound`):
-    the rod's check of "within the noise", on every displacement channel. A smooth
-    misfit that the fitted random walk absorbs in the whitening (a housing expanding
-    faster than modelled) still follows the temperatures."""
+    """The (displacement channel, thermometer) pairs whose nominal residual follows the
+    thermometer's reading (or the ambient): the rod's check of "within the noise", on
+    every displacement channel, at the level
+    :func:`arfem.models.diagnosis.verdict.signal_level` (Bonferroni over the pairs).
+
+    Tested under the noise model of the pipeline: the likelihood-ratio test of the
+    residual = a + b·reading + white + walk against a + white + walk, the walk's
+    strength profiled under each (:func:`.noise.columns_vs_walk_p`). The rod's form, the
+    raw correlation against the bound on the residual's N_eff
+    (:func:`arfem.models.diagnosis.verdict.correlation_bound`), holds for a white
+    residual only: under a random walk two slow series correlate by chance far beyond
+    it, and it called 23 of 30 clean records with a walk "not explained" (coarse unit,
+    development seeds 1010-1039). A smooth misfit that follows the temperatures (a
+    housing that expands faster than modelled), which the pipeline's fitted walk
+    absorbs in the whitening, is still caught: with the reading in the model no walk is
+    needed for it."""
+    from arfem.models.geodiagnosis.noise import columns_vs_walk_p
     temps = {c.column: rec.data[:, j] for j, c in enumerate(rec.channels)
              if c.kind == "temperature"}
     if rec.ambient_C is not None and np.ptp(rec.ambient_C) > 0:
         temps["ambient_C"] = rec.ambient_C
     disp = [j for j, c in enumerate(rec.channels) if c.kind == "displacement"]
-    m = len(disp) * len(temps)
+    level = signal_level(len(disp) * len(temps))
     out = []
     for j in disp:
-        ok = ctx.valid[:, j]
-        r = rec.data[ok, j] - base.prediction[ok, j]
-        if r.size < 10:
-            continue
-        bound = correlation_bound(noise_n_eff(r), m)
-        out += [(rec.channels[j].column, k) for k, x in temps.items()
-                if abs(xcorr(r, x[ok])) > bound]
+        for k, x in temps.items():
+            idx = np.flatnonzero(ctx.valid[:, j] & np.isfinite(x))
+            if idx.size < 10:
+                continue
+            one = np.ones((idx.size, 1))
+            p = columns_vs_walk_p(rec.data[idx, j] - base.prediction[idx, j], idx, one,
+                                  np.column_stack([one, x[idx] - np.mean(x[idx])]))
+            if p < level:
+                out.append((rec.channels[j].column, k))
     return tuple(out)
 
 

@@ -32,7 +32,8 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 __all__ = ["LevelNoise", "fit_level_noise", "reml_level_noise", "reml_level_noise_pooled",
-           "reml_joint", "Whitener", "whitener", "drift_vs_walk_p", "walk_profiled_lr_p"]
+           "reml_joint", "Whitener", "whitener", "drift_vs_walk_p", "columns_vs_walk_p",
+           "walk_profiled_lr_p"]
 
 
 @dataclass(frozen=True)
@@ -355,15 +356,48 @@ def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray,
     >>> drift_vs_walk_p(walk, idx, t) > 0.01, drift_vs_walk_p(drift, idx, t) < 1e-6
     (True, True)
     """
+    y = np.asarray(y, float)
+    X = np.column_stack([np.ones(y.size), np.asarray(time_h, float)])
+    return columns_vs_walk_p(y, idx, np.zeros((y.size, 0)), X, ratios)
+
+
+def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray, X1: np.ndarray,
+                      ratios=None) -> float:
+    """p of the likelihood-ratio test of y = X1 β + white + walk against
+    y = X0 β + white + walk (X0's columns among X1's), the walk-to-white ratio λ, β and
+    σ_e profiled out under EACH hypothesis (χ² on the number of extra columns).
+
+    The test of :func:`drift_vs_walk_p` for any columns, e.g. a thermometer's reading
+    that a residual may follow: a random walk and a slowly varying signal correlate by
+    chance far beyond the bound of independent samples (Granger C. W. J., Newbold P.,
+    J. Econometrics 2 (1974) 111-120), and a misfit that follows the signal may pass
+    for a walk; with the walk in both hypotheses, neither is taken for the other.
+
+    Parameters
+    ----------
+    y : ndarray (n,), a residual [record unit] on rows ``idx``
+    idx : ndarray (n,) of int, their row indices
+    X0, X1 : ndarray (n, p0), (n, p1), the smaller and the larger model's columns
+    ratios : array_like, the λ grid (default 0 and 10^-7 … 10^-0.5)
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(4)
+    >>> n = 480
+    >>> idx, x = np.arange(n), np.sin(np.arange(n) / 80.0)
+    >>> one, both = np.ones((n, 1)), np.column_stack([np.ones(n), x])
+    >>> walk = rng.normal(0, 1.0, n) + np.cumsum(rng.normal(0, 0.2, n))
+    >>> follows = rng.normal(0, 1.0, n) + 0.5 * x
+    >>> columns_vs_walk_p(walk, idx, one, both) > 0.01, columns_vs_walk_p(follows, idx, one, both) < 1e-4
+    (True, True)
+    """
     from scipy.stats import chi2
     if ratios is None:
         ratios = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
     y = np.asarray(y, float)
-    X = np.column_stack([np.ones(y.size), np.asarray(time_h, float)])
-    none = np.zeros((y.size, 0))
-    l0 = min(_ml_terms(y, none, idx, float(v)) for v in ratios)
-    l1 = min(_ml_terms(y, X, idx, float(v)) for v in ratios)
-    return float(chi2.sf(max(l0 - l1, 0.0), 2))
+    l0 = min(_ml_terms(y, X0, idx, float(v)) for v in ratios)
+    l1 = min(_ml_terms(y, X1, idx, float(v)) for v in ratios)
+    return float(chi2.sf(max(l0 - l1, 0.0), max(X1.shape[1] - X0.shape[1], 1)))
 
 
 def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int, ratios=None) -> float:
