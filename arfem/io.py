@@ -330,14 +330,15 @@ PLAIN_NUMBERS_MAX_ROWS = 100_000
 _NOT_PLAIN = str.maketrans("", "", "0123456789eE+-.,\r\n")
 
 
-def _plain_numbers(lines, filled, header, numeric) -> dict | None:
-    """Every column of a table of plain numbers, parsed by numpy (correctly rounded, as
-    the strict reader's float()), or None where a column is not numeric, a cell is not
-    a plain number, or the table is large (pandas then reads it)."""
+def _plain_numbers(lines, filled, header, numeric) -> tuple | None:
+    """(numbers, cells) of a table whose every cell is a plain number, parsed by numpy
+    (correctly rounded, as the strict reader's float()); a column not read as numbers
+    keeps its cells' text. None where a cell is not a plain number or the table is
+    large (pandas then reads it)."""
     body = filled[1:]
-    if not all(numeric(c) for c in header) or len(body) > PLAIN_NUMBERS_MAX_ROWS:
+    if len(body) > PLAIN_NUMBERS_MAX_ROWS:
         return None
-    rows = [lines[i] for i in body]
+    rows = [lines[i].rstrip("\r") for i in body]
     if "".join(rows).translate(_NOT_PLAIN):
         return None
     try:                              # a blank cell or a malformed number: not plain
@@ -346,7 +347,10 @@ def _plain_numbers(lines, filled, header, numeric) -> dict | None:
         return None
     if a.shape != (len(body), len(header)) or not np.isfinite(a).all():
         return None
-    return {c: np.ascontiguousarray(a[:, j]) for j, c in enumerate(header)}
+    numbers = {c: np.ascontiguousarray(a[:, j]) for j, c in enumerate(header) if numeric(c)}
+    text = [j for j, c in enumerate(header) if not numeric(c)]
+    split = [r.split(",") for r in rows] if text else []
+    return numbers, {header[j]: np.array([r[j] for r in split], dtype=object) for j in text}
 
 
 def _fast_csv(p: Path, text: str, numeric, echo: bool) -> CsvTable | None:
@@ -363,9 +367,9 @@ def _fast_csv(p: Path, text: str, numeric, echo: bool) -> CsvTable | None:
     if (len(set(header)) != len(header) or not all(header)
             or any(lines[i].count(",") != commas for i in filled[1:])):
         return None
-    numbers = _plain_numbers(lines, filled, header, numeric)
-    if numbers is not None:
-        return CsvTable(p, tuple(header), h + 1, numbers, {},
+    plain = _plain_numbers(lines, filled, header, numeric)
+    if plain is not None:
+        return CsvTable(p, tuple(header), h + 1, *plain,
                         np.asarray(filled[1:], dtype=int) + 1, echo)
     import pandas as pd
     try:
