@@ -379,6 +379,16 @@ digits instead of 3 (commit b6270e6); and a channel whose whitened nominal resid
 fewer than 10 effective samples is no longer skipped by the "within the noise" test of
 ``explained`` (p = 0 instead of NaN: found by an audit, a thermometer 30 σ off counted
 as within the noise), so such a record reads ``not_explained``, not ``explained``.
+
+The sixth batch re-run on the engine of 2026-11-28 (one verdict module for every plant,
+the whole model searched by default unless ``[diagnosis]`` narrows it, equal
+alternatives, the pipeline over a plant and its thermometer check with the walk in both
+hypotheses; DEVELOPMENT data now, so post hoc; the three commands above, 02:08-02:21 UTC,
+each once): the same scores as the sixth scoring -- 70/72 right (24/24, 23/24, 23/24;
+the same two misses, 110045 and 110077), 0/18 clean records with a cause, coverage
+73/78; residual ratio against the record, per batch 0.313, 0.423, 0.412 (was pooled
+0.345), against the noise-free readings 0.004, 0.002, 0.006. Clean records' verdicts:
+16 explained, 2 not_explained (one walk, one quantised), none with a cause.
 """
 from __future__ import annotations
 
