@@ -383,7 +383,7 @@ as within the noise), so such a record reads ``not_explained``, not ``explained`
 The sixth batch re-run on the engine of 2026-11-28 (one verdict module for every plant,
 the whole model searched by default unless ``[diagnosis]`` narrows it, equal
 alternatives, the pipeline over a plant and its thermometer check with the walk in both
-hypotheses; DEVELOPMENT data now, so post hoc; the three commands above, 02:08-02:21 UTC,
+hypotheses; DEVELOPMENT data now, so post hoc; the three commands above, 02:09-02:21 UTC,
 each once): the same scores as the sixth scoring -- 70/72 right (24/24, 23/24, 23/24;
 the same two misses, 110045 and 110077), 0/18 clean records with a cause, coverage
 73/78; residual ratio against the record, per batch 0.313, 0.423, 0.412 (was pooled
