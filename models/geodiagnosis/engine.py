@@ -88,6 +88,8 @@ from arfem.models.geodiagnosis.fit import (Fit, FitContext,
                                            candidate_causes, channel_rows, fit_mesh_causes,
                                            implausible,
                                            make_context, whitened, with_noise)
+from arfem.models.geodiagnosis.noise import (columns_vs_walk_p, drift_vs_walk_p,
+                                           walk_profiled_lr_p)
 from arfem.models.geodiagnosis.plant import mesh_plant
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 from arfem.models.plant import Plant
@@ -212,7 +214,6 @@ def walk_explains(ctx: FitContext, cause, ref, rows, level: float) -> bool:
     many smooth columns can absorb a weak walk (a thermometer group's ratio came out 0
     on a clean random-walk record, seed 70019); the drift's F test then took the walk's
     excursion for a drift. The test here asks the channel itself."""
-    from arfem.models.geodiagnosis.noise import drift_vs_walk_p
     if cause.kind != "sensor_drift":
         return False
     j = [ch.column for ch in ctx.plant.channels].index(cause.target)
@@ -232,7 +233,6 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
     weak walk), and a shaft convection of h × 0.94 was added beside the true sensor
     drift for the thermometers' wander (F test p = 5e-14). A partner must also pass
     this test at the same level (added before the sixth pre-registration)."""
-    from arfem.models.geodiagnosis.noise import walk_profiled_lr_p
     chans = channel_rows(ctx, rows)
     if not chans:
         return 1.0
@@ -745,7 +745,6 @@ def _thermometers_beyond(ctx: FitContext, rec: Plant, base: Fit) -> tuple:
     housing that expands faster than modelled), which the pipeline's fitted walk
     absorbs in the whitening, is still caught: with the reading in the model no walk is
     needed for it."""
-    from arfem.models.geodiagnosis.noise import columns_vs_walk_p
     temps = {c.column: rec.data[:, j] for j, c in enumerate(rec.channels)
              if c.kind == "temperature"}
     if rec.ambient_C is not None and np.ptp(rec.ambient_C) > 0:

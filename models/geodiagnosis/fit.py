@@ -54,8 +54,9 @@ from scipy.stats import norm
 
 from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.diagnosis.verdict import NO_EFFECT, reaches_edge
+from arfem.models.geodiagnosis.noise import reml_joint, whitener
 from arfem.models.geodiagnosis.plant import BOUNDS, PLAUSIBLE, Cause, mesh_plant
-from arfem.models.plant import CandidateCause, Plant, linear_value
+from arfem.models.plant import Plant, linear_value
 
 __all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
            "candidate_causes", "channel_rows", "fit_mesh_causes",
@@ -166,7 +167,6 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
     shared by all channels as in the fits themselves. Every later fit,
     test and interval on ``ctx`` is then generalised least squares on that noise."""
     from dataclasses import replace as with_fields
-    from arfem.models.geodiagnosis.noise import reml_joint
     allc = candidate_causes(ctx)
     lin = tuple(c for c in allc if not c.nonlinear)
     # the nominal model's own nonlinear parameters (none on the mesh and the rod) at
@@ -206,7 +206,6 @@ def _whiten(ctx: FitContext, ch: int, rows: np.ndarray):
     """(row indices of channel ``ch`` in ``rows``, their Whitener or None)."""
     key = (ch, hash(rows.tobytes()))
     if key not in ctx.wcache:
-        from arfem.models.geodiagnosis.noise import whitener
         idx = np.flatnonzero(ctx.valid[:, ch] & rows)
         z = ctx.noise[ch] if ctx.noise is not None else None
         ctx.wcache[key] = (idx, whitener(z, idx) if z is not None else None)
