@@ -43,7 +43,17 @@ ambient_lag          (all surfaces)     ``lag_h`` [h], nonlinear         0
 sensor_drift         a channel          ``offset_<u>``, ``drift_<u>_per_h`` 0, 0
 warm_start           (whole body)       ``initial_offset_K`` [K]         0
 frame_expansion      a thermometer      ``frame_gain_um_per_K`` [µm/K]   0
+frame_lag            (the frame)        ``frame_time_constant_h`` [h],   --, 0
+                                        nonlinear; ``frame_gain`` [-]
+convection_exponent  convection group   ``exponent`` [-], nonlinear      0
+                                        (linear search scale)
+ambient_drift        (the ambient)      ``ambient_gain_um_per_K`` [µm/K] 0
 ==================== ================== ================================ ===========
+
+``frame_lag``, ``convection_exponent`` and ``ambient_drift`` are the seed paper's
+rod's (:class:`arfem.models.diagnosis.rod_plant.RodPlant`): a frame heated by the same
+source with its own time constant, a natural-convection h ∝ ΔT^exponent, and a
+recorded ambient that the paper's nominal model (a constant ambient) leaves out.
 
 The no-effect values are the verdict's (:data:`arfem.models.diagnosis.verdict.NO_EFFECT`,
 one table).
@@ -75,6 +85,8 @@ class Parameter:
     no_effect : float
         The value at which the cause changes nothing (1 for a factor, 0 for an added
         quantity); a cause is established only when its 95 % interval excludes it.
+        NaN for a parameter that only shapes an effect another parameter of the cause
+        carries (a frame's time constant beside its gain).
     linear : bool
         True: the prediction is linear in it (fitted by least squares, value =
         ``no_effect`` + β). False: searched on a log scale within ``bounds``.
@@ -90,6 +102,10 @@ class Parameter:
     probe : float or None
         A nonlinear parameter's secant point for the largest model of the noise fit
         (:func:`arfem.models.geodiagnosis.fit.with_noise`).
+    log_scale : bool
+        A nonlinear parameter is searched on a log scale (a factor, a time; its
+        bounds positive), or on a linear one where False (an exponent, whose
+        no-effect value 0 lies inside its bounds).
     """
 
     name: str
@@ -100,6 +116,7 @@ class Parameter:
     plausible: tuple | None = None
     start: float | None = None
     probe: float | None = None
+    log_scale: bool = True
 
 
 @dataclass(frozen=True)
@@ -183,24 +200,36 @@ def linear_value(p: Parameter, beta: float) -> float:
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
 BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
-          "lag_h": (0.02, 48.0)}
+          "lag_h": (0.02, 48.0), "frame_time_constant_h": (2.0, 200.0),
+          "exponent": (-0.5, 1.5)}
 #: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
 PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
 #: Where a nonlinear parameter is held while another is searched (a lag of 0 h lies
 #: outside its log-scale range: 1 h) and its secant point for the noise fit's largest
 #: model (h × 1.5, κ × 0.5, a lag of 1 h).
-_START = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 1.0}
-_PROBE = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0}
+_START = {"h_scale": 1.0, "conductivity_scale": 1.0, "lag_h": 1.0,
+          "frame_time_constant_h": 4.0, "exponent": 0.0}
+_PROBE = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0,
+          "frame_time_constant_h": 4.0, "exponent": 0.25}
+#: nonlinear parameters without a no-effect value (NaN): a frame's time constant shapes
+#: its effect, which its gain carries (the verdict tests the gain against 0)
+_NO_EFFECT_NONLINEAR = {"frame_time_constant_h": float("nan")}
 _NONLINEAR = {"convection_scale": ("h_scale", "-"),
-              "contact_conductance": ("conductivity_scale", "-"), "ambient_lag": ("lag_h", "h")}
+              "contact_conductance": ("conductivity_scale", "-"), "ambient_lag": ("lag_h", "h"),
+              "frame_lag": ("frame_time_constant_h", "h"),
+              "convection_exponent": ("exponent", "-")}
 _LINEAR = {"source_scale": (("scale", "-"),), "missing_source": (("power_W", "W"),),
            "warm_start": (("initial_offset_K", "K"),),
-           "frame_expansion": (("frame_gain_um_per_K", "um/K"),)}
+           "frame_expansion": (("frame_gain_um_per_K", "um/K"),),
+           "frame_lag": (("frame_gain", "-"),),
+           "ambient_drift": (("ambient_gain_um_per_K", "um/K"),)}
 
 
 def _nonlinear(name: str, unit: str) -> Parameter:
-    return Parameter(name, unit, float(NO_EFFECT[name]), linear=False, bounds=BOUNDS[name],
-                     start=_START[name], probe=_PROBE[name])
+    lo = BOUNDS[name][0]
+    no_effect = NO_EFFECT.get(name, _NO_EFFECT_NONLINEAR.get(name))
+    return Parameter(name, unit, float(no_effect), linear=False, bounds=BOUNDS[name],
+                     start=_START[name], probe=_PROBE[name], log_scale=lo > 0)
 
 
 def _column_unit(column: str) -> str:
@@ -220,16 +249,15 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
     >>> cause("source_scale", "motor").parameters[0].plausible
     (0.2, 5.0)
     """
-    if kind in _NONLINEAR:
-        params = (_nonlinear(*_NONLINEAR[kind]),)
-    elif kind == "sensor_drift":
+    if kind == "sensor_drift":
         u = unit or _column_unit(target)
         params = (Parameter(f"offset_{u}", u, 0.0), Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0))
-    elif kind in _LINEAR:
-        params = tuple(Parameter(n, u, float(NO_EFFECT[n]), plausible=PLAUSIBLE.get(n))
-                       for n, u in _LINEAR[kind])
+    elif kind in _NONLINEAR or kind in _LINEAR:
+        params = ((_nonlinear(*_NONLINEAR[kind]),) if kind in _NONLINEAR else ()) + tuple(
+            Parameter(n, u, float(NO_EFFECT[n]), plausible=PLAUSIBLE.get(n))
+            for n, u in _LINEAR.get(kind, ()))
     else:
-        raise ValueError(f"unknown mesh cause {kind!r}")
+        raise ValueError(f"unknown cause {kind!r}")
     return CandidateCause(kind, target, params)
 
 

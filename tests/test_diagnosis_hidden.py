@@ -120,3 +120,31 @@ def test_wrong_units_warn_and_name_nothing(tmp_path):
     got = run_diagnosis(write_case(case, tmp_path / "data"), tmp_path / "out")
     assert got["causes"] == [] and got["cause"] == "none"
     assert len(got["warnings"]) == 1 and "mm" in got["warnings"][0]
+
+
+@pytest.mark.parametrize("cause,seed", [c for c in CASES if c[0] != "none"])
+def test_the_one_pipeline_on_the_rod_plant_names_the_same_hidden_cause(cause, seed, tmp_path):
+    """Issue 41 (one pipeline, the rod one plant among meshes): the mesh's pipeline
+    (:func:`arfem.models.geodiagnosis.engine.diagnose_plant`) on the rod plant
+    (:class:`arfem.models.diagnosis.rod_plant.RodPlant`) names each hidden cause of the
+    rod engine's own test above, read from the same files, under the contract's name
+    (:func:`arfem.models.diagnosis.rod_plant.contract_causes`), established, with its
+    parameter within the same tolerances (``TOL``, ``EXPONENT_ABS``): the rod's
+    vocabulary is whole on the pipeline. (A clean record: the rod plant's tests in
+    ``tests/test_plant_pipeline.py``.)"""
+    from arfem.models.diagnosis.rod_plant import contract_causes, rod_plant
+    from arfem.models.geodiagnosis.engine import diagnose_plant
+    from arfem.scenarios.records.dataset import load_dataset
+    case = generate(cause, seed, duration_h=24.0)
+    ds = load_dataset(write_case(case, tmp_path / "data"))
+    d = diagnose_plant(rod_plant(ds))
+    assert d.verdict == "established", d.text
+    named = contract_causes(d.causes, ds.rod.convection_W_m2K)
+    assert [c for c, _ in named] == [cause], d.text
+    got = named[0][1]
+    for name, tol in TOL.get(cause, {}).items():
+        true = case.parameters[name]
+        assert abs(got[name] - true) <= tol * abs(true), (name, got, true)
+    if cause == "nonlinear_convection":
+        assert abs(got["exponent"] - case.parameters["exponent"]) <= EXPONENT_ABS
+    assert d.holdout.gain_pct > 0.0

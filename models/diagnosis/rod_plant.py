@@ -5,20 +5,39 @@ pipeline (:func:`arfem.models.geodiagnosis.engine.diagnose_plant`) diagnoses a r
 record as it diagnoses a mesh.
 
 Channel: the axial growth ``growth_um`` [µm] (a displacement; Hampel outliers of the
-record are left out as missing readings). Inputs per row: the end flux q [W/m²] and
-the recorded ambient [°C] (zero-order hold over the interval ending at the row, paper
-§2), both inputs of the nominal model: the growth is the FEM's response to q through
-the end face and to h (T_amb − T_ref) on the lateral surface, h the rod's nominal
-(paper: 55 W/(m²K)).
+record are left out as missing readings). Input per row: the end flux q [W/m²] (zero-
+order hold over the interval ending at the row, paper §2). The nominal model is the
+paper's: the FEM's growth under q with the rod's nominal h (paper: 55 W/(m²K)) and a
+**constant ambient** at the reference; a recorded ambient is not an input of it but the
+``ambient_drift`` cause (the paper names a varying ambient as its open limit; the
+measured-data contract names it a cause). This is the rod plant's one named difference
+from the mesh, whose nominal model takes the recorded ambient.
 
-Causes (the one vocabulary, :func:`arfem.models.plant.cause`):
+Causes (the one vocabulary, :func:`arfem.models.plant.cause`), each with the contract
+cause it is (:func:`contract_causes`):
 
-* ``convection_scale:lateral_surface``: h = h_scale × h_nominal [-] (nonlinear; the
-  rod engine's ``convection_mismatch`` with h_W_m2K = h_scale × h_nominal);
-* ``source_scale:end_flux``: the flux that enters is scale × the recorded q [-] (the
-  rod engine's ``heat_input_scale``, or a heat-input efficiency);
-* ``sensor_drift:growth_um``: an offset [µm] and a drift [µm/h] of the sensor;
-* ``warm_start``: the rod starts uniformly initial_offset_K [K] above the reference
+================================================ ==================================
+plant cause                                       contract (docs/measured-data.md)
+================================================ ==================================
+``convection_scale:lateral_surface`` (h_scale)    ``convection_mismatch``
+``convection_scale:lateral_surface_running``      ``speed_dependent_convection``
+(h × h_scale while q > 0)                         (with or without the first)
+``convection_exponent:lateral_surface``           ``nonlinear_convection`` (with or
+(h = h_ref (ΔT/10 K)^exponent point by point)     without a scale on h_ref)
+``source_scale:end_flux`` (scale)                 ``heat_input_scale``
+``ambient_drift`` (ambient_gain_um_per_K)         ``ambient_drift``
+``frame_lag`` (frame_time_constant_h, frame_gain) ``frame_expansion``
+``sensor_drift:growth_um``                        ``sensor_drift``
+``warm_start`` (initial_offset_K)                 (outside the contract)
+================================================ ==================================
+
+* the ambient column is the FEM's growth under h (T_amb − T_ref) on the lateral surface
+  per µm/K of its steady gain αL, so its coefficient is the growth per kelvin of
+  ambient at steady state (αL·10⁶ = 9.6 µm/K for a free rod);
+* the frame is a slower body heated by the same source: a first-order lag of the rod's
+  steady growth target (q times the rod's steady gain), its gain the frame's steady
+  growth per unit of rod growth (as :mod:`arfem.models.diagnosis.candidates`);
+* the warm start: the rod starts uniformly initial_offset_K [K] above the reference
   (the free response of a uniform 1 K start is αL·10⁶ minus the growth response to a
   1 K ambient step: linearity, a uniform 1 K with a 1 K ambient being equilibrium).
   A record that says ``initial = "unknown"`` (contract) declares it: there the
@@ -26,15 +45,8 @@ Causes (the one vocabulary, :func:`arfem.models.plant.cause`):
   (:attr:`arfem.models.plant.Design.nuisance`), not a cause, as the rod engine's own
   nuisance columns are.
 
-Its reduction is exact at every h (:mod:`.forward`), so it never regrows. Named
-properties where the rod differs from the mesh: one channel and no modelled
-thermometer, so its data baseline is the MLR of eq. 18 on the ambient alone; and no
-``ambient_lag`` cause. The rod records' ambient is one thermometer with white noise
-(0.05 K in the synth) on an ambient that is often constant: a lag of the recorded
-ambient then smooths the sensor's own noise out of the nominal input, and it was
-established beside a true flux scale (lag 1.6 h [0.61, 2.63], synth seed 22, flux ×
-1.3), a cause of the measurement rather than of the rod. (The setting keeps the lag,
-for a plant that offers it.)
+Its reduction is exact at every h (:mod:`.forward`), so it never regrows; natural
+convection runs the pointwise rod of :mod:`.local_convection`.
 """
 from __future__ import annotations
 
@@ -42,28 +54,43 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from arfem.models.diagnosis.forward import RodModel
-from arfem.models.geodiagnosis.problem import Channel, ambient_lagged
+from arfem.models.diagnosis.forward import RodModel, first_order_lag
+from arfem.models.geodiagnosis.problem import Channel
 from arfem.models.plant import Design, cause
 
-__all__ = ["RodPlant", "RodSetting", "rod_plant", "GROWTH_COLUMN"]
+__all__ = ["RodPlant", "RodSetting", "rod_plant", "contract_causes", "GROWTH_COLUMN",
+           "DT_REF_K"]
 
 #: The rod's one channel.
 GROWTH_COLUMN = "growth_um"
+#: The surface-to-air difference at which a natural-convection h is h_ref [K]
+#: (the rod engine's, :data:`arfem.models.diagnosis.candidates.DT_REF_K`).
+DT_REF_K = 10.0
 
 
 @dataclass(frozen=True)
 class RodSetting:
-    """The rod's nonlinear parameters (1 and no lag: nominal).
+    """The rod's nonlinear parameters (the defaults: nominal).
 
     Attributes
     ----------
     h_scale : float, factor on the nominal lateral h [-]
-    lag_s : float, first-order lag of the ambient reaching the rod [s] (0: none)
+    h_running_scale : float, a further factor on h while q > 0 [-]
+    exponent : float, natural-convection exponent, h = h_ref (ΔT/10 K)^exponent
+        with h_ref = h_scale × h_nominal [-] (0: a constant h)
+    frame_time_constant_h : float, the frame's time constant [h]
     """
 
     h_scale: float = 1.0
-    lag_s: float = 0.0
+    h_running_scale: float = 1.0
+    exponent: float = 0.0
+    frame_time_constant_h: float = 4.0
+
+
+_SETTING_OF = {"convection_scale:lateral_surface": "h_scale",
+               "convection_scale:lateral_surface_running": "h_running_scale",
+               "convection_exponent:lateral_surface": "exponent",
+               "frame_lag": "frame_time_constant_h"}
 
 
 @dataclass(frozen=True)
@@ -81,7 +108,7 @@ class RodPlant:
     ambient_C : ndarray (N,) or None, recorded ambient [°C]
     load_shape : ndarray (N,), q / max q [-]
     initial_known : bool, False: the record declares an unknown (warm) start
-    cache : dict, growth responses per (h_scale, lag_s)
+    cache : dict, growth responses per setting
     """
 
     model: RodModel
@@ -100,61 +127,161 @@ class RodPlant:
     nominal_parameters: tuple = ()
 
     def candidate_causes(self) -> tuple:
-        """Every single cause the rod and this record can tell (module docstring)."""
-        out = (cause("convection_scale", "lateral_surface"), cause("source_scale", "end_flux"),
-               cause("sensor_drift", GROWTH_COLUMN, "um"))
-        return out + ((cause("warm_start"),) if self.initial_known else ())
+        """Every single cause the rod and this record can tell (module docstring): a
+        running-only h where the flux is both on and off, an ambient drift where the
+        ambient is recorded and varies, a warm start where the start is known."""
+        running = self.q_W_m2 > 0
+        out = [cause("convection_scale", "lateral_surface")]
+        if running.any() and not running.all():
+            out.append(cause("convection_scale", "lateral_surface_running"))
+        out += [cause("convection_exponent", "lateral_surface"),
+                cause("source_scale", "end_flux")]
+        amb = self.ambient_C
+        if amb is not None and np.ptp(amb[np.isfinite(amb)]) > 0:
+            out.append(cause("ambient_drift"))
+        out += [cause("frame_lag"), cause("sensor_drift", GROWTH_COLUMN, "um")]
+        return tuple(out) + ((cause("warm_start"),) if self.initial_known else ())
 
     def setting(self, causes, values: dict) -> RodSetting:
         """The :class:`RodSetting` of ``causes`` at ``values`` {cause name: value}."""
-        hs, lag = 1.0, 0.0
-        for c in causes:
-            if c.kind == "convection_scale":
-                hs = float(values.get(c.name))
-            elif c.kind == "ambient_lag":
-                lag = float(values.get(c.name)) * 3600.0
-        return RodSetting(hs, lag)
+        kw = {_SETTING_OF[c.name]: float(values[c.name]) for c in causes
+              if c.name in _SETTING_OF}
+        return RodSetting(**kw)
 
-    def _responses(self, s: RodSetting):
-        """(growth per recorded q, growth per recorded ambient, growth of a uniform
-        1 K start) [µm] at setting ``s``, each (N,)."""
-        key = (round(s.h_scale, 10), round(s.lag_s, 6))
+    def _local(self):
+        """The rod with pointwise convection (built on first use)."""
+        if "local" not in self.cache:
+            from arfem.models.diagnosis.local_convection import LocalConvectionRod
+            self.cache["local"] = LocalConvectionRod(self.model.fem,
+                                                     all_modes=self.model.all_modes)
+        return self.cache["local"]
+
+    def _h(self, s: RodSetting) -> np.ndarray:
+        """The lateral h on each interval at setting ``s`` [W/(m²K)]."""
+        return s.h_scale * self.model.h0 * np.where(self.q_W_m2 > 0, s.h_running_scale, 1.0)
+
+    def _cached(self, what: str, s: RodSetting, make):
+        key = (what, round(s.h_scale, 10), round(s.h_running_scale, 10), round(s.exponent, 10))
         if key not in self.cache:
-            if len(self.cache) > 400:
+            if len(self.cache) > 600:
+                local = self.cache.get("local")
                 self.cache.clear()
+                if local is not None:
+                    self.cache["local"] = local
+            self.cache[key] = make()
+        return self.cache[key]
+
+    def _growth_q(self, s: RodSetting) -> np.ndarray:
+        """The growth under the recorded q at setting ``s`` [µm] (N,)."""
+        def make():
             m, t = self.model, self.time_s
-            h = s.h_scale * m.h0
-            zero = np.zeros_like(t)
-            if self.ambient_C is None:
-                amb = zero
-            else:
-                amb = ambient_lagged(t, self.ambient_C, s.lag_s) - m.rod.ambient_C
-            rod = m.rod
-            uniform_um = rod.expansion_1_K * rod.length_m * 1e6
-            self.cache[key] = (m.simulate(t, self.q_W_m2, h_W_m2K=h),
-                               m.simulate(t, zero, ambient_K=amb, h_W_m2K=h),
-                               uniform_um - m.simulate(t, zero, ambient_K=np.ones_like(t),
-                                                       h_W_m2K=h))
+            if s.exponent != 0.0:
+                return self._local().simulate(t, self.q_W_m2, s.exponent, s.h_scale * m.h0,
+                                              DT_REF_K)
+            return m.simulate(t, self.q_W_m2, h_W_m2K=self._h(s))
+        return self._cached("q", s, make)
+
+    def _uniform_um(self) -> float:
+        rod = self.model.rod
+        return rod.expansion_1_K * rod.length_m * 1e6
+
+    def _growth_ambient(self, s: RodSetting) -> np.ndarray:
+        """The growth under the recorded ambient per µm/K of steady gain at ``s`` (N,)."""
+        def make():
+            m, t = self.model, self.time_s
+            amb = np.nan_to_num(np.asarray(self.ambient_C, float) - m.rod.ambient_C)
+            return m.simulate(t, np.zeros_like(t), ambient_K=amb,
+                              h_W_m2K=self._h(s)) / self._uniform_um()
+        return self._cached("ambient", s, make)
+
+    def _growth_warm(self, s: RodSetting) -> np.ndarray:
+        """The free growth of a uniform 1 K start at ``s`` [µm] (N,)."""
+        def make():
+            m, t = self.model, self.time_s
+            return self._uniform_um() - m.simulate(t, np.zeros_like(t),
+                                                   ambient_K=np.ones_like(t),
+                                                   h_W_m2K=self._h(s))
+        return self._cached("warm", s, make)
+
+    def _frame(self, tau_h: float) -> np.ndarray:
+        key = ("frame", round(tau_h, 10))
+        if key not in self.cache:
+            target = self.q_W_m2 * self.model.steady_growth_um(1.0)
+            self.cache[key] = first_order_lag(self.time_s, target, tau_h * 3600.0)
         return self.cache[key]
 
     def design(self, causes, setting: RodSetting) -> Design:
         """The nominal growth and the linear columns of ``causes`` at ``setting``, (N, 1)."""
-        gq, ga, gw = self._responses(setting)
+        gq = self._growth_q(setting)
         th = self.time_s / 3600.0
         cols = []
         for c in causes:
             if c.kind == "source_scale":
                 cols.append(gq[:, None])
             elif c.kind == "warm_start":
-                cols.append(gw[:, None])
+                cols.append(self._growth_warm(setting)[:, None])
+            elif c.kind == "ambient_drift":
+                cols.append(self._growth_ambient(setting)[:, None])
+            elif c.kind == "frame_lag":
+                cols.append(self._frame(setting.frame_time_constant_h)[:, None])
             elif c.kind == "sensor_drift":
                 cols += [np.ones((th.size, 1)), th[:, None].copy()]
-        return Design((gq + ga)[:, None], tuple(cols), setting,
-                      () if self.initial_known else (gw[:, None],))
+        return Design(gq[:, None], tuple(cols), setting,
+                      () if self.initial_known else (self._growth_warm(setting)[:, None],))
 
     def regrown(self, setting: RodSetting) -> "RodPlant":
         """The rod itself: its reduction is exact at every h (never called)."""
         return self
+
+
+def contract_causes(causes, h_nominal_W_m2K: float) -> tuple:
+    """The named causes of a rod diagnosis (:class:`~arfem.models.diagnosis.result.NamedCause`)
+    as the measured-data contract names them: ((contract cause, {parameter: value}),
+    ...), strongest first (module table); a warm start keeps its plant name, outside
+    the contract's vocabulary.
+
+    >>> from arfem.models.diagnosis.result import NamedCause
+    >>> c = NamedCause("convection_scale", "convection_scale:lateral_surface",
+    ...                "lateral_surface", {"h_scale": 1.5}, {}, {"h_scale": 1.0})
+    >>> contract_causes((c,), 55.0)
+    (('convection_mismatch', {'h_W_m2K': 82.5}),)
+    """
+    by = {c.name: c.parameters for c in causes}
+    hs = by.get("convection_scale:lateral_surface", {}).get("h_scale", 1.0)
+    out, done = [], set()
+    for c in causes:
+        if c.name in done:
+            continue
+        p = c.parameters
+        if c.name == "convection_scale:lateral_surface_running" or (
+                c.name == "convection_scale:lateral_surface"
+                and "convection_scale:lateral_surface_running" in by):
+            hr = by["convection_scale:lateral_surface_running"]["h_scale"]
+            out.append(("speed_dependent_convection",
+                        {"h_running_W_m2K": hs * hr * h_nominal_W_m2K,
+                         "h_stopped_W_m2K": hs * h_nominal_W_m2K}))
+            done |= {"convection_scale:lateral_surface",
+                     "convection_scale:lateral_surface_running"}
+        elif c.name == "convection_exponent:lateral_surface" or (
+                c.name == "convection_scale:lateral_surface"
+                and "convection_exponent:lateral_surface" in by):
+            out.append(("nonlinear_convection",
+                        {"exponent": by["convection_exponent:lateral_surface"]["exponent"]}))
+            done |= {"convection_scale:lateral_surface", "convection_exponent:lateral_surface"}
+        elif c.name == "convection_scale:lateral_surface":
+            out.append(("convection_mismatch", {"h_W_m2K": p["h_scale"] * h_nominal_W_m2K}))
+        elif c.cause == "source_scale":
+            out.append(("heat_input_scale", {"scale": p["scale"]}))
+        elif c.cause == "ambient_drift":
+            out.append(("ambient_drift", dict(p)))
+        elif c.cause == "frame_lag":
+            out.append(("frame_expansion", dict(p)))
+        elif c.cause == "sensor_drift":
+            out.append(("sensor_drift", {"drift_um_per_h": p["drift_um_per_h"]}))
+        else:
+            out.append((c.name, dict(p)))
+        done.add(c.name)
+    return tuple(out)
 
 
 def rod_plant(ds, model: RodModel | None = None) -> RodPlant:

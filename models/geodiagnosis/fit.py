@@ -271,16 +271,23 @@ def _profile(ctx: FitContext, causes, nl: dict, rows):
     return sse, beta, base, cols, names, s
 
 
-def _search_1d(f, lo: float, hi: float) -> float:
-    """Minimise f on [lo, hi] on a log scale: a 7-point grid, then a bounded Brent
-    search between the best point's neighbours."""
-    g = np.linspace(np.log(lo), np.log(hi), 7)
-    v = [f(np.exp(x)) for x in g]
+def _scale(log_scale: bool):
+    """(to, back): a nonlinear parameter's search coordinate and its inverse (the
+    logarithm, or the value itself: :attr:`arfem.models.plant.Parameter.log_scale`)."""
+    return (np.log, np.exp) if log_scale else (np.asarray, np.asarray)
+
+
+def _search_1d(f, lo: float, hi: float, log_scale: bool = True) -> float:
+    """Minimise f on [lo, hi] on a log scale (or a linear one): a 7-point grid, then a
+    bounded Brent search between the best point's neighbours."""
+    to, back = _scale(log_scale)
+    g = np.linspace(to(lo), to(hi), 7)
+    v = [f(float(back(x))) for x in g]
     k = int(np.argmin(v))
     a, b = g[max(k - 1, 0)], g[min(k + 1, 6)]
-    res = minimize_scalar(lambda x: f(np.exp(x)), bounds=(a, b), method="bounded",
+    res = minimize_scalar(lambda x: f(float(back(x))), bounds=(a, b), method="bounded",
                           options={"xatol": 1e-5})
-    return float(np.exp(res.x)) if res.fun <= v[k] else float(np.exp(g[k]))
+    return float(back(res.x)) if res.fun <= v[k] else float(back(g[k]))
 
 
 def _nonlinear(ctx: FitContext, causes) -> list:
@@ -301,7 +308,7 @@ def _optimise(ctx: FitContext, causes, rows, fixed: dict, polish: bool = False) 
 
             def f(v, key=key):
                 return _profile(ctx, causes, {**nl, key: v}, rows)[0]
-            nl[key] = _search_1d(f, lo, hi)
+            nl[key] = _search_1d(f, lo, hi, par.log_scale)
     if polish and len(nls) > 1:
         nl = _polish(ctx, causes, rows, nl, nls)
     return nl
@@ -318,17 +325,21 @@ def _polish(ctx: FitContext, causes, rows, nl: dict, nls) -> dict:
     missed it (added before the sixth pre-registration)."""
     from scipy.optimize import minimize
     names = [k for k, _ in nls]
-    b = [tuple(np.log(p.bounds)) for _, p in nls]
+    sc = [_scale(p.log_scale) for _, p in nls]
+    b = [tuple(to(np.asarray(p.bounds, float))) for (to, _), (_, p) in zip(sc, nls)]
+
+    def values(x):
+        return {n: float(back(v)) for n, (_, back), v in zip(names, sc, x)}
 
     def f(x):
-        return _profile(ctx, causes, {**nl, **dict(zip(names, np.exp(x)))}, rows)[0]
-    x0 = np.log([nl[n] for n in names])
+        return _profile(ctx, causes, {**nl, **values(x)}, rows)[0]
+    x0 = np.array([float(to(nl[n])) for n, (to, _) in zip(names, sc)])
     f0 = f(x0)
     res = minimize(f, x0, method="Nelder-Mead", bounds=b,
                    options={"xatol": 1e-5, "fatol": 1e-6 * max(abs(f0), 1.0),
                             "maxfev": 200})
     if res.fun < f0:
-        nl = {**nl, **dict(zip(names, (float(v) for v in np.exp(res.x))))}
+        nl = {**nl, **values(res.x)}
     return nl
 
 
@@ -350,9 +361,12 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
     J_nl = []
     for key, par in _nonlinear(ctx, causes):
         v = nl[key]
-        dv = 1e-3 * v
         lo, hi = par.bounds
-        up, dn = min(v + dv, hi * 1.001), max(v - dv, lo * 0.999)
+        dv = 1e-3 * v if par.log_scale else 1e-3 * (hi - lo)
+        if par.log_scale:
+            up, dn = min(v + dv, hi * 1.001), max(v - dv, lo * 0.999)
+        else:
+            up, dn = min(v + dv, hi + dv), max(v - dv, lo - dv)
         pu = _predict(ctx, causes, {**nl, key: up}, beta)
         pd = _predict(ctx, causes, {**nl, key: dn}, beta)
         J_nl.append((pu - pd) / (up - dn))
