@@ -66,6 +66,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from arfem.models.diagnosis.verdict import NO_EFFECT
+from arfem.params import PLAUSIBLE_RANGES
 
 __all__ = ["Parameter", "CandidateCause", "Design", "Plant", "linear_value", "cause",
            "BOUNDS", "PLAUSIBLE"]
@@ -202,8 +203,21 @@ def linear_value(p: Parameter, beta: float) -> float:
 BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
           "lag_h": (0.02, 48.0), "frame_time_constant_h": (2.0, 200.0),
           "exponent": (-0.5, 1.5)}
-#: Plausible ranges of the linear magnitudes; a fit outside is a sign of wrong units.
-PLAUSIBLE = {"scale": (0.2, 5.0), "power_W": (0.0, np.inf)}
+
+
+def _plausible(key: str, signed: bool = False) -> tuple:
+    """(low, high) of the project's one table of plausible magnitudes
+    (:data:`arfem.params.PLAUSIBLE_RANGES`, the rod engine's and the live loop's too);
+    ``signed``: ±high (a gain or a drift of either sign, bounded in size)."""
+    lo, hi, _ = PLAUSIBLE_RANGES[key]
+    return (-hi, hi) if signed else (lo, hi)
+
+
+#: Plausible ranges of the linear magnitudes, by parameter; a fit outside is a sign of
+#: wrong units, not a cause. Read from the one table, never written beside it.
+PLAUSIBLE = {"scale": _plausible("heat_input_scale"), "power_W": _plausible("power_W"),
+             "ambient_gain_um_per_K": _plausible("ambient_gain_um_per_K", signed=True),
+             "drift_um_per_h": _plausible("drift_um_per_h")}
 #: Where a nonlinear parameter is held while another is searched (a lag of 0 h lies
 #: outside its log-scale range: 1 h) and its secant point for the noise fit's largest
 #: model (h × 1.5, κ × 0.5, a lag of 1 h).
@@ -251,7 +265,9 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
     """
     if kind == "sensor_drift":
         u = unit or _column_unit(target)
-        params = (Parameter(f"offset_{u}", u, 0.0), Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0))
+        params = (Parameter(f"offset_{u}", u, 0.0),
+                  Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0,
+                            plausible=PLAUSIBLE.get(f"drift_{u}_per_h")))
     elif kind in _NONLINEAR or kind in _LINEAR:
         params = ((_nonlinear(*_NONLINEAR[kind]),) if kind in _NONLINEAR else ()) + tuple(
             Parameter(n, u, float(NO_EFFECT[n]), plausible=PLAUSIBLE.get(n))

@@ -240,3 +240,21 @@ def test_speed_plant_fits_no_walk_into_a_white_record(seed):
     z = with_noise(ctx, plant.time_s < h0).noise[0]
     assert z.sigma_walk < 0.05 * z.sigma_white, z
     assert d.verdict == "explained", d.text
+
+
+def test_plausible_magnitudes_of_the_pipeline_are_the_one_table():
+    """One range check (issue 41: a limit serves the rod and the mesh alike): every
+    plausible range a pipeline cause carries is read from ``arfem.params.PLAUSIBLE_RANGES``,
+    the table the rod engine's refusals and the live loop read, not written beside it:
+    a heat scale 0.2-5, a power up to 1 MW, an ambient gain and a drift bounded in size.
+    Exact comparisons with the table: a change to it reaches the pipeline."""
+    from arfem import params
+    from arfem.models import plant
+    table = params.PLAUSIBLE_RANGES
+    assert plant.cause("source_scale", "q").parameters[0].plausible == \
+        table["heat_input_scale"][:2]
+    assert plant.cause("missing_source", "g").parameters[0].plausible == table["power_W"][:2]
+    hi = table["ambient_gain_um_per_K"][1]
+    assert plant.cause("ambient_drift").parameters[0].plausible == (-hi, hi)
+    drift = plant.cause("sensor_drift", "growth_um", "um").parameter("drift_um_per_h")
+    assert drift.plausible == table["drift_um_per_h"][:2]
