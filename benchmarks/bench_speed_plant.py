@@ -17,6 +17,23 @@ the synth's hold-out (the last quarter). ``--white`` replaces the synth's AR(1) 
 marginal σ. Prints one row per record and engine: verdict, named contract cause(s),
 the truth's parameter with its estimate and 95 % interval, seconds; then the counts
 per cause: right cause named, established, interval holding the truth.
+
+Measured (seeds 1-6 per cause; ``--seeds 6`` and ``--seeds 6 --white``), right /
+established / covered of 6, clean: no cause established:
+
+=========================== ========== ============ ========== ============
+cause                       rod (AR)   plant (AR)   rod (white) plant (white)
+=========================== ========== ============ ========== ============
+sensor_drift                6 / 6 / 6  2 / 2 / 2    6 / 6 / 6  6 / 6 / 6
+ambient_drift               6 / 6 / 6  6 / 6 / 6    6 / 6 / 6  6 / 6 / 6
+frame_expansion             5 / 5 / 5  2 / 0 / 1    4 / 4 / 4  6 / 5 / 5
+speed_dependent_convection  4 / 4 / 4  6 / 6 / 4    5 / 5 / 5  6 / 6 / 6
+clean (no cause)            6          6            6          6
+=========================== ========== ============ ========== ============
+
+The plant's misses are on the synth's AR(1) noise (ρ 0.6-0.9): the pipeline fits it
+as white noise plus a random walk, and that walk swallows a drift or a frame; its clean
+records are then "not_explained" (no cause) rather than "explained".
 """
 from __future__ import annotations
 
