@@ -200,6 +200,10 @@ def linear_value(p: Parameter, beta: float) -> float:
 
 
 #: Ranges the fit can return (natural units); an interval reaching one is not a cause.
+#: A frame lag's time constant starts at 2 h, the rod engine's: a frame as quick as the
+#: seed paper's rod (τ ≈ 0.9 h) is a heat scale in disguise -- with 0.1 h (the speed
+#: fits' range) development seed 1051 (heat × 0.70 and a frame at τ 2.0 h) came out a
+#: frame alone at τ 1.1 h, gain −0.42, its intervals missing the truth.
 BOUNDS = {"h_scale": (0.1, 10.0), "conductivity_scale": (0.01, 100.0),
           "lag_h": (0.02, 48.0), "frame_time_constant_h": (2.0, 200.0),
           "exponent": (-0.5, 1.5)}
