@@ -16,20 +16,20 @@ from the mesh, whose nominal model takes the recorded ambient.
 Causes (the one vocabulary, :func:`arfem.models.plant.cause`), each with the contract
 cause it is (:func:`contract_causes`):
 
-================================================ ==================================
-plant cause                                       contract (docs/measured-data.md)
-================================================ ==================================
-``convection_scale:lateral_surface`` (h_scale)    ``convection_mismatch``
-``convection_scale:lateral_surface_running``      ``speed_dependent_convection``
-(h × h_scale while q > 0)                         (with or without the first)
-``convection_exponent:lateral_surface``           ``nonlinear_convection`` (with or
-(h = h_ref (ΔT/10 K)^exponent point by point)     without a scale on h_ref)
-``source_scale:end_flux`` (scale)                 ``heat_input_scale``
-``ambient_drift`` (ambient_gain_um_per_K)         ``ambient_drift``
-``frame_lag`` (frame_time_constant_h, frame_gain) ``frame_expansion``
-``sensor_drift:growth_um``                        ``sensor_drift``
-``warm_start`` (initial_offset_K)                 (outside the contract)
-================================================ ==================================
+=================================================== ================================
+plant cause                                         contract (docs/measured-data.md)
+=================================================== ================================
+``convection_scale:lateral_surface`` (h_scale)      ``convection_mismatch``
+``convection_scale:lateral_surface_running``        ``speed_dependent_convection``
+(h × h_scale while q > 0)                           (with or without the first)
+``convection_exponent:lateral_surface``             ``nonlinear_convection`` (with
+(h = h_ref (ΔT/10 K)^exponent point by point)       or without a scale on h_ref)
+``source_scale:end_flux`` (scale)                   ``heat_input_scale``
+``ambient_drift`` (ambient_gain_um_per_K)           ``ambient_drift``
+``frame_lag`` (frame_time_constant_h, frame_gain)   ``frame_expansion``
+``sensor_drift:growth_um``                          ``sensor_drift``
+``warm_start`` (initial_offset_K)                   (outside the contract)
+=================================================== ================================
 
 * the ambient column is the FEM's growth under h (T_amb − T_ref) on the lateral surface
   per µm/K of its steady gain αL, so its coefficient is the growth per kelvin of
