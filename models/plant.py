@@ -45,6 +45,9 @@ warm_start           (whole body)       ``initial_offset_K`` [K]              0
 frame_expansion      a thermometer      ``frame_gain_um_per_K`` [µm/K]        0
 frame_lag            (the frame)        ``frame_time_constant_h`` [h],        --, 0
                                         nonlinear; ``frame_gain`` [-]
+frame_lag            a thermometer      ``frame_time_constant_h`` [h],        --, 0
+                                        nonlinear; ``frame_gain_um_per_K``
+                                        [µm/K]
 convection_exponent  convection group   ``exponent`` [-], nonlinear (linear   0
                                         search scale)
 ambient_drift        (the ambient)      ``ambient_gain_um_per_K`` [µm/K]      0
@@ -53,7 +56,10 @@ ambient_drift        (the ambient)      ``ambient_gain_um_per_K`` [µm/K]      0
 ``frame_lag``, ``convection_exponent`` and ``ambient_drift`` are the seed paper's
 rod's (:class:`arfem.models.diagnosis.rod_plant.RodPlant`): a frame heated by the same
 source with its own time constant, a natural-convection h ∝ ΔT^exponent, and a
-recorded ambient that the paper's nominal model (a constant ambient) leaves out.
+recorded ambient that the paper's nominal model (a constant ambient) leaves out. On a
+thermometer (a ``T_<name>_C`` target, the speed-only plant's
+:class:`arfem.models.diagnosis.speed_plant.SpeedPlant`) a frame lag follows that
+thermometer's rise through its time constant, its gain in µm/K as ``frame_expansion``'s.
 
 The no-effect values are the verdict's (:data:`arfem.models.diagnosis.verdict.NO_EFFECT`,
 one table).
@@ -241,6 +247,9 @@ _LINEAR = {"source_scale": (("scale", "-"),), "missing_source": (("power_W", "W"
            "frame_expansion": (("frame_gain_um_per_K", "um/K"),),
            "frame_lag": (("frame_gain", "-"),),
            "ambient_drift": (("ambient_gain_um_per_K", "um/K"),)}
+#: the linear parameters of a kind on a thermometer (a ``T_<name>_C`` target), where
+#: they differ: a frame lag's gain is then per kelvin of that thermometer
+_LINEAR_ON_THERMOMETER = {"frame_lag": (("frame_gain_um_per_K", "um/K"),)}
 
 
 def _nonlinear(name: str, unit: str) -> Parameter:
@@ -266,6 +275,8 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
     ['offset_um', 'drift_um_per_h']
     >>> cause("source_scale", "motor").parameters[0].plausible
     (0.2, 5.0)
+    >>> [p.name for p in cause("frame_lag", "T_frame_C").parameters]
+    ['frame_time_constant_h', 'frame_gain_um_per_K']
     """
     if kind == "sensor_drift":
         u = unit or _column_unit(target)
@@ -273,9 +284,12 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
                   Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0,
                             plausible=PLAUSIBLE.get(f"drift_{u}_per_h")))
     elif kind in _NONLINEAR or kind in _LINEAR:
+        thermometer = target.startswith("T_") and target.endswith("_C")
+        linear = (_LINEAR_ON_THERMOMETER if thermometer and kind in _LINEAR_ON_THERMOMETER
+                  else _LINEAR).get(kind, ())
         params = ((_nonlinear(*_NONLINEAR[kind]),) if kind in _NONLINEAR else ()) + tuple(
             Parameter(n, u, float(NO_EFFECT[n]), plausible=PLAUSIBLE.get(n))
-            for n, u in _LINEAR.get(kind, ()))
+            for n, u in linear)
     else:
         raise ValueError(f"unknown cause {kind!r}")
     return CandidateCause(kind, target, params)

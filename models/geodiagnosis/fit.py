@@ -175,7 +175,7 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
     # a clean record, development seed 109), and the smooth misfit left was fitted as a
     # random walk (σ_w/σ_e 0.1-0.18 where the truth is 0) whose whitening made the
     # white residual fail Ljung-Box: 13 % of clean speed records at 5 % (seeds 100-249)
-    nl0 = (_optimise(ctx, (), rows, {}, polish=True) if ctx.plant.nominal_parameters
+    nl0 = (_optimise(ctx, lin, rows, {}, polish=True) if ctx.plant.nominal_parameters
            else {})
     nom = _setting(ctx, (), nl0)
     base, cols, _ = _design(ctx, lin, nom)
