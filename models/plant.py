@@ -48,12 +48,12 @@ frame_lag            (the frame)        ``frame_time_constant_h`` [h],        --
 frame_lag            a thermometer      ``frame_time_constant_h`` [h],        --, 0
                                         nonlinear; ``frame_gain_um_per_K``
                                         [µm/K]
-convection_exponent  convection group   ``exponent`` [-], nonlinear (linear   0
-                                        search scale)
+natural_convection   convection group   ``h_scale`` [-] (h at 10 K) and       1, 0
+                                        ``exponent`` [-], both nonlinear
 ambient_drift        (the ambient)      ``ambient_gain_um_per_K`` [µm/K]      0
 ==================== ================== ===================================== ===========
 
-``frame_lag``, ``convection_exponent`` and ``ambient_drift`` are the seed paper's
+``frame_lag``, ``natural_convection`` and ``ambient_drift`` are the seed paper's
 rod's (:class:`arfem.models.diagnosis.rod_plant.RodPlant`): a frame heated by the same
 source with its own time constant, a natural-convection h ∝ ΔT^exponent, and a
 recorded ambient that the paper's nominal model (a constant ambient) leaves out. On a
@@ -131,8 +131,9 @@ class CandidateCause:
     """One cause a plant can tell: a ``kind`` on a ``target`` (a group, source or
     channel name; empty for a whole-body cause) with its :class:`Parameter` s.
 
-    A cause has at most one nonlinear parameter (the pipeline searches it); the others
-    are linear. Two causes are the same when kind, target and parameters agree.
+    A cause has at most two nonlinear parameters (the pipeline searches them, each under
+    :meth:`key`); the others are linear. Two causes are the same when kind, target and
+    parameters agree.
 
     >>> c = CandidateCause("convection_scale", "housing", (
     ...     Parameter("h_scale", "-", 1.0, linear=False, bounds=(0.1, 10.0), start=1.0,
@@ -157,8 +158,25 @@ class CandidateCause:
 
     @property
     def nonlinear_parameter(self) -> Parameter | None:
-        """The nonlinear :class:`Parameter`, or None."""
+        """The (first) nonlinear :class:`Parameter`, or None."""
         return next((p for p in self.parameters if not p.linear), None)
+
+    @property
+    def nonlinear_parameters(self) -> tuple:
+        """Every nonlinear :class:`Parameter`, in order (at most two: a natural
+        convection's exponent and the h it scales)."""
+        return tuple(p for p in self.parameters if not p.linear)
+
+    def key(self, p: Parameter) -> str:
+        """The key of nonlinear parameter ``p`` in a fit's values (what
+        :meth:`Plant.setting` reads): the cause's name for its first, ``name/param``
+        for a second.
+
+        >>> c = cause("natural_convection", "outer")
+        >>> [c.key(p) for p in c.nonlinear_parameters]
+        ['natural_convection:outer', 'natural_convection:outer/exponent']
+        """
+        return self.name if p == self.nonlinear_parameter else f"{self.name}/{p.name}"
 
     @property
     def linear_parameters(self) -> tuple:
@@ -240,8 +258,10 @@ _PROBE = {"h_scale": 1.5, "conductivity_scale": 0.5, "lag_h": 1.0,
 _NO_EFFECT_NONLINEAR = {"frame_time_constant_h": float("nan")}
 _NONLINEAR = {"convection_scale": ("h_scale", "-"),
               "contact_conductance": ("conductivity_scale", "-"), "ambient_lag": ("lag_h", "h"),
-              "frame_lag": ("frame_time_constant_h", "h"),
-              "convection_exponent": ("exponent", "-")}
+              "frame_lag": ("frame_time_constant_h", "h")}
+#: causes of two nonlinear parameters: natural convection, h = h_scale h0 (ΔT/10 K)^exponent
+#: (h first: the coordinate sweep starts from the plain h scale's optimum)
+_NONLINEAR2 = {"natural_convection": (("h_scale", "-"), ("exponent", "-"))}
 _LINEAR = {"source_scale": (("scale", "-"),), "missing_source": (("power_W", "W"),),
            "warm_start": (("initial_offset_K", "K"),),
            "frame_expansion": (("frame_gain_um_per_K", "um/K"),),
@@ -283,6 +303,8 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
         params = (Parameter(f"offset_{u}", u, 0.0),
                   Parameter(f"drift_{u}_per_h", f"{u}/h", 0.0,
                             plausible=PLAUSIBLE.get(f"drift_{u}_per_h")))
+    elif kind in _NONLINEAR2:
+        params = tuple(_nonlinear(n, u) for n, u in _NONLINEAR2[kind])
     elif kind in _NONLINEAR or kind in _LINEAR:
         thermometer = target.startswith("T_") and target.endswith("_C")
         linear = (_LINEAR_ON_THERMOMETER if thermometer and kind in _LINEAR_ON_THERMOMETER

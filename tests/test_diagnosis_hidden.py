@@ -148,3 +148,26 @@ def test_the_one_pipeline_on_the_rod_plant_names_the_same_hidden_cause(cause, se
     if cause == "nonlinear_convection":
         assert abs(got["exponent"] - case.parameters["exponent"]) <= EXPONENT_ABS
     assert d.holdout.gain_pct > 0.0
+
+
+def test_the_pipeline_names_natural_convection_beside_a_heat_scale(tmp_path):
+    """A natural convection (h and an exponent: two nonlinear parameters of one part,
+    :meth:`arfem.models.plant.CandidateCause.key`) beside a heat scale, the rod engine's
+    case of ``tests/test_diagnosis_slow_noise_and_pairs.py`` (seed 1046): three
+    parameters in two causes. Before a cause could carry two nonlinear parameters the
+    pipeline needed three causes for it and named convection + heat scale instead.
+    Both are named, established, the scale within 2 % and the exponent within
+    ``EXPONENT_ABS`` of the truth (the rod engine's tolerances for this record)."""
+    from arfem.models.diagnosis.rod_plant import contract_causes, rod_plant
+    from arfem.models.geodiagnosis.engine import diagnose_plant
+    from arfem.scenarios.records.dataset import load_dataset
+    case = generate("nonlinear_convection+heat_input_scale", 1046)
+    ds = load_dataset(write_case(case, tmp_path / "data"))
+    d = diagnose_plant(rod_plant(ds))
+    assert d.verdict == "established", d.text
+    named = dict(contract_causes(d.causes, ds.rod.convection_W_m2K))
+    assert sorted(named) == ["heat_input_scale", "nonlinear_convection"], d.text
+    assert named["heat_input_scale"]["scale"] == pytest.approx(case.parameters["scale"],
+                                                               rel=0.02)
+    assert abs(named["nonlinear_convection"]["exponent"]
+               - case.parameters["exponent"]) <= EXPONENT_ABS

@@ -74,7 +74,10 @@ def _checked_kinds(plant) -> set:
     causes = plant.candidate_causes()
     for c in causes:
         assert c.parameters, c.name
-        assert sum(not p.linear for p in c.parameters) <= 1, c.name
+        # one nonlinear parameter, or two of one part (a natural convection's h and
+        # exponent), each under its own key
+        assert len(c.nonlinear_parameters) <= 2, c.name
+        assert len({c.key(p) for p in c.nonlinear_parameters}) == len(c.nonlinear_parameters)
         assert any(np.isfinite(p.no_effect) for p in c.parameters), c.name
         for p in c.parameters:
             assert np.isfinite(p.no_effect) or p.name == "frame_time_constant_h", \
@@ -107,7 +110,7 @@ def test_causes_carry_no_effect_values_and_bounds_on_both_plants(tmp_path):
     assert kinds["mesh"] == {"convection_scale", "source_scale", "missing_source",
                              "contact_conductance", "ambient_lag", "sensor_drift",
                              "warm_start"}
-    assert kinds["rod"] == {"convection_scale", "convection_exponent", "source_scale",
+    assert kinds["rod"] == {"convection_scale", "natural_convection", "source_scale",
                             "ambient_drift", "frame_lag", "sensor_drift", "warm_start"}
     assert _one(rod, "convection_scale").parameters[0].no_effect == 1.0
     assert [p.name for p in _one(rod, "sensor_drift").parameters] == \

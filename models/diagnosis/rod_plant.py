@@ -22,8 +22,8 @@ plant cause                                         contract (docs/measured-data
 ``convection_scale:lateral_surface`` (h_scale)      ``convection_mismatch``
 ``convection_scale:lateral_surface_running``        ``speed_dependent_convection``
 (h × h_scale while q > 0)                           (with or without the first)
-``convection_exponent:lateral_surface``             ``nonlinear_convection`` (with
-(h = h_ref (ΔT/10 K)^exponent point by point)       or without a scale on h_ref)
+``natural_convection:lateral_surface``              ``nonlinear_convection``
+(h = h_scale h0 (ΔT/10 K)^exponent point by point)
 ``source_scale:end_flux`` (scale)                   ``heat_input_scale``
 ``ambient_drift`` (ambient_gain_um_per_K)           ``ambient_drift``
 ``frame_lag`` (frame_time_constant_h, frame_gain)   ``frame_expansion``
@@ -89,7 +89,8 @@ class RodSetting:
 
 _SETTING_OF = {"convection_scale:lateral_surface": "h_scale",
                "convection_scale:lateral_surface_running": "h_running_scale",
-               "convection_exponent:lateral_surface": "exponent",
+               "natural_convection:lateral_surface": "h_scale",
+               "natural_convection:lateral_surface/exponent": "exponent",
                "frame_lag": "frame_time_constant_h"}
 
 
@@ -134,7 +135,7 @@ class RodPlant:
         out = [cause("convection_scale", "lateral_surface")]
         if running.any() and not running.all():
             out.append(cause("convection_scale", "lateral_surface_running"))
-        out += [cause("convection_exponent", "lateral_surface"),
+        out += [cause("natural_convection", "lateral_surface"),
                 cause("source_scale", "end_flux")]
         amb = self.ambient_C
         if amb is not None and np.ptp(amb[np.isfinite(amb)]) > 0:
@@ -143,9 +144,10 @@ class RodPlant:
         return tuple(out) + ((cause("warm_start"),) if self.initial_known else ())
 
     def setting(self, causes, values: dict) -> RodSetting:
-        """The :class:`RodSetting` of ``causes`` at ``values`` {cause name: value}."""
-        kw = {_SETTING_OF[c.name]: float(values[c.name]) for c in causes
-              if c.name in _SETTING_OF}
+        """The :class:`RodSetting` of ``causes`` at ``values`` {parameter key: value}
+        (:meth:`arfem.models.plant.CandidateCause.key`)."""
+        kw = {_SETTING_OF[k]: float(values[k]) for c in causes
+              for k in (c.key(p) for p in c.nonlinear_parameters) if k in _SETTING_OF}
         return RodSetting(**kw)
 
     def _local(self):
@@ -262,12 +264,9 @@ def contract_causes(causes, h_nominal_W_m2K: float) -> tuple:
                          "h_stopped_W_m2K": hs * h_nominal_W_m2K}))
             done |= {"convection_scale:lateral_surface",
                      "convection_scale:lateral_surface_running"}
-        elif c.name == "convection_exponent:lateral_surface" or (
-                c.name == "convection_scale:lateral_surface"
-                and "convection_exponent:lateral_surface" in by):
-            out.append(("nonlinear_convection",
-                        {"exponent": by["convection_exponent:lateral_surface"]["exponent"]}))
-            done |= {"convection_scale:lateral_surface", "convection_exponent:lateral_surface"}
+        elif c.name == "natural_convection:lateral_surface":
+            out.append(("nonlinear_convection", {"exponent": p["exponent"],
+                                                 "h_at_10K_W_m2K": p["h_scale"] * h_nominal_W_m2K}))
         elif c.name == "convection_scale:lateral_surface":
             out.append(("convection_mismatch", {"h_W_m2K": p["h_scale"] * h_nominal_W_m2K}))
         elif c.cause == "source_scale":
