@@ -27,6 +27,7 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from arfem.models.diagnosis.forward import RodModel, ar_first_order, first_order_lag, intervals
+from arfem.models.plant import BOUNDS
 from arfem.params import Rod
 
 __all__ = ["CAUSES", "H_CAUSES", "CandidateFit", "JointFit", "FrameFit", "FemPhysics",
@@ -455,12 +456,15 @@ def compatible(causes) -> bool:
 
 
 def _bounds(name, h0):
+    """The search range of θ coordinate ``name``; the exponent's and the frame's time
+    constant's are the pipeline's (:data:`arfem.models.plant.BOUNDS`, one table)."""
     if name.startswith("log_h"):
         return np.log(h0 / 8), np.log(h0 * 8)
     if name == "exponent":
-        return -0.5, 1.5
+        return BOUNDS["exponent"]
     if name == "log_tau_h":
-        return np.log(2.0), np.log(200.0)
+        lo, hi = BOUNDS["frame_time_constant_h"]
+        return np.log(lo), np.log(hi)
     raise KeyError(name)
 
 

@@ -54,7 +54,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+# DT_REF_K: the surface-to-air difference at which a natural-convection h is h_ref [K],
+# the rod engine's
+from arfem.models.diagnosis.candidates import DT_REF_K
 from arfem.models.diagnosis.forward import RodModel, first_order_lag
+from arfem.models.diagnosis.synth import ambient_gain_um_per_K
 from arfem.models.geodiagnosis.problem import Channel
 from arfem.models.plant import Design, cause
 
@@ -63,9 +67,6 @@ __all__ = ["RodPlant", "RodSetting", "rod_plant", "contract_causes", "GROWTH_COL
 
 #: The rod's one channel.
 GROWTH_COLUMN = "growth_um"
-#: The surface-to-air difference at which a natural-convection h is h_ref [K]
-#: (the rod engine's, :data:`arfem.models.diagnosis.candidates.DT_REF_K`).
-DT_REF_K = 10.0
 
 
 @dataclass(frozen=True)
@@ -183,24 +184,20 @@ class RodPlant:
             return m.simulate(t, self.q_W_m2, h_W_m2K=self._h(s))
         return self._cached("q", s, make)
 
-    def _uniform_um(self) -> float:
-        rod = self.model.rod
-        return rod.expansion_1_K * rod.length_m * 1e6
-
     def _growth_ambient(self, s: RodSetting) -> np.ndarray:
         """The growth under the recorded ambient per µm/K of steady gain at ``s`` (N,)."""
         def make():
             m, t = self.model, self.time_s
             amb = np.nan_to_num(np.asarray(self.ambient_C, float) - m.rod.ambient_C)
             return m.simulate(t, np.zeros_like(t), ambient_K=amb,
-                              h_W_m2K=self._h(s)) / self._uniform_um()
+                              h_W_m2K=self._h(s)) / ambient_gain_um_per_K(self.model.rod)
         return self._cached("ambient", s, make)
 
     def _growth_warm(self, s: RodSetting) -> np.ndarray:
         """The free growth of a uniform 1 K start at ``s`` [µm] (N,)."""
         def make():
             m, t = self.model, self.time_s
-            return self._uniform_um() - m.simulate(t, np.zeros_like(t),
+            return ambient_gain_um_per_K(self.model.rod) - m.simulate(t, np.zeros_like(t),
                                                    ambient_K=np.ones_like(t),
                                                    h_W_m2K=self._h(s))
         return self._cached("warm", s, make)
