@@ -302,7 +302,7 @@ def _nests(a, b) -> bool:
     parameters a strict subset of ``a``'s (a natural convection, h and an exponent, holds
     a plain h scale at exponent 0). No mesh cause nests another."""
     pa, pb = {p.name for p in a.parameters}, {p.name for p in b.parameters}
-    return a.kind != b.kind and a.target == b.target and bool(a.target) and pb < pa
+    return bool(a.target) and a.target == b.target and pb < pa
 
 
 def _parsimonious(passing, n_tests, ctx, train) -> list:
@@ -331,8 +331,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
     passing = []
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
-        if c == lead or (c.nonlinear and c.nonlinear == lead.nonlinear and c.kind == lead.kind
-                         and c.target == lead.target) or _same_part(c, lead):
+        if c == lead or _same_part(c, lead):
             continue
         f = fit_mesh_causes(ctx, (lead, c), train, intervals=False, fixed=held)
         ne = _n_eff(ctx, f.prediction, train)
@@ -358,11 +357,12 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
 
 
 def _same_part(a, b) -> bool:
-    """Two causes that set a parameter of the same name on the same target (a natural
-    convection's h and a convection scale, both the h of one surface): one part twice,
-    never a pair. No two mesh causes share a parameter on one target."""
+    """Two causes that set a nonlinear parameter of the same name on the same target (a
+    natural convection's h and a convection scale, both the h of one surface; or one
+    kind twice on one part): one part twice, never a pair. No two different mesh causes
+    share a parameter on one target."""
     shared = {p.name for p in a.nonlinear_parameters} & {p.name for p in b.nonlinear_parameters}
-    return a.kind != b.kind and a.target == b.target and bool(a.target) and bool(shared)
+    return bool(a.target) and a.target == b.target and bool(shared)
 
 
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
@@ -622,14 +622,13 @@ def _regrown(ctx: FitContext, fit: Fit, train, say):
 
 def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
     progress = progress or (lambda s: None)
-    rec = plant
     ctx = make_context(plant)
     if holdout_start_s is None:
-        h0, how = default_holdout(rec.time_s, ctx.shape)
+        h0, how = default_holdout(plant.time_s, ctx.shape)
     else:
         h0, how = holdout_start_s, ("given by the caller (--holdout-start); the fits saw "
                                     "only the rows before it")
-    train, hold = rec.time_s < h0, rec.time_s >= h0
+    train, hold = plant.time_s < h0, plant.time_s >= h0
     progress("fitting each channel's noise (white plus a random walk)")
     ctx = with_noise(ctx, train)
     base = fit_mesh_causes(ctx, (), train)
@@ -671,7 +670,7 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
     sb, se = _holdout_score(ctx, base.prediction, hold), _holdout_score(ctx, ext.prediction, hold)
     gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
     alts = _alternatives(ctx, named, near, train, hold) if named is not None else ()
-    v = _judge(ctx, rec, base, named, train, hold, gain_w, alts)
+    v = _judge(ctx, plant, base, named, train, hold, gain_w, alts)
     return _result(ctx, base, named, v, ranking, alts,
                    _text(v, named, gain, plant.not_searched), float(h0), how, hold,
                    float(gain), float(gain_w))

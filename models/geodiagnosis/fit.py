@@ -292,8 +292,9 @@ def _search_1d(f, lo: float, hi: float, log_scale: bool = True) -> float:
 
 def _nonlinear(ctx: FitContext, causes) -> list:
     """[(key, Parameter)] of every nonlinear parameter of a fit of ``causes``: each
-    cause's (keyed by the cause's name), then the plant's nominal ones (by their own
-    name; searched in every fit, the nominal's included, never reported)."""
+    cause's (keyed by :meth:`arfem.models.plant.CandidateCause.key`), then the plant's
+    nominal ones (by their own name; searched in every fit, the nominal's included,
+    never reported)."""
     return [(c.key(p), p) for c in causes for p in c.nonlinear_parameters] + \
         [(p.name, p) for p in ctx.plant.nominal_parameters]
 
@@ -319,7 +320,8 @@ def _optimise(ctx: FitContext, causes, rows, fixed: dict, polish: bool = False,
 
 def _polish(ctx: FitContext, causes, rows, nl: dict, nls, coarse: bool = False) -> dict:
     """The joint minimum of the profiled SSE over the free nonlinear parameters
-    ``nls``, by Nelder–Mead on their logarithms within their bounds, from the
+    ``nls``, by Nelder–Mead on their search coordinates (the logarithm, or the value of
+    a linear-scale parameter) within their bounds, from the
     coordinate sweeps' point ``nl`` (kept when it is lower).
 
     Two coordinate sweeps stop short in a correlated valley: a shaft convection and a
@@ -327,7 +329,7 @@ def _polish(ctx: FitContext, causes, rows, nl: dict, nls, coarse: bool = False) 
     SSE of 2879.8, while the truth (0.440, 0.270) gives 2870.7, and both 95 % intervals
     missed it (added before the sixth pre-registration). ``coarse``: a screen's polish
     (a natural convection's h and exponent, a screening fit without intervals), to
-    1e-3 in the logarithms and 60 evaluations; the named fit is polished in full."""
+    1e-3 in the search coordinates and 60 evaluations; the named fit is polished in full."""
     from scipy.optimize import minimize
     names = [k for k, _ in nls]
     sc = [_scale(p.log_scale) for _, p in nls]
