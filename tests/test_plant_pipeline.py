@@ -36,7 +36,7 @@ from arfem.models.diagnosis.verdict import NO_EFFECT
 from arfem.models.geodiagnosis.engine import diagnose_plant
 from arfem.models.geodiagnosis.plant import mesh_plant
 from arfem.models.geodiagnosis.problem import GeoModel, make_record
-from arfem.models.plant import Plant
+from arfem.models.plant import Plant, cause
 from arfem.scenarios.records.dataset import load_dataset
 from arfem.scenarios.records.synth_files import write_case
 
@@ -100,9 +100,9 @@ def test_causes_carry_no_effect_values_and_bounds_on_both_plants(tmp_path):
     (its gain carries the effect), and every cause at least one finite one; a
     nonlinear one has bounds with its start and its noise-fit probe inside them,
     positive where it is searched on a log scale, a linear one none. The mesh offers
-    its seven kinds, the rod the measured-data contract's seven causes and a warm
-    start (:mod:`arfem.models.diagnosis.rod_plant`). Exact comparisons: these are
-    tables, not computations."""
+    its seven kinds, the rod the measured-data contract's seven causes and no warm
+    start (:mod:`arfem.models.diagnosis.rod_plant`: a rod record declares its start).
+    Exact comparisons: these are tables, not computations."""
     _, rod = _rod_record(tmp_path, "none", 3, duration_h=24.0)
     mesh = _mesh_plant()
     assert isinstance(rod, Plant) and isinstance(mesh, Plant)
@@ -111,7 +111,7 @@ def test_causes_carry_no_effect_values_and_bounds_on_both_plants(tmp_path):
                              "contact_conductance", "ambient_lag", "sensor_drift",
                              "warm_start"}
     assert kinds["rod"] == {"convection_scale", "natural_convection", "source_scale",
-                            "ambient_drift", "frame_lag", "sensor_drift", "warm_start"}
+                            "ambient_drift", "frame_lag", "sensor_drift"}
     assert _one(rod, "convection_scale").parameters[0].no_effect == 1.0
     assert [p.name for p in _one(rod, "sensor_drift").parameters] == \
         ["offset_um", "drift_um_per_h"]
@@ -127,7 +127,7 @@ def test_rod_warm_start_column_is_the_free_response_of_a_uniform_start(tmp_path)
     _, rod = _rod_record(tmp_path, "none", 3, duration_h=24.0)
     m = rod.model
     s = rod.setting((_one(rod, "convection_scale"),), {"convection_scale:lateral_surface": 1.4})
-    col = rod.design((_one(rod, "warm_start"),), s).columns[0][:, 0]
+    col = rod.design((cause("warm_start"),), s).columns[0][:, 0]
     md = m.all_modes
     keep = np.abs(md.g) > 1e-9 * np.max(np.abs(md.g))
     phi = md.phi[:, keep]

@@ -99,7 +99,7 @@ from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
+__all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "observations", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
            "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
            "INFORMATIVE_NOISE_LEVELS"]
 
@@ -265,11 +265,13 @@ def _refuse_dead_sensor(ds):
                          f"{ds.csv_path or ds.source}: column growth_um")
 
 
-def _observations(ds):
-    """Time, growth (NaN where not observed), observed mask and the inputs over every row
-    the record has an input for: rows with an empty ``growth_um`` keep their input
-    (dropping it would merge its interval into the next one's) -- see
-    ``Dataset.unobserved``. Speed-only records use the observed rows only."""
+def observations(ds):
+    """Time [s], growth [µm] (NaN where not observed), the observed and outlier masks and
+    the inputs (a dict by column, None where not recorded) over every row the record has
+    an input for: rows with an empty ``growth_um`` keep their input (dropping it would
+    merge its interval into the next one's) -- see ``Dataset.unobserved``. Speed-only
+    records use the observed rows only. The rod plant reads the same rows
+    (:func:`arfem.models.diagnosis.rod_plant.rod_plant`)."""
     t = np.asarray(ds.time_s, float)
     y = np.asarray(ds.growth_um, float)
     un = getattr(ds, "unobserved", None)
@@ -993,7 +995,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
 
 class _Record(NamedTuple):
     """The record as the diagnosis reads it: every row with an input (rows without a
-    growth reading keep theirs, see :func:`_observations`) and the hold-out split.
+    growth reading keep theirs, see :func:`observations`) and the hold-out split.
 
     Attributes: ``t`` sample times [s], ``y`` growth [µm] (NaN where not observed),
     ``good`` observed and not an outlier, ``u`` the input (``q_W_m2`` [W/m²] or
@@ -1019,7 +1021,7 @@ class _Record(NamedTuple):
 
 def _prepare_record(ds, holdout_start_s) -> _Record:
     """The rows, the input, the hold-out split and the signals of a record."""
-    t, y, observed, outl, cols = _observations(ds)
+    t, y, observed, outl, cols = observations(ds)
     good = observed & ~outl
     u = cols["q_W_m2"] if ds.input_kind == "q_W_m2" else cols["speed_rpm"]
     hs, how = _holdout_start(t, holdout_start_s, str(ds.source), u)

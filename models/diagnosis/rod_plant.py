@@ -28,7 +28,6 @@ plant cause                                         contract (docs/measured-data
 ``ambient_drift`` (ambient_gain_um_per_K)           ``ambient_drift``
 ``frame_lag`` (frame_time_constant_h, frame_gain)   ``frame_expansion``
 ``sensor_drift:growth_um``                          ``sensor_drift``
-``warm_start`` (initial_offset_K)                   (outside the contract)
 =================================================== ================================
 
 * the ambient column is the FEM's growth under h (T_amb − T_ref) on the lateral surface
@@ -37,13 +36,13 @@ plant cause                                         contract (docs/measured-data
 * the frame is a slower body heated by the same source: a first-order lag of the rod's
   steady growth target (q times the rod's steady gain), its gain the frame's steady
   growth per unit of rod growth (as :mod:`arfem.models.diagnosis.candidates`);
-* the warm start: the rod starts uniformly initial_offset_K [K] above the reference
-  (the free response of a uniform 1 K start is αL·10⁶ minus the growth response to a
-  1 K ambient step: linearity, a uniform 1 K with a 1 K ambient being equilibrium).
-  A record that says ``initial = "unknown"`` (contract) declares it: there the
-  uniform start's free response is a nuisance column of the nominal model
-  (:attr:`arfem.models.plant.Design.nuisance`), not a cause, as the rod engine's own
-  nuisance columns are.
+* a warm start is not a cause of the rod: a record declares its start. Where it says
+  ``initial = "unknown"`` (contract), the free response of a uniform start (αL·10⁶
+  minus the growth response to a 1 K ambient step: linearity, a uniform 1 K with a
+  1 K ambient being equilibrium) is a nuisance column of the nominal model
+  (:attr:`arfem.models.plant.Design.nuisance`), as the rod engine's own nuisance
+  columns were; the column is the design of a ``warm_start`` cause
+  (:func:`arfem.models.plant.cause`).
 
 Its reduction is exact at every h (:mod:`.forward`), so it never regrows; natural
 convection runs the pointwise rod of :mod:`.local_convection`.
@@ -57,12 +56,14 @@ import numpy as np
 # DT_REF_K: the surface-to-air difference at which a natural-convection h is h_ref [K],
 # the rod engine's
 from arfem.models.diagnosis.candidates import DT_REF_K
+from arfem.models.diagnosis.engine import observations
 from arfem.models.diagnosis.forward import RodModel, first_order_lag
 from arfem.models.diagnosis.synth import ambient_gain_um_per_K
 from arfem.models.geodiagnosis.problem import Channel
 from arfem.models.plant import Design, cause
 
-__all__ = ["RodPlant", "RodSetting", "rod_plant", "contract_causes", "GROWTH_COLUMN",
+__all__ = ["RodPlant", "RodSetting", "rod_plant", "contract_causes", "contract_entries",
+           "ContractCause", "CONTRACT_NAME", "GROWTH_COLUMN",
            "DT_REF_K"]
 
 #: The rod's one channel.
@@ -129,9 +130,13 @@ class RodPlant:
     nominal_parameters: tuple = ()
 
     def candidate_causes(self) -> tuple:
-        """Every single cause the rod and this record can tell (module docstring): a
-        running-only h where the flux is both on and off, an ambient drift where the
-        ambient is recorded and varies, a warm start where the start is known."""
+        """Every single cause the rod and this record can tell, the measured-data
+        contract's vocabulary (module docstring): a running-only h where the flux is both
+        on and off, an ambient drift where the ambient is recorded and varies. No warm
+        start: a record declares its start (``initial = "known"``: at the reference;
+        ``"unknown"``: the start's free response is a nuisance column of the nominal
+        model), and a known start searched as a cause took up a frame's slow part under
+        slow noise (development seed 1089 of ``benchmarks/bench_diagnosis.py``)."""
         running = self.q_W_m2 > 0
         out = [cause("convection_scale", "lateral_surface")]
         if running.any() and not running.all():
@@ -142,7 +147,7 @@ class RodPlant:
         if amb is not None and np.ptp(amb[np.isfinite(amb)]) > 0:
             out.append(cause("ambient_drift"))
         out += [cause("frame_lag"), cause("sensor_drift", GROWTH_COLUMN, "um")]
-        return tuple(out) + ((cause("warm_start"),) if self.initial_known else ())
+        return tuple(out)
 
     def setting(self, causes, values: dict) -> RodSetting:
         """The :class:`RodSetting` of ``causes`` at ``values`` {parameter key: value}
@@ -233,11 +238,120 @@ class RodPlant:
         return self
 
 
+#: each single cause of the rod plant as the measured-data contract names it (a running-only
+#: h, with or without the plain h beside it, is ``speed_dependent_convection``)
+CONTRACT_NAME = {"convection_scale:lateral_surface": "convection_mismatch",
+                 "convection_scale:lateral_surface_running": "speed_dependent_convection",
+                 "natural_convection:lateral_surface": "nonlinear_convection",
+                 "source_scale:end_flux": "heat_input_scale",
+                 "ambient_drift": "ambient_drift",
+                 "frame_lag": "frame_expansion",
+                 "sensor_drift:growth_um": "sensor_drift"}
+
+
+@dataclass(frozen=True)
+class ContractCause:
+    """A named cause of a rod diagnosis as the measured-data contract writes it.
+
+    Attributes
+    ----------
+    cause : str, the contract's name (:data:`CONTRACT_NAME`)
+    parameters : dict, {name: value} in the contract's names and units
+        (``h_W_m2K`` [W/(m²K)], ``frame_gain`` [-] per unit of the rod's own growth, ...)
+    ci95 : dict, {name: (low, high)}: the 95 % intervals; a parameter computed from two
+        fitted ones (an h running = h_scale × h_running_scale × h0, a frame gain per unit
+        of a scaled rod's growth) gets the interval of the product or ratio over the
+        box of the two intervals, which is wider than the joint one (conservative)
+    """
+
+    cause: str
+    parameters: dict
+    ci95: dict
+
+
+def _box(op, a, b) -> tuple:
+    """The range of ``op(x, y)`` over x in interval ``a``, y in interval ``b``
+    (monotone in each: the corners)."""
+    v = [op(x, y) for x in a for y in b]
+    return (float(min(v)), float(max(v)))
+
+
+def _times(iv, k):
+    return None if iv is None else (iv[0] * k, iv[1] * k)
+
+
+def _kept(ci: dict) -> dict:
+    """``ci`` without the parameters that have no interval (never a made-up one)."""
+    return {k: (float(v[0]), float(v[1])) for k, v in ci.items() if v is not None}
+
+
+def contract_entries(causes, h_nominal_W_m2K: float) -> tuple:
+    """The named causes of a rod diagnosis (:class:`~arfem.models.diagnosis.result.NamedCause`
+    of the pipeline) as the measured-data contract names them: a tuple of
+    :class:`ContractCause`, in the order given (module table).
+
+    >>> from arfem.models.diagnosis.result import NamedCause
+    >>> c = NamedCause("convection_scale", "convection_scale:lateral_surface",
+    ...                "lateral_surface", {"h_scale": 1.5}, {"h_scale": (1.4, 1.6)},
+    ...                {"h_scale": 1.0})
+    >>> e = contract_entries((c,), 55.0)[0]
+    >>> e.cause, e.parameters, tuple(round(v, 6) for v in e.ci95["h_W_m2K"])
+    ('convection_mismatch', {'h_W_m2K': 82.5}, (77.0, 88.0))
+    """
+    h0 = float(h_nominal_W_m2K)
+    by = {c.name: c for c in causes}
+    plain = by.get("convection_scale:lateral_surface")
+    hs = plain.parameters["h_scale"] if plain is not None else 1.0
+    # without the plain h beside it, the stopped h is the nominal one, not fitted
+    hs_ci = plain.ci95.get("h_scale") if plain is not None else (1.0, 1.0)
+    heat = next((c for c in causes if c.cause == "source_scale"), None)
+    s = heat.parameters["scale"] if heat is not None else 1.0
+    s_ci = heat.ci95.get("scale") if heat is not None else None
+    out, done = [], set()
+    for c in causes:
+        if c.name in done:
+            continue
+        p, ci = dict(c.parameters), _kept(dict(c.ci95))
+        name = CONTRACT_NAME.get(c.name, c.name)
+        if name == "speed_dependent_convection" or (
+                name == "convection_mismatch"
+                and "convection_scale:lateral_surface_running" in by):
+            run = by["convection_scale:lateral_surface_running"]
+            hr = run.parameters["h_scale"]
+            hr_ci = run.ci95.get("h_scale")
+            out.append(ContractCause(
+                "speed_dependent_convection",
+                {"h_running_W_m2K": hs * hr * h0, "h_stopped_W_m2K": hs * h0},
+                _kept({"h_running_W_m2K": (None if hr_ci is None or hs_ci is None else
+                                           _box(lambda a, b: a * b * h0, hs_ci, hr_ci)),
+                       "h_stopped_W_m2K": _times(hs_ci, h0)})))
+            done |= {"convection_scale:lateral_surface",
+                     "convection_scale:lateral_surface_running"}
+            continue
+        if name == "nonlinear_convection":
+            p, ci = ({"exponent": p["exponent"], "h_at_10K_W_m2K": p["h_scale"] * h0},
+                     _kept({"exponent": ci.get("exponent"),
+                            "h_at_10K_W_m2K": _times(ci.get("h_scale"), h0)}))
+        elif name == "convection_mismatch":
+            p, ci = {"h_W_m2K": p["h_scale"] * h0}, _kept({"h_W_m2K": _times(ci.get("h_scale"), h0)})
+        elif name == "sensor_drift":
+            p = {"drift_um_per_h": p["drift_um_per_h"], "offset_um": p["offset_um"]}
+        elif name == "frame_expansion" and heat is not None:
+            # the pipeline's frame column is the lag of the NOMINAL rod's steady growth;
+            # the contract's gain is per unit of the rod's own (scaled) growth
+            g = p["frame_gain"]
+            p["frame_gain"] = g / s
+            if "frame_gain" in ci and heat.ci95.get("scale") is not None:
+                ci["frame_gain"] = _box(lambda a, b: a / b, ci["frame_gain"], s_ci)
+            else:
+                ci.pop("frame_gain", None)
+        out.append(ContractCause(name, p, ci))
+        done.add(c.name)
+    return tuple(out)
+
+
 def contract_causes(causes, h_nominal_W_m2K: float) -> tuple:
-    """The named causes of a rod diagnosis (:class:`~arfem.models.diagnosis.result.NamedCause`)
-    as the measured-data contract names them: ((contract cause, {parameter: value}),
-    ...), strongest first (module table); a warm start keeps its plant name, outside
-    the contract's vocabulary.
+    """((contract cause, {parameter: value}), ...) of :func:`contract_entries`.
 
     >>> from arfem.models.diagnosis.result import NamedCause
     >>> c = NamedCause("convection_scale", "convection_scale:lateral_surface",
@@ -245,52 +359,25 @@ def contract_causes(causes, h_nominal_W_m2K: float) -> tuple:
     >>> contract_causes((c,), 55.0)
     (('convection_mismatch', {'h_W_m2K': 82.5}),)
     """
-    by = {c.name: c.parameters for c in causes}
-    hs = by.get("convection_scale:lateral_surface", {}).get("h_scale", 1.0)
-    out, done = [], set()
-    for c in causes:
-        if c.name in done:
-            continue
-        p = c.parameters
-        if c.name == "convection_scale:lateral_surface_running" or (
-                c.name == "convection_scale:lateral_surface"
-                and "convection_scale:lateral_surface_running" in by):
-            hr = by["convection_scale:lateral_surface_running"]["h_scale"]
-            out.append(("speed_dependent_convection",
-                        {"h_running_W_m2K": hs * hr * h_nominal_W_m2K,
-                         "h_stopped_W_m2K": hs * h_nominal_W_m2K}))
-            done |= {"convection_scale:lateral_surface",
-                     "convection_scale:lateral_surface_running"}
-        elif c.name == "natural_convection:lateral_surface":
-            out.append(("nonlinear_convection", {"exponent": p["exponent"],
-                                                 "h_at_10K_W_m2K": p["h_scale"] * h_nominal_W_m2K}))
-        elif c.name == "convection_scale:lateral_surface":
-            out.append(("convection_mismatch", {"h_W_m2K": p["h_scale"] * h_nominal_W_m2K}))
-        elif c.cause == "source_scale":
-            out.append(("heat_input_scale", {"scale": p["scale"]}))
-        elif c.cause == "ambient_drift":
-            out.append(("ambient_drift", dict(p)))
-        elif c.cause == "frame_lag":
-            out.append(("frame_expansion", dict(p)))
-        elif c.cause == "sensor_drift":
-            out.append(("sensor_drift", {"drift_um_per_h": p["drift_um_per_h"]}))
-        else:
-            out.append((c.name, dict(p)))
-        done.add(c.name)
-    return tuple(out)
+    return tuple((e.cause, e.parameters) for e in contract_entries(causes, h_nominal_W_m2K))
 
 
 def rod_plant(ds, model: RodModel | None = None) -> RodPlant:
     """The :class:`RodPlant` of a validated ``q_W_m2`` record
-    (:class:`arfem.models.diagnosis.dataset.Dataset`): growth with its flagged outliers
-    left out, the flux and the ambient as inputs; ``model`` the reduced rod of
-    ``ds.rod`` (built when not given)."""
+    (:class:`arfem.models.diagnosis.dataset.Dataset`) on the rows the rod engine reads
+    (:func:`arfem.models.diagnosis.engine.observations`): a row with an input but no
+    growth reading keeps its interval's input (merging it into the next interval moved
+    the nominal growth by 0.59 µm on development seed 1048 of
+    ``benchmarks/bench_diagnosis.py``); growth with the flagged outliers and the
+    unobserved rows left out (NaN), the flux and the ambient as inputs; ``model`` the
+    reduced rod of ``ds.rod`` (built when not given)."""
     if ds.q_W_m2 is None:
         raise ValueError(f"{ds.name}: the rod plant needs a q_W_m2 record")
-    y = np.array(ds.growth_um, float)
-    y[np.asarray(ds.outliers, bool)] = np.nan
-    q = np.asarray(ds.q_W_m2, float)
+    t, y, observed, outl, cols = observations(ds)
+    y = np.where(observed & ~outl, y, np.nan)
+    q = np.asarray(cols["q_W_m2"], float)
     shape = q / float(np.max(q)) if np.max(q) > 0 else np.zeros_like(q)
-    return RodPlant(model or RodModel(ds.rod), ds.name, np.asarray(ds.time_s, float),
-                    y[:, None], q, None if ds.ambient_C is None else np.asarray(ds.ambient_C),
-                    shape, bool(ds.initial_known))
+    amb = cols["ambient_C"]
+    return RodPlant(model or RodModel(ds.rod), ds.name, np.asarray(t, float), y[:, None], q,
+                    None if amb is None else np.asarray(amb, float), shape,
+                    bool(ds.initial_known))
