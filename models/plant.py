@@ -74,7 +74,7 @@ import numpy as np
 from arfem.models.diagnosis.verdict import NO_EFFECT
 from arfem.params import PLAUSIBLE_RANGES
 
-__all__ = ["Parameter", "CandidateCause", "Design", "Plant", "linear_value", "cause",
+__all__ = ["Parameter", "CandidateCause", "Design", "Plant", "SelectionRules", "linear_value", "cause",
            "BOUNDS", "PLAUSIBLE"]
 
 
@@ -317,6 +317,35 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
     return CandidateCause(kind, target, params)
 
 
+@dataclass(frozen=True)
+class SelectionRules:
+    """Where a plant needs the one pipeline's selection to read its record otherwise
+    (issue 41: "where the rod needs to differ, that is a named property of its plant,
+    documented"). The defaults are the mesh's, as pre-registered and scored by
+    ``benchmarks/bench_geodiagnosis.py``; a plant that sets one says why at the plant.
+
+    Attributes
+    ----------
+    shared_n_eff : bool
+        Every F test and BIC on ONE effective sample size, that of the largest model's
+        whitened residual (every candidate at once, the model the noise is fitted on,
+        :func:`arfem.models.geodiagnosis.fit.with_noise`), as an F test takes its error
+        variance from its full model; False: each candidate's own residual's N_eff.
+    nested_in_pair : bool
+        A cause of a named pair that nests a simpler single cause (a natural convection
+        holds a plain h) is replaced by it where its extra parameters fail the nested F
+        test beside the other cause (parsimony within a pair).
+    pair_misfit_sigma : float
+        A second cause is searched only where the first leaves more than this many noise
+        σ on some channel (RMS of its residual on the fit window over the channel's
+        second-difference σ); 0: always.
+    """
+
+    shared_n_eff: bool = False
+    nested_in_pair: bool = False
+    pair_misfit_sigma: float = 0.0
+
+
 @runtime_checkable
 class Plant(Protocol):
     """A model bound to one measured record: what the diagnosis pipeline calls.
@@ -350,6 +379,8 @@ class Plant(Protocol):
         True when the plant's reduced model is rebuilt at a named nonlinear setting
         (:meth:`regrown`) to remove its reduction bias there; False when the reduction
         is exact at every setting.
+    rules : SelectionRules
+        Where the plant's selection differs from the mesh's (:class:`SelectionRules`).
     """
 
     kind: str
@@ -362,6 +393,7 @@ class Plant(Protocol):
     not_searched: tuple
     nominal_parameters: tuple
     regrows: bool
+    rules: SelectionRules
 
     def candidate_causes(self) -> tuple:
         """Every single :class:`CandidateCause` this record and model can tell."""

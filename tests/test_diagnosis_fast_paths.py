@@ -76,6 +76,6 @@ def test_api_diagnose_reports_progress_to_a_callable():
     steps = []
     arfem.diagnose(df, progress=steps.append)
     assert steps[0] == "reading the dataset"
-    assert any(s.startswith("FEM fit:") for s in steps)
+    assert any(s.startswith("fitting") and "single causes" in s for s in steps)
     assert steps.index("residuals and hold-out") > max(
-        i for i, s in enumerate(steps) if s.startswith("FEM fit:"))
+        i for i, s in enumerate(steps) if s.startswith("fitting"))

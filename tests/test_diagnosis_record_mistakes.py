@@ -7,8 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from arfem.models.diagnosis.candidates import CandidateFit
-from arfem.models.diagnosis.engine import PARSIMONY_P, _parsimony
 from arfem.models.diagnosis.holdout import default_holdout as _default_holdout
 from arfem.models.diagnosis.synth import generate
 from arfem.scenarios.cli import main as cli
@@ -103,29 +101,6 @@ def test_standstill_holdout_warns_not_informative(tmp_path):
     assert default["holdout"]["start_s"] <= 11.0 * 3600 and "cooling" in default["holdout"]["how_chosen"]
     assert not any("not informative" in w for w in default["warnings"])
     assert default["cause"] == "convection_mismatch" and default["holdout"]["gain_pct"] > 50
-
-
-def _fit(cause, k, rss, n=2000):
-    res = np.random.default_rng(0).normal(size=n)   # white residual: N_eff ≈ N
-    return CandidateFit(cause, "fem+" + cause, {}, np.zeros(n), k, rss, n, residual_um=res)
-
-
-def test_parsimony_prefers_fewer_parameters_when_fits_are_equal():
-    """h = 70 (nominal 55) was named speed_dependent_convection (h 72.47 running, 71.41
-    stopped), 0.3 BIC ahead of convection_mismatch: where the extra parameter is not
-    significant (nested F test on N_eff, p >= PARSIMONY_P) the one-parameter cause is
-    named and the two-parameter one is reported as the equivalent alternative; where it
-    is (RSS halved), the two-parameter cause stays."""
-    fits = {"speed_dependent_convection": _fit("speed_dependent_convection", 2, 99.9),
-            "convection_mismatch": _fit("convection_mismatch", 1, 100.0)}
-    tests = {"speed_dependent_convection": {"significant": True, "rmse_cut_pct": 80.0},
-             "convection_mismatch": {"significant": True, "rmse_cut_pct": 79.9}}
-    cause, eq = _parsimony("speed_dependent_convection", fits, tests, {"n_eff": 50.0})
-    assert cause == "convection_mismatch" and eq["cause"] == "speed_dependent_convection"
-    assert eq["p_value"] >= PARSIMONY_P
-    fits["convection_mismatch"] = _fit("convection_mismatch", 1, 400.0)
-    cause, eq = _parsimony("speed_dependent_convection", fits, tests, {"n_eff": 50.0})
-    assert cause == "speed_dependent_convection" and eq is None
 
 
 def test_constant_h70_is_convection_mismatch_with_interval(tmp_path):

@@ -14,7 +14,7 @@ import numpy as np
 
 from arfem.params import InputError, Rod, Schedule
 
-__all__ = ["Dataset", "hampel_outliers", "sampling_gaps", "GAP_FACTOR"]
+__all__ = ["Dataset", "hampel_outliers", "sampling_gaps", "GAP_FACTOR", "observations"]
 
 #: A sampling interval longer than this multiple of the median interval is a gap.
 GAP_FACTOR = 3.0
@@ -221,3 +221,42 @@ def sampling_gaps(time_s, factor: float = GAP_FACTOR) -> list[tuple[float, float
     med = float(np.median(d))
     idx = np.flatnonzero(d > factor * med)
     return [(float(t[i]), float(t[i + 1])) for i in idx]
+
+
+def observations(ds):
+    """Time [s], growth [µm] (NaN where not observed), the observed and outlier masks and
+    the inputs (a dict by column, None where not recorded) over every row the record has
+    an input for: rows with an empty ``growth_um`` keep their input (dropping it would
+    merge its interval into the next one's) -- see ``Dataset.unobserved``. Speed-only
+    records use the observed rows only. The rod plant reads the same rows
+    (:func:`arfem.models.diagnosis.rod_plant.rod_plant`)."""
+    t = np.asarray(ds.time_s, float)
+    y = np.asarray(ds.growth_um, float)
+    un = getattr(ds, "unobserved", None)
+    cols = {"q_W_m2": ds.q_W_m2, "speed_rpm": ds.speed_rpm, "ambient_C": ds.ambient_C,
+            **ds.temperatures}
+    cols = {k: None if v is None else np.asarray(v, float) for k, v in cols.items()}
+    outl = np.asarray(ds.outliers, bool)
+    if ds.input_kind != "q_W_m2" or not un or not np.size(un.get("time_s", [])):
+        return t, y, np.ones(t.size, bool), outl, cols
+    tu = np.asarray(un["time_s"], float)
+    order = np.argsort(np.concatenate([t, tu]), kind="stable")
+    t2 = np.concatenate([t, tu])[order]
+    obs = np.concatenate([np.ones(t.size, bool), np.zeros(tu.size, bool)])[order]
+    y2 = np.concatenate([y, np.full(tu.size, np.nan)])[order]
+    out2 = np.concatenate([outl, np.zeros(tu.size, bool)])[order]
+    if np.any(np.diff(t2) <= 0):         # an unobserved row repeats a time: leave them out
+        return t, y, np.ones(t.size, bool), outl, cols
+    cols2 = {}
+    for k, v in cols.items():
+        if v is None:
+            cols2[k] = None
+            continue
+        w = un.get(k)
+        w = np.full(tu.size, np.nan) if w is None else np.asarray(w, float)
+        v2 = np.concatenate([v, w])[order]
+        if k == "ambient_C" and np.isnan(v2).any():      # an ambient is needed on every interval
+            ok = np.isfinite(v2)
+            v2 = np.interp(t2, t2[ok], v2[ok])
+        cols2[k] = v2
+    return t2, y2, obs, out2, cols2

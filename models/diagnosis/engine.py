@@ -7,62 +7,35 @@ typed :class:`~arfem.models.diagnosis.result.Diagnosis` of every plant (its ``ev
 (:func:`arfem.scenarios.diagnosis.document.document`) and the writers of
 :mod:`arfem.scenarios.diagnosis.report`.
 
-Selection rule (documented in every report; each rule has its one home in
-:mod:`arfem.models.diagnosis.rules`, this module runs them):
+Selection (documented in every report):
 
-1. every applicable cause is fitted on the rows before the hold-out that the loader
-   did not flag as outliers (:mod:`arfem.models.diagnosis.candidates`);
-2. each is scored by BIC on *effective* samples, N_eff ln(RSS/N) + k ln N_eff, with
-   N_eff = N(1 − ρ1)/(1 + ρ1) from the lag-1 autocorrelation ρ1 of the best candidate's
-   residual (one N_eff for all, so the scores are comparable);
-3. the best-scoring cause is named only if it beats the baseline in a nested F test
-   on N_eff samples at p < ``ALPHA`` (Bonferroni over the candidates) *and* cuts the
-   fit-window RMSE by at least ``MIN_GAIN`` -- otherwise the cause is ``none``;
-4. except where ``none`` would contradict its own definition ("the nominal simulation
-   explains the data to within measurement noise"): if the baseline's fit-window RMSE
-   exceeds ``MISFIT_FACTOR`` times the noise (estimated from the data's second
-   differences) and the best cause removes at least ``MISFIT_CUT`` of it, that cause is
-   named though the F test is not significant (``named_by = "misfit"``). This happens
-   when one cause explains most of a large misfit but leaves a correlated residual that
-   shrinks N_eff to a handful -- typically two causes at once, or one outside the
-   vocabulary; the report says so;
-5. a fit outside the project's plausible ranges (``arfem.params.PLAUSIBLE_RANGES``: a
-   heat scale outside 0.2-5, an h outside 1-2000 W/(m²K), ...) or stuck at the edge of
-   its search range is refused as a cause; if the record's own magnitude is implausible
-   against the nominal simulation (wrong units) no cause is named and a warning says
-   what to check;
-6. parsimony: where a cause with fewer parameters fits as well (the extra parameters'
-   nested F test on N_eff has p >= ``PARSIMONY_P``) it is named, and the report gives the
-   equivalent alternative;
-7. a second cause is listed (contract v2) where the first leaves more than
-   ``PAIR_MISFIT`` noise σ and the pair is significant against the first alone (F test
-   on the pair's N_eff at ``ALPHA``/pairs, RMSE cut >= ``PAIR_MIN_GAIN``); parsimony
-   applies within the pair. Where no single cause is named though the baseline is off by
-   ``MISFIT_FACTOR`` σ, a pair that removes ``MISFIT_CUT`` of the misfit is named;
-8. every named parameter has a 95 % interval from the joint fit
-   (:func:`arfem.models.diagnosis.candidates.parameter_ci95`); on speed-only records from
-   refits of the named candidate without each of several contiguous blocks
-   (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`).
+* ``q_W_m2`` records are diagnosed by the **one pipeline** every plant shares
+  (:func:`arfem.models.geodiagnosis.engine.diagnose_plant`, its module docstring gives
+  the steps: every single cause screened by BIC on N_eff and a nested F test at
+  ``ALPHA``/candidates, implausible magnitudes and a random walk in the noise ruled
+  out, parsimony for a cause that nests another, a second cause, the alternatives that
+  fit as well) on the rod plant (:mod:`arfem.models.diagnosis.rod_plant`: the paper's
+  FEM rod, its causes named by the measured-data contract). :func:`_diagnose_fem`
+  writes the pipeline's choice in the contract's names and adds rule 5's unit check;
+* ``speed_rpm`` records (a machine whose geometry is unknown): every speed-only cause
+  is fitted as an output-error AR(1) (:mod:`arfem.models.diagnosis.speed`) and scored
+  by forward-chaining validation; the best is named only if it cuts the baseline's
+  validation RMSE by at least ``MIN_GAIN`` and wins on a majority of the validation
+  blocks (:func:`arfem.models.diagnosis.rules._select_cv`); its parameters' 95 %
+  intervals come from refits without each of several contiguous blocks
+  (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`).
 
-9. a cause named by rule 4 (the misfit rule) whose extended model is worse than the
-   baseline on the hold-out is not named: it is reported as ``unconfirmed``;
-10. a named cause (or pair) whose effect on the fit window -- the RMS of its prediction
-    minus the baseline's -- is below ``EFFECT_FACTOR`` times the slow part of the noise
-    it leaves (the RMS of the residual's 30-min means) is not named either
-    (``unconfirmed``): slow sensor wander is fitted by a flexible cause but is not one.
-    The second cause of a pair is held to the same rule with its own increment over
-    the first (post hoc: added after the fresh batch 9000 was scored).
+On both, rule 5: if the record's own magnitude is implausible against the nominal
+model (wrong units: the heat scale that maps the nominal growth onto the record lies
+outside ``arfem.params.PLAUSIBLE_RANGES`` and the spreads disagree), no cause is named
+and a warning says what to check (:func:`arfem.models.diagnosis.rules._units_warning`).
 
-11. the verdict (:mod:`arfem.models.diagnosis.verdict`, :func:`add_verdict`): the cause
-    named by rules 1-10 is *established* only if its 95 % intervals exclude no effect
-    and stay inside the fit's range and the hold-out confirms it; otherwise it moves to
-    ``best_candidate`` and the verdict is *unconfirmed* -- or *explained* where the
-    baseline's residual is within the noise, *not_explained* where nothing was named
-    and it is not.
-
-Every N_eff (rules 2, 3, 6, 7 and the intervals) is the smaller of the lag-1 form and
-the batch-means form, which sees slow sensor wander
-(:func:`arfem.models.diagnosis.stats.noise_n_eff`).
+The verdict (:mod:`arfem.models.diagnosis.verdict`, :func:`add_verdict`): the cause
+named is *established* only if its 95 % intervals exclude no effect and stay inside the
+fit's range, no alternative fits as well, the hold-out confirms it and the MLR of eq. 18
+does not beat it; otherwise it moves to ``best_candidate`` and the verdict is
+*unconfirmed* -- or *explained* where the baseline's residual is within the noise,
+*not_explained* where nothing was named and it is not.
 
 Without ``--holdout-start`` the hold-out is the last third of the record if it holds a
 change of the input, else it starts at the last such change
@@ -78,15 +51,13 @@ from typing import Mapping, NamedTuple
 import numpy as np
 
 from arfem.models.diagnosis import stats as st
-from arfem.models.diagnosis.candidates import (CAUSES, H_CAUSES, ArPhysics, CandidateFit,
+from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit,
                                                FemPhysics, fit_candidate, fit_rod_causes,
                                                parameter_ci95)
 from arfem.models.diagnosis.rules import (
-    ALPHA, EFFECT_FACTOR, MIN_GAIN, MISFIT_CUT, MISFIT_FACTOR, PAIR_MIN_GAIN,
-    PAIR_MISFIT, PARSIMONY_P, _FEM_RULE, _SPEED_RULE, _effect_and_slow_noise,
-    _implausible, _parsimony, _second_cause, _select, _select_cv, _unconfirmed,
-    naming_test_text,
+    ALPHA, MIN_GAIN, MISFIT_FACTOR, _FEM_RULE, _SPEED_RULE, _select_cv, naming_test_text,
     _units_warning)
+from arfem.models.diagnosis.verdict import naming_level
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
                                           speed_to_heat_map)
@@ -95,13 +66,15 @@ from arfem.models.diagnosis.speed_select import cv_rmse, forward_folds, select_f
 from arfem.params import InputError
 from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
+from arfem.models.diagnosis.dataset import observations
+from arfem.models.diagnosis.rod_plant import CONTRACT_NAME, contract_entries, rod_plant
+from arfem.models.geodiagnosis.engine import diagnose_plant, named_causes
 from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "observations", "ALPHA", "MIN_GAIN", "MISFIT_FACTOR", "EFFECT_FACTOR",
-           "MISFIT_CUT", "CONTRACT_PARAMETERS", "PARSIMONY_P", "PAIR_MIN_GAIN", "PAIR_MISFIT",
-           "INFORMATIVE_NOISE_LEVELS"]
+__all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN",
+           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "INFORMATIVE_NOISE_LEVELS"]
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
@@ -265,45 +238,6 @@ def _refuse_dead_sensor(ds):
                          f"{ds.csv_path or ds.source}: column growth_um")
 
 
-def observations(ds):
-    """Time [s], growth [µm] (NaN where not observed), the observed and outlier masks and
-    the inputs (a dict by column, None where not recorded) over every row the record has
-    an input for: rows with an empty ``growth_um`` keep their input (dropping it would
-    merge its interval into the next one's) -- see ``Dataset.unobserved``. Speed-only
-    records use the observed rows only. The rod plant reads the same rows
-    (:func:`arfem.models.diagnosis.rod_plant.rod_plant`)."""
-    t = np.asarray(ds.time_s, float)
-    y = np.asarray(ds.growth_um, float)
-    un = getattr(ds, "unobserved", None)
-    cols = {"q_W_m2": ds.q_W_m2, "speed_rpm": ds.speed_rpm, "ambient_C": ds.ambient_C,
-            **ds.temperatures}
-    cols = {k: None if v is None else np.asarray(v, float) for k, v in cols.items()}
-    outl = np.asarray(ds.outliers, bool)
-    if ds.input_kind != "q_W_m2" or not un or not np.size(un.get("time_s", [])):
-        return t, y, np.ones(t.size, bool), outl, cols
-    tu = np.asarray(un["time_s"], float)
-    order = np.argsort(np.concatenate([t, tu]), kind="stable")
-    t2 = np.concatenate([t, tu])[order]
-    obs = np.concatenate([np.ones(t.size, bool), np.zeros(tu.size, bool)])[order]
-    y2 = np.concatenate([y, np.full(tu.size, np.nan)])[order]
-    out2 = np.concatenate([outl, np.zeros(tu.size, bool)])[order]
-    if np.any(np.diff(t2) <= 0):         # an unobserved row repeats a time: leave them out
-        return t, y, np.ones(t.size, bool), outl, cols
-    cols2 = {}
-    for k, v in cols.items():
-        if v is None:
-            cols2[k] = None
-            continue
-        w = un.get(k)
-        w = np.full(tu.size, np.nan) if w is None else np.asarray(w, float)
-        v2 = np.concatenate([v, w])[order]
-        if k == "ambient_C" and np.isnan(v2).any():      # an ambient is needed on every interval
-            ok = np.isfinite(v2)
-            v2 = np.interp(t2, t2[ok], v2[ok])
-        cols2[k] = v2
-    return t2, y2, obs, out2, cols2
-
-
 def _cause_entries(fit, causes, y, rows, ci=None):
     """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
     intervals from the (joint) fit (``ci``, if given: intervals computed otherwise)."""
@@ -364,16 +298,22 @@ class BranchResult:
     refused : dict of str to str
         Causes refused as implausible and why (``q_W_m2`` records).
     equivalent : dict or None
-        An alternative with fewer parameters that fits as well (rule 6).
-    pairs_tried : tuple of dict
-        The second-cause tests (rule 7).
+        The alternatives that fit as well, which the verdict could not exclude
+        (``q_W_m2`` records).
     ci95 : dict or None
-        Speed-only records: the named cause's 95 % intervals by the grouped jackknife
-        [parameter units]; None where they come from the joint fit (``q_W_m2``).
-    unconfirmed : dict or None
-        Rule 10: the cause not named because its effect is within the slow noise.
+        The named causes' 95 % intervals [parameter units]: ``q_W_m2`` records the
+        pipeline's, speed-only records by the grouped jackknife; None: from the joint
+        fit.
     physics : FemPhysics or None
         The FEM rod the fits ran on (``q_W_m2`` records), for export.
+    not_applicable : tuple of str or None
+        The contract causes the record cannot tell (None: those without a fit).
+    candidate_parameters : dict of str to dict
+        Each candidate's fitted parameters where ``fits`` does not hold its fit
+        (``q_W_m2`` records: the pipeline's screen).
+    pipeline : Diagnosis or None
+        ``q_W_m2`` records: the one pipeline's diagnosis, whose verdict the document
+        writes (:func:`_pipeline_verdict`); None where rule 5 refused every cause.
     speed_inputs : SpeedFrameInputs or None
         The inputs of a named thermometer frame fit (speed records), for export.
     """
@@ -395,11 +335,12 @@ class BranchResult:
     ar_label: str
     refused: dict = field(default_factory=dict)
     equivalent: dict | None = None
-    pairs_tried: tuple = ()
     ci95: dict | None = None
-    unconfirmed: dict | None = None
     physics: FemPhysics | None = None
     speed_inputs: SpeedFrameInputs | None = None
+    not_applicable: tuple | None = None
+    candidate_parameters: dict = field(default_factory=dict)
+    pipeline: Diagnosis | None = None
 
     def copy_with(self, **changes) -> BranchResult:
         """A copy with the fields ``changes`` changed (the result itself is frozen)."""
@@ -407,154 +348,129 @@ class BranchResult:
                              **changes})
 
 
-def _diagnose_fem(ds, t, q, y, rows, amb_K, temps, warnings, progress) -> BranchResult:
-    """q_W_m2 records: every cause fitted in the FEM, the refusals, the named cause(s)
-    (selection rules, parsimony, a second cause) and the AR(1) realisation."""
+def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
+    """q_W_m2 records: the one pipeline names the causes
+    (:func:`arfem.models.geodiagnosis.engine.diagnose_plant` on the rod plant,
+    :mod:`arfem.models.diagnosis.rod_plant`), and this branch writes its choice as the
+    measured-data contract lays it out: the named causes and their 95 % intervals by the
+    contract's names (:func:`~arfem.models.diagnosis.rod_plant.contract_entries`), every
+    single cause's BIC on N_eff and F test as the candidates, rule 5's unit check, and
+    the AR(1) realisation of the named causes (paper eqs. 13-14)."""
     rod = ds.rod
     fem = FemPhysics(rod)
-    args = (t, q, y, rows, ds.initial_known, amb_K, temps.get("T_frame_C"))
-    fits = _fit_single_causes(fem, args, progress)
-    # the noise scale of every rule: second differences, floored at the quantisation
-    # noise of a quantised growth sensor (resolution/√12), which they under-read
+    t, q, y, rows = r.t, r.u, r.y, r.rows
+    args = (t, q, y, rows, ds.initial_known, r.amb_K, r.temps.get("T_frame_C"))
+    plant = rod_plant(ds, fem.m)
+    d = diagnose_plant(plant, holdout_start_s=r.start_s, progress=progress)
+    ev = d.evidence
+    # the noise scale of the document's warnings: second differences, floored at the
+    # quantisation noise of a quantised growth sensor (resolution/√12)
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
-    refused = _refusals(fits, rod, noise, warnings)
-    valid = {c: (None if c in refused else f) for c, f in fits.items()}
-    cause, runner, scores, tests, neff = _select(
-        valid, fits["none"], sum(f is not None for f in valid.values()) - 1, noise)
-    cause, equivalent = _parsimony(cause, valid, tests, neff)
-    if equivalent is not None:
-        runner = equivalent["cause"]
-    cause, pair, pairs_tried = _pair_search(cause, fits, fem, args, refused, scores, tests,
-                                            neff, noise)
-    cause, causes, pair = _second_cause_effect(cause, pair, fits, t, y, rows, warnings)
-    ext = fits[cause] if pair is None else pair
-    cause, causes, ext, unconfirmed = _effect_rule(cause, causes, ext, fits["none"], tests,
-                                                   t, y, rows)
-    ar = ArPhysics(rod)
-    ar_base = fit_candidate("none", ar, *args)
-    ar_ext = ar_base if cause == "none" else fit_rod_causes(tuple(causes), ar, *args)
-    return BranchResult(
-        fits=fits, cause=cause, causes=tuple(causes), runner=runner, scores=scores,
-        tests=tests, selection=neff, extended=ext, baseline=fits["none"],
-        time_constant_s=1.0 / fem.slowest_rate(), ar_forms={"ar": ArForm(ar_base, ar_ext)},
-        baseline_model="fem", score_kind="bic_on_n_eff", rule=_FEM_RULE,
-        ar_label="paper AR(1), coefficients from the [rod] values (eqs. 13-14)",
-        refused=refused, equivalent=equivalent, pairs_tried=tuple(pairs_tried),
-        unconfirmed=unconfirmed, physics=fem)
-
-
-def _fit_single_causes(fem, args, progress) -> dict:
-    """Every cause of :data:`CAUSES` fitted alone in the FEM (rule 1); the h models nest
-    ``convection_mismatch`` and start from its optimum."""
-    fits = {}
-    for c in CAUSES:
-        progress(f"FEM fit: {c}")
-        h = fits.get("convection_mismatch")
-        start = None if h is None or c not in ("speed_dependent_convection",
-                                                "nonlinear_convection") else {
-            "log_h_running": h.theta["log_h"], "log_h_stopped": h.theta["log_h"],
-            "log_h_ref": h.theta["log_h"], "exponent": 0.0}
-        fits[c] = fit_rod_causes(() if c == "none" else (c,), fem, *args, start=start)
-    return fits
-
-
-def _refusals(fits, rod, noise_um, warnings) -> dict:
-    """Rule 5: the causes refused as implausible (or all of them where the record's
-    magnitude is), and why; a warning where a refused fit would have been named."""
-    refused = {c: why for c, f in fits.items()
-               if c != "none" and f is not None and (why := _implausible(f))}
-    unit_warning = _units_warning(fits, rod)
+    base = _pipeline_fit("none", "fem", {}, (), ev.baseline, y, rows)
+    level = naming_level(max(len(ev.ranking), 1))
+    scores, tests, params = {}, {}, {}
+    for rk in ev.ranking:
+        c = CONTRACT_NAME.get(rk.cause, rk.cause)
+        if c in scores:      # a cause the contract writes once (two plant causes)
+            continue
+        scores[c] = float(rk.bic)
+        tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
+                    "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
+        one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
+        params[c] = dict(contract_entries((one,), rod.convection_W_m2K)[0].parameters)
+    scores["none"] = float(ev.baseline_bic)
+    # strongest first (contract v2): the cause that alone fits the record best, by the
+    # screen's BIC on N_eff
+    entries = sorted(contract_entries(named_causes(ev.named), rod.convection_W_m2K),
+                     key=lambda e: scores.get(e.cause, np.inf))
+    # rule 5's unit check: the heat scale that maps the nominal growth onto the record
+    heat = fit_rod_causes(("heat_input_scale",), fem, *args)
+    unit_warning = _units_warning({"heat_input_scale": heat, "none": base}, rod)
+    refused = {}
     if unit_warning:
         warnings.append(unit_warning)
-        refused.update({c: "the record's magnitude is implausible (see warnings)"
-                        for c, f in fits.items() if c != "none" and f is not None})
-    n_tests = sum(f is not None for f in fits.values()) - 1
-    if refused and not unit_warning:
-        # a refusal is worth a warning where the refused fit would have been named
-        would = _select(fits, fits["none"], n_tests, noise_um)[0]
-        if would in refused:
-            bound = fits[would].at_bound
-            warnings.append(f"{would} fits best but is refused as a cause: {refused[would]}; "
-                            + ("two causes at once, or one outside the vocabulary?" if bound
-                               else "check the units of growth_um and the [rod] values"))
-    return refused
+        refused = {c: "the record's magnitude is implausible (see warnings)" for c in scores
+                   if c != "none"}
+        entries = ()
+    causes = tuple(e.cause for e in entries)
+    ext = base if not entries else _pipeline_fit(
+        "+".join(causes), "fem+" + "+".join(causes),
+        {k: v for e in entries for k, v in e.parameters.items()}, causes, ev.named, y, rows,
+        _export_coordinates(ev.named, rod.convection_W_m2K))
+    for c in causes[:1]:
+        tests.setdefault(c, {})["named_by"] = "pipeline"
+    runner = next((c for c in sorted(scores, key=scores.get)
+                   if c not in causes and c != "none"), None)
+    n_eff = float(st.noise_n_eff(ext.residual_um))
+    alternatives = tuple(d.alternatives)
+    equivalent = None if not alternatives or not entries else {
+        "cause": " or ".join(_contract_text(a) for a in alternatives), "parameters": {},
+        "excluded_by": None,
+        "why": "within ±10 of its BIC on N_eff, and the whitened hold-out does not tell "
+               "them apart"}
+    ar = ArPhysics(rod)
+    ar_base = fit_candidate("none", ar, *args)
+    ar_causes = tuple(c for c in causes if c in CAUSES)
+    ar_ext = ar_base if not ar_causes else fit_rod_causes(ar_causes, ar, *args)
+    return BranchResult(
+        fits={"none": base, **({ext.cause: ext} if entries else {}),
+              "heat_input_scale": heat},
+        cause=causes[0] if causes else "none", causes=causes, runner=runner, scores=scores,
+        tests=tests, selection={"n": base.n, "rho1": float(st.lag1(ext.residual_um)),
+                                "n_eff": n_eff, "noise_sigma_um": noise,
+                                "baseline_rmse_over_noise": (
+                                    float(np.sqrt(base.rss / max(base.n, 1))) / noise
+                                    if noise > 0 else None),
+                                "pipeline_noise_sigma_um": float(ev.sigma.get("growth_um",
+                                                                              np.nan))},
+        extended=ext, baseline=base, time_constant_s=1.0 / fem.slowest_rate(),
+        ar_forms={"ar": ArForm(ar_base, ar_ext)}, baseline_model="fem",
+        score_kind="bic_on_n_eff", rule=_FEM_RULE,
+        ar_label="paper AR(1), coefficients from the [rod] values (eqs. 13-14)",
+        refused=refused, equivalent=equivalent, physics=fem,
+        ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
+        not_applicable=tuple(c for c in CAUSES if c not in scores),
+        candidate_parameters=params, pipeline=None if unit_warning else d)
 
 
-def _pair_search(cause, fits, fem, args, refused, scores, tests, neff, noise_um):
-    """Rule 7: a second cause beside the named one -- or, where nothing is named though
-    the baseline is off by many noise σ, beside the best-scoring one (then named only if
-    the pair removes ``MISFIT_CUT`` of the misfit). Returns (cause, the pair's fit or
-    None, the pairs tried); ``tests`` records a cause so named."""
-    pair, pairs_tried = None, []
-    # the lead of a pair: the named cause; or, where nothing is named though the baseline
-    # is off by many noise σ (rule 4 not met by any single cause), the best-scoring one
-    lead = cause
-    misfit = (neff.get("baseline_rmse_over_noise") or 0.0) > MISFIT_FACTOR
-    if cause == "none" and misfit:
-        lead = next((c for c in sorted(scores, key=scores.get) if c != "none"), "none")
-    single_rmse = np.sqrt(fits[lead].rss / max(fits[lead].n, 1)) if lead != "none" else 0.0
-    if not (lead != "none" and np.isfinite(noise_um) and single_rmse > PAIR_MISFIT * noise_um):
-        return cause, pair, pairs_tried
-    # the second-best single cause, and the best that does not change h, lead a
-    # search too: a wrong lead (an h model standing in for a heat scale and a
-    # drift) would hide the true pair
-    ranked = [c for c in sorted(scores, key=scores.get)
-              if c not in ("none", lead) and c not in refused]
-    leads = [lead] + ranked[:1]
-    leads += [c for c in ranked if c not in H_CAUSES and c not in leads][:1]
-    for ld in leads:
-        pr, tr = _second_cause(ld, fits, fem, args, refused)
-        pairs_tried += tr
-        if pr is not None and (pair is None or pr.rss < pair.rss):
-            pair, lead = pr, ld
-    base = fits["none"]
-    if cause == "none" and pair is not None:
-        cut = 1.0 - np.sqrt(pair.rss / base.rss) if base.rss > 0 else 0.0
-        if cut < MISFIT_CUT:
-            pair = None
-        else:
-            cause = lead
-            tests.setdefault(lead, {})["named_by"] = "misfit, as one of two causes"
-    return cause, pair, pairs_tried
+def _contract_text(plant_causes: str) -> str:
+    """``"a + b"`` of plant cause names in the contract's names (``"c+d"``)."""
+    return "+".join(CONTRACT_NAME.get(n.strip(), n.strip()) for n in plant_causes.split("+"))
 
 
-def _second_cause_effect(cause, pair, fits, t, y, rows, warnings):
-    """The causes named, the pair's first one first; rule 10 for the second cause of a
-    pair: its own increment over the first must stand above the slow noise. Returns
-    (cause, causes, pair or None)."""
-    causes = [] if cause == "none" else ([cause] if pair is None else list(pair.causes))
-    if pair is not None and causes[0] != cause:
-        cause = causes[0]
-    if pair is not None and fits.get(causes[0]) is not None:
-        inc, slow = _effect_and_slow_noise(t, y, rows, pair, fits[causes[0]])
-        if inc < EFFECT_FACTOR * slow:
-            warnings.append(f"a second cause is listed only if it changes the fit window "
-                            f"by at least {EFFECT_FACTOR:g} x the slow part of the noise "
-                            f"({slow:.3g} µm) beyond the first; {causes[1]} beside "
-                            f"{causes[0]} changes it by {inc:.3g} µm RMS: unconfirmed as a "
-                            "second cause (post hoc rule, after the fresh batch 9000)")
-            pair, causes, cause = None, [causes[0]], causes[0]
-    return cause, causes, pair
+def _pipeline_fit(cause, model, parameters, causes, fit, y, rows, coordinates=None):
+    """The pipeline's :class:`~arfem.models.geodiagnosis.fit.Fit` of the growth channel as
+    the document's :class:`CandidateFit` (the residual, RSS and rows on the fit window;
+    ``coordinates``: the (θ, linear) :class:`JointFit` the export reads)."""
+    from arfem.models.diagnosis.candidates import JointFit
+    pred = np.asarray(fit.prediction, float)[:, 0]
+    res = (y - pred)[rows]
+    return CandidateFit(cause=cause, model=model, parameters=dict(parameters),
+                        prediction=pred, k=int(fit.n_params), rss=float(np.sum(res * res)),
+                        n=int(rows.sum()), causes=tuple(causes), residual_um=res,
+                        fit_rows=rows,
+                        joint=None if coordinates is None else JointFit(*coordinates))
 
 
-def _effect_rule(cause, causes, ext, base, tests, t, y, rows):
-    """Rule 10: a named cause whose effect on the fit window is within ``EFFECT_FACTOR``
-    times the slow part of the noise is not named. Returns (cause, causes, extended
-    fit, the unconfirmed record or None)."""
-    if cause == "none":
-        return cause, causes, ext, None
-    effect, slow = _effect_and_slow_noise(t, y, rows, ext, base)
-    if effect >= EFFECT_FACTOR * slow:
-        return cause, causes, ext, None
-    named = "+".join(causes)
-    unconfirmed = {"cause": named, "parameters": ext.parameters,
-                   "named_by": tests.get(cause, {}).get("named_by"),
-                   "effect_rms_um": effect, "slow_noise_um": slow,
-                   "why": (f"a cause is named only if it changes the fit window by at "
-                           f"least {EFFECT_FACTOR:g} x the slow part of the noise "
-                           f"({slow:.3g} µm, the residual's 30-min means); {named} changes "
-                           f"it by {effect:.3g} µm RMS: unconfirmed, so no cause is named")}
-    return "none", [], base, unconfirmed
+def _export_coordinates(fit, h0) -> tuple:
+    """(θ, linear) of the pipeline's named rod fit as
+    :func:`arfem.models.diagnosis.export.fem_state_space` reads them: ln h [W/(m²K)],
+    ln τ_frame [h]; the heat scale, the ambient gain [µm/K] and the frame's raw gain
+    on the nominal rod's steady growth."""
+    theta, lin = {}, {}
+    for c, p in zip(fit.causes, fit.params):
+        if c.name == "convection_scale:lateral_surface":
+            theta["log_h"] = float(np.log(p["h_scale"] * h0))
+        elif c.kind == "frame_lag":
+            theta["log_tau_h"] = float(np.log(p["frame_time_constant_h"]))
+            lin["frame_gain"] = float(p["frame_gain"])
+        elif c.kind == "source_scale":
+            lin["scale"] = float(p["scale"])
+        elif c.kind == "ambient_drift":
+            lin["ambient_gain_um_per_K"] = float(p["ambient_gain_um_per_K"])
+        elif c.kind == "sensor_drift":
+            lin["drift_um_per_h"] = float(p["drift_um_per_h"])
+    return theta, lin
 
 
 #: what the baseline of a speed_rpm record is, fitted and run (diagnosis.json's
@@ -739,10 +655,12 @@ def _holdout_scores(y, base_pred, ext_pred, hold):
     return b_hold, e_hold, 100.0 * (1.0 - e_hold / b_hold) if b_hold > 0 else 0.0
 
 
-def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
+def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind,
+               candidate_parameters=None):
     """The best cause not named and why it lost -- the rule and its outcome -- or None."""
-    if runner is None or fits.get(runner) is None:
+    if runner is None or runner not in scores:
         return None
+    candidate_parameters = candidate_parameters or {}
     score, other = scores[runner], scores.get(cause, float("nan"))
     test = tests.get(runner)
     if input_kind == "q_W_m2":
@@ -760,7 +678,9 @@ def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind):
         why = (f"the one with {least} among the candidates that pass the naming test is "
                f"named ({score_text})")
     return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
-            "parameters": fits[runner].parameters, "why_lost": why}
+            "parameters": (fits[runner].parameters if fits.get(runner) is not None
+                           else candidate_parameters.get(runner, {})),
+            "why_lost": why}
 
 
 def _ar_form(ar_forms, y, hold):
@@ -799,15 +719,15 @@ def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
     entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
-    if branch.ci95 is None:
-        eq = ext.equivalent if len(entries) > 1 else branch.equivalent
+    if branch.physics is not None:
+        eq = branch.equivalent
         if eq is not None:
             summary["equivalent_alternative"] = eq
             _widen_for_model_choice(entries, eq)
-        summary["second_cause_tests"] = list(branch.pairs_tried)
-        summary["refused_candidates"] = [{"cause": c, "refused": why,
-                                          "parameters": branch.fits[c].parameters}
-                                         for c, why in branch.refused.items()]
+        summary["refused_candidates"] = [
+            {"cause": c, "refused": why,
+             "parameters": branch.fits[c].parameters if branch.fits.get(c) else {}}
+            for c, why in branch.refused.items()]
     summary["contract_version"] = 2
     summary["causes"] = entries
     summary["parameters_ci95"] = entries[0]["ci95"] if entries else {}
@@ -900,19 +820,58 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
         # forward-chaining validation RMSE [µm] for speed-only ones
         "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
                         **(tests[c] if c in tests else {}),
-                        "parameters": fits[c].parameters,
-                        "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
+                        **({"parameters": fits[c].parameters,
+                            "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
+                           if fits.get(c) is not None and c not in branch.candidate_parameters
+                           else {"parameters": branch.candidate_parameters.get(c, {})})}
                        for c in sorted(scores, key=scores.get)],
         "runner_up": None,
         "selection": {"rule": branch.rule, **branch.selection},
-        "not_applicable": [c for c in CAUSES if fits.get(c) is None],
+        "not_applicable": (list(branch.not_applicable) if branch.not_applicable is not None
+                           else [c for c in CAUSES if fits.get(c) is None]),
         "refused": dict(branch.refused),
         "input_kind": ds.input_kind,
         "data_notes": list(ds.notes),
     }
     summary["runner_up"] = _runner_up(ds.input_kind, cause, branch.runner, fits, scores,
-                                      tests, score_kind)
+                                      tests, score_kind, branch.candidate_parameters)
     return summary
+
+
+def _in_contract_names(text: str) -> str:
+    """``text`` with the rod plant's cause names written as the contract's."""
+    for plant, contract in sorted(CONTRACT_NAME.items(), key=lambda kv: -len(kv[0])):
+        text = text.replace(plant, contract)
+    return text.replace(" + ", "+")
+
+
+def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0) -> None:
+    """The one pipeline's verdict on a ``q_W_m2`` record (its rules:
+    :mod:`arfem.models.diagnosis.verdict`, the evidence of every plant: the residual
+    whitened by the channel's fitted noise, the whitened hold-out) written into
+    ``summary`` by :func:`arfem.models.diagnosis.verdict.apply`, in the contract's cause
+    names; ``resolution_um`` the growth sensor's quantum [µm] (0: not quantised)."""
+    from arfem.models.diagnosis import verdict as vd
+    ch, ev = d.channels[0], d.evidence
+    p = float(ch.whiteness_p)
+    better_ = {k: v for k, v in vd.within_noise(summary, [], 0.0)["better_baselines"].items()}
+    within = {"ljung_box_p_neff": p, "n_eff": float(ev.within_n_eff.get(ch.column, 0.0)),
+              "white": vd.channels_white([p]),
+              "thermometers_beyond_bound": list(ch.thermometers_beyond),
+              "better_baselines": better_ if ev.data_baseline_better else {},
+              "below_resolution": bool(d.below_resolution),
+              "resolution": float(resolution_um or vd.DEFAULT_RESOLUTION), "whitened": True,
+              "holds": bool(d.below_resolution or (vd.channels_white([p])
+                                                  and not ch.thermometers_beyond
+                                                  and not ev.data_baseline_better))}
+    subject = None if d.subject is None else _in_contract_names(d.subject)
+    if subject is None and d.verdict == "not_explained" and summary.get("runner_up"):
+        subject = summary["runner_up"]["cause"]
+    vd.apply(summary, vd.Verdict(d.verdict, subject,
+                                 tuple(_in_contract_names(f) for f in d.failed), within))
+    vdet = summary["verdict_detail"]
+    vdet["best_candidate_beaten_by_mlr"] = bool(d.beaten_by_regression)
+    vdet["text"] = vd.text(summary)
 
 
 def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None,
@@ -963,12 +922,12 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     r = _prepare_record(ds, holdout_start_s)
     text, warnings = [], []
     if ds.input_kind == "q_W_m2":
-        branch = _diagnose_fem(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, warnings, step)
+        branch = _diagnose_fem(ds, r, warnings, step)
     else:
         branch = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
                              warnings, step, intervals, drift_last, on_fit)
     step("residuals and hold-out")
-    branch, holdout = _score_holdout(branch, r, warnings)
+    holdout = _score_holdout(branch, r)
     if ds.input_kind == "speed_rpm":
         holdout.update(_unseen_speeds(r))
     t, y, good, base, ext = r.t, r.y, r.good, branch.baseline, branch.extended
@@ -978,8 +937,6 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     eres = _residual_analysis(t, y, ext.prediction, good, r.signals, running,
                               branch.time_constant_s)
     summary = _summary(ds, branch, bres, eres, holdout)
-    if branch.unconfirmed is not None:
-        summary["unconfirmed"] = branch.unconfirmed
     summary["ar_form"] = _ar_form(branch.ar_forms, y, r.hold)
     summary["ar_form_description"] = branch.ar_label
     _add_version2(summary, branch, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)
@@ -987,15 +944,19 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
     series.update({k: v for k, v in r.signals.items() if k not in series})
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
-    add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
-                getattr(ds, "growth_resolution_um", 0.0))
+    if branch.pipeline is not None:
+        _pipeline_verdict(summary, branch.pipeline,
+                          getattr(ds, "growth_resolution_um", 0.0))
+    else:
+        add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
+                    getattr(ds, "growth_resolution_um", 0.0))
     return typed_result(summary, series, lambda doc: RodEvidence(
         doc, tuple(text), ext, branch.physics, branch.speed_inputs), ds.rod.convection_W_m2K)
 
 
 class _Record(NamedTuple):
     """The record as the diagnosis reads it: every row with an input (rows without a
-    growth reading keep theirs, see :func:`observations`) and the hold-out split.
+    growth reading keep theirs, see :func:`arfem.models.diagnosis.dataset.observations`) and the hold-out split.
 
     Attributes: ``t`` sample times [s], ``y`` growth [µm] (NaN where not observed),
     ``good`` observed and not an outlier, ``u`` the input (``q_W_m2`` [W/m²] or
@@ -1031,25 +992,10 @@ def _prepare_record(ds, holdout_start_s) -> _Record:
                    _signals(ds.input_kind, cols, temps))
 
 
-def _score_holdout(branch: BranchResult, r: _Record,
-                   warnings) -> tuple[BranchResult, dict]:
-    """The hold-out scores of the branch's baseline and extended model, and rule 9: a
-    cause named by the misfit rule that makes the hold-out worse is not named (the
-    branch result is returned without it). Returns (branch result, diagnosis.json's
-    ``holdout``)."""
-    base = branch.baseline
-    b_hold, e_hold, gain = _holdout_scores(r.y, base.prediction, branch.extended.prediction,
-                                           r.hold)
-    if branch.unconfirmed is not None:        # rule 10 (in the branch)
-        warnings.append(branch.unconfirmed["why"])
-    elif (unconfirmed := _unconfirmed(branch.cause, branch.causes, branch.tests,
-                                      branch.extended.parameters, gain)) is not None:   # rule 9
-        ar_forms = dict(branch.ar_forms)
-        if "ar" in ar_forms:
-            ar_forms["ar"] = ArForm(ar_forms["ar"].baseline, ar_forms["ar"].baseline)
-        branch = branch.copy_with(cause="none", causes=(), extended=base, unconfirmed=unconfirmed,
-                          ar_forms=ar_forms)
-        warnings.append(unconfirmed["why"])
-        e_hold, gain = b_hold, 0.0
-    return branch, {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,
-                "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(r.hold.sum())}
+def _score_holdout(branch: BranchResult, r: _Record) -> dict:
+    """diagnosis.json's ``holdout``: the hold-out scores of the branch's baseline and
+    extended model [µm] and the gain [%]."""
+    b_hold, e_hold, gain = _holdout_scores(r.y, branch.baseline.prediction,
+                                           branch.extended.prediction, r.hold)
+    return {"start_s": r.start_s, "how_chosen": r.how_chosen, "baseline_rmse_um": b_hold,
+            "extended_rmse_um": e_hold, "gain_pct": gain, "n_samples": int(r.hold.sum())}

@@ -304,8 +304,7 @@ def verdict_stability(diagnose_at, origins, subject: str | None, mapper=map) -> 
     per = []
     for o, s in zip(origins, mapper(diagnose_at, origins)):
         named_list = s.get("causes") or (s.get("best_candidate") or {}).get("causes") or []
-        if not named_list and (s.get("best_candidate") or {}).get("named_by_selection_rules") \
-                and not (s.get("unconfirmed")):
+        if not named_list and (s.get("best_candidate") or {}).get("named_by_selection_rules"):
             named_list = [{"cause": s["best_candidate"]["cause"]}]
         named = "+".join(c["cause"] for c in named_list) or "none"
         per.append({"origin_s": o, "named": named, "verdict": s.get("verdict"),

@@ -46,7 +46,7 @@ import numpy as np
 
 from arfem.models.diagnosis.forward import ar_columns_rates, first_order_lag, intervals
 from arfem.models.geodiagnosis.problem import Channel
-from arfem.models.plant import Design, Parameter, cause
+from arfem.models.plant import Design, Parameter, SelectionRules, cause
 
 __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_dataset",
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT"]
@@ -117,6 +117,7 @@ class SpeedPlant:
     not_searched: tuple = ()
     nominal_parameters: tuple = (TIME_CONSTANT, HEAT_EXPONENT)
     regrows: bool = False
+    rules: SelectionRules = SelectionRules()
 
     def candidate_causes(self) -> tuple:
         """A sensor drift; an ambient drift where the ambient is recorded and varies; a

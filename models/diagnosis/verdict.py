@@ -483,8 +483,6 @@ def beaten_text(what: str, rmse, extended_rmse, unit: str = "µm") -> str:
             f"{extended_rmse:.3g}{' ' + unit if unit else ''}")
 
 
-#: said of a cause withdrawn by rule 10 (its effect within the slow part of the noise)
-WANDER = "; that looks like slow sensor wander, not a cause"
 
 
 def _beaten_by_data(summary) -> bool:
@@ -503,7 +501,7 @@ def decide(summary, baseline_residual, nominal_h=None,
     summary : dict
         ``diagnosis.json`` as the engine builds it, before :func:`apply`: ``cause``,
         ``causes`` (with ``ci95``), ``holdout``, ``baseline``, ``mlr``, ``ar_form``,
-        ``unconfirmed``, ``runner_up``.
+        ``runner_up``.
     baseline_residual : array_like
         measured − baseline [µm] on every scored (observed, not outlier) row.
     nominal_h : float, optional
@@ -524,13 +522,9 @@ def decide(summary, baseline_residual, nominal_h=None,
                                       summary["holdout"]["extended_rmse_um"]))
         v = outcome(True, failed, noise["holds"], noise["below_resolution"], beaten)
         return Verdict(v, subject, tuple(failed) if v != "established" else (), noise)
-    u = summary.get("unconfirmed")
-    failed = (u["why"] + (WANDER if "effect_rms_um" in u else ""),) if u else ()
-    v = outcome(bool(u), failed, noise["holds"], noise["below_resolution"], beaten)
-    if v == "not_explained" and not u:
-        r = summary.get("runner_up")
-        return Verdict(v, r["cause"] if r else None, (), noise)
-    return Verdict(v, u["cause"] if u else None, failed, noise)
+    v = outcome(False, (), noise["holds"], noise["below_resolution"], beaten)
+    r = summary.get("runner_up")
+    return Verdict(v, r["cause"] if r and v == "not_explained" else None, (), noise)
 
 
 def apply(summary, v: Verdict) -> None:
@@ -551,13 +545,6 @@ def apply(summary, v: Verdict) -> None:
             "named_by_selection_rules": True, "not_established_because": list(v.failed)}
         summary.update(cause="none", causes=[], parameters={}, parameters_ci95={},
                        parameters_detail={})
-    elif v.verdict != "established" and summary.get("unconfirmed"):
-        u = summary["unconfirmed"]
-        summary["best_candidate"] = {"cause": u["cause"], "causes": [],
-                                     "parameters": u.get("parameters", {}),
-                                     "named_by_selection_rules": True,
-                                     "not_established_because": [u["why"] + (
-                                         WANDER if "effect_rms_um" in u else "")]}
     elif v.verdict == "not_explained" and summary.get("runner_up"):
         r = summary["runner_up"]
         summary["best_candidate"] = {"cause": r["cause"], "causes": [],
@@ -574,7 +561,8 @@ def apply(summary, v: Verdict) -> None:
             "thermometers_beyond_bound": wn["thermometers_beyond_bound"],
             "better_baselines_holdout_rmse_um": wn["better_baselines"],
             "below_resolution": wn.get("below_resolution", False),
-            "resolution_um": wn.get("resolution", DEFAULT_RESOLUTION)},
+            "resolution_um": wn.get("resolution", DEFAULT_RESOLUTION),
+            "whitened_by_fitted_noise": bool(wn.get("whitened", False))},
         "best_candidate_beaten_by_mlr": bool(v.verdict == "not_explained"
                                              and _beaten_by_data(summary)
                                              and bool(summary.get("best_candidate", {})
@@ -602,6 +590,10 @@ def _f(v, nd=3) -> str:
     return f"{v:.{nd}g}"
 
 
+#: how the residual was tested where the plant's fitted noise whitened it first
+_WHITENED = ", whitened by the sensor's fitted noise (white plus a random walk),"
+
+
 def _what_is_left(summary) -> str:
     wn = summary["verdict_detail"]["residual_within_noise"]
     h, b = summary["holdout"], summary["baseline"]
@@ -613,7 +605,8 @@ def _what_is_left(summary) -> str:
         why.append(f"its whiteness cannot be tested (N_eff = {wn['n_eff']:.0f}: fewer than "
                    "10 independent samples), so it is not shown to be within the noise")
     elif not wn["white"]:
-        why.append(f"its residual is not white (Ljung-Box on N_eff = {wn['n_eff']:.0f}: "
+        why.append(f"its residual{_WHITENED if wn.get('whitened_by_fitted_noise') else ''} "
+                   f"is not white (Ljung-Box on N_eff = {wn['n_eff']:.0f}: "
                    f"{st.p_text(wn['ljung_box_p_neff'])})")
     if wn["thermometers_beyond_bound"]:
         n = len(wn["thermometers_beyond_bound"])
@@ -676,7 +669,8 @@ def text(summary) -> str:
     if v == "explained":
         wn = d["residual_within_noise"]
         s = (f"The simulation as configured explains this record to within the "
-             f"noise: its residual is white by Ljung-Box on N_eff = {wn['n_eff']:.0f} "
+             f"noise: its residual{_WHITENED if wn.get('whitened_by_fitted_noise') else ''} "
+             f"is white by Ljung-Box on N_eff = {wn['n_eff']:.0f} "
              f"({st.p_text(wn['ljung_box_p_neff'])}), no thermometer correlates with it beyond "
              f"its bound, and no baseline model does better on the hold-out "
              f"({_f(h['baseline_rmse_um'])} µm RMSE"
@@ -725,7 +719,7 @@ def selected_causes(summary) -> list:
 
 def named_cause(summary) -> str:
     """The cause the selection rules named, established or not ("a+b" for a pair;
-    ``none`` if nothing was named or it was withdrawn by rule 9 or 10): ``cause`` where
+    ``none`` if nothing was named): ``cause`` where
     it is established, else ``best_candidate`` where the selection rules named it.
 
     >>> named_cause({"cause": "none", "causes": [], "best_candidate": {

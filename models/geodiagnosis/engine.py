@@ -53,6 +53,11 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
    re-fitted under both models (:func:`walk_profiled_p`), and at the end each cause of
    the pair is tested against the other alone by both tests, the weaker dropped when
    it fails (:func:`_prune`; development seed 70015).
+   A plant may read its record otherwise where it needs to, a named property
+   (:class:`arfem.models.plant.SelectionRules`, the mesh's defaults above): one N_eff
+   for every F test and BIC, the largest model's; parsimony within a pair; a second
+   cause only where the first leaves more than a given number of noise σ. The rod
+   plant sets all three (:data:`arfem.models.diagnosis.rod_plant.RULES` says why).
 5. Verdict (:func:`_judge`, by the rules of :mod:`arfem.models.diagnosis.verdict`,
    the same as the rod's): ``explained`` first where the nominal residual stays below
    every sensor's resolution; ``established`` when each named cause's 95 % interval
@@ -71,7 +76,8 @@ pre-registered batch: steps 0, 2's floor, 3's BIC window, 4's regrowth, 5's whit
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Mapping, NamedTuple
 
 import numpy as np
 
@@ -96,13 +102,32 @@ from arfem.models.plant import Plant
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["MeshEvidence", "diagnose_geometry", "diagnose_plant", "named_causes",
+__all__ = ["MeshEvidence", "Ranked", "diagnose_geometry", "diagnose_plant", "named_causes",
            "mlr_holdout", "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself
 #: (Kass R. E., Raftery A. E., J. Amer. Statist. Assoc. 90 (1995) 773-795, sec. 3.2).
 DELTA_BIC = 10.0
+
+
+class Ranked(NamedTuple):
+    """A single cause as the screen (step 2) scored it.
+
+    Attributes
+    ----------
+    cause : str, the cause's name (``kind:target``)
+    bic : float, BIC on N_eff on the fit window [-]
+    f_test_p : float, its nested F test against the nominal model
+    holdout_whitened_rms : float, whitened hold-out RMS [-]
+    parameters : mapping, its fitted parameters {name: value} [their units]
+    """
+
+    cause: str
+    bic: float
+    f_test_p: float
+    holdout_whitened_rms: float
+    parameters: Mapping
 
 
 @dataclass(frozen=True)
@@ -113,11 +138,16 @@ class MeshEvidence:
     ----------
     named : Fit or None, the causes the selection rules named (with intervals)
     baseline : Fit, the nominal model
-    ranking : tuple of (cause name, BIC, F-test p, whitened hold-out RMS [-]), every
-        single cause screened
+    ranking : tuple of :class:`Ranked`, every single cause screened, best BIC first
     sigma : dict, per channel noise σ [record unit]
     within_noise : dict, per channel Ljung–Box p on N_eff of the nominal residual
         whitened by the channel's fitted noise
+    within_n_eff : dict, per channel that N_eff [samples]
+    data_baseline_better : bool, a data-driven baseline (the MLR of eq. 18, or the
+        nominal model with its residual regressed on the thermometers) beats the nominal
+        model on some channel's whitened hold-out
+    baseline_bic : float, the nominal model's BIC on N_eff on the fit window (the
+        ranking's scale) [-]
     """
 
     named: Fit | None
@@ -125,6 +155,9 @@ class MeshEvidence:
     ranking: tuple
     sigma: dict
     within_noise: dict
+    within_n_eff: Mapping = field(default_factory=lambda: frozen_mapping({}))
+    data_baseline_better: bool = False
+    baseline_bic: float = float("nan")
 
 
 def _weighted_rms(ctx: FitContext, pred, rows) -> float:
@@ -148,7 +181,11 @@ def _holdout_score(ctx: FitContext, pred, hold) -> float:
 
 
 def _n_eff(ctx: FitContext, pred, rows) -> float:
-    """Σ_c N_eff,c of the residual whitened by each channel's fitted noise."""
+    """Σ_c N_eff,c of the residual whitened by each channel's fitted noise; the largest
+    model's for every fit where the plant shares one N_eff
+    (:attr:`arfem.models.plant.SelectionRules.shared_n_eff`)."""
+    if ctx.plant.rules.shared_n_eff and ctx.n_eff_full is not None:
+        return ctx.n_eff_full
     tot = 0.0
     for j in range(ctx.plant.data.shape[1]):
         ok = ctx.valid[:, j] & rows
@@ -283,7 +320,8 @@ def _screen(ctx, singles, train, hold, base, n_tests):
         rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
                      _holdout_score(ctx, f.prediction, hold)))
     rows.sort(key=lambda r: r[2])
-    ranking = tuple((r[0].name, r[2], r[3], r[4]) for r in rows)
+    ranking = tuple(Ranked(r[0].name, r[2], r[3], r[4], frozen_mapping(r[1].params[0]))
+                    for r in rows)
     passing = [r for r in rows if r[3] < naming_level(n_tests) and implausible(r[1]) is None
                and not below_floor(ctx, r[1].prediction, base.prediction, train)
                and not walk_explains(ctx, r[0], base.prediction, train, naming_level(n_tests))][:3]
@@ -453,7 +491,7 @@ def _swap(ctx, pair: Fit, singles, train, hold, n_tests, rounds: int = 4) -> Fit
     return pair
 
 
-def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
+def _prune(ctx, pair: Fit, train, n_tests, singles=()) -> Fit:
     """Step 4's last look: each cause of the pair tested against the other alone, by
     the F test on N_eff and by :func:`walk_profiled_p`; the cause of the larger p is
     dropped when it fails either at the naming level (the backward step of stepwise
@@ -473,7 +511,40 @@ def _prune(ctx, pair: Fit, train, n_tests) -> Fit:
                 walk_profiled_p(ctx, sub.prediction, pair.prediction, train, df))
         if p >= naming_level(n_tests) and (worst is None or p > worst[0]):
             worst = (p, sub)
-    return pair if worst is None else worst[1]
+    out = pair if worst is None else worst[1]
+    return _simpler_in_pair(ctx, out, singles, train, n_tests) \
+        if ctx.plant.rules.nested_in_pair and len(out.causes) > 1 else out
+
+
+def _simpler_in_pair(ctx, named: Fit, singles, train, n_tests) -> Fit:
+    """Parsimony within a pair (:attr:`arfem.models.plant.SelectionRules.nested_in_pair`):
+    a cause of ``named`` that nests a simpler single cause (:func:`_nests`) is replaced
+    by it where its extra parameters fail the nested F test on N_eff beside the other
+    cause at the naming level."""
+    ne = _n_eff(ctx, named.prediction, train)
+    for k, c in enumerate(named.causes):
+        for s in singles:
+            if not _nests(c, s) or any(s.name == o.name for o in named.causes):
+                continue
+            causes = tuple(s if i == k else o for i, o in enumerate(named.causes))
+            sub = fit_mesh_causes(ctx, causes, train, intervals=False)
+            if f_test_p(sub.sse_w, named.sse_w, named.n_params - sub.n_params,
+                        ne) >= naming_level(n_tests):
+                return sub
+    return named
+
+
+def _misfit_sigma(ctx: FitContext, fit: Fit, train) -> float:
+    """The most noise σ ``fit`` leaves on a channel: the RMS of its residual on the fit
+    window over the channel's second-difference σ (the gate of
+    :attr:`arfem.models.plant.SelectionRules.pair_misfit_sigma`)."""
+    out = 0.0
+    for j in range(ctx.plant.data.shape[1]):
+        ok = ctx.valid[:, j] & train
+        if ok.any():
+            r = ctx.plant.data[ok, j] - fit.prediction[ok, j]
+            out = max(out, float(np.sqrt(np.mean(r * r))) / float(ctx.sigma[j]))
+    return out
 
 
 def _effect_failures(fit: Fit) -> list:
@@ -646,7 +717,9 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
             ctx, base = grown
             first = fit_mesh_causes(ctx, first.causes, train, intervals=False)
         progress("screening a second cause")
-        pair, near_pairs = _best_pair(ctx, first, leads, singles, train, hold, n_tests)
+        gate = plant.rules.pair_misfit_sigma
+        pair, near_pairs = (None, ()) if gate and _misfit_sigma(ctx, first, train) <= gate \
+            else _best_pair(ctx, first, leads, singles, train, hold, n_tests)
         if pair is not None:
             near = near_pairs
             progress("re-screening the first cause beside the second")
@@ -654,7 +727,7 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
         named = fit_mesh_causes(ctx, (pair or first).causes, train, intervals=False)
         if pair is not None:
             progress("testing each cause of the pair beside the other")
-            named = _prune(ctx, named, train, n_tests)
+            named = _prune(ctx, named, train, n_tests, singles)
         grown = None if pair is None else _regrown(ctx, named, train, lambda: progress(
             "regrowing the reduced basis at the named setting"))
         if grown is not None:
@@ -669,11 +742,13 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
     # "lost" 10.8 % on it while its whitened error fell (0.975 against 0.981)
     sb, se = _holdout_score(ctx, base.prediction, hold), _holdout_score(ctx, ext.prediction, hold)
     gain_w = 100.0 * (1.0 - se / sb) if sb > 0 else 0.0
-    alts = _alternatives(ctx, named, near, train, hold) if named is not None else ()
+    alts = _alternatives(ctx, named, near, train, hold, n_tests) if named is not None else ()
     v = _judge(ctx, plant, base, named, train, hold, gain_w, alts)
+    N = int((ctx.valid & train[:, None]).sum())
+    base_bic = float(bic(base.sse_w, N, _n_eff(ctx, base.prediction, train), base.n_params))
     return _result(ctx, base, named, v, ranking, alts,
                    _text(v, named, gain, plant.not_searched), float(h0), how, hold,
-                   float(gain), float(gain_w))
+                   float(gain), float(gain_w), base_bic)
 
 
 def named_causes(fit: Fit | None) -> tuple:
@@ -689,7 +764,7 @@ def named_causes(fit: Fit | None) -> tuple:
 
 
 def _result(ctx: FitContext, base: Fit, named, v, ranking, alts, text: str, h0: float,
-            how: str, hold, gain: float, gain_w: float) -> Diagnosis:
+            how: str, hold, gain: float, gain_w: float, base_bic: float) -> Diagnosis:
     """The shared typed result of a plant's diagnosis."""
     rec = ctx.plant
     causes = named_causes(named)
@@ -713,7 +788,8 @@ def _result(ctx: FitContext, base: Fit, named, v, ranking, alts, text: str, h0: 
         series=frozen_mapping({"time_s": rec.time_s, "measured": rec.data,
                                "baseline": base.prediction, "extended": ext.prediction}),
         evidence=MeshEvidence(named, base, ranking, frozen_mapping(sigma),
-                              frozen_mapping(v.within)))
+                              frozen_mapping(v.within), frozen_mapping(v.n_eff or {}),
+                              v.mlr_better, base_bic))
 
 
 @dataclass(frozen=True)
@@ -728,6 +804,7 @@ class _Judgement:
     beaten_by_mlr: bool
     thermometers_beyond: tuple = ()
     mlr_better: bool = False
+    n_eff: dict = None
 
 
 def _whitened_rms(ctx: FitContext, pred, j: int, ok) -> float:
@@ -735,11 +812,13 @@ def _whitened_rms(ctx: FitContext, pred, j: int, ok) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
-def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
+def _alternatives(ctx: FitContext, named: Fit, near, train, hold, n_tests: int = 1) -> tuple:
     """The causes that fit the data as well as ``named`` (rule 1 of
     :mod:`arfem.models.diagnosis.verdict`): of the near-equivalent ones the search met
     (``near``: cause tuples within ``DELTA_BIC`` on the fit window) that are not the
-    named causes with one more or one fewer, each refitted on ``ctx``, those still
+    named causes with one more or one fewer, nor the named ones with a parameter more
+    that the nested F test does not need (:func:`_nests_all`), each refitted on ``ctx``,
+    those still
     within ``DELTA_BIC`` of ``named``'s BIC on N_eff (either side) whose
     whitened hold-out errors a paired test does not tell from ``named``'s
     (:func:`arfem.models.diagnosis.verdict.holdout_tells_apart_p` >= EQUIVALENCE_P).
@@ -756,11 +835,35 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold) -> tuple:
             # the same one, which the naming and pruning tests (steps 2-4) decided on
             continue
         f = fit_mesh_causes(ctx, causes, train, intervals=False)
+        if _nests_all(causes, named.causes) and f_test_p(
+                named.sse_w, f.sse_w, f.n_params - named.n_params,
+                _n_eff(ctx, f.prediction, train)) >= naming_level(n_tests):
+            # the named causes with a parameter more (a natural convection in place of
+            # its plain h) that the data do not need: the same explanation, parsimony's
+            continue
         db = bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params) - b0
         p = holdout_tells_apart_p(e0, _holdout_errors(ctx, f.prediction, hold))
         if abs(db) <= DELTA_BIC and p >= EQUIVALENCE_P:
             out.append((" + ".join(c.name for c in causes), float(db), float(p)))
     return tuple(out)
+
+
+def _nests_all(a, b) -> bool:
+    """Causes ``a`` hold causes ``b`` as a special case: as many, each of ``b`` one of
+    ``a`` or nested by one (:func:`_nests`), at least one nested. No mesh cause nests
+    another, so on the mesh this is never true."""
+    if len(a) != len(b):
+        return False
+    rest, nested = list(a), False
+    for c in b:
+        m = next((x for x in rest if x.name == c.name), None)
+        if m is None:
+            m = next((x for x in rest if _nests(x, c)), None)
+            nested = nested or m is not None
+        if m is None:
+            return False
+        rest.remove(m)
+    return nested
 
 
 def _thermometers_beyond(ctx: FitContext, rec: Plant, base: Fit) -> tuple:
@@ -838,10 +941,12 @@ def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
             if beat is None and better(mw, ew):
                 beat = (f"{label} (whitened hold-out RMS on {c.column})", mw, ew)
     beaten = beat is not None
-    within, worst, res = {}, [], []
+    within, n_effs, worst, res = {}, {}, [], []
     for j, c in enumerate(rec.channels):
         ok = ctx.valid[:, j]
-        within[c.column] = whiteness_p(whitened(ctx, rec.data - base.prediction, j, ok))
+        w = whitened(ctx, rec.data - base.prediction, j, ok)
+        within[c.column] = whiteness_p(w)
+        n_effs[c.column] = float(noise_n_eff(w)) if w.size else 0.0
         r = (rec.data - base.prediction)[ok, j]
         worst.append(float(np.max(np.abs(r))) if r.size else np.inf)
         q = float(ctx.quantum[j]) if ctx.quantum is not None else 0.0
@@ -859,4 +964,4 @@ def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
     v = outcome(named is not None, failed, noise, floor, beaten and named is not None)
     return _Judgement(v, failed if v != "established" else (), table, within, floor,
                       bool(beaten and named is not None and v == "not_explained"), beyond,
-                      mlr_better)
+                      mlr_better, n_effs)

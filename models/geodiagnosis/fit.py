@@ -91,6 +91,7 @@ class FitContext:
     quantum: np.ndarray | None = None   # (C,) resolution [µm or K], 0: not quantised
     noise: tuple | None = None          # per channel LevelNoise; None: white, σ_c
     wcache: dict = field(default_factory=dict, repr=False)
+    n_eff_full: float | None = None     # Σ_c N_eff of the largest model's whitened residual
 
     @property
     def shape(self) -> np.ndarray:
@@ -199,7 +200,26 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
                             [ctx.plant.channels[j].kind for j in js], floors)
         for j, z in zip(js, fitted):
             out[j] = z
-    return with_fields(ctx, noise=tuple(out), wcache={})
+    ctx = with_fields(ctx, noise=tuple(out), wcache={})
+    return with_fields(ctx, n_eff_full=_n_eff_largest(ctx, js, Y, Xs, rows) if js else None)
+
+
+def _n_eff_largest(ctx: FitContext, js, Y, Xs, rows) -> float:
+    """Σ_c N_eff of the largest model's residual (``Y`` on the columns ``Xs`` per channel
+    ``js``, least squares on the rows whitened by the fitted noise): the N_eff of
+    :attr:`arfem.models.plant.SelectionRules.shared_n_eff`."""
+    from arfem.models.diagnosis.stats import noise_n_eff
+    tot = 0.0
+    for j, y, X in zip(js, Y, Xs):
+        if y.size <= 10:
+            continue
+        _, W = _whiten(ctx, j, rows)
+        yw = W.apply(y) if W is not None else y * ctx.weights[j]
+        if X.shape[1]:
+            Xw = W.apply(X) if W is not None else X * ctx.weights[j]
+            yw = yw - Xw @ np.linalg.lstsq(Xw, yw, rcond=None)[0]
+        tot += float(noise_n_eff(yw))
+    return max(tot, 3.0)
 
 
 def _whiten(ctx: FitContext, ch: int, rows: np.ndarray):

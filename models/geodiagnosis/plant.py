@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord, Setting, responses
-from arfem.models.plant import BOUNDS, PLAUSIBLE, Design
+from arfem.models.plant import BOUNDS, PLAUSIBLE, Design, SelectionRules
 from arfem.models.plant import cause as Cause  # noqa: N812 (the mesh's name since issue 33)
 
 __all__ = ["MeshPlant", "Cause", "BOUNDS", "PLAUSIBLE", "mesh_plant"]
@@ -55,6 +55,7 @@ class MeshPlant:
     not_searched = property(lambda self: tuple(self.model.unsearched))
     regrows = property(lambda self: self.model.regrow is not None)
     nominal_parameters = ()
+    rules = SelectionRules()
 
     def candidate_causes(self) -> tuple:
         """Every single cause the record and the model can tell (module table)."""

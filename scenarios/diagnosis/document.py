@@ -66,8 +66,9 @@ def mesh_document(d, rom_statement: dict) -> dict:
                      "how_chosen": h.how_chosen},
          "noise_sigma": {c.column: c.noise_sigma for c in d.channels},
          "nominal_ljung_box_p_neff": {c.column: c.whiteness_p for c in d.channels},
-         "ranking": [{"cause": n, "bic": b, "f_test_p": p, "holdout_whitened_rms": w}
-                     for n, b, p, w in d.evidence.ranking],
+         "ranking": [{"cause": r.cause, "bic": r.bic, "f_test_p": r.f_test_p,
+                      "holdout_whitened_rms": r.holdout_whitened_rms}
+                     for r in d.evidence.ranking],
          "below_resolution": d.below_resolution,
          "best_candidate_beaten_by_mlr": d.beaten_by_regression,
          "not_searched": list(d.not_searched),
