@@ -16,7 +16,7 @@ import pytest
 from arfem.models.diagnosis import verdict as vd
 from arfem.models.diagnosis.rolling import stability_origins, verdict_stability
 from arfem.models.diagnosis.synth import generate
-from arfem.scenarios.diagnosis.run import add_stability, run_diagnosis
+from arfem.scenarios.diagnosis.run import run_diagnosis
 from arfem.scenarios.diagnosis.terminal import diagnosis_terminal_line
 from arfem.scenarios.diagnosis.report import verdict as report_verdict
 from arfem.scenarios.records.synth_files import write_case
