@@ -295,6 +295,21 @@ def test_ci_workflow_runs_the_readme_install_and_both_gates():
         assert step in wf, step
 
 
+def test_ci_run_and_workflow_run_the_readme_test_command():
+    """.ci/run holds the README's test command verbatim as one of its lines (it says it
+    does), and the workflow runs the same pytest invocation: two xdist workers with
+    the tests that take a TCP port grouped on one (conftest.py), so the flags cannot
+    drift apart between what a user runs and what CI runs."""
+    readme = (ROOT / "README.md").read_text("utf-8")
+    blocks = re.findall(r"```bash\n(.*?)\n```", readme, re.S)
+    test_cmd = next(b for b in blocks if "pytest" in b)
+    assert test_cmd.endswith("python -m pytest -q -n 2 --dist loadgroup"), test_cmd
+    assert test_cmd in (ROOT / ".ci" / "run").read_text("utf-8").splitlines()
+    pytest_call = "python -m pytest" + test_cmd.split("python -m pytest", 1)[1]
+    wf = (ROOT / ".github" / "workflows" / "ci.yml").read_text("utf-8")
+    assert f"run: . .venv/bin/activate && {pytest_call}\n" in wf
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("coretype", ["Nehalem", "Sandybridge"])
 def test_reproduce_on_other_cpu_kernels_matches_the_committed_bytes(tmp_path, coretype):

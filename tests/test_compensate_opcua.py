@@ -42,6 +42,9 @@ from arfem.models.compensator import ar1_model  # noqa: E402
 from arfem.params import Rod  # noqa: E402
 from arfem.scenarios.compensation.model_file import write_model  # noqa: E402
 
+# serves OPC UA on a TCP port: one xdist worker runs all such tests (see conftest.py)
+pytestmark = pytest.mark.xdist_group("tcp_ports")
+
 ARFEM = [sys.executable, "-m", "arfem"]
 NODE = "ns=2;s=Spindle.{}"
 

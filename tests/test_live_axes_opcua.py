@@ -40,6 +40,9 @@ pytest.importorskip("asyncua")
 from axes_machine import AxesMachine, box_run, write_config  # noqa: E402
 from live_fault_machine import free_port, log_lines, until  # noqa: E402
 
+# serves OPC UA on a TCP port: one xdist worker runs all such tests (see conftest.py)
+pytestmark = pytest.mark.xdist_group("tcp_ports")
+
 LIMITS = {"X": (15.0, 0.3), "Y": (2.0, 0.2), "Z": (50.0, 1.0)}
 HELD = {"X": 3.0, "Y": -1.0, "Z": 0.5}
 CYCLES = 60

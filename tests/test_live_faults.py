@@ -43,6 +43,10 @@ from live_fault_machine import (CLAMP, STEP, WAIT_S, FaultMachine, free_port,  #
                                 log_lines, paper_model, start_compensator, until,
                                 write_config)
 
+# serves OPC UA on a TCP port: one xdist worker runs all such tests (see conftest.py)
+pytestmark = pytest.mark.xdist_group("tcp_ports")
+
+
 def events(path, name):
     return sum(e.get("event") == name for e in log_lines(path))
 

@@ -45,6 +45,9 @@ from axes_machine import AxesMachine, box_run, write_config as axes_config  # no
 from live_fault_machine import (FaultMachine, free_port, log_lines,  # noqa: E402
                                 paper_model, start_compensator, until, write_config)
 
+# serves OPC UA on a TCP port: one xdist worker runs all such tests (see conftest.py)
+pytestmark = pytest.mark.xdist_group("tcp_ports")
+
 CYCLES = 60
 
 

@@ -236,6 +236,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_unreachable_scheduler_is_one_line_exit_2_and_store_intact(small_store, tmp_path,
                                                                   capsys):
     """--scheduler at an address where nothing listens: one line, exit 2, within the
@@ -482,6 +483,7 @@ def test_interrupt_and_kill_9_then_resume_lose_nothing_and_recompute_nothing(tmp
     assert sorted(p.name for p in store.dir.iterdir()) == sorted(f"{k}.json" for k in keys)
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_dask_cluster_gives_the_same_table_as_local_processes(small_store, tmp_path):
     """The same sweep on a Dask LocalCluster (2 worker processes) and by the local
     executor gives identical rows: every non-timing column equal as text (floats are
@@ -562,6 +564,7 @@ def test_rerun_keeps_first_timing_and_folder_holds_only_listed_files(small_store
     assert not (out2 / ".lock").exists()
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_cluster_without_workers_ends_with_one_line_and_keeps_the_store(small_store,
                                                                        tmp_path, capsys):
     """Issue 16: a Dask scheduler with no worker sat at 0/N forever. With --worker-wait 1
@@ -649,6 +652,7 @@ def test_disk_full_is_one_line_and_leaves_the_store_intact(tmp_path, capsys, mon
     assert (s["n_stored_before"], s["n_computed"]) == (2, 2)
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 @pytest.mark.slow
 def test_scheduler_killed_mid_sweep_is_one_line_and_keeps_points(tmp_path):
     """Issue 17: the Dask scheduler killed mid-sweep gave distributed's tracebacks and five

@@ -170,6 +170,7 @@ def test_a_refused_value_names_its_index(tmp_path, capsys):
     assert "sweep.grid.convection.right.h_W_m2K[1]" in err and err.count("\n") == 1
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_a_dask_cluster_gives_the_in_process_table(tmp_path):
     """The mesh sweep on a Dask cluster (one in-process worker: the same submit, gather
     and store path as a remote one) gives the in-process table, apart from timing and

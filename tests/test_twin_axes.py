@@ -47,6 +47,7 @@ def read_csv(path):
     return {k: np.array([float(r[k]) if r[k] else np.nan for r in rows]) for k in rows[0]}
 
 
+@pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_twin_serves_a_geometry_scenario_per_axis(tmp_path):
     from arfem.scenarios.cli import main
     from arfem.scenarios.records.dataset import load_dataset
