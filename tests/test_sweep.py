@@ -239,20 +239,19 @@ def _free_port() -> int:
 @pytest.mark.xdist_group("tcp_ports")   # takes a TCP port: see conftest.py
 def test_unreachable_scheduler_is_one_line_exit_2_and_store_intact(small_store, tmp_path,
                                                                   capsys):
-    """--scheduler at an address where nothing listens: one line, exit 2, within the
-    connect timeout (+ slack for Dask's own retry loop), the store untouched even though
-    the same sweep would otherwise be resumed."""
+    """--scheduler at an address where nothing listens: one line, exit 2, the store
+    untouched even though the same sweep would otherwise be resumed. (It returns within
+    the connect timeout plus Dask's own retries; that is not asserted by the clock, which
+    a loaded machine would make a flake: a hang would stop CI's run instead.)"""
     import shutil
     sw, out = small_store
     out2 = tmp_path / "copy"
     shutil.copytree(out, out2)
     before = snapshot(out2)
     capsys.readouterr()
-    t0 = time.perf_counter()
     rc = cli(sw, "--out", out2, "--scheduler", f"tcp://127.0.0.1:{_free_port()}",
              "--connect-timeout", 1.5)
     assert rc == 2
-    assert time.perf_counter() - t0 < 20
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--scheduler" in err and "cannot reach" in err, err
     assert snapshot(out2) == before
