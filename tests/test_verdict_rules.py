@@ -64,12 +64,14 @@ def test_the_scan_would_see_a_second_definition(tmp_path):
 
 
 def test_both_engines_call_the_shared_rules():
-    """The mesh engine, the rod's selection rules and the mesh writer import the rules
-    from the verdict module rather than writing their own."""
+    """The pipeline, the rod engine (which writes the pipeline's choice for a q_W_m2
+    record and selects on speed-only ones), its rules and the mesh writer import the
+    rules from the verdict module rather than writing their own."""
     for rel, names in (("models/geodiagnosis/engine.py", {"whiteness_p", "channels_white",
                                                           "better", "outcome",
                                                           "below_resolution", "naming_level"}),
-                       ("models/diagnosis/rules.py", {"naming_level", "units_suspect"}),
+                       ("models/diagnosis/rules.py", {"units_suspect"}),
+                       ("models/diagnosis/engine.py", {"naming_level"}),
                        ("models/geodiagnosis/fit.py", {"NO_EFFECT", "reaches_edge"})):
         tree = ast.parse((ROOT / rel).read_text(encoding="utf-8"))
         got = {a.name for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)

@@ -52,7 +52,8 @@ import numpy as np
 
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit,
-                                               FemPhysics, fit_candidate, fit_rod_causes,
+                                               FemPhysics, JointFit, fit_candidate,
+                                               fit_rod_causes,
                                                parameter_ci95)
 from arfem.models.diagnosis.rules import (
     ALPHA, MIN_GAIN, MISFIT_FACTOR, _FEM_RULE, _SPEED_RULE, _select_cv, naming_test_text,
@@ -367,18 +368,7 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
     # quantisation noise of a quantised growth sensor (resolution/√12)
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     base = _pipeline_fit("none", "fem", {}, (), ev.baseline, y, rows)
-    level = naming_level(max(len(ev.ranking), 1))
-    scores, tests, params = {}, {}, {}
-    for rk in ev.ranking:
-        c = CONTRACT_NAME.get(rk.cause, rk.cause)
-        if c in scores:      # a cause the contract writes once (two plant causes)
-            continue
-        scores[c] = float(rk.bic)
-        tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
-                    "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
-        one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
-        params[c] = dict(contract_entries((one,), rod.convection_W_m2K)[0].parameters)
-    scores["none"] = float(ev.baseline_bic)
+    scores, tests, params = _screened(ev, rod.convection_W_m2K)
     # strongest first (contract v2): the cause that alone fits the record best, by the
     # screen's BIC on N_eff
     entries = sorted(contract_entries(named_causes(ev.named), rod.convection_W_m2K),
@@ -433,6 +423,26 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
         candidate_parameters=params, pipeline=None if unit_warning else d)
 
 
+def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict]:
+    """The pipeline's screen of every single cause (``ev``: its evidence) in the
+    contract's names: ({cause: BIC on N_eff}, the nominal's under ``none``; {cause: its
+    naming test}; {cause: its fitted parameters}). A cause the contract writes once
+    though the plant has two (a plain and a running-only h) keeps the better-ranked."""
+    level = naming_level(max(len(ev.ranking), 1))
+    scores, tests, params = {}, {}, {}
+    for rk in ev.ranking:
+        c = CONTRACT_NAME.get(rk.cause, rk.cause)
+        if c in scores:
+            continue
+        scores[c] = float(rk.bic)
+        tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
+                    "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
+        one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
+        params[c] = dict(contract_entries((one,), h0_W_m2K)[0].parameters)
+    scores["none"] = float(ev.baseline_bic)
+    return scores, tests, params
+
+
 def _contract_text(plant_causes: str) -> str:
     """``"a + b"`` of plant cause names in the contract's names (``"c+d"``)."""
     return "+".join(CONTRACT_NAME.get(n.strip(), n.strip()) for n in plant_causes.split("+"))
@@ -442,7 +452,6 @@ def _pipeline_fit(cause, model, parameters, causes, fit, y, rows, coordinates=No
     """The pipeline's :class:`~arfem.models.geodiagnosis.fit.Fit` of the growth channel as
     the document's :class:`CandidateFit` (the residual, RSS and rows on the fit window;
     ``coordinates``: the (θ, linear) :class:`JointFit` the export reads)."""
-    from arfem.models.diagnosis.candidates import JointFit
     pred = np.asarray(fit.prediction, float)[:, 0]
     res = (y - pred)[rows]
     return CandidateFit(cause=cause, model=model, parameters=dict(parameters),
@@ -841,8 +850,8 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
 def _in_contract_names(text: str) -> str:
     """``text`` with the rod plant's cause names written as the contract's."""
     for plant, contract in sorted(CONTRACT_NAME.items(), key=lambda kv: -len(kv[0])):
-        text = text.replace(plant, contract)
-    return text.replace(" + ", "+")
+        text = contract.join(text.split(plant))
+    return "+".join(text.split(" + "))
 
 
 def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0) -> None:
