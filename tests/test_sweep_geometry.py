@@ -194,7 +194,10 @@ def test_a_dask_cluster_gives_the_in_process_table(tmp_path):
 def test_on_workers_each_task_builds_its_model_once(tmp_path):
     """A 3-point sweep on 2 workers: two tasks of adjacent points, so one point reuses
     the model its worker built for the point before it (it used to be three builds:
-    nothing reused); the table equals the in-process one apart from timing and reuse."""
+    nothing reused); the table equals the in-process one apart from timing and reuse.
+    Which process takes which task is the pool's choice: one process may run both
+    tasks and reuse its model across them (seen under a second test process), so the
+    builds are asserted at most one per task and at least one, not exactly two."""
     sw = _files(tmp_path, '"convection.right.h_W_m2K.a" = [5.0, 10.0, 20.0]\n')
     sweep = load_sweep(sw)
     run_sweep(sweep, tmp_path / "one", workers=1, progress=False)
@@ -202,8 +205,9 @@ def test_on_workers_each_task_builds_its_model_once(tmp_path):
     assert rep.n_computed == 3 and rep.n_failed == 0
     assert "2 tasks of adjacent points" in rep.executor, rep.executor
     reused = [r["reused"] for r in _rows(tmp_path / "two")]
-    assert sum(r.startswith("nothing (first point") for r in reused) == 2, reused
-    assert sum(r.startswith("mesh, heat and elasticity assembly") for r in reused) == 1
+    built = sum(r.startswith("nothing (first point") for r in reused)
+    again = sum(r.startswith("mesh, heat and elasticity assembly") for r in reused)
+    assert 1 <= built <= 2 and built + again == 3, reused
     skip = {"run_time_s", "reused"}
     assert [{k: v for k, v in r.items() if k not in skip} for r in _rows(tmp_path / "one")] \
         == [{k: v for k, v in r.items() if k not in skip} for r in _rows(tmp_path / "two")]
