@@ -45,7 +45,7 @@ warning.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Mapping, NamedTuple
 
 import numpy as np
@@ -69,7 +69,7 @@ from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
 from arfem.models.diagnosis.dataset import observations
 from arfem.models.diagnosis.rod_plant import CONTRACT_NAME, contract_entries, rod_plant
-from arfem.models.geodiagnosis.engine import diagnose_plant, named_causes
+from arfem.models.geodiagnosis.engine import DELTA_BIC, diagnose_plant, named_causes
 from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
@@ -343,11 +343,6 @@ class BranchResult:
     candidate_parameters: dict = field(default_factory=dict)
     pipeline: Diagnosis | None = None
 
-    def copy_with(self, **changes) -> BranchResult:
-        """A copy with the fields ``changes`` changed (the result itself is frozen)."""
-        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
-                             **changes})
-
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
     """q_W_m2 records: the one pipeline names the causes
@@ -394,10 +389,10 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
     n_eff = float(st.noise_n_eff(ext.residual_um))
     alternatives = tuple(d.alternatives)
     equivalent = None if not alternatives or not entries else {
-        "cause": " or ".join(_contract_text(a) for a in alternatives), "parameters": {},
+        "cause": " or ".join(_in_contract_names(a) for a in alternatives), "parameters": {},
         "excluded_by": None,
-        "why": "within ±10 of its BIC on N_eff, and the whitened hold-out does not tell "
-               "them apart"}
+        "why": f"within ±{DELTA_BIC:g} of its BIC on N_eff, and the whitened hold-out does "
+               "not tell them apart"}
     ar = ArPhysics(rod)
     ar_base = fit_candidate("none", ar, *args)
     ar_causes = tuple(c for c in causes if c in CAUSES)
@@ -441,11 +436,6 @@ def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict]:
         params[c] = dict(contract_entries((one,), h0_W_m2K)[0].parameters)
     scores["none"] = float(ev.baseline_bic)
     return scores, tests, params
-
-
-def _contract_text(plant_causes: str) -> str:
-    """``"a + b"`` of plant cause names in the contract's names (``"c+d"``)."""
-    return "+".join(CONTRACT_NAME.get(n.strip(), n.strip()) for n in plant_causes.split("+"))
 
 
 def _pipeline_fit(cause, model, parameters, causes, fit, y, rows, coordinates=None):
@@ -863,15 +853,14 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0) -
     from arfem.models.diagnosis import verdict as vd
     ch, ev = d.channels[0], d.evidence
     p = float(ch.whiteness_p)
-    better_ = {k: v for k, v in vd.within_noise(summary, [], 0.0)["better_baselines"].items()}
+    white = vd.channels_white([p])
     within = {"ljung_box_p_neff": p, "n_eff": float(ev.within_n_eff.get(ch.column, 0.0)),
-              "white": vd.channels_white([p]),
-              "thermometers_beyond_bound": list(ch.thermometers_beyond),
-              "better_baselines": better_ if ev.data_baseline_better else {},
+              "white": white, "thermometers_beyond_bound": list(ch.thermometers_beyond),
+              "better_baselines": (vd._better_baselines(summary) if ev.data_baseline_better
+                                   else {}),
               "below_resolution": bool(d.below_resolution),
               "resolution": float(resolution_um or vd.DEFAULT_RESOLUTION), "whitened": True,
-              "holds": bool(d.below_resolution or (vd.channels_white([p])
-                                                  and not ch.thermometers_beyond
+              "holds": bool(d.below_resolution or (white and not ch.thermometers_beyond
                                                   and not ev.data_baseline_better))}
     subject = None if d.subject is None else _in_contract_names(d.subject)
     if subject is None and d.verdict == "not_explained" and summary.get("runner_up"):

@@ -201,7 +201,9 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
         for j, z in zip(js, fitted):
             out[j] = z
     ctx = with_fields(ctx, noise=tuple(out), wcache={})
-    return with_fields(ctx, n_eff_full=_n_eff_largest(ctx, js, Y, Xs, rows) if js else None)
+    # only a plant that reads it (SelectionRules.shared_n_eff) pays for it
+    return with_fields(ctx, n_eff_full=_n_eff_largest(ctx, js, Y, Xs, rows)
+                       if js and ctx.plant.rules.shared_n_eff else None)
 
 
 def _n_eff_largest(ctx: FitContext, js, Y, Xs, rows) -> float:
