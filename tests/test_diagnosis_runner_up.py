@@ -16,7 +16,7 @@ and the report said it lost on BIC. Verified here, and why:
   and never the old sentence when the runner-up did not pass;
 * a record whose magnitude is implausible (growth written in mm) gives rule 5's reason.
 
-Short synthetic records (10 h; each diagnosis well under a second on the rod plant).
+Short synthetic records (10-12 h; each diagnosis a few seconds at most on the rod plant).
 """
 from __future__ import annotations
 
@@ -40,14 +40,14 @@ OLD = "among the candidates that pass the naming test"
 
 
 def _plant(tmp_path, cause, seed, **overrides):
-    case = generate(cause, seed, duration_h=SHORT_H, **overrides)
+    case = generate(cause, seed, **{"duration_h": SHORT_H, **overrides})
     return rod_plant(load_dataset(write_case(case, tmp_path / case.name)))
 
 
 def _document(tmp_path, cause, seed, **overrides):
     from arfem.scenarios.diagnosis.document import document
     from arfem.scenarios.diagnosis.run import diagnose_file
-    case = generate(cause, seed, duration_h=SHORT_H, **overrides)
+    case = generate(cause, seed, **{"duration_h": SHORT_H, **overrides})
     return document(diagnose_file(write_case(case, tmp_path / case.name)))
 
 
@@ -206,3 +206,19 @@ def test_runner_up_of_a_record_in_the_wrong_unit_gives_rule_5s_reason(tmp_path):
     r = s["runner_up"]
     assert r["why_lost"].startswith("the record's magnitude is implausible (see warnings)"), r
     assert OLD not in r["why_lost"] and "--drift-last" not in r["why_lost"]
+
+
+def test_runner_up_the_screen_named_alone_lost_in_the_pair_search(tmp_path):
+    """A heat scale with an h (seed 32, 12 h): the natural convection is the best single
+    cause, named by the screen (its Ranked.refused is None), and the pair search replaced
+    it by the true pair; the runner-up says so, not that it failed a naming test or lost
+    on BIC among passing causes (its single BIC is the lowest)."""
+    s = _document(tmp_path, "heat_input_scale+convection_mismatch", 32, duration_h=12.0)
+    assert sorted(c["cause"] for c in s["causes"]) == ["convection_mismatch",
+                                                       "heat_input_scale"], s["causes"]
+    r = s["runner_up"]
+    assert r["cause"] == "nonlinear_convection" and r["score"] == s["candidates"][0]["score"]
+    assert r["why_lost"].startswith("alone it is the screen's choice, but the pair search "
+                                    "(step 4 of the pipeline"), r["why_lost"]
+    assert "ended with convection_mismatch and heat_input_scale" in r["why_lost"]
+    assert OLD not in r["why_lost"]

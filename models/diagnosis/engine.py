@@ -702,8 +702,9 @@ def _pipeline_lost(runner: str, branch: BranchResult | None) -> str:
     if reason is not None:
         return f"fitted alone, {reason}"
     named = " and ".join(branch.causes) if branch is not None and branch.causes else "none"
-    return (f"the screen of single causes named it, but the search for a second cause "
-            f"beside it and its re-screening (step 4 of the pipeline) named {named}")
+    return (f"alone it is the screen's choice, but the pair search (step 4 of the "
+            f"pipeline: a second cause beside it, each cause re-screened beside the other "
+            f"and tested against it alone) ended with {named}")
 
 
 def _ar_form(ar_forms, y, hold):
