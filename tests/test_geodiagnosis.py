@@ -228,6 +228,13 @@ def test_command_writes_the_report_opening_with_the_verdict(setup, tmp_path):
     assert md[2] == "## Verdict" and md[4].startswith(f"**Verdict: {s['verdict']}.**")
     # the picture's caption claims a named group only for an established cause
     assert ("named group in red" in md[6]) == (s["verdict"] == "established"), md[6]
+    # every candidate says why the screen did not name it alone (the pipeline's own
+    # reason, Ranked.refused); nothing is named on this clean record, so each has one,
+    # and the report's table shows it beside the candidate
+    why = {r["cause"]: r["not_named_alone_because"] for r in s["ranking"]}
+    assert why and all(why.values()), why
+    for c, w in list(why.items())[:12]:
+        assert any(ln.startswith(f"| {c} |") and ln.endswith(f"| {w} |") for ln in md), (c, w)
     for f in ("report.html", "geometry_named.png", "channels.png", "series.csv"):
         assert (out / f).stat().st_size > 0
 

@@ -312,6 +312,10 @@ class BranchResult:
     candidate_parameters : dict of str to dict
         Each candidate's fitted parameters where ``fits`` does not hold its fit
         (``q_W_m2`` records: the pipeline's screen).
+    screen_reasons : dict of str to str or None
+        ``q_W_m2`` records: why the pipeline's screen did not name each single cause
+        alone (:attr:`arfem.models.geodiagnosis.engine.Ranked.refused`, in the
+        contract's names; None: the screen named it).
     pipeline : Diagnosis or None
         ``q_W_m2`` records: the one pipeline's diagnosis, whose verdict the document
         writes (:func:`_pipeline_verdict`); None where rule 5 refused every cause.
@@ -342,6 +346,7 @@ class BranchResult:
     not_applicable: tuple | None = None
     candidate_parameters: dict = field(default_factory=dict)
     pipeline: Diagnosis | None = None
+    screen_reasons: dict = field(default_factory=dict)
 
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
@@ -363,7 +368,7 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
     # quantisation noise of a quantised growth sensor (resolution/√12)
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     base = _pipeline_fit("none", "fem", {}, (), ev.baseline, y, rows)
-    scores, tests, params = _screened(ev, rod.convection_W_m2K)
+    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K)
     # strongest first (contract v2): the cause that alone fits the record best, by the
     # screen's BIC on N_eff
     entries = sorted(contract_entries(named_causes(ev.named), rod.convection_W_m2K),
@@ -415,16 +420,18 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
         refused=refused, equivalent=equivalent, physics=fem,
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),
-        candidate_parameters=params, pipeline=None if unit_warning else d)
+        candidate_parameters=params, pipeline=None if unit_warning else d,
+        screen_reasons=reasons)
 
 
-def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict]:
+def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict, dict]:
     """The pipeline's screen of every single cause (``ev``: its evidence) in the
     contract's names: ({cause: BIC on N_eff}, the nominal's under ``none``; {cause: its
-    naming test}; {cause: its fitted parameters}). A cause the contract writes once
-    though the plant has two (a plain and a running-only h) keeps the better-ranked."""
+    naming test}; {cause: its fitted parameters}; {cause: why the screen did not name it
+    alone, None where it did}). A cause the contract writes once though the plant has
+    two (a plain and a running-only h) keeps the better-ranked."""
     level = naming_level(max(len(ev.ranking), 1))
-    scores, tests, params = {}, {}, {}
+    scores, tests, params, reasons = {}, {}, {}, {}
     for rk in ev.ranking:
         c = CONTRACT_NAME.get(rk.cause, rk.cause)
         if c in scores:
@@ -434,8 +441,9 @@ def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict]:
                     "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
         one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
         params[c] = dict(contract_entries((one,), h0_W_m2K)[0].parameters)
+        reasons[c] = None if rk.refused is None else _in_contract_names(rk.refused)
     scores["none"] = float(ev.baseline_bic)
-    return scores, tests, params
+    return scores, tests, params, reasons
 
 
 def _pipeline_fit(cause, model, parameters, causes, fit, y, rows, coordinates=None):
@@ -655,31 +663,48 @@ def _holdout_scores(y, base_pred, ext_pred, hold):
 
 
 def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind,
-               candidate_parameters=None):
-    """The best cause not named and why it lost -- the rule and its outcome -- or None."""
+               candidate_parameters=None, branch: BranchResult | None = None):
+    """The best cause not named and why it lost -- the rule and its outcome -- or None.
+    ``q_W_m2`` records give the one pipeline's reason (``branch``:
+    :func:`_pipeline_lost`); speed-only records the speed branch's rules."""
     if runner is None or runner not in scores:
         return None
     candidate_parameters = candidate_parameters or {}
     score, other = scores[runner], scores.get(cause, float("nan"))
     test = tests.get(runner)
     if input_kind == "q_W_m2":
-        score_text = f"BIC {score:.1f}, {cause} {other:.1f}"
-        least = "the least BIC on N_eff"
-    else:
-        score_text = f"validation RMSE {score:.3g} µm, {cause} {other:.3g} µm"
-        least = "the least validation RMSE"
-    if test is not None and not test.get("significant", False):
-        why = f"{naming_test_text(test)} ({score_text})"
+        why = f"{_pipeline_lost(runner, branch)} (BIC {score:.1f}, {cause} {other:.1f})"
+    elif test is not None and not test.get("significant", False):
+        why = (f"{naming_test_text(test)} (validation RMSE {score:.3g} µm, {cause} "
+               f"{other:.3g} µm)")
     elif cause == "none":          # passed its test, set behind by the post hoc drift rule
         why = (f"{runner} is named only if no cause driven by the recorded inputs passes "
-               f"the naming test (--drift-last) ({score_text})")
+               f"the naming test (--drift-last) (validation RMSE {score:.3g} µm, {cause} "
+               f"{other:.3g} µm)")
     else:
-        why = (f"the one with {least} among the candidates that pass the naming test is "
-               f"named ({score_text})")
+        why = (f"the one with the least validation RMSE among the candidates that pass the "
+               f"naming test is named (validation RMSE {score:.3g} µm, {cause} "
+               f"{other:.3g} µm)")
     return {"cause": runner, "score": scores[runner], "score_kind": score_kind,
             "parameters": (fits[runner].parameters if fits.get(runner) is not None
                            else candidate_parameters.get(runner, {})),
             "why_lost": why}
+
+
+def _pipeline_lost(runner: str, branch: BranchResult | None) -> str:
+    """Why the one pipeline did not name ``runner`` on a ``q_W_m2`` record: rule 5's unit
+    check where it refused every cause, else the reason its screen of single causes
+    recorded (:attr:`arfem.models.geodiagnosis.engine.Ranked.refused`); a cause the
+    screen named alone lost in the pair search (step 4) that followed."""
+    if branch is not None and runner in branch.refused:
+        return branch.refused[runner]
+    reason = None if branch is None else branch.screen_reasons.get(runner)
+    if reason is not None:
+        return f"fitted alone, {reason}"
+    named = " and ".join(branch.causes) if branch is not None and branch.causes else "none"
+    return (f"alone it is the screen's choice, but the pair search (step 4 of the "
+            f"pipeline: a second cause beside it, each cause re-screened beside the other "
+            f"and tested against it alone) ended with {named}")
 
 
 def _ar_form(ar_forms, y, hold):
@@ -833,7 +858,7 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
         "data_notes": list(ds.notes),
     }
     summary["runner_up"] = _runner_up(ds.input_kind, cause, branch.runner, fits, scores,
-                                      tests, score_kind, branch.candidate_parameters)
+                                      tests, score_kind, branch.candidate_parameters, branch)
     return summary
 
 

@@ -121,6 +121,10 @@ class Ranked(NamedTuple):
     f_test_p : float, its nested F test against the nominal model
     holdout_whitened_rms : float, whitened hold-out RMS [-]
     parameters : mapping, its fitted parameters {name: value} [their units]
+    refused : str or None, why the screen did not name it alone, in words with the
+        numbers the rule read (the first of step 2's tests it fails, parsimony, step 3's
+        cut at three, its BIC gap or hold-out); None for the single cause step 3 named
+        (step 4 may still pair or replace it)
     """
 
     cause: str
@@ -128,6 +132,7 @@ class Ranked(NamedTuple):
     f_test_p: float
     holdout_whitened_rms: float
     parameters: Mapping
+    refused: str | None = None
 
 
 @dataclass(frozen=True)
@@ -310,7 +315,9 @@ def mlr_holdout(rec: GeoRecord | Plant, rows: np.ndarray, ref: np.ndarray | None
 def _screen(ctx, singles, train, hold, base, n_tests):
     """Steps 2-3: (ranking, the named single Fit or None, the passing single Fits, at
     most three, best BIC first: the leads of step 4's pair search; the passing singles
-    within ``DELTA_BIC`` of the best: the alternatives the verdict must exclude)."""
+    within ``DELTA_BIC`` of the best: the alternatives the verdict must exclude). Each
+    rule that sets a cause aside writes why into its :attr:`Ranked.refused`, where the
+    rule is applied."""
     rows = []
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
@@ -320,19 +327,56 @@ def _screen(ctx, singles, train, hold, base, n_tests):
         rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
                      _holdout_score(ctx, f.prediction, hold)))
     rows.sort(key=lambda r: r[2])
-    ranking = tuple(Ranked(r[0].name, r[2], r[3], r[4], frozen_mapping(r[1].params[0]))
-                    for r in rows)
-    passing = [r for r in rows if r[3] < naming_level(n_tests) and implausible(r[1]) is None
-               and not below_floor(ctx, r[1].prediction, base.prediction, train)
-               and not walk_explains(ctx, r[0], base.prediction, train, naming_level(n_tests))][:3]
-    passing = _parsimonious(passing, n_tests, ctx, train)
-    if not passing:
+    why = {r[0].name: _refusal(ctx, r, base, train, naming_level(n_tests)) for r in rows}
+    passing = [r for r in rows if why[r[0].name] is None]
+    why.update({r[0].name: "it passes, but only the three passing causes of lowest BIC "
+                f"are compared ({', '.join(q[0].name for q in passing[:3])})"
+                for r in passing[3:]})
+    passing, nested = _parsimonious(passing[:3], n_tests, ctx, train)
+    why.update(nested)
+    named = leads = near = None
+    if passing:
+        leads = tuple(r[1] for r in passing)
+        # the hold-out decides only between causes the fit window cannot tell apart
+        near = [r for r in passing if r[2] - passing[0][2] <= DELTA_BIC]
+        named = min(near, key=lambda r: r[4])
+        why.update({r[0].name: _lost(r, passing[0], named) for r in passing if r is not named})
+    ranking = tuple(Ranked(r[0].name, r[2], r[3], r[4], frozen_mapping(r[1].params[0]),
+                           why[r[0].name]) for r in rows)
+    if named is None:
         return ranking, None, (), ()
-    leads = tuple(r[1] for r in passing)
-    # the hold-out decides only between causes the fit window cannot tell apart
-    passing = [r for r in passing if r[2] - passing[0][2] <= DELTA_BIC]
-    return ranking, min(passing, key=lambda r: r[4])[1], leads, \
-        tuple(r[1].causes for r in passing)
+    return ranking, named[1], leads, tuple(r[1].causes for r in near)
+
+
+def _refusal(ctx, row, base, train, level: float) -> str | None:
+    """Step 2's tests of one single cause, in their order, on ``row`` (cause, Fit, BIC,
+    F test p, hold-out score): why it fails the first it fails, None when it passes."""
+    cause, fit, p = row[0], row[1], row[3]
+    if not p < level:
+        return f"its F test p = {p:.2g} is not below the naming level {level:.2g}"
+    bad = implausible(fit)
+    if bad is not None:
+        return (f"the screen refuses its fit as not physical "
+                f"({bad.removeprefix(cause.name + ': ')}): a fit at an end of its range, "
+                "or outside its plausible one, is a sign of another cause or of wrong units")
+    if below_floor(ctx, fit.prediction, base.prediction, train):
+        return ("its effect is below the instruments' resolution (within every quantised "
+                "channel's quantiser bias, and no other channel sees it)")
+    if walk_explains(ctx, cause, base.prediction, train, level):
+        return ("the sensor's own random walk explains its channel as well as an offset "
+                f"and a drift (p not below the naming level {level:.2g})")
+    return None
+
+
+def _lost(row, best, named) -> str:
+    """Why a cause that passed step 2 is not step 3's named single ``named`` (rows as
+    :func:`_refusal`'s; ``best``: the passing cause of lowest BIC)."""
+    if row[2] - best[2] > DELTA_BIC:
+        return (f"it passes, but {best[0].name} has a BIC lower by {row[2] - best[2]:.1f}, "
+                f"more than ΔBIC {DELTA_BIC:g} (the hold-out decides only within it)")
+    return (f"it passes, and its BIC is within {DELTA_BIC:g} of the best, but "
+            f"{named[0].name} has the lower whitened hold-out RMS ({named[4]:.3g} against "
+            f"{row[4]:.3g})")
 
 
 def _nests(a, b) -> bool:
@@ -343,21 +387,27 @@ def _nests(a, b) -> bool:
     return bool(a.target) and a.target == b.target and pb < pa
 
 
-def _parsimonious(passing, n_tests, ctx, train) -> list:
+def _parsimonious(passing, n_tests, ctx, train) -> tuple[list, dict]:
     """Step 3's parsimony (the rod engine's rule 6, one rule here): a passing cause that
     nests another passing one stays only if its extra parameters pass the nested F
     test on N_eff against it at the naming level; else the simpler cause stands for
     it (synth seed 13, a plain h × 0.55: a natural convection at exponent 0.003 had the
-    lower BIC and left the verdict "unconfirmed" between the two)."""
-    keep = []
+    lower BIC and left the verdict "unconfirmed" between the two). Returns (the causes
+    kept, {name: why} of those dropped)."""
+    keep, dropped, level = [], {}, naming_level(n_tests)
     for r in passing:
         inner = [q for q in passing if _nests(r[0], q[0])]
-        if any(f_test_p(q[1].sse_w, r[1].sse_w, r[1].n_params - q[1].n_params,
-                        _n_eff(ctx, r[1].prediction, train)) >= naming_level(n_tests)
-               for q in inner):
+        fails = next(((q, p) for q in inner
+                      for p in [f_test_p(q[1].sse_w, r[1].sse_w, r[1].n_params - q[1].n_params,
+                                         _n_eff(ctx, r[1].prediction, train))]
+                      if p >= level), None)
+        if fails is not None:
+            dropped[r[0].name] = (f"it nests {fails[0][0].name}, which passes too, and its "
+                                  f"extra parameters fail the nested F test against it "
+                                  f"(p = {fails[1]:.2g}, not below {level:.2g})")
             continue
         keep.append(r)
-    return keep
+    return keep, dropped
 
 
 def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = True):

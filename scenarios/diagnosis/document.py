@@ -67,7 +67,8 @@ def mesh_document(d, rom_statement: dict) -> dict:
          "noise_sigma": {c.column: c.noise_sigma for c in d.channels},
          "nominal_ljung_box_p_neff": {c.column: c.whiteness_p for c in d.channels},
          "ranking": [{"cause": r.cause, "bic": r.bic, "f_test_p": r.f_test_p,
-                      "holdout_whitened_rms": r.holdout_whitened_rms}
+                      "holdout_whitened_rms": r.holdout_whitened_rms,
+                      "not_named_alone_because": r.refused}
                      for r in d.evidence.ranking],
          "below_resolution": d.below_resolution,
          "best_candidate_beaten_by_mlr": d.beaten_by_regression,

@@ -180,11 +180,13 @@ def _markdown(s: dict, d, sc) -> str:
               "this record's nominal inputs: " + ", ".join(
                   f"{n} {v:.2g}" for n, v in rm["max_abs_error"].items())
               + " (µm / K).", "", "## Candidates (best BIC first)", "",
-              "| cause | BIC | F-test p | whitened hold-out RMS [-] |", "|---|---|---|---|"]
+              "| cause | BIC | F-test p | whitened hold-out RMS [-] | alone, not named because |",
+              "|---|---|---|---|---|"]
     shown = s["ranking"][:12]
     for r in shown:
         lines.append(f"| {r['cause']} | {r['bic']:.1f} | {r['f_test_p']:.2g} | "
-                     f"{r['holdout_whitened_rms']:.3g} |")
+                     f"{r['holdout_whitened_rms']:.3g} | "
+                     f"{r.get('not_named_alone_because') or 'the screen named it'} |")
     if len(s["ranking"]) > len(shown):
         lines += ["", f"The {len(shown)} best of {len(s['ranking'])} single causes; every one "
                       "is in diagnosis.json (`ranking`)."]
