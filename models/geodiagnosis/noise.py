@@ -160,7 +160,8 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
     >>> bool(np.allclose(W @ S @ W.T, np.eye(6)))
     True
     """
-    se2, sw2, phi = noise.sigma_white ** 2, noise.sigma_walk ** 2, float(noise.phi)
+    se2, sw2 = float(noise.sigma_white) ** 2, float(noise.sigma_walk) ** 2
+    phi = float(noise.phi)
     n = idx.size
     if sw2 <= 0:
         return Whitener(np.zeros(n), np.full(n, se2))
@@ -171,19 +172,22 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
         A = phi ** gaps.astype(float)
         Q = sw2 * (1.0 - A * A) / (1.0 - phi * phi)
     K, F = np.empty(n), np.empty(n)
-    post, prior_last, i = 0.0, -1.0, 0
-    unit = gaps == 1
+    # Python floats in the loop (a numpy scalar per step costs several times more)
+    a2 = [1.0] * n if A is None else (A * A).tolist()
+    q, unit = Q.astype(float).tolist(), (gaps == 1).tolist()
     # next row at or after i that does not step by one (n: none)
-    nxt = np.append(np.flatnonzero(~unit), n)
+    nxt = np.append(np.flatnonzero(gaps != 1), n)
+    post, prior_last, i = 0.0, -1.0, 0
     while i < n:
-        prior = (post if A is None else A[i] * A[i] * post) + Q[i]
-        F[i] = prior + se2
-        K[i] = prior / F[i]
-        post = prior * (1.0 - K[i])
+        prior = (post if A is None else a2[i] * post) + q[i]
+        f = prior + se2
+        k = prior / f
+        F[i], K[i] = f, k
+        post = prior * (1.0 - k)
         if unit[i] and prior == prior_last:
             # a fixed point on a unit step: rows up to the next gap repeat it exactly
-            j = nxt[np.searchsorted(nxt, i + 1)]
-            K[i + 1:j], F[i + 1:j] = K[i], F[i]
+            j = int(nxt[np.searchsorted(nxt, i + 1)])
+            K[i + 1:j], F[i + 1:j] = k, f
             i = j
             prior_last = -1.0
             continue
@@ -196,8 +200,8 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
 WALK_RATIOS = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
 #: the AR coefficients φ searched for a stationary slow state, and the stationary ratios
 #: κ = σ_w²/((1 − φ²) σ_e²) (the AR part's variance over the white part's) with each
-AR_COEFFICIENTS = (0.3, 0.6, 0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 0.999)
-AR_RATIOS = 10.0 ** np.arange(-2.0, 2.01, 0.5)
+AR_COEFFICIENTS = (0.5, 0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 0.999)
+AR_RATIOS = 10.0 ** np.arange(-2.0, 2.01, 1.0)
 #: −2 log-likelihood an AR coefficient must gain over the random walk to be adopted: the
 #: χ² 99 % point on one degree of freedom (a parameter must pass a 1 % test, as the
 #: record's other extra parameters do); a walk stays a walk unless the data refuse it
@@ -207,8 +211,8 @@ AR_PENALTY = 6.635
 def profile_noise(m2ll) -> tuple:
     """The slow state that minimises ``m2ll(λ, φ)`` (−2 log-likelihood, any constant):
     (−2ℓ, λ, φ). A random walk first (φ = 1, λ on :data:`WALK_RATIOS`); then an AR(1)
-    (φ on :data:`AR_COEFFICIENTS`, κ on :data:`AR_RATIOS`, the best refined twice on a
-    3 × 3 pattern of half steps in log κ and log(1 − φ)), adopted only where it gains
+    (φ on :data:`AR_COEFFICIENTS`, κ on :data:`AR_RATIOS`, the best refined three times on
+    a 3 × 3 pattern in log κ and log(1 − φ), its steps halved each time), adopted only where it gains
     more than :data:`AR_PENALTY`. One rule for every fit and test of the noise.
 
     A random walk's increments never forget: fitted to stationary correlated noise
@@ -226,18 +230,18 @@ def profile_noise(m2ll) -> tuple:
     walk = min((m2ll(float(v), 1.0), float(v)) for v in WALK_RATIOS)
     best = min((m2ll(float(k * (1 - f * f)), f), np.log10(k), np.log10(1 - f))
                for f in AR_COEFFICIENTS for k in AR_RATIOS)
-    step = 0.25
-    for _ in range(2):
+    sk, sf = 0.5, 0.2
+    for _ in range(3):
         v0, lk, lf = best
-        for dk in (-step, 0.0, step):
-            for df in (-step, 0.0, step):
+        for dk in (-sk, 0.0, sk):
+            for df in (-sf, 0.0, sf):
                 f = 1.0 - 10.0 ** min(lf + df, -1e-3)
                 k = 10.0 ** (lk + dk)
                 if (dk or df) and f > 0.0:
                     v = m2ll(float(k * (1 - f * f)), f)
                     if v < best[0]:
                         best = (v, lk + dk, np.log10(1 - f))
-        step /= 2.0
+        sk, sf = sk / 2.0, sf / 2.0
     v, lk, lf = best
     if v < walk[0] - AR_PENALTY:
         f = 1.0 - 10.0 ** lf
