@@ -68,18 +68,21 @@ def frame_truth_um_per_K(seed: int, case) -> float:
     return case.truth["frame_gain"] * case.settings["steady_growth_um"] / k_per_unit
 
 
-def record(cause: str, seed: int, white: bool):
-    """(case, growth [µm], truth {contract or plant parameter: value})."""
+def record(cause: str, seed: int, white: bool, thermometers: int = 1):
+    """(case, growth [µm], truth {contract or plant parameter: value}); a frame on
+    several thermometers has no one gain to score (truth {})."""
     src = "sensor_drift" if cause == "clean" else cause
-    case = generate_speed(src, seed)
+    case = generate_speed(src, seed, thermometers=thermometers)
     y = case.growth_um.copy()
     if white:
-        clean = generate_speed(src, seed, noise_um=0.0).growth_um
+        clean = generate_speed(src, seed, noise_um=0.0, thermometers=thermometers).growth_um
         y = clean + np.random.default_rng([seed, 99]).normal(
             0.0, case.settings["noise_sigma_um"], y.size)
     truth = dict(case.truth)
     if cause == "clean":
         y = y - case.truth["drift_um_per_h"] * case.time_s / 3600.0
+        truth = {}
+    elif cause == "frame_expansion" and thermometers > 1:
         truth = {}
     elif cause == "frame_expansion":
         truth = {"frame_gain_um_per_K": frame_truth_um_per_K(seed, case),
@@ -134,12 +137,14 @@ def main(argv=None) -> int:
     ap.add_argument("--causes", default=",".join(CAUSES))
     ap.add_argument("--white", action="store_true")
     ap.add_argument("--no-rod", action="store_true")
+    ap.add_argument("--thermometers", type=int, default=1,
+                    help="thermometers per record (synth_speed's thermometers)")
     a = ap.parse_args(argv)
     engines = {"plant": run_plant} if a.no_rod else {"rod": run_rod, "plant": run_plant}
     tally = {}
     for cause in a.causes.split(","):
         for seed in range(a.seed0, a.seed0 + a.seeds):
-            case, y, truth = record(cause, seed, a.white)
+            case, y, truth = record(cause, seed, a.white, a.thermometers)
             with tempfile.TemporaryDirectory() as tmp:
                 ds = load_dataset(write(Path(tmp), case, y))
             for eng, run in engines.items():
