@@ -28,13 +28,24 @@ it names (the truth of :mod:`arfem.models.diagnosis.synth_speed` is of this fami
 * ``frame_expansion:<T column>``: the frame grows ``frame_gain_um_per_K`` × the rise of
   a recorded thermometer (°C above its first reading), no lag;
 * ``frame_lag:<T column>``: the same through a first-order lag of
-  ``frame_time_constant_h`` [h] (nonlinear, 2-200 h), its gain ``frame_gain_um_per_K``.
+  ``frame_time_constant_h`` [h] (nonlinear, 2-200 h), its gain ``frame_gain_um_per_K``;
+* above :data:`PER_THERMOMETER_FRAMES` thermometers, ``frame_expansion:pc1-3`` and
+  ``frame_lag:pc1-3`` in their place: the frame follows the three leading principal
+  components of the standardised thermometers
+  (:func:`arfem.models.diagnosis.speed_frame.frame_components`, the speed branch's),
+  one gain ``frame_gain_pc<j>_um`` [µm per unit component] each, without and with
+  the lag. The components are taken over the whole record: the thermometers are
+  inputs, no growth reading of the hold-out enters them.
+
+Every thermometer is smoothed by a centred mean of ±:data:`THERMOMETER_SMOOTHING_S`
+before it is a regressor (its noise is an error in the variable, which the fitted slow
+noise turns into a gain drawn to zero).
 
 Contract names: :func:`contract_causes`.
 
 What this plant does not do (the rod engine's speed branch does): one gain per speed
-with the paper's eqs. 20-21 mapping, the frame's lagged principal components of several
-thermometers and the choice of structure, and a frame without a thermometer (the
+with the paper's eqs. 20-21 mapping, the choice of the frame's structure among numbers
+of components and lags by forward-chaining validation, and a frame without a thermometer (the
 frame's own lag of the rod's steady growth: its gain is a product with the nominal
 model's unknown steady growth G, not a linear column).
 """
@@ -80,7 +91,11 @@ THERMOMETER_SMOOTHING_S = 360.0
 #: (:data:`FRAME_COMPONENTS`), as the rod engine's speed branch does.
 PER_THERMOMETER_FRAMES = 3
 #: The numbers of leading principal components a frame on many thermometers follows
-#: (one cause each, with and without a lag).
+#: (one cause each, with and without a lag). Three alone: on synth_speed's records of 8
+#: thermometers (a frame on a mix of a fast and a slow one, room thermometers beside,
+#: AR noise, seeds 1-6) the frame on 1, 2 or 3 components named three components on 5
+#: of 6 and a pair of frames on 2 on the sixth ("explained"); three alone named and
+#: established all 6, also with 16 thermometers, and halved the Bonferroni count.
 FRAME_COMPONENTS = (3,)
 
 
