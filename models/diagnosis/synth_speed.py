@@ -162,6 +162,24 @@ def _thermometers(seed: int, t, heat, m: int, room_K=None):
     return out, (clean[0] - clean[0][0], clean[1] - clean[1][0])
 
 
+def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: int):
+    """A ``frame_expansion`` record's growth [µm] (``y``, the rod's, plus the frame's),
+    thermometers [°C] and truth: on one thermometer, the frame's lag of the heat; on
+    several, a mix of the first two (module docstring). ``cr`` draws the cause."""
+    g = sign * float(cr.uniform(0.3, 0.8))
+    if thermometers > 1:
+        w = float(cr.uniform(0.2, 0.8))
+        temps, (r1, r2) = _thermometers(seed, t, heat, thermometers)
+        mix = w * r1 / np.max(np.abs(r1)) + (1.0 - w) * r2 / np.max(np.abs(r2))
+        return y + g * k_um * mix / np.max(np.abs(mix)), temps, {"frame_gain": g,
+                                                                  "frame_mix": w}
+    tau_f = float(cr.uniform(3.0, 10.0))
+    frame = first_order_lag(t, heat, tau_f * 3600.0)
+    temps = {"T_frame_C": 20.0 + float(cr.uniform(2.0, 6.0)) * frame
+             + cr.normal(0.0, 0.01, t.size)}
+    return y + g * k_um * frame, temps, {"frame_time_constant_h": tau_f, "frame_gain": g}
+
+
 def generate_speed(cause: str, seed: int, noise_um: float | None = None,
                    duration_h: float = 30.0, step_s: float = 120.0,
                    thermometers: int = 1) -> SpeedCase:
@@ -232,21 +250,8 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
             y = y + g * ar_first_order(t, true_amb, b, 1.0)
             amb = true_amb + cr.normal(0.0, 0.02, t.size)
             truth = {"ambient_gain_um_per_K": g}
-        elif thermometers > 1:                  # frame_expansion on a mix of two
-            g = sign * float(cr.uniform(0.3, 0.8))
-            w = float(cr.uniform(0.2, 0.8))
-            temps, (r1, r2) = _thermometers(seed, t, heat, thermometers)
-            mix = w * r1 / np.max(np.abs(r1)) + (1.0 - w) * r2 / np.max(np.abs(r2))
-            y = y + g * k_um * mix / np.max(np.abs(mix))
-            truth = {"frame_gain": g, "frame_mix": w}
-        else:                                   # frame_expansion
-            g = sign * float(cr.uniform(0.3, 0.8))
-            tau_f = float(cr.uniform(3.0, 10.0))
-            frame = first_order_lag(t, heat, tau_f * 3600.0)
-            y = y + g * k_um * frame
-            temps = {"T_frame_C": 20.0 + float(cr.uniform(2.0, 6.0)) * frame
-                     + cr.normal(0.0, 0.01, t.size)}
-            truth = {"frame_time_constant_h": tau_f, "frame_gain": g}
+        else:
+            y, temps, truth = _frame(cr, sign, seed, t, heat, k_um, y, thermometers)
     if thermometers > 1 and not temps:
         temps = _thermometers(seed, t, heat, thermometers, amb)[0]
     return SpeedCase(t, speed, y + noise, amb, cause, truth,
