@@ -397,10 +397,12 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
 def _same_part(a, b) -> bool:
     """Two causes that set a nonlinear parameter of the same name on the same target (a
     natural convection's h and a convection scale, both the h of one surface; or one
-    kind twice on one part): one part twice, never a pair. No two different mesh causes
-    share a parameter on one target."""
+    kind twice on one part), or of which one nests the other (:func:`_nests`: a frame
+    lagging a thermometer and the same frame without the lag): one part twice, never a
+    pair. No two different mesh causes share a parameter on one target or nest."""
     shared = {p.name for p in a.nonlinear_parameters} & {p.name for p in b.nonlinear_parameters}
-    return bool(a.target) and a.target == b.target and bool(shared)
+    return bool(a.target) and a.target == b.target and bool(shared) or \
+        _nests(a, b) or _nests(b, a)
 
 
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
