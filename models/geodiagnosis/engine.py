@@ -652,7 +652,7 @@ def _not_within_noise(v: _Judgement) -> str:
         why.append(f"too few independent samples to test on {', '.join(untestable)}")
     if v.thermometers_beyond:
         why.append("it follows the temperatures, beyond what its noise (white plus a "
-                   "random walk) explains ("
+                   "random walk or an AR(1)) explains ("
                    + ", ".join(f"{d} with {t}" for d, t in v.thermometers_beyond[:4])
                    + (", …" if len(v.thermometers_beyond) > 4 else "") + ")")
     if v.mlr_better:
@@ -702,7 +702,7 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
         h0, how = holdout_start_s, ("given by the caller (--holdout-start); the fits saw "
                                     "only the rows before it")
     train, hold = plant.time_s < h0, plant.time_s >= h0
-    progress("fitting each channel's noise (white plus a random walk)")
+    progress("fitting each channel's noise (white plus a random walk or an AR(1))")
     ctx = with_noise(ctx, train)
     base = fit_mesh_causes(ctx, (), train)
     singles = candidate_causes(ctx)
