@@ -439,11 +439,17 @@ def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2) -> list:
 
 
 def _ml_terms(y: np.ndarray, X: np.ndarray, idx: np.ndarray, lam: float,
-              phi: float = 1.0) -> float:
+              phi: float = 1.0, cache: dict | None = None) -> float:
     """−2 × log-likelihood (up to a constant) of y = X β + white + slow state at ratio λ
     and AR coefficient φ, β and σ_e² profiled out (maximum likelihood: comparable across
-    different X)."""
-    W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+    different X). ``cache``: {(λ, φ): Whitener} on these rows, shared by the two
+    hypotheses of one test (the same filter, computed once)."""
+    key = (float(lam), float(phi))
+    W = None if cache is None else cache.get(key)
+    if W is None:
+        W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+        if cache is not None:
+            cache[key] = W
     yw = W.apply(y)
     if X.shape[1]:
         Xw = W.apply(X)
@@ -521,8 +527,9 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     """
     from scipy.stats import chi2
     y = np.asarray(y, float)
-    l0 = profile_noise(lambda lam, phi: _ml_terms(y, X0, idx, lam, phi))[0]
-    l1 = profile_noise(lambda lam, phi: _ml_terms(y, X1, idx, lam, phi))[0]
+    cache: dict = {}
+    l0 = profile_noise(lambda lam, phi: _ml_terms(y, X0, idx, lam, phi, cache))[0]
+    l1 = profile_noise(lambda lam, phi: _ml_terms(y, X1, idx, lam, phi, cache))[0]
     return float(chi2.sf(max(l0 - l1, 0.0), max(X1.shape[1] - X0.shape[1], 1)))
 
 
