@@ -48,6 +48,9 @@ frame_lag            (the frame)        ``frame_time_constant_h`` [h],        --
 frame_lag            a thermometer      ``frame_time_constant_h`` [h],        --, 0
                                         nonlinear; ``frame_gain_um_per_K``
                                         [µm/K]
+frame_expansion      ``pc1-<k>``        ``frame_gain_pc<j>_um`` [µm], j=1..k  0
+frame_lag            ``pc1-<k>``        ``frame_time_constant_h`` [h],        --, 0
+                                        nonlinear; ``frame_gain_pc<j>_um``
 natural_convection   convection group   ``h_scale`` [-] (h at 10 K) and       1, 0
                                         ``exponent`` [-], both nonlinear
 ambient_drift        (the ambient)      ``ambient_gain_um_per_K`` [µm/K]      0
@@ -59,13 +62,17 @@ source with its own time constant, a natural-convection h ∝ ΔT^exponent, and 
 recorded ambient that the paper's nominal model (a constant ambient) leaves out. On a
 thermometer (a ``T_<name>_C`` target, the speed-only plant's
 :class:`arfem.models.diagnosis.speed_plant.SpeedPlant`) a frame lag follows that
-thermometer's rise through its time constant, its gain in µm/K as ``frame_expansion``'s.
+thermometer's rise through its time constant, its gain in µm/K as ``frame_expansion``'s;
+on a ``pc1-<k>`` target (:func:`components_target`) a frame follows the ``k`` leading
+principal components of the record's standardised thermometers, one gain each (a
+record of many thermometers: one cause for them all).
 
 The no-effect values are the verdict's (:data:`arfem.models.diagnosis.verdict.NO_EFFECT`,
 one table).
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -75,6 +82,7 @@ from arfem.models.diagnosis.verdict import NO_EFFECT
 from arfem.params import PLAUSIBLE_RANGES
 
 __all__ = ["Parameter", "CandidateCause", "Design", "Plant", "SelectionRules", "linear_value", "cause",
+           "components_target",
            "BOUNDS", "PLAUSIBLE"]
 
 
@@ -286,6 +294,22 @@ def _column_unit(column: str) -> str:
     return "urad" if column.endswith("_urad") else "K"
 
 
+def components_target(k: int) -> str:
+    """The target of a frame on the thermometers' ``k`` leading principal components:
+    ``pc1-<k>``.
+
+    >>> components_target(3), _components("pc1-3"), _components("T_frame_C")
+    ('pc1-3', 3, 0)
+    """
+    return f"pc1-{int(k)}"
+
+
+def _components(target: str) -> int:
+    """The number of principal components a ``pc1-<k>`` target names (0: another)."""
+    m = re.fullmatch(r"pc1-([1-9][0-9]*)", target)
+    return int(m.group(1)) if m else 0
+
+
 def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCause:
     """The cause ``kind`` on ``target`` with its parameters (module table), the same for
     every plant; ``unit`` is a sensor drift's channel unit (from its column name when
@@ -297,7 +321,16 @@ def cause(kind: str, target: str = "", unit: str | None = None) -> CandidateCaus
     (0.2, 5.0)
     >>> [p.name for p in cause("frame_lag", "T_frame_C").parameters]
     ['frame_time_constant_h', 'frame_gain_um_per_K']
+    >>> [p.name for p in cause("frame_expansion", "pc1-2").parameters]
+    ['frame_gain_pc1_um', 'frame_gain_pc2_um']
     """
+    if kind in ("frame_expansion", "frame_lag") and _components(target):
+        # a frame on the thermometers' leading principal components: one gain [µm per
+        # unit component] each (the components are standardised, unit-free)
+        params = ((_nonlinear(*_NONLINEAR[kind]),) if kind in _NONLINEAR else ()) + tuple(
+            Parameter(f"frame_gain_pc{j}_um", "um", 0.0)
+            for j in range(1, _components(target) + 1))
+        return CandidateCause(kind, target, params)
     if kind == "sensor_drift":
         u = unit or _column_unit(target)
         params = (Parameter(f"offset_{u}", u, 0.0),

@@ -117,7 +117,8 @@ def test_a_drift_the_sensors_walk_explains_says_so(screened):
     row = rows["sensor_drift:growth_um"]
     assert row[3] < 1e-100
     why = _refusal(ctx, row, base, train, level)
-    assert why.startswith("the sensor's own random walk explains its channel"), why
+    assert why.startswith("the sensor's own slow noise (a random walk or an AR(1)) explains "
+                          "its channel"), why
 
 
 def test_the_screen_records_why_each_passing_cause_lost(tmp_path):

@@ -35,7 +35,7 @@ def small_fit():
 def test_a_fit_is_frozen_and_carries_its_own_residual(small_fit):
     """The rules read a fit's residual on the fit rows (once the private ``_res`` key the
     engine wrote): it is measured minus predicted on exactly those rows, and the fit
-    cannot be changed in place (the pair rules make changed copies)."""
+    cannot be changed in place."""
     fit, y, rows = small_fit
     assert isinstance(fit, CandidateFit)
     np.testing.assert_array_equal(fit.residual_um, (y - fit.prediction)[rows])
@@ -43,10 +43,6 @@ def test_a_fit_is_frozen_and_carries_its_own_residual(small_fit):
     assert fit.causes == ("heat_input_scale",) and fit.cause == "heat_input_scale"
     with pytest.raises(dataclasses.FrozenInstanceError):
         fit.rss = 0.0
-    eq = {"cause": "x", "parameters": {}, "p_value": 0.5, "why": "test"}
-    copy = fit.copy_with(equivalent=eq)
-    assert copy.equivalent is eq and fit.equivalent is None
-    assert copy.rss == fit.rss and copy.prediction is fit.prediction
 
 
 def test_the_jacobian_columns_are_named_by_the_fit_coordinates(small_fit):

@@ -301,6 +301,24 @@ def test_random_walk_record_with_a_clear_cause_gets_it(setup):
     assert lo <= 0.7 <= hi, (d.evidence.named.params, (lo, hi))
 
 
+def test_ar1_noise_record_gets_its_cause_and_a_clean_one_none(setup):
+    """Under a probe's AR(1) noise (ρ 0.9 per sample, stationary 2σ, on white σ: the
+    synth's ``ar1`` kind) the rear bearing's heat × 0.7 is established with an interval
+    holding the truth, and a clean record of the same noise gets no cause. With a
+    noise model of white plus a random walk only, the walk took the AR(1)'s wander and
+    the cause's smooth effect alike: the bearing record was "not explained" with no
+    cause (main at 0cc64af, seed 2004; issue 41)."""
+    sc, spec, plant, model = setup
+    rec, _ = _record(plant, [Hidden("source_scale", "rear_bearing", 0.7)], 2004, "ar1")
+    d = diagnose_geometry(model, rec)
+    assert d.verdict == "established", d.text
+    assert [c.name for c in d.evidence.named.causes] == ["source_scale:rear_bearing"], d.text
+    lo, hi = d.evidence.named.ci95[0]["scale"]
+    assert lo <= 0.7 <= hi, (d.evidence.named.params, (lo, hi))
+    clean, _ = _record(plant, [], 2001, "ar1")
+    assert diagnose_geometry(model, clean).causes == ()
+
+
 def test_clean_walk_record_names_no_drift_on_a_thermometer(setup):
     """The second scoring's false positive (fresh seed 70019, now development data): a
     clean random-walk record (0.05 σ per sample) got sensor_drift on T_housing_C, the

@@ -20,7 +20,7 @@ Datasets that only record ``speed_rpm`` use :mod:`arfem.models.diagnosis.speed`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import cached_property, partial
 
 import numpy as np
@@ -153,9 +153,6 @@ class CandidateFit:
         :func:`fit_rod_causes` fits: the coordinates, Jacobian and refits.
     frame : FrameFit, optional
         Speed records' thermometer ``frame_expansion``: its frame part.
-    equivalent : dict, optional
-        An alternative that fits as well (``equivalent_alternative`` of diagnosis.json),
-        set by the pair rules (:mod:`arfem.models.diagnosis.rules`).
     note : str, optional
         What a reader of the parameters must know (e.g. how h was derived).
     """
@@ -174,18 +171,12 @@ class CandidateFit:
     time_constant_h: float | None = None
     joint: JointFit | None = None
     frame: FrameFit | None = None
-    equivalent: dict | None = None
     note: str | None = None
 
     @property
     def theta(self) -> dict:
         """The searched coordinates of a :func:`fit_rod_causes` fit (else empty)."""
         return self.joint.theta if self.joint is not None else {}
-
-    def copy_with(self, **changes) -> CandidateFit:
-        """A copy with the fields ``changes`` changed (the fit itself is frozen)."""
-        return type(self)(**{**{f.name: getattr(self, f.name) for f in fields(self)},
-                             **changes})
 
 
 def project(columns: list[np.ndarray], target: np.ndarray, rows: np.ndarray):

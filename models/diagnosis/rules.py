@@ -114,8 +114,8 @@ def naming_test_text(test: dict, n_blocks: int | None = None) -> str:
     if "rmse_cut_pct" not in test:           # the one pipeline's screen (q_W_m2 records)
         return (f"a cause is named only if its nested F test against the baseline on N_eff "
                 f"gives p < {test['p_threshold']:.3g} (Bonferroni over the candidates), its "
-                f"magnitudes are plausible and a random walk in the noise does not fit the "
-                f"record as well; {st.p_text(test['p_value'])}")
+                f"magnitudes are plausible and the sensor's slow noise (a random walk or an "
+                f"AR(1)) does not fit the record as well; {st.p_text(test['p_value'])}")
     return (f"a cause is named only if its nested F test against the baseline gives p < "
             f"{test['p_threshold']:.3g} and it cuts the fit-window RMSE by at least "
             f"{100 * MIN_GAIN:g} %; {st.p_text(test['p_value'])}, cut "
@@ -157,8 +157,8 @@ _SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit windo
 
 _FEM_RULE = (f"the one pipeline of every plant (arfem.models.geodiagnosis.engine): BIC on "
              f"N_eff samples; a cause passes only if its nested F test against the nominal "
-             f"model gives p < {ALPHA:g}/candidates, its fit is plausible and a random walk "
-             f"in the noise does not fit as well; of the passing causes within 10 of the "
+             f"model gives p < {ALPHA:g}/candidates, its fit is plausible and the sensor's "
+             f"slow noise (a random walk or an AR(1)) does not fit as well; of the passing causes within 10 of the "
              f"best BIC the lowest hold-out error is named; a cause that nests a simpler "
              f"passing one only if its extra parameters pass the nested F test; a second "
              f"cause where adding it passes the same test and lowers the hold-out error; "

@@ -16,7 +16,8 @@ from arfem.models.diagnosis.forward import ar_columns, first_order_lag
 from arfem.models.diagnosis.speed import _level_inputs
 
 __all__ = ["FrameStructure", "FrameEnsemble", "frame_structures", "heat_law",
-           "frame_components", "fit_frame_thermometers", "FRAME_SEARCHES"]
+           "frame_components", "fit_frame_thermometers", "FRAME_SEARCHES",
+           "centred_mean", "temperature_matrix"]
 
 
 #: structures tried for the frame: number of principal components of the temperature
@@ -200,11 +201,47 @@ def heat_law(speed_rpm, exponent: float, ref_rpm: float) -> np.ndarray:
     return (n / float(ref_rpm)) ** float(exponent)
 
 
-def _temperature_matrix(temperatures: dict):
+def temperature_matrix(temperatures: dict):
+    """(names, T (N, m) [°C]) of the complete thermometers of ``temperatures`` (a series
+    with a missing reading is left out); ([], None) when none is complete."""
     names = [k for k, v in temperatures.items() if np.all(np.isfinite(np.asarray(v, float)))]
     if not names:
         return [], None
     return names, np.column_stack([np.asarray(temperatures[k], float) for k in names])
+
+
+
+def centred_mean(time_s, x, half_width_s: float) -> np.ndarray:
+    """Each sample's mean over the finite samples within ±``half_width_s`` of it in time
+    (a zero-phase moving average; NaN where none is finite).
+
+    What a thermometer is smoothed by before it is a regressor of the growth: its own
+    noise is then an error in the variable, and under a slow noise model (whose
+    whitening nearly differences the rows) a thermometer's white noise dominates its
+    differenced rise and draws its gain towards zero (attenuation; Fuller W. A.,
+    "Measurement error models", Wiley 1987, sec. 1.1). A mean over 2h + 1 samples cuts
+    the noise of the differenced series by 2h + 1 and, being centred, adds no lag.
+
+    Parameters
+    ----------
+    time_s : array_like (N,), sample times [s], increasing
+    x : array_like (N,), the series [any unit], NaN missing
+    half_width_s : float, half-width of the window [s] (0: ``x`` itself)
+
+    Examples
+    --------
+    >>> centred_mean([0.0, 1.0, 2.0, 3.0], [0.0, 3.0, 0.0, np.nan], 1.0).tolist()
+    [1.5, 1.0, 1.5, 0.0]
+    """
+    t, x = np.asarray(time_s, float), np.asarray(x, float)
+    ok = np.isfinite(x)
+    c_sum = np.concatenate([[0.0], np.cumsum(np.where(ok, x, 0.0))])
+    c_n = np.concatenate([[0], np.cumsum(ok)])
+    lo = np.searchsorted(t, t - half_width_s, side="left")
+    hi = np.searchsorted(t, t + half_width_s, side="right")
+    n = c_n[hi] - c_n[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, (c_sum[hi] - c_sum[lo]) / np.maximum(n, 1), np.nan)
 
 
 def frame_components(t, T, rows, k: int, lag_h: float):
@@ -334,7 +371,7 @@ def fit_frame_thermometers(t, y, speed, rows, seen, W, temperatures: dict,
     """
     if isinstance(structure, FrameEnsemble):
         return _fit_frame_ensemble(t, y, speed, rows, seen, W, temperatures, structure)
-    names, T = _temperature_matrix(temperatures)
+    names, T = temperature_matrix(temperatures)
     k = structure.components
     if k and T is None:
         return None

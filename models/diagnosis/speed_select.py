@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from arfem.models.diagnosis.speed_frame import (FrameEnsemble, _temperature_matrix,
+from arfem.models.diagnosis.speed_frame import (FrameEnsemble, temperature_matrix,
                                                 fit_frame_thermometers, frame_structures)
 
 __all__ = ["forward_folds", "cv_rmse", "select_frame_structure", "median_block_ratio",
@@ -182,7 +182,7 @@ def select_frame_structure(t, y, speed, temperatures, rows, folds, fold_maps,
     table : dict
         Structure label -> pooled validation RMSE [µm] (nan if not applicable).
     """
-    names, _ = _temperature_matrix(temperatures)
+    names, _ = temperature_matrix(temperatures)
     if search == "average":
         # no choice to make: the candidate's own validation (by the caller) scores it
         members = tuple(frame_structures(len(names), "average"))

@@ -28,6 +28,16 @@ interval is a miss of the interval, not a model-form error:
 * measurement noise: AR(1) with ρ 0.6-0.9 (as real records have) and marginal σ
   0.03-0.15 µm.
 
+With ``thermometers`` m > 1 every record carries m thermometers ``T_t1_C`` ..
+(:func:`_thermometers`, their own draws ``default_rng([seed, 50])``, the records of one
+thermometer unchanged): max(2, m // 2) on the machine, each a mix of a fast (τ 0.3-1.5 h,
+near the bearings) and a slow (τ 3-10 h, the frame's body) first-order response to the
+heat, 2-6 K per unit, the rest only the room (a daily and a 7 h wave of 0.5-2 K; the
+recorded ambient where there is one), every one with some room in it and 0.01 K noise.
+A ``frame_expansion`` then grows as a mix of the first two thermometers' rises (the
+fast-dominated and the slow-dominated one), |frame_gain| 0.3-0.8 of the rod's steady
+growth at their peak, in place of the one thermometer's lag.
+
 Reproducible: ``default_rng(seed)`` draws the schedule, rod and noise, ``default_rng([seed,
 k])`` the cause's magnitudes (k its index in :data:`SPEED_SYNTH_CAUSES`).
 """
@@ -126,8 +136,53 @@ def _schedule(rng, duration_h: float, step_s: float):
     return t, np.array([phases[i][0] for i in k]), float(levels[-1])
 
 
+def _thermometers(seed: int, t, heat, m: int, room_K=None):
+    """m thermometers [°C] of a speed record (module docstring) and the noise-free rises
+    [K] of the first two (the frame's mix): ({``T_t<j>_C``: (N,)}, (rise 1, rise 2))."""
+    rng = np.random.default_rng([seed, 50])
+    fast = first_order_lag(t, heat, float(rng.uniform(0.3, 1.5)) * 3600.0)
+    slow = first_order_lag(t, heat, float(rng.uniform(3.0, 10.0)) * 3600.0)
+    if room_K is None:
+        a1, a2 = rng.uniform(0.5, 2.0, 2)
+        ph = rng.uniform(0, 2 * np.pi, 2)
+        room_K = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
+                  + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+    n_heat = max(2, m // 2)
+    out, clean = {}, []
+    for j in range(m):
+        if j < n_heat:
+            # the first is fast-dominated, the second slow-dominated, the rest any mix
+            w = (0.85, 0.15)[j] if j < 2 else float(rng.uniform(0.0, 1.0))
+            T = float(rng.uniform(2.0, 6.0)) * (w * fast + (1.0 - w) * slow) \
+                + float(rng.uniform(0.0, 0.3)) * room_K
+        else:
+            T = float(rng.uniform(0.7, 1.0)) * room_K
+        clean.append(T)
+        out[f"T_t{j + 1}_C"] = 20.0 + T + rng.normal(0.0, 0.01, t.size)
+    return out, (clean[0] - clean[0][0], clean[1] - clean[1][0])
+
+
+def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: int):
+    """A ``frame_expansion`` record's growth [µm] (``y``, the rod's, plus the frame's),
+    thermometers [°C] and truth: on one thermometer, the frame's lag of the heat; on
+    several, a mix of the first two (module docstring). ``cr`` draws the cause."""
+    g = sign * float(cr.uniform(0.3, 0.8))
+    if thermometers > 1:
+        w = float(cr.uniform(0.2, 0.8))
+        temps, (r1, r2) = _thermometers(seed, t, heat, thermometers)
+        mix = w * r1 / np.max(np.abs(r1)) + (1.0 - w) * r2 / np.max(np.abs(r2))
+        return y + g * k_um * mix / np.max(np.abs(mix)), temps, {"frame_gain": g,
+                                                                  "frame_mix": w}
+    tau_f = float(cr.uniform(3.0, 10.0))
+    frame = first_order_lag(t, heat, tau_f * 3600.0)
+    temps = {"T_frame_C": 20.0 + float(cr.uniform(2.0, 6.0)) * frame
+             + cr.normal(0.0, 0.01, t.size)}
+    return y + g * k_um * frame, temps, {"frame_time_constant_h": tau_f, "frame_gain": g}
+
+
 def generate_speed(cause: str, seed: int, noise_um: float | None = None,
-                   duration_h: float = 30.0, step_s: float = 120.0) -> SpeedCase:
+                   duration_h: float = 30.0, step_s: float = 120.0,
+                   thermometers: int = 1) -> SpeedCase:
     """A speed-only record with ``cause`` injected at known parameters.
 
     Parameters
@@ -142,6 +197,10 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
         Record length [h].
     step_s : float
         Sampling interval [s].
+    thermometers : int
+        1: the record of one cause as always (a ``frame_expansion`` carries its frame's
+        thermometer ``T_frame_C``); m > 1: m thermometers on every record (module
+        docstring).
 
     Returns
     -------
@@ -191,14 +250,10 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
             y = y + g * ar_first_order(t, true_amb, b, 1.0)
             amb = true_amb + cr.normal(0.0, 0.02, t.size)
             truth = {"ambient_gain_um_per_K": g}
-        else:                                   # frame_expansion
-            g = sign * float(cr.uniform(0.3, 0.8))
-            tau_f = float(cr.uniform(3.0, 10.0))
-            frame = first_order_lag(t, heat, tau_f * 3600.0)
-            y = y + g * k_um * frame
-            temps = {"T_frame_C": 20.0 + float(cr.uniform(2.0, 6.0)) * frame
-                     + cr.normal(0.0, 0.01, t.size)}
-            truth = {"frame_time_constant_h": tau_f, "frame_gain": g}
+        else:
+            y, temps, truth = _frame(cr, sign, seed, t, heat, k_um, y, thermometers)
+    if thermometers > 1 and not temps:
+        temps = _thermometers(seed, t, heat, thermometers, amb)[0]
     return SpeedCase(t, speed, y + noise, amb, cause, truth,
                      {"rod_time_constant_h": tau_rod_h, "steady_growth_um": k_um,
                       "noise_sigma_um": sigma, "noise_rho": rho, "n_max_rpm": n_max},

@@ -591,7 +591,7 @@ def _f(v, nd=3) -> str:
 
 
 #: how the residual was tested where the plant's fitted noise whitened it first
-_WHITENED = ", whitened by the sensor's fitted noise (white plus a random walk),"
+_WHITENED = ", whitened by the sensor's fitted noise (white plus a random walk or an AR(1)),"
 
 
 def _what_is_left(summary) -> str:

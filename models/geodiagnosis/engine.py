@@ -363,7 +363,8 @@ def _refusal(ctx, row, base, train, level: float) -> str | None:
         return ("its effect is below the instruments' resolution (within every quantised "
                 "channel's quantiser bias, and no other channel sees it)")
     if walk_explains(ctx, cause, base.prediction, train, level):
-        return ("the sensor's own random walk explains its channel as well as an offset "
+        return ("the sensor's own slow noise (a random walk or an AR(1)) explains its "
+                "channel as well as an offset "
                 f"and a drift (p not below the naming level {level:.2g})")
     return None
 
@@ -447,10 +448,12 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
 def _same_part(a, b) -> bool:
     """Two causes that set a nonlinear parameter of the same name on the same target (a
     natural convection's h and a convection scale, both the h of one surface; or one
-    kind twice on one part): one part twice, never a pair. No two different mesh causes
-    share a parameter on one target."""
+    kind twice on one part), or of which one nests the other (:func:`_nests`: a frame
+    lagging a thermometer and the same frame without the lag): one part twice, never a
+    pair. No two different mesh causes share a parameter on one target or nest."""
     shared = {p.name for p in a.nonlinear_parameters} & {p.name for p in b.nonlinear_parameters}
-    return bool(a.target) and a.target == b.target and bool(shared)
+    return bool(a.target) and a.target == b.target and bool(shared) or \
+        _nests(a, b) or _nests(b, a)
 
 
 def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
@@ -700,7 +703,7 @@ def _not_within_noise(v: _Judgement) -> str:
         why.append(f"too few independent samples to test on {', '.join(untestable)}")
     if v.thermometers_beyond:
         why.append("it follows the temperatures, beyond what its noise (white plus a "
-                   "random walk) explains ("
+                   "random walk or an AR(1)) explains ("
                    + ", ".join(f"{d} with {t}" for d, t in v.thermometers_beyond[:4])
                    + (", …" if len(v.thermometers_beyond) > 4 else "") + ")")
     if v.mlr_better:
@@ -750,7 +753,7 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
         h0, how = holdout_start_s, ("given by the caller (--holdout-start); the fits saw "
                                     "only the rows before it")
     train, hold = plant.time_s < h0, plant.time_s >= h0
-    progress("fitting each channel's noise (white plus a random walk)")
+    progress("fitting each channel's noise (white plus a random walk or an AR(1))")
     ctx = with_noise(ctx, train)
     base = fit_mesh_causes(ctx, (), train)
     singles = candidate_causes(ctx)

@@ -21,7 +21,9 @@ from arfem.models.geodiagnosis.rom import ScaledBody, group_conduction, surface_
 __all__ = ["Plant", "Hidden", "duty_cycle", "generate", "signal", "add_noise", "NOISE_KINDS",
            "EFFECT_PARAMETER", "covers"]
 
-NOISE_KINDS = ("white", "walk", "quantised")
+#: the noise kinds of :func:`add_noise` (the benchmark's batches take the first three;
+#: ``ar1`` was added with the AR(1) slow state of the noise model, issue 41)
+NOISE_KINDS = ("white", "walk", "quantised", "ar1")
 
 
 @dataclass(frozen=True)
@@ -193,12 +195,22 @@ def add_noise(plant: Plant, y: np.ndarray, rng, noise: str = "white", sigma_um: 
               sigma_K: float = 0.03) -> np.ndarray:
     """``y`` (N, r) with noise of kind ``noise``: white (σ ``sigma_um`` µm on a
     displacement, ``sigma_K`` K on a thermometer); ``walk``: white plus a random walk of
-    0.05 σ per sample; ``quantised``: white, then rounded to a quantum of 4 σ."""
+    0.05 σ per sample; ``quantised``: white, then rounded to a quantum of 4 σ; ``ar1``:
+    white plus an AR(1) of coefficient 0.9 per sample and stationary σ 2σ (a probe's
+    electronics that forget their past in ~10 samples)."""
     disp = np.array([k == "displacement" for k in plant.kinds])
     sig = np.where(disp, sigma_um, sigma_K)
     y = y + rng.normal(size=y.shape) * sig[None, :]
     if noise == "walk":
         y = y + np.cumsum(rng.normal(size=y.shape), axis=0) * 0.05 * sig[None, :]
+    elif noise == "ar1":
+        rho = 0.9
+        e = rng.normal(size=y.shape) * np.sqrt(1.0 - rho ** 2)
+        x = np.empty(y.shape)
+        x[0] = rng.normal(size=y.shape[1])
+        for i in range(1, y.shape[0]):
+            x[i] = rho * x[i - 1] + e[i]
+        y = y + x * 2.0 * sig[None, :]
     elif noise == "quantised":
         q = np.where(disp, 4 * sigma_um, 4 * sigma_K)
         y = np.round(y / q[None, :]) * q[None, :]
