@@ -210,7 +210,6 @@ def temperature_matrix(temperatures: dict):
     return names, np.column_stack([np.asarray(temperatures[k], float) for k in names])
 
 
-
 def centred_mean(time_s, x, half_width_s: float) -> np.ndarray:
     """Each sample's mean over the finite samples within ±``half_width_s`` of it in time
     (a zero-phase moving average; NaN where none is finite).
