@@ -199,6 +199,25 @@ def test_runner_up_that_passed_names_the_cause_that_beat_it(tmp_path):
     assert "frame_lag" not in r["why_lost"]
 
 
+def test_every_candidate_carries_the_screens_reason_and_the_table_shows_it(tmp_path):
+    """The same frame record: every single cause in diagnosis.json's candidates says
+    why the screen did not name it alone (None for the one it named, the baseline
+    without the key), and report.md's candidate table has that column, the named cause
+    reading "the screen named it"."""
+    from arfem.scenarios.diagnosis.report import _heat_flux_candidates
+    s = _document(tmp_path, "frame_expansion", 5)
+    why = {c["cause"]: c.get("not_named_alone_because", "absent") for c in s["candidates"]}
+    assert why.pop("none") == "absent"
+    assert why.pop("frame_expansion") is None, why
+    assert why and all(isinstance(v, str) and v for v in why.values()), why
+    rows = _heat_flux_candidates(s)
+    assert rows[0].endswith("| alone, not named because |"), rows[0]
+    named = next(r for r in rows if r.startswith("| frame_expansion |"))
+    assert named.endswith("| the screen named it |"), named
+    runner = next(r for r in rows if r.startswith(f"| {s['runner_up']['cause']} |"))
+    assert "it passes, but frame_expansion has a BIC lower by" in runner, runner
+
+
 def test_runner_up_of_a_record_in_the_wrong_unit_gives_rule_5s_reason(tmp_path):
     """Growth written in mm (a heat scale record, seed 3): rule 5 refuses every cause,
     and the runner-up says the record's magnitude is implausible, not a naming rule."""

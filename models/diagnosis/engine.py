@@ -844,6 +844,9 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
         # forward-chaining validation RMSE [µm] for speed-only ones
         "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
                         **(tests[c] if c in tests else {}),
+                        # the one pipeline's screen (q_W_m2 records): why not named alone
+                        **({"not_named_alone_because": branch.screen_reasons[c]}
+                           if c in branch.screen_reasons else {}),
                         **({"parameters": fits[c].parameters,
                             "fit_rmse_um": float(np.sqrt(fits[c].rss / max(fits[c].n, 1)))}
                            if fits.get(c) is not None and c not in branch.candidate_parameters

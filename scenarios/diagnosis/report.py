@@ -288,16 +288,23 @@ def _heat_flux_candidates(j: dict) -> list[str]:
     """The candidates of a q_W_m2 record: BIC score, F test, fit-RMSE cut (refused
     ones with their reason)."""
     L: list[str] = []
-    L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |",
-          "|---|---|---|---|---|"]
+    # the one pipeline's screen says why it did not name each cause alone
+    why = any("not_named_alone_because" in c for c in j["candidates"])
+    L += ["| candidate | BIC score | F-test p | fit-RMSE cut [%] | parameters |"
+          + (" alone, not named because |" if why else ""),
+          "|---|---|---|---|---|" + ("---|" if why else "")]
     for c in j["candidates"] + j.get("refused_candidates", []):
         if "refused" in c:
             L.append(f"| {c['cause']} | refused: {c['refused']} | – | – | " + ", ".join(
-                f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+                f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |"
+                + (" – |" if why else ""))
             continue
+        reason = " " + (c.get("not_named_alone_because") or (
+            "the screen named it" if "not_named_alone_because" in c else "–")) + " |"
         L.append(f"| {c['cause']} | {c['score']:.1f} | {st.format_p(c.get('p_value'))} | "
                  f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
-                     f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |")
+                     f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |"
+                 + (reason if why else ""))
     return L
 
 
