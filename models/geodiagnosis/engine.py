@@ -452,7 +452,7 @@ def _same_part(a, b) -> bool:
     lagging a thermometer and the same frame without the lag): one part twice, never a
     pair. No two different mesh causes share a parameter on one target or nest."""
     shared = {p.name for p in a.nonlinear_parameters} & {p.name for p in b.nonlinear_parameters}
-    return bool(a.target) and a.target == b.target and bool(shared) or \
+    return (bool(a.target) and a.target == b.target and bool(shared)) or \
         _nests(a, b) or _nests(b, a)
 
 

@@ -173,13 +173,13 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
         Q = sw2 * (1.0 - A * A) / (1.0 - phi * phi)
     K, F = np.empty(n), np.empty(n)
     # Python floats in the loop (a numpy scalar per step costs several times more)
-    a2 = [1.0] * n if A is None else (A * A).tolist()
+    a2 = None if A is None else (A * A).tolist()
     q, unit = Q.astype(float).tolist(), (gaps == 1).tolist()
     # next row at or after i that does not step by one (n: none)
     nxt = np.append(np.flatnonzero(gaps != 1), n)
     post, prior_last, i = 0.0, -1.0, 0
     while i < n:
-        prior = (post if A is None else a2[i] * post) + q[i]
+        prior = (post if a2 is None else a2[i] * post) + q[i]
         f = prior + se2
         k = prior / f
         F[i], K[i] = f, k
@@ -201,13 +201,15 @@ WALK_RATIOS = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
 #: the AR coefficients φ searched for a stationary slow state, and the stationary ratios
 #: κ = σ_w²/((1 − φ²) σ_e²) (the AR part's variance over the white part's) with each
 AR_COEFFICIENTS = (0.8, 0.9, 0.95, 0.98, 0.99, 0.995, 0.999)
-#: the range of log10(1 − φ) searched: φ within 0.8 .. 0.999. A slow state remembers at
-#: least ~5 samples: an AR(1) of small φ is white noise of another variance, and across
-#: sensor kinds (whose white σ the fit keeps in the ratio of their second differences)
-#: it freed one kind's variance instead (the coarse unit's probes at φ 0.002, seeds 1102
-#: and 1105 of tests/test_geodiagnosis_verdicts.py, their verdicts lost)
-_LOG_1M_PHI = (-3.0, float(np.log10(0.2)))
 AR_RATIOS = 10.0 ** np.arange(-2.0, 2.01, 1.0)
+#: the range of log10(1 − φ) the refinement keeps to: φ within the grid's ends. A slow
+#: state remembers at least ~5 samples: an AR(1) of small φ is white noise of another
+#: variance, and across sensor kinds (whose white σ the fit keeps in the ratio of their
+#: second differences) it freed one kind's variance instead (the coarse unit's probes at
+#: φ 0.002, seeds 1102 and 1105 of tests/test_geodiagnosis_verdicts.py, their verdicts
+#: lost)
+_LOG_1M_PHI = (float(np.log10(1.0 - max(AR_COEFFICIENTS))),
+               float(np.log10(1.0 - min(AR_COEFFICIENTS))))
 #: −2 log-likelihood an AR coefficient must gain over the random walk to be adopted: the
 #: χ² 99 % point on one degree of freedom (a parameter must pass a 1 % test, as the
 #: record's other extra parameters do); a walk stays a walk unless the data refuse it
@@ -217,9 +219,10 @@ AR_PENALTY = 6.635
 def profile_noise(m2ll) -> tuple:
     """The slow state that minimises ``m2ll(λ, φ)`` (−2 log-likelihood, any constant):
     (−2ℓ, λ, φ). A random walk first (φ = 1, λ on :data:`WALK_RATIOS`); then an AR(1)
-    (φ on :data:`AR_COEFFICIENTS`, κ on :data:`AR_RATIOS`, the best refined three times on
-    a 3 × 3 pattern in log κ and log(1 − φ), its steps halved each time), adopted only where it gains
-    more than :data:`AR_PENALTY`. One rule for every fit and test of the noise.
+    (φ on :data:`AR_COEFFICIENTS`, κ on :data:`AR_RATIOS`, the best refined three times
+    on a 3 × 3 pattern in log κ and log(1 − φ), its steps halved each time), adopted only
+    where it gains more than :data:`AR_PENALTY`. One rule for every fit and test of the
+    noise.
 
     A random walk's increments never forget: fitted to stationary correlated noise
     (e.g. a probe's AR(1) electronics, ρ 0.6-0.9 per sample) it takes a sensor's drift
@@ -238,7 +241,7 @@ def profile_noise(m2ll) -> tuple:
                for f in AR_COEFFICIENTS for k in AR_RATIOS)
     sk, sf = 0.5, 0.2
     for _ in range(3):
-        v0, lk, lf = best
+        _, lk, lf = best
         for dk in (-sk, 0.0, sk):
             for df in (-sf, 0.0, sf):
                 f = 1.0 - 10.0 ** min(max(lf + df, _LOG_1M_PHI[0]), _LOG_1M_PHI[1])
@@ -261,7 +264,8 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
     the ratio λ = σ_w²/σ_e² on a log grid (and 0), σ_e² profiled out, the regression's
     own degrees of freedom accounted for (a walk partly absorbed by X's columns, e.g. a
     sensor's offset and drift, is not taken for "no walk", as a variogram of the
-    residual would). :func:`reml_level_noise_pooled` of one channel.
+    residual would). :func:`reml_level_noise_pooled` of one channel. The slow state is a
+    random walk unless an AR(1) fits better by :data:`AR_PENALTY` (:func:`profile_noise`).
 
     Parameters
     ----------
@@ -269,9 +273,6 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
     X : ndarray (n, p), the largest model's columns on those rows
     idx : ndarray (n,) of int
     floor : float, smallest σ_e [record unit]
-
-    The slow state is a random walk unless an AR(1) fits better by
-    :data:`AR_PENALTY` (:func:`profile_noise`).
 
     Reference: Harville D. A., J. Amer. Statist. Assoc. 72 (1977) 320-338 (REML);
     Harvey (1989) sec. 3.4 (its prediction-error decomposition).
@@ -320,6 +321,13 @@ def _prepared(channels) -> list:
     return prep
 
 
+def _pooled_profile(prep) -> tuple:
+    """:func:`profile_noise` of the summed restricted log-likelihood of channels
+    ``prep`` (:func:`_prepared`), each with its own σ_e and regression: (−2ℓ, λ, φ)."""
+    return profile_noise(lambda lam, phi: sum(
+        _reml_terms(y, X, idx, lam, phi)[0] for y, X, idx, _ in prep))
+
+
 def reml_level_noise_pooled(channels) -> list:
     """REML of one ratio λ = σ_w²/σ_e² shared by several channels (sensors of one kind,
     e.g. the probes of one five-probe test), each with its own σ_e and its own
@@ -336,18 +344,16 @@ def reml_level_noise_pooled(channels) -> list:
     list of LevelNoise, one per channel
     """
     prep = _prepared(channels)
-    _, lam, phi = profile_noise(lambda lam, phi: sum(
-        _reml_terms(y, X, idx, lam, phi)[0] for y, X, idx, _ in prep))
+    _, lam, phi = _pooled_profile(prep)
     s2s = [_reml_terms(y, X, idx, lam, phi)[1] for y, X, idx, _ in prep]
     return [LevelNoise(max(float(np.sqrt(s2)), floor), float(np.sqrt(lam * s2)), phi)
             for s2, (_, _, _, floor) in zip(s2s, prep)]
 
 
-def _joint_terms(Y, Xs, idxs, sig, lams, phis=None):
+def _joint_terms(Y, Xs, idxs, sig, lams, phis):
     """(−2 restricted log-likelihood up to a constant, s²) of the joint regression:
     channel c's noise σ_c² s² (I + λ_c K_c(φ_c)), the columns shared across channels."""
     ys, xs, logF = [], [], 0.0
-    phis = [1.0] * len(lams) if phis is None else phis
     for y, X, idx, sc, lam, phi in zip(Y, Xs, idxs, sig, lams, phis):
         W = whitener(LevelNoise(sc, sc * float(np.sqrt(lam)), phi), idx)
         ys.append(W.apply(y))
@@ -373,9 +379,7 @@ def _kind_phi(Y, Xs, idxs, members) -> float:
     its own: on a clean white record of the coarse unit the probes took φ 0.8 and the
     nominal model was "not explained" (tests/test_geodiagnosis.py, seed 1004). Decided
     here, the AR(1) is adopted on its correlation alone."""
-    chans = _prepared([(Y[i], Xs[i], idxs[i], 0.0) for i in members])
-    return profile_noise(lambda lam, phi: sum(
-        _reml_terms(y, X, idx, lam, phi)[0] for y, X, idx, _ in chans))[2]
+    return _pooled_profile(_prepared([(Y[i], Xs[i], idxs[i], 0.0) for i in members]))[2]
 
 
 def _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps: int = 2) -> dict:
