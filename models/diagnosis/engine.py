@@ -312,6 +312,9 @@ class BranchResult:
     candidate_parameters : dict of str to dict
         Each candidate's fitted parameters where ``fits`` does not hold its fit
         (``q_W_m2`` records: the pipeline's screen).
+    contract_names : dict or None
+        The pipeline plant's cause names -> the contract's, where the plant is not the
+        rod (:func:`_diagnose_speed_plant`); None: the rod's :data:`CONTRACT_NAME`.
     screen_reasons : dict of str to str or None
         ``q_W_m2`` records: why the pipeline's screen did not name each single cause
         alone (:attr:`arfem.models.geodiagnosis.engine.Ranked.refused`, in the
@@ -347,6 +350,7 @@ class BranchResult:
     candidate_parameters: dict = field(default_factory=dict)
     pipeline: Diagnosis | None = None
     screen_reasons: dict = field(default_factory=dict)
+    contract_names: dict | None = None
 
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
@@ -424,24 +428,97 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
         screen_reasons=reasons)
 
 
-def _screened(ev, h0_W_m2K: float) -> tuple[dict, dict, dict, dict]:
+#: what the baseline of a speed_rpm record is on the one pipeline (PROTOTYPE, branch
+#: speedswitch; :func:`_diagnose_speed_plant`)
+SPEED_PLANT_LABEL = ("speed plant: one AR(1) of the speed-to-heat law (n/n_max)^p, its τ "
+                     "and p searched in every fit (arfem.models.diagnosis.speed_plant); "
+                     "no per-speed gains (paper eqs. 20-21)")
+
+
+def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
+    """speed_rpm records on the one pipeline (PROTOTYPE, ``speed_engine="plant"``):
+    :func:`arfem.models.geodiagnosis.engine.diagnose_plant` on the speed plant
+    (:func:`arfem.models.diagnosis.speed_plant.speed_plant_from_dataset`), written as
+    :func:`_diagnose_fem` writes the rod's: the named causes and their 95 % intervals in
+    the contract's names (:func:`~arfem.models.diagnosis.speed_plant.speed_contract_entries`),
+    every single cause's BIC on N_eff and F test as the candidates, the pipeline's
+    verdict. No rule 5 unit check (no nominal magnitude), no AR form, no export."""
+    from arfem.models.diagnosis.speed_plant import (contract_names, speed_contract_entries,
+                                                    speed_plant_from_dataset)
+    rod = ds.rod
+    rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
+    y, rows = r.y, r.rows
+    plant = speed_plant_from_dataset(ds)
+    names = contract_names(plant)
+    d = diagnose_plant(plant, holdout_start_s=r.start_s, progress=progress)
+    ev = d.evidence
+    noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
+    base = _pipeline_fit("none", "ar_speed_plant", {}, (), ev.baseline, y, rows)
+    tau_of = (lambda fit: float(getattr(fit.setting, "time_constant_h", 1.0)))
+
+    def entries_of(one):
+        return dict(speed_contract_entries((one,), tau_of(ev.baseline), rho_c_R)[0].parameters)
+    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K, names, entries_of)
+    named = ev.named
+    entries = () if named is None else sorted(
+        speed_contract_entries(named_causes(named), tau_of(named), rho_c_R),
+        key=lambda e: scores.get(e.cause, np.inf))
+    causes = tuple(e.cause for e in entries)
+    ext = base if not entries else _pipeline_fit(
+        "+".join(causes), "ar_speed_plant+" + "+".join(causes),
+        {k: v for e in entries for k, v in e.parameters.items()}, causes, named, y, rows)
+    for c in causes[:1]:
+        tests.setdefault(c, {})["named_by"] = "pipeline"
+    runner = next((c for c in sorted(scores, key=scores.get)
+                   if c not in causes and c != "none"), None)
+    alternatives = tuple(d.alternatives)
+    equivalent = None if not alternatives or not entries else {
+        "cause": " or ".join(_in_contract_names(a, names) for a in alternatives),
+        "parameters": {}, "excluded_by": None,
+        "why": f"within ±{DELTA_BIC:g} of its BIC on N_eff, and the whitened hold-out does "
+               "not tell them apart"}
+    return BranchResult(
+        fits={"none": base, **({ext.cause: ext} if entries else {})},
+        cause=causes[0] if causes else "none", causes=causes, runner=runner, scores=scores,
+        tests=tests, selection={"n": base.n, "rho1": float(st.lag1(ext.residual_um)),
+                                "n_eff": float(st.noise_n_eff(ext.residual_um)),
+                                "noise_sigma_um": noise,
+                                "pipeline_noise_sigma_um": float(ev.sigma.get("growth_um",
+                                                                              np.nan))},
+        extended=ext, baseline=base, time_constant_s=tau_of(ev.baseline) * 3600.0,
+        ar_forms={}, baseline_model="ar_speed_plant", score_kind="bic_on_n_eff",
+        rule=_FEM_RULE, ar_label=SPEED_PLANT_LABEL, equivalent=equivalent,
+        ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
+        not_applicable=tuple(c for c in CAUSES if c not in scores),
+        candidate_parameters=params, pipeline=d, screen_reasons=reasons,
+        contract_names=names)
+
+
+def _screened(ev, h0_W_m2K: float, names=None,
+              entries_of=None) -> tuple[dict, dict, dict, dict]:
     """The pipeline's screen of every single cause (``ev``: its evidence) in the
     contract's names: ({cause: BIC on N_eff}, the nominal's under ``none``; {cause: its
     naming test}; {cause: its fitted parameters}; {cause: why the screen did not name it
     alone, None where it did}). A cause the contract writes once though the plant has
-    two (a plain and a running-only h) keeps the better-ranked."""
+    two (a plain and a running-only h) keeps the better-ranked. ``names`` (plant cause
+    name -> contract name, default the rod's :data:`CONTRACT_NAME`) and ``entries_of``
+    (one :class:`NamedCause` -> its contract parameters, default the rod's) serve
+    another plant (:func:`_diagnose_speed_plant`)."""
+    names = CONTRACT_NAME if names is None else names
+    entries_of = entries_of or (
+        lambda one: dict(contract_entries((one,), h0_W_m2K)[0].parameters))
     level = naming_level(max(len(ev.ranking), 1))
     scores, tests, params, reasons = {}, {}, {}, {}
     for rk in ev.ranking:
-        c = CONTRACT_NAME.get(rk.cause, rk.cause)
+        c = names.get(rk.cause, rk.cause)
         if c in scores:
             continue
         scores[c] = float(rk.bic)
         tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
                     "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
         one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
-        params[c] = dict(contract_entries((one,), h0_W_m2K)[0].parameters)
-        reasons[c] = None if rk.refused is None else _in_contract_names(rk.refused)
+        params[c] = entries_of(one)
+        reasons[c] = None if rk.refused is None else _in_contract_names(rk.refused, names)
     scores["none"] = float(ev.baseline_bic)
     return scores, tests, params, reasons
 
@@ -672,7 +749,7 @@ def _runner_up(input_kind, cause, runner, fits, scores, tests, score_kind,
     candidate_parameters = candidate_parameters or {}
     score, other = scores[runner], scores.get(cause, float("nan"))
     test = tests.get(runner)
-    if input_kind == "q_W_m2":
+    if score_kind == "bic_on_n_eff":
         why = f"{_pipeline_lost(runner, branch)} (BIC {score:.1f}, {cause} {other:.1f})"
     elif test is not None and not test.get("significant", False):
         why = (f"{naming_test_text(test)} (validation RMSE {score:.3g} µm, {cause} "
@@ -743,7 +820,7 @@ def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
     entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
-    if branch.physics is not None:
+    if branch.physics is not None or branch.score_kind == "bic_on_n_eff":
         eq = branch.equivalent
         if eq is not None:
             summary["equivalent_alternative"] = eq
@@ -865,14 +942,17 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
     return summary
 
 
-def _in_contract_names(text: str) -> str:
-    """``text`` with the rod plant's cause names written as the contract's."""
-    for plant, contract in sorted(CONTRACT_NAME.items(), key=lambda kv: -len(kv[0])):
+def _in_contract_names(text: str, names=None) -> str:
+    """``text`` with the plant's cause names (``names``: plant -> contract, default the
+    rod plant's :data:`CONTRACT_NAME`) written as the contract's."""
+    names = CONTRACT_NAME if names is None else names
+    for plant, contract in sorted(names.items(), key=lambda kv: -len(kv[0])):
         text = contract.join(text.split(plant))
     return "+".join(text.split(" + "))
 
 
-def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0) -> None:
+def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0,
+                      names=None) -> None:
     """The one pipeline's verdict on a ``q_W_m2`` record (its rules:
     :mod:`arfem.models.diagnosis.verdict`, the evidence of every plant: the residual
     whitened by the channel's fitted noise, the whitened hold-out) written into
@@ -890,11 +970,12 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0) -
               "resolution": float(resolution_um or vd.DEFAULT_RESOLUTION), "whitened": True,
               "holds": bool(d.below_resolution or (white and not ch.thermometers_beyond
                                                   and not ev.data_baseline_better))}
-    subject = None if d.subject is None else _in_contract_names(d.subject)
+    subject = None if d.subject is None else _in_contract_names(d.subject, names)
     if subject is None and d.verdict == "not_explained" and summary.get("runner_up"):
         subject = summary["runner_up"]["cause"]
     vd.apply(summary, vd.Verdict(d.verdict, subject,
-                                 tuple(_in_contract_names(f) for f in d.failed), within))
+                                 tuple(_in_contract_names(f, names) for f in d.failed),
+                                 within))
     vdet = summary["verdict_detail"]
     vdet["best_candidate_beaten_by_mlr"] = bool(d.beaten_by_regression)
     vdet["text"] = vd.text(summary)
@@ -915,7 +996,7 @@ def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None,
 @one_blas_thread
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
              progress=None, intervals: bool = True, drift_last: bool = False,
-             on_fit=None) -> Diagnosis:
+             on_fit=None, speed_engine: str = "branch") -> Diagnosis:
     """Diagnose a loaded :class:`~arfem.models.diagnosis.dataset.Dataset`.
 
     Parameters
@@ -942,13 +1023,22 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         cause is fitted for naming (``rows``: the boolean fit rows; ``fit``: its
         :class:`~arfem.models.diagnosis.candidates.CandidateFit`, or None where it failed),
         for exploratory scripts that study every candidate, not only the one named.
+    speed_engine : {"branch", "plant"}
+        Speed-only records: the rod engine's speed branch (:func:`_diagnose_speed`, the
+        default, what every published figure ran) or the one pipeline on the speed
+        plant (:func:`_diagnose_speed_plant`, a PROTOTYPE on branch speedswitch;
+        ``frame_search``, ``intervals``, ``drift_last`` and ``on_fit`` do not apply).
     """
+    if speed_engine not in ("branch", "plant"):
+        raise ValueError(f"speed_engine: {speed_engine!r} is not 'branch' or 'plant'")
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
     r = _prepare_record(ds, holdout_start_s)
     text, warnings = [], []
     if ds.input_kind == "q_W_m2":
         branch = _diagnose_fem(ds, r, warnings, step)
+    elif speed_engine == "plant":
+        branch = _diagnose_speed_plant(ds, r, warnings, step)
     else:
         branch = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
                              warnings, step, intervals, drift_last, on_fit)
@@ -972,7 +1062,7 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
     if branch.pipeline is not None:
         _pipeline_verdict(summary, branch.pipeline,
-                          getattr(ds, "growth_resolution_um", 0.0))
+                          getattr(ds, "growth_resolution_um", 0.0), branch.contract_names)
     else:
         add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
                     getattr(ds, "growth_resolution_um", 0.0))

@@ -63,7 +63,8 @@ from arfem.models.plant import Design, Parameter, SelectionRules, cause, compone
 
 __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_dataset",
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT", "THERMOMETER_SMOOTHING_S",
-           "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS"]
+           "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "contract_names",
+           "speed_contract_entries"]
 
 #: The nominal model's time constant τ [h]: bounds 1 min .. 200 h, searched from 1 h
 #: (no "no effect": not a cause).
@@ -320,3 +321,39 @@ def contract_causes(causes) -> tuple:
     """
     return tuple((_CONTRACT.get(c.cause, c.name), dict(c.parameters), dict(c.ci95))
                  for c in causes)
+
+
+def contract_names(plant: SpeedPlant) -> dict:
+    """{plant cause name (``kind:target``): contract cause} of every candidate cause of
+    ``plant``, to write the pipeline's texts in the contract's names."""
+    return {c.name: _CONTRACT.get(c.kind, c.kind) for c in plant.candidate_causes()}
+
+
+def _h_stopped_W_m2K(rho_c_R_J_m2K: float, time_constant_h: float) -> float:
+    """The h at rest of the lumped rod (paper eq. 13, b = 2h/(ρcR) = 1/τ):
+    h = ρcR/(2τ) [W/(m²K)]."""
+    return rho_c_R_J_m2K / (2.0 * time_constant_h * 3600.0)
+
+
+def speed_contract_entries(causes, time_constant_h: float, rho_c_R_J_m2K: float) -> tuple:
+    """The named causes of a speed diagnosis as the measured-data contract writes them
+    (:class:`arfem.models.diagnosis.rod_plant.ContractCause`, in the order given).
+
+    ``time_constant_h``: the named fit's τ [h] (the nominal model's own parameter, no
+    interval); ``rho_c_R_J_m2K``: ρ·c·R of the ``[rod]`` [J/(m²K)], which turns τ into
+    the h at rest (paper eq. 13). PROTOTYPE (branch speedswitch): ``h_stopped_W_m2K``
+    has no interval (τ is not interval-estimated), the interval of ``h_running_W_m2K``
+    is the h_scale one at the fitted τ; a frame's gain stays ``frame_gain_um_per_K``
+    (per kelvin of its thermometer), not the contract's ``frame_gain`` (per unit of
+    the rod's growth), so it is absent from the contract's ``parameters``.
+    """
+    from arfem.models.diagnosis.rod_plant import ContractCause
+    h0 = _h_stopped_W_m2K(rho_c_R_J_m2K, time_constant_h)
+    out = []
+    for name, p, ci in contract_causes(causes):
+        if name == "speed_dependent_convection":
+            hs = ci.get("h_scale")
+            p = {"h_running_W_m2K": p["h_scale"] * h0, "h_stopped_W_m2K": h0}
+            ci = {} if hs is None else {"h_running_W_m2K": (hs[0] * h0, hs[1] * h0)}
+        out.append(ContractCause(name, p, {k: tuple(v) for k, v in ci.items()}))
+    return tuple(out)

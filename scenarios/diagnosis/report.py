@@ -262,7 +262,7 @@ def _residual_lines(j: dict) -> list[str]:
     b, e = j["baseline"], j["extended"]
     L: list[str] = []
     L += ["## What the nominal simulation gets wrong", "",
-         f"Baseline model: **{b['model']}** ({j['ar_form_description'] if b['model'] == 'ar' else 'FEM with the [rod] values, exact modal integration at the sample times'}).",
+         f"Baseline model: **{b['model']}** ({j['ar_form_description'] if b['model'] != 'fem' else 'FEM with the [rod] values, exact modal integration at the sample times'}).",
          "", "| measure | baseline | extended |", "|---|---|---|"]
     for k, lab in (("rmse_um", "RMSE [µm]"), ("max_abs_um", r"max \|error\| [µm]"),
                    ("fit_pct", "fit [%]"), ("ljung_box_p", "Ljung–Box p (eq. 19)")):
@@ -373,7 +373,9 @@ def _naming_lines(j: dict) -> list[str]:
     L = ["", "## Naming the cause", "", f"Rule: {sel['rule']}. "
           f"N = {sel['n']}, lag-1 autocorrelation {sel['rho1']:.3f}, "
           f"N_eff = {sel['n_eff']:.1f}.", ""]
-    L += _heat_flux_candidates(j) if j["input_kind"] == "q_W_m2" else _speed_candidates(j, sel)
+    # by how they were chosen: a speed record on the one pipeline (the speed plant,
+    # prototype) has BIC-screened candidates as a q_W_m2 record has
+    L += _speed_candidates(j, sel) if "validation_blocks_s" in sel else _heat_flux_candidates(j)
     L += _second_cause_lines(j)
     if j["not_applicable"]:
         L.append("")

@@ -107,6 +107,21 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     return out
 
 
+#: PROTOTYPE (branch speedswitch): ``ARFEM_SPEED_ENGINE=plant`` diagnoses a speed_rpm
+#: record on the one pipeline (:func:`arfem.models.diagnosis.engine._diagnose_speed_plant`);
+#: unset or ``branch``: the rod engine's speed branch, as published
+SPEED_ENGINE_VARIABLE = "ARFEM_SPEED_ENGINE"
+
+
+def _speed_engine() -> str:
+    """The speed engine :data:`SPEED_ENGINE_VARIABLE` selects (``branch`` if unset)."""
+    import os
+    v = os.environ.get(SPEED_ENGINE_VARIABLE, "branch") or "branch"
+    if v not in ("branch", "plant"):
+        raise InputError(f"{SPEED_ENGINE_VARIABLE}: {v!r} is not 'branch' or 'plant'")
+    return v
+
+
 def _rod_dataset(toml_path, limits):
     """The record read for the rod's diagnosis (``toml_path``, or its TOML as read: a
     :class:`arfem.scenarios.records.dataset.RecordDoc`); a mesh model's record (contract v3, or
@@ -128,7 +143,8 @@ def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(toml_path, limits)
-    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
+                    speed_engine=_speed_engine())
     return add_stability(diag, ds, stability, frame_search, drift_last, progress)
 
 
@@ -194,7 +210,8 @@ def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_searc
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(doc, limits)
-    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last)
+    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
+                    speed_engine=_speed_engine())
     diag = add_stability(diag, ds, stability, frame_search, drift_last, progress)
     if progress is not None:
         progress("writing outputs")
