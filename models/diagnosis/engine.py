@@ -455,10 +455,10 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     base = _pipeline_fit("none", "ar_speed_plant", {}, (), ev.baseline, y, rows)
     tau_of = (lambda fit: float(getattr(fit.setting, "time_constant_h", 1.0)))
-
-    def entries_of(one):
-        return dict(speed_contract_entries((one,), tau_of(ev.baseline), rho_c_R)[0].parameters)
-    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K, names, entries_of)
+    # the screen's candidates keep the plant's parameters (h_scale, not the h's): the
+    # screen (Ranked) does not keep each candidate's own τ, which the h's need
+    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K, names,
+                                               lambda one: dict(one.parameters))
     named = ev.named
     entries = () if named is None else sorted(
         speed_contract_entries(named_causes(named), tau_of(named), rho_c_R),
