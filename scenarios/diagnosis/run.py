@@ -171,7 +171,8 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
         if progress is not None:
             progress(f"stability: hold-out from {origin_s / 3600:.2f} h")
         return diagnose(ds, origin_s, frame_search, None, intervals=False,
-                        drift_last=drift_last).evidence.document
+                        drift_last=drift_last,
+                        speed_engine=_speed_engine()).evidence.document
 
     subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
     if s["verdict"] == "explained" and not s.get("causes"):
