@@ -441,3 +441,9 @@ class Plant(Protocol):
     def regrown(self, setting) -> "Plant":
         """The same plant with its reduced model rebuilt at ``setting`` (its reduction
         bias there removed); called only when ``regrows``."""
+
+    def reference_models(self, rows) -> tuple:
+        """The data-driven models this plant's users already trust beside the MLR of
+        eq. 18 (every plant's), fitted on ``rows`` (bool (N,)) and run over the record:
+        ((label, {column: prediction (N,)}), ...); () where there is none. The verdict
+        holds each as a data baseline (a named property of the plant)."""

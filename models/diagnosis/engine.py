@@ -432,7 +432,8 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
 #: speedswitch; :func:`_diagnose_speed_plant`)
 SPEED_PLANT_LABEL = ("speed plant: one AR(1) of the speed-to-heat law (n/n_max)^p, its τ "
                      "and p searched in every fit (arfem.models.diagnosis.speed_plant); "
-                     "no per-speed gains (paper eqs. 20-21)")
+                     "beside it, the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 "
+                     "for new speeds) is scored and held as a data baseline")
 
 
 def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
@@ -442,7 +443,9 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     :func:`_diagnose_fem` writes the rod's: the named causes and their 95 % intervals in
     the contract's names (:func:`~arfem.models.diagnosis.speed_plant.speed_contract_entries`),
     every single cause's BIC on N_eff and F test as the candidates, the pipeline's
-    verdict. No rule 5 unit check (no nominal magnitude), no AR form, no export."""
+    verdict; the paper AR(1) of eq. 17 (the plant's reference model, a data baseline of
+    the verdict) is scored as ``ar_form["paper_ar"]``. No rule 5 unit check (no nominal
+    magnitude), no export."""
     from arfem.models.diagnosis.speed_plant import (contract_names, speed_contract_entries,
                                                     speed_plant_from_dataset)
     rod = ds.rod
@@ -454,6 +457,8 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     ev = d.evidence
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     base = _pipeline_fit("none", "ar_speed_plant", {}, (), ev.baseline, y, rows)
+    (_, ref), = plant.reference_models(rows)
+    paper = CandidateFit("none", "ar", {}, ref[plant.channels[0].column], 0)
     tau_of = (lambda fit: float(getattr(fit.setting, "time_constant_h", 1.0)))
     # the screen's candidates keep the plant's parameters (h_scale, not the h's): the
     # screen (Ranked) does not keep each candidate's own τ, which the h's need
@@ -486,7 +491,8 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
                                 "pipeline_noise_sigma_um": float(ev.sigma.get("growth_um",
                                                                               np.nan))},
         extended=ext, baseline=base, time_constant_s=tau_of(ev.baseline) * 3600.0,
-        ar_forms={}, baseline_model="ar_speed_plant", score_kind="bic_on_n_eff",
+        ar_forms={"paper_ar": ArForm(paper, ext)}, baseline_model="ar_speed_plant",
+        score_kind="bic_on_n_eff",
         rule=_FEM_RULE, ar_label=SPEED_PLANT_LABEL, equivalent=equivalent,
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),

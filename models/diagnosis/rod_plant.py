@@ -259,6 +259,10 @@ class RodPlant:
         """The rod itself: its reduction is exact at every h (never called)."""
         return self
 
+    def reference_models(self, rows) -> tuple:
+        """None beside the MLR of eq. 18: the simulation is the model judged."""
+        return ()
+
 
 #: each single cause of the rod plant as the measured-data contract names it (a running-only
 #: h, with or without the plain h beside it, is ``speed_dependent_convection``)

@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from arfem.models.diagnosis.forward import ar_columns_rates, first_order_lag, intervals
+from arfem.models.diagnosis.speed import paper_ar, speed_to_heat_map
 from arfem.models.diagnosis.speed_frame import (centred_mean, frame_components,
                                                 temperature_matrix)
 from arfem.models.geodiagnosis.problem import Channel
@@ -63,8 +64,11 @@ from arfem.models.plant import Design, Parameter, SelectionRules, cause, compone
 
 __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_dataset",
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT", "THERMOMETER_SMOOTHING_S",
-           "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "contract_names",
+           "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "PAPER_AR_LABEL", "contract_names",
            "speed_contract_entries"]
+
+#: how the verdict names the paper's AR(1), the speed plant's reference model
+PAPER_AR_LABEL = "the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 for new speeds)"
 
 #: The nominal model's time constant τ [h]: bounds 1 min .. 200 h, searched from 1 h
 #: (no "no effect": not a cause).
@@ -273,6 +277,20 @@ class SpeedPlant:
     def regrown(self, setting: SpeedSetting) -> "SpeedPlant":
         """The plant itself (nothing is reduced; never called)."""
         return self
+
+    def reference_models(self, rows) -> tuple:
+        """The seed paper's own model as a data baseline: its AR(1) calibrated by eq. 17
+        on the one-step pairs of ``rows`` (C1 and one C2 per speed seen there; a speed
+        first met later by the early-rise mapping of eqs. 20-21), run free from the
+        first row -- what the rod engine's speed branch takes as its baseline
+        (:func:`arfem.models.diagnosis.speed.paper_ar`, the same function). A cause the
+        pipeline names must beat it too (:data:`PAPER_AR_LABEL`)."""
+        y = self.data[:, 0]
+        ok = np.asarray(rows, bool) & np.isfinite(y)
+        _, seen, W, _ = speed_to_heat_map(self.time_s, self.speed_rpm, self.temperatures, ok)
+        pred, _ = paper_ar(self.time_s, np.where(np.isfinite(y), y, 0.0), self.speed_rpm,
+                           ok, W, seen)
+        return ((PAPER_AR_LABEL, {self.channels[0].column: pred}),)
 
 
 def speed_plant(name: str, time_s, growth_um, speed_rpm, temperatures=None,

@@ -359,7 +359,9 @@ def _better_baselines(summary) -> dict:
     if summary.get("mlr"):
         models["MLR of eq. 18"] = summary["mlr"]["holdout_rmse_um"]
     for key, a in (summary.get("ar_form") or {}).items():
-        if a.get("baseline_model") != summary["baseline"]["model"]:
+        if key == "paper_ar":
+            models["paper AR(1) of eq. 17"] = a["baseline_holdout_rmse_um"]
+        elif a.get("baseline_model") != summary["baseline"]["model"]:
             models[f"{a['baseline_model']} ({key})"] = a["baseline_holdout_rmse_um"]
         elif key == "ar_output_error":
             models["AR(1) output-error"] = a["baseline_holdout_rmse_um"]

@@ -960,13 +960,15 @@ def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
            gain_w: float, alternatives=()) -> _Judgement:
     """The verdict by the rules of :mod:`arfem.models.diagnosis.verdict`: the hold-out
     table per channel (nominal, extended, MLR of eq. 18), the whiteness of the nominal
-    residual per channel, the practical floor and the data-driven baselines. The mesh
-    plant offers two (its named property ``data baselines``): the MLR of eq. 18 on the
-    thermometers, and the nominal model with its residual regressed on them (what the
-    thermometers add to the model: a housing that expands at 11.5e-6 where the model
-    says 10.5e-6 is caught by it, issue 41). Either better than the nominal model on a
-    channel's whitened hold-out, and the residual is not within the noise; better than
-    the best candidate's extended model, and that candidate is not explained.
+    residual per channel, the practical floor and the data-driven baselines: the MLR of
+    eq. 18 on the thermometers, the nominal model with its residual regressed on them
+    (what the thermometers add to the model: a housing that expands at 11.5e-6 where the
+    model says 10.5e-6 is caught by it, issue 41), and the plant's own reference models
+    (its named property :meth:`~arfem.models.plant.Plant.reference_models`: none for a
+    mesh or the rod, the paper AR(1) of eq. 17 for the speed plant). Any of them better
+    than the nominal model on a channel's whitened hold-out, and the residual is not
+    within the noise; better than the best candidate's extended model, and that
+    candidate is not explained.
 
     The MLR is compared on the whitened hold-out: its intercept, fitted on the window,
     holds a slow noise wander's level there that the nominal model (rightly) does not
@@ -974,6 +976,7 @@ def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
     ext = named if named is not None else base
     mlr = mlr_holdout(rec, train)
     grey = mlr_holdout(rec, train, base.prediction)
+    refs = tuple(rec.reference_models(train))
     table, mlr_better, beat = {}, False, None
     for j, c in enumerate(rec.channels):
         ok = hold & ctx.valid[:, j]
@@ -984,7 +987,7 @@ def _judge(ctx: FitContext, rec: Plant, base: Fit, named, train, hold,
         table[c.column] = (rms(base.prediction[:, j]), rms(ext.prediction[:, j]), m)
         for label, data_model in (("the MLR of eq. 18", mlr),
                                   ("the nominal model with its residual regressed on them",
-                                   grey)):
+                                   grey)) + refs:
             if c.column not in data_model:
                 continue
             P = base.prediction.copy()

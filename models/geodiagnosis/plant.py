@@ -124,6 +124,10 @@ class MeshPlant:
                             "rb": self.model.regrow(setting.h_scale, setting.kappa)})
         return MeshPlant(model, self.rec, self.load_shape)
 
+    def reference_models(self, rows) -> tuple:
+        """None beside the MLR of eq. 18: the simulation is the model judged."""
+        return ()
+
 
 def mesh_plant(model: GeoModel, rec: GeoRecord) -> MeshPlant:
     """The :class:`MeshPlant` of ``model`` on ``rec``."""
