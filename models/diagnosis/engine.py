@@ -1064,6 +1064,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     _add_version2(summary, branch, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)
     series = {"time_s": t, "growth_um": y, "baseline_um": base.prediction,
               "extended_um": ext.prediction, "outlier": (~good).astype(float)}
+    if "paper_ar" in branch.ar_forms:           # the speed plant's reference model
+        series["paper_ar_um"] = branch.ar_forms["paper_ar"].baseline.prediction
     series.update({k: v for k, v in r.signals.items() if k not in series})
     _add_mlr(summary, series, y, r.temps, r.rows, r.hold)
     if branch.pipeline is not None:

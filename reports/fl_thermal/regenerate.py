@@ -25,6 +25,7 @@ t >= 100 800 s; writes preregistered.json/.md. FULL.csv defaults to the whole re
     python reports/fl_thermal/regenerate.py --posthoc-split
     python reports/fl_thermal/regenerate.py --readme
     python reports/fl_thermal/regenerate.py --published-only [--stability N]
+    python reports/fl_thermal/regenerate.py --switch
 
 the rolling-origin evaluation of the published procedure and of the post hoc ones
 (``--frame-search average``; the same with ``--drift-last``, README.posthoc.md 1.3.1) on
@@ -33,7 +34,9 @@ machine), the post hoc procedure on the
 pre-registered split (posthoc_split.json, never into preregistered.json), README.md
 rebuilt from the stored results, and only the five published folders ch1-ch5 rerun (the
 experiments kept from experiments.json; ``--stability N`` adds the verdict's stability at
-up to N rolling origins, each costing one more diagnosis).
+up to N rolling origins, each costing one more diagnosis), and the pre-registered
+comparison of the speed engines (PREREGISTRATION.md, 2026-11-28: the one pipeline on the
+speed plant against the speed branch's published numbers, switch.json/md; run once).
 """
 from __future__ import annotations
 
@@ -103,9 +106,11 @@ def _one(job):
     data, ch, hs, search, out, *rest = job
     limits = rest[0] if rest else None
     job_stability = rest[1] if len(rest) > 1 else STABILITY_ORIGINS
+    engine = rest[2] if len(rest) > 2 else "branch"
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
-        return job[1:4], document(diagnose_file(toml, hs, search, limits=limits))
+        return job[1:4], document(diagnose_file(toml, hs, search, limits=limits,
+                                                speed_engine=engine))
     return job[1:4], run_diagnosis(toml, out, hs, True, search, limits=limits,
                                    stability=job_stability)
 
@@ -139,14 +144,16 @@ def retarget(data, csv, directory, channels=range(1, 6)) -> Path:
 
 
 def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1, 6),
-                         jobs=1, search="narrow"):
+                         jobs=1, search="narrow", engine="branch"):
     """Score the published procedure (narrow search) on ``csv`` -- a record in the
     columns of the shipped one -- with the hold-out from ``holdout_s`` on.
 
     Each channel's TOML from ``data`` is used as it is but for its ``csv`` line, which is
     pointed at ``csv`` (written to a temporary copy; nothing in ``data`` is touched).
     Returns ``{channel: (paper_ar_rmse_um, mlr_rmse_um, extended_rmse_um, summary)}``.
-    ``search`` other than "narrow" is not the pre-registered procedure (post hoc).
+    ``search`` other than "narrow" is not the pre-registered procedure (post hoc);
+    ``engine`` "pipeline" runs the one pipeline on the speed plant instead of the speed
+    branch (:func:`_run_switch`).
     """
     from concurrent.futures import ProcessPoolExecutor
 
@@ -155,7 +162,7 @@ def preregistered_scores(csv, data, holdout_s=PREREG_HOLDOUT_S, channels=range(1
     outside = Limits(csv_outside=True)                                 # csv is elsewhere
     with tempfile.TemporaryDirectory() as tmp:
         retarget(data, csv, tmp, channels)
-        args = [(tmp, ch, holdout_s, search, None, outside) for ch in channels]
+        args = [(tmp, ch, holdout_s, search, None, outside, 0, engine) for ch in channels]
         if jobs == 1:
             res = list(map(_one, args))
         else:
@@ -200,6 +207,127 @@ def _run_posthoc_split(csv, data, jobs, search="average") -> int:
     atomic_write_text(HERE / "posthoc_split.json", json.dumps(out, indent=1) + "\n")
     print(json.dumps(out, indent=1))
     return 0
+
+
+#: PREREGISTRATION.md (2026-11-28, issue 41): speed-only records move to the one pipeline
+#: only if its extended hold-out RMSE is at most SWITCH_FACTOR x the speed branch's
+#: published one on at least SWITCH_CHANNELS of the 5 channels, both at the 28 h split and
+#: in the median over the rolling origins, and no cause it establishes loses to the paper
+#: AR(1) on its split
+SWITCH_FACTOR = 1.10
+SWITCH_CHANNELS = 4
+
+
+def switch_outcome(split: dict, roll: dict, published_split: dict,
+                   published_roll: dict) -> dict:
+    """The pre-registered criterion of the speed switch (pure: numbers in, verdict out).
+
+    ``split``: {channel: {"extended_rmse_um", "paper_ar_rmse_um", "verdict"}} of the
+    pipeline at the 28 h split; ``roll``: {channel: {"median_extended_um", "established_
+    losing_to_paper_ar": int}} over the rolling origins; ``published_split``: {channel:
+    the speed branch's extended RMSE at the 28 h split} (preregistered.json);
+    ``published_roll``: {channel: its median over the origins} (rolling.json). Returns
+    {"split_within": [channels], "rolling_within": [...], "overclaims": [...], "passes"}.
+
+    >>> one = {"extended_rmse_um": 1.0, "paper_ar_rmse_um": 2.0, "verdict": "established"}
+    >>> r = switch_outcome({c: one for c in "abcde"},
+    ...                    {c: {"median_extended_um": 1.2, "established_losing_to_paper_ar": 0}
+    ...                     for c in "abcde"}, dict.fromkeys("abcde", 1.0),
+    ...                    dict.fromkeys("abcde", 1.0))
+    >>> len(r["split_within"]), len(r["rolling_within"]), r["passes"]
+    (5, 0, False)
+    """
+    within = [c for c in split
+              if split[c]["extended_rmse_um"] <= SWITCH_FACTOR * published_split[c]]
+    rolling = [c for c in roll
+               if roll[c]["median_extended_um"] <= SWITCH_FACTOR * published_roll[c]]
+    over = [f"{c} (28 h split)" for c, v in split.items()
+            if v["verdict"] == "established" and v["extended_rmse_um"] > v["paper_ar_rmse_um"]]
+    over += [f"{c} ({v['established_losing_to_paper_ar']} rolling origins)"
+             for c, v in roll.items() if v["established_losing_to_paper_ar"]]
+    return {"split_within": within, "rolling_within": rolling, "overclaims": over,
+            "passes": bool(len(within) >= SWITCH_CHANNELS and len(rolling) >= SWITCH_CHANNELS
+                           and not over)}
+
+
+def _commit() -> str:
+    """The checkout's commit, ``+dirty`` where the tree differs from it."""
+    import subprocess
+    run = lambda *a: subprocess.run(["git", *a], cwd=REPO, capture_output=True,  # noqa: E731
+                                    text=True).stdout.strip()
+    return run("rev-parse", "HEAD") + ("+dirty" if run("status", "--porcelain", "-uno") else "")
+
+
+def _run_switch(data, jobs) -> int:
+    """The pre-registered comparison of the speed engines (PREREGISTRATION.md,
+    2026-11-28): the one pipeline on the speed plant at the 28 h split and the rolling
+    origins, against the speed branch's published numbers (preregistered.json,
+    rolling.json); writes switch.json and switch.md. Run once."""
+    import time
+    t0 = time.time()
+    sp = preregistered_scores(Path(data) / WHOLE_CSV, data, jobs=jobs, engine="pipeline")
+    split = {f"ch{ch}": {"cause": named_cause(s), "verdict": s["verdict"],
+                         "extended_rmse_um": ext,
+                         "paper_ar_rmse_um": s["ar_form"]["paper_ar"]["baseline_holdout_rmse_um"],
+                         "nominal_rmse_um": s["holdout"]["baseline_rmse_um"],
+                         "mlr_rmse_um": ml}
+             for ch, (_, ml, ext, s) in sp.items()}
+    rs = rolling_scores(data, search="pipeline", jobs=jobs)
+    roll = {f"ch{ch}": {"median_extended_um": summ["rmse"]["extended"]["median_um"],
+                        "median_paper_ar_um": summ["rmse"]["paper_ar"]["median_um"],
+                        "established_losing_to_paper_ar": sum(
+                            o.info["verdict"] == "established"
+                            and o.rmse_um["extended"] > o.rmse_um["paper_ar"] for o in sc),
+                        "per_origin": [{"origin_s": o.origin_s, **{f"{k}_rmse_um": v for k, v
+                                                                    in o.rmse_um.items()},
+                                        **o.info} for o in sc]}
+            for ch, (sc, summ) in rs.items()}
+    pub_split = {c: v["extended_rmse_um"] for c, v in
+                 json.loads((HERE / "preregistered.json").read_text(encoding="utf-8")).items()}
+    pub_roll = {c: v["published"]["summary"]["rmse"]["extended"]["median_um"] for c, v in
+                json.loads((HERE / "rolling.json").read_text(encoding="utf-8"))[
+                    "channels"].items()}
+    out = {"commit": _commit(), "wall_time_s": time.time() - t0, "jobs": jobs,
+           "factor": SWITCH_FACTOR, "channels_needed": SWITCH_CHANNELS,
+           "split": split, "rolling": roll, "published_split_extended_rmse_um": pub_split,
+           "published_rolling_median_extended_um": pub_roll,
+           "outcome": switch_outcome(split, roll, pub_split, pub_roll)}
+    atomic_write_text(HERE / "switch.json", json.dumps(out, indent=1) + "\n")
+    text = _switch_text(out)
+    atomic_write_text(HERE / "switch.md", text)
+    print(text)
+    return 0
+
+
+def _switch_text(out) -> str:
+    """switch.md: the pre-registered comparison's table and outcome."""
+    o = out["outcome"]
+    rows = [f"| {c} | {v['cause']} ({v['verdict']}) | {v['paper_ar_rmse_um']:.2f} | "
+            f"{out['published_split_extended_rmse_um'][c]:.2f} | {v['extended_rmse_um']:.2f} | "
+            f"{'yes' if c in o['split_within'] else '**no**'} | "
+            f"{out['published_rolling_median_extended_um'][c]:.2f} | "
+            f"{out['rolling'][c]['median_extended_um']:.2f} | "
+            f"{'yes' if c in o['rolling_within'] else '**no**'} |"
+            for c, v in out["split"].items()]
+    return "\n".join([
+        "# The speed switch, pre-registered (PREREGISTRATION.md, 2026-11-28; issue 41)", "",
+        f"Run once, at commit `{out['commit']}` ({out['wall_time_s'] / 60:.0f} min on "
+        f"{out['jobs']} processes). **Not an out-of-sample test**: every row of this record "
+        "was in a scored hold-out before; it compares two fixed procedures. Hold-out RMSE "
+        "[µm]. *Branch*: the speed branch as published (preregistered.json, rolling.json); "
+        "*pipeline*: the one diagnosis pipeline on the speed plant, its defaults.", "",
+        "| channel | pipeline: cause (verdict), 28 h split | paper AR(1) | branch | pipeline "
+        f"| ≤ {out['factor']:g} × branch | rolling median: branch | pipeline | ≤ "
+        f"{out['factor']:g} × branch |",
+        "|---|---|---|---|---|---|---|---|---|", *rows, "",
+        f"Within {out['factor']:g} × the branch: {len(o['split_within'])} of 5 channels at "
+        f"the 28 h split, {len(o['rolling_within'])} of 5 in the rolling median (needed: "
+        f"{out['channels_needed']} at both). Established causes that lose to the paper "
+        f"AR(1) on their split: {', '.join(o['overclaims']) or 'none'}.", "",
+        "**Outcome: the criterion " + ("holds: speed-only records move to the one pipeline."
+                                       if o["passes"] else
+                                       "fails: speed-only records stay on the speed branch.")
+        + "**", ""])
 
 
 def _verdict(wins):
@@ -259,6 +387,12 @@ def _roll_fit(toml, search, n_train, y_train):
     ds = _dataset(str(toml))
     t = np.asarray(ds.time_s)
     ds_o = origin_dataset(ds, n_train, y_train)
+    if search == "pipeline":          # the one pipeline on the speed plant (_run_switch)
+        d = diagnose(ds_o, float(t[n_train]), speed_engine="pipeline")
+        s, doc = d.series, d.evidence.document
+        return ({"paper_ar": s["paper_ar_um"], "mlr": s["mlr_um"],
+                 "extended": s["extended_um"]},
+                {"cause": named_cause(doc), "verdict": doc["verdict"]})
     fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
     d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
                  intervals=False)     # predictions only: no jackknife refits
@@ -496,11 +630,16 @@ def main(argv=None) -> int:
                     help="published folders: the verdict's stability at up to N rolling "
                          "origins (arfem diagnose --stability; each origin costs one "
                          "diagnosis; default %(default)s = not computed)")
+    ap.add_argument("--switch", action="store_true",
+                    help="the pre-registered comparison of the speed engines "
+                         "(PREREGISTRATION.md, 2026-11-28): switch.json/md. Run once")
     ap.add_argument("--readme", action="store_true",
                     help="only rebuild README.md from the stored results (no diagnosis run)")
     a = ap.parse_args(argv)
     if a.readme:
         return _run_readme()
+    if a.switch:
+        return _run_switch(a.data, a.jobs)
     if a.posthoc_split:
         return _run_posthoc_split(Path(a.data) / WHOLE_CSV, a.data, a.jobs)
     if a.rolling or a.rolling_only:
