@@ -182,3 +182,27 @@ def test_arfem_diagnose_on_the_plant_writes_a_model_compensate_runs(tmp_path_fac
                  str(tmp_path / "comp"), "--score-from", "0"]) == 0
     s = json.loads((tmp_path / "comp" / "summary.json").read_text())
     assert s["axes"][0]["rms_after_um"] < 0.2 * s["axes"][0]["rms_before_um"], s["axes"]
+
+
+@pytest.mark.parametrize("thermometers,target", [(1, "T_frame_C"), (8, "pc1-3")])
+def test_a_lagged_frame_is_one_state_per_component_and_replays_its_fit(thermometers,
+                                                                       target):
+    """frame_lag (not named on seed 1's records, so fitted directly on the plant): one
+    lag state per thermometer or component, initial values from the record's first
+    row; the model on the smoothed thermometers is the fit's prediction to 1e-9 of
+    its peak (measured 3e-13 / 6e-13 µm)."""
+    from arfem.models.diagnosis.speed_plant import speed_plant
+    from arfem.models.geodiagnosis.fit import fit_mesh_causes, make_context
+    from arfem.models.plant import cause
+    case = generate_speed("frame_expansion", 1, thermometers=thermometers)
+    pl = speed_plant("r", case.time_s, case.growth_um, case.speed_rpm, case.temperatures)
+    f = fit_mesh_causes(make_context(pl), (cause("frame_lag", target),),
+                        np.ones(case.time_s.size, bool), intervals=False)
+    m = speed_plant_state_space(f, pl, 120.0)
+    assert m.n_states == 1 + (3 if target.startswith("pc") else 1)
+    cols = {k: pl._smoothed_C(k) for k in pl.temperatures} | {"speed_rpm": case.speed_rpm}
+    c = Compensator(m)
+    pred = [c.step({i.name: float(cols[i.name][k]) for i in m.inputs}).predicted_growth_um
+            for k in range(case.time_s.size)]
+    ref = f.prediction[:, 0]
+    assert np.max(np.abs(np.array(pred) - ref)) <= 1e-9 * np.max(np.abs(ref))
