@@ -116,6 +116,11 @@ class RodEvidence:
         The FEM rod the fits ran on (``q_W_m2`` records).
     speed : SpeedFrameInputs or None
         What a speed record's thermometer frame fit ran on.
+    plant_fit : tuple or None
+        A speed record diagnosed on the speed plant (``speed_engine="plant"``): (the
+        :class:`~arfem.models.diagnosis.speed_plant.SpeedPlant`, the pipeline's named
+        :class:`~arfem.models.geodiagnosis.fit.Fit`, its nominal fit where nothing was
+        named), for export (:func:`arfem.models.diagnosis.export.speed_plant_state_space`).
     """
 
     document: Mapping
@@ -123,6 +128,7 @@ class RodEvidence:
     extended: CandidateFit
     physics: FemPhysics | None = None
     speed: SpeedFrameInputs | None = None
+    plant_fit: tuple | None = None
 
 
 def _no_effect(names, nominal_h) -> dict:
@@ -324,6 +330,9 @@ class BranchResult:
         writes (:func:`_pipeline_verdict`); None where rule 5 refused every cause.
     speed_inputs : SpeedFrameInputs or None
         The inputs of a named thermometer frame fit (speed records), for export.
+    plant_fit : tuple or None
+        (speed plant, its named or nominal Fit) of :func:`_diagnose_speed_plant`, for
+        export (:attr:`RodEvidence.plant_fit`).
     """
 
     fits: dict
@@ -351,6 +360,7 @@ class BranchResult:
     pipeline: Diagnosis | None = None
     screen_reasons: dict = field(default_factory=dict)
     contract_names: dict | None = None
+    plant_fit: tuple | None = None
 
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
@@ -445,7 +455,7 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     every single cause's BIC on N_eff and F test as the candidates, the pipeline's
     verdict; the paper AR(1) of eq. 17 (the plant's reference model, a data baseline of
     the verdict) is scored as ``ar_form["paper_ar"]``. No rule 5 unit check (no nominal
-    magnitude), no export."""
+    magnitude); the plant and its fit kept for export (:attr:`BranchResult.plant_fit`)."""
     from arfem.models.diagnosis.speed_plant import (contract_names, speed_contract_entries,
                                                     speed_plant_from_dataset)
     rod = ds.rod
@@ -497,7 +507,7 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),
         candidate_parameters=params, pipeline=d, screen_reasons=reasons,
-        contract_names=names)
+        contract_names=names, plant_fit=(plant, ev.baseline if named is None else named))
 
 
 def _screened(ev, h0_W_m2K: float, names=None,
@@ -1075,7 +1085,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         add_verdict(summary, (y - base.prediction)[good], ds.rod.convection_W_m2K,
                     getattr(ds, "growth_resolution_um", 0.0))
     return typed_result(summary, series, lambda doc: RodEvidence(
-        doc, tuple(text), ext, branch.physics, branch.speed_inputs), ds.rod.convection_W_m2K)
+        doc, tuple(text), ext, branch.physics, branch.speed_inputs, branch.plant_fit),
+        ds.rod.convection_W_m2K)
 
 
 class _Record(NamedTuple):

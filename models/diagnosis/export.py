@@ -33,12 +33,15 @@ time-invariant (:func:`speed_state_space`).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from arfem.models.compensator import InputSpec, StateSpaceModel
 from arfem.params import InputError
 
-__all__ = ["fem_state_space", "speed_state_space", "NOT_LTI"]
+__all__ = ["fem_state_space", "speed_state_space", "speed_plant_state_space",
+           "NOT_LTI", "SPEED_MAP_POINTS"]
 
 #: causes whose model is not linear time-invariant at a fixed interval
 NOT_LTI = ("speed_dependent_convection", "nonlinear_convection")
@@ -198,35 +201,184 @@ def speed_state_space(fit, info, dtau_s: float, *, R_um2: float = 0.0,
     maps = {"speed_rpm": _speed_gain_table(seen, gains, info.W)}
     a = float(np.exp(-b * dtau_s))
     inputs = [InputSpec("speed_rpm", "1/min")]
-    A, B, C, x0 = [[a]], [[1.0 - a]], [1.0], [float(decay)]
-    D = [0.0]
-    offsets = {}
+    offsets, frames = {}, []
     k = int(gamma.size)
     if k:
-        names, T, mu, W = _component_weights(info, k)
+        rows = np.asarray(info.rows, bool)
+        names = [nm for nm, v in info.temps.items()
+                 if np.all(np.isfinite(np.asarray(v, float)))]
+        T = np.column_stack([np.asarray(info.temps[nm], float) for nm in names])
+        mu, W = _component_weights(T, rows, k)
         inputs += [InputSpec(nm, "°C") for nm in names]
         offsets = {nm: float(m) for nm, m in zip(names, mu)}
-        m = len(names)
-        if st.sensor_lag_h > 0:
-            al = float(np.exp(-dtau_s / (st.sensor_lag_h * 3600.0)))
-            n = 1 + k
-            A = np.diag([a] + [al] * k)
-            B = np.zeros((n, 1 + m))
-            B[0, 0] = 1.0 - a
-            B[1:, 1:] = (1.0 - al) * W.T
-            C = np.concatenate([[1.0], gamma])
-            x0 = np.concatenate([[decay], (T[0] - mu) @ W])
-            D = np.zeros(1 + m)
-        else:
-            A, B = np.array([[a]]), np.concatenate([[1.0 - a], np.zeros(m)])[None, :]
-            D = np.concatenate([[0.0], W @ gamma])
-    A, B = np.atleast_2d(np.asarray(A, float)), np.atleast_2d(np.asarray(B, float))
+        al = (float(np.exp(-dtau_s / (st.sensor_lag_h * 3600.0))) if st.sensor_lag_h > 0
+              else None)
+        frames.append(_Frame(np.vstack([np.zeros((1, k)), W]), gamma, al, (T[0] - mu) @ W))
+    b_rod = np.zeros(len(inputs))
+    b_rod[0] = 1.0 - a
+    A, B, C, D, x0 = _ar1_with_frames(a, b_rod, float(decay), frames)
     return StateSpaceModel(
         kind="extended:frame_expansion(thermometers)", dtau_s=float(dtau_s), A=A, B=B,
-        C=np.atleast_2d(np.asarray(C, float)), D=np.atleast_2d(np.asarray(D, float)),
-        inputs=tuple(inputs), x0=np.asarray(x0, float), d0_um=float(c),
+        C=C, D=D, inputs=tuple(inputs), x0=x0, d0_um=float(c),
         Q=float(fit.rss / max(fit.n, 1)), R=float(R_um2), description=description,
         arfem_version=arfem_version, input_maps=maps, input_offsets=offsets)
+
+
+def speed_plant_state_space(fit, plant, dtau_s: float, *, Q_um2: float = 0.0,
+                            R_um2: float = 0.0, description: str = "",
+                            arfem_version: str = "") -> StateSpaceModel:
+    """A fit of the speed plant (:mod:`arfem.models.diagnosis.speed_plant`) as a model at
+    interval Δτ.
+
+    The plant's prediction is G·AR1_b[(n/n_max)^p] + c·e^{−bt} [+ o] plus its causes'
+    columns, each AR(1) an exact zero-order-hold recursion at the step factor
+    a = e^{−Δτ/τ} (paper eqs. 12-13). As a state-space model (:func:`_ar1_with_frames`):
+
+    * one rod state, initial value c, input ``speed_rpm`` mapped to G·(n/n_max)^p
+      (``input_maps``: tabulated at the record's speeds and on a grid of
+      :data:`SPEED_MAP_POINTS` speeds from 0 to n_max; between two points linear, so a
+      speed of the record is exact and an unseen one within [0, n_max] follows the
+      fitted law to within the grid's linear interpolation (largest error, as a
+      fraction of G, on 65 points: 1.8e-4 at p = 5/3 or 3, 6.1e-5 at 2, 0 at 1, 3.1e-2
+      at p = 0.5, near rest where the law is steepest); a speed above n_max is
+      extrapolated linearly along the last segment and flagged ``extrapolated:speed_rpm``
+      by the compensator, below the law for p > 1);
+    * ``ambient_drift``: a second input of the rod state, ``ambient_C`` minus the
+      plant's reference, times the fitted ``ambient_gain_um_per_K``;
+    * ``frame_expansion:<T>`` / ``frame_lag:<T>``: the thermometer's reading minus its
+      first (smoothed) reading, times ``frame_gain_um_per_K``, straight through D or
+      through one lag state (from 0); on ``pc1-k``, the components as linear weights on
+      the thermometers (:func:`_component_weights` over every row), lagged from their
+      first value;
+    * the frame's unknown offset o: ``d0_um``.
+
+    The diagnosis smooths each thermometer by a centred mean
+    (:data:`~arfem.models.diagnosis.speed_plant.THERMOMETER_SMOOTHING_S`, ±6 min) before
+    it is a regressor; a compensator cannot read ahead, so the model reads the raw
+    thermometer and differs from the diagnosis's prediction by the frame's gain times
+    the thermometer's noise (exactly: the model run on the smoothed thermometers is
+    the prediction). Left out (said in ``description``): ``sensor_drift`` (its offset
+    and ramp are the sensor's, not the machine's growth).
+
+    Parameters
+    ----------
+    fit : Fit
+        The plant's fit (:class:`arfem.models.geodiagnosis.fit.Fit`: causes, setting and
+        prediction; its linear coefficients are solved back from the prediction on the
+        plant's own design, exact to round-off).
+    plant : SpeedPlant
+        The plant the fit ran on.
+    dtau_s : float
+        Interval Δτ [s] (the record's).
+    Q_um2, R_um2 : float
+        State noise and growth sensor noise variances [µm²].
+
+    Raises
+    ------
+    InputError
+        For a running-only rate (``convection_scale:running``; the contract's
+        ``speed_dependent_convection``): the rate depends on the speed, not a
+        time-invariant model.
+    """
+    causes = tuple(fit.causes)
+    kinds = tuple(c.kind for c in causes)
+    if "convection_scale" in kinds:
+        raise InputError("speed_dependent_convection changes the rod's rate with the speed: "
+                         "not a linear time-invariant model, so it is not exported",
+                         "model_extended.json")
+    s = fit.setting
+    beta, nuisance = _plant_coefficients(fit, plant)
+    a = float(np.exp(-dtau_s / (s.time_constant_h * 3600.0)))
+    inputs, offsets, b_rod, frames = _plant_inputs(fit, plant, beta, a, dtau_s)
+    A, B, C, D, x0 = _ar1_with_frames(a, b_rod, nuisance[1], frames)
+    desc = "; ".join(x for x in [description] + _left_out(kinds, {}) if x)
+    return StateSpaceModel(
+        kind="extended:" + "+".join(c.name for c in causes) if causes else "speed_plant",
+        dtau_s=float(dtau_s), A=A, B=B, C=C, D=D, inputs=tuple(inputs), x0=x0,
+        d0_um=float(nuisance[2]) if len(nuisance) > 2 else 0.0, Q=float(Q_um2),
+        R=float(R_um2), description=desc, arfem_version=arfem_version,
+        input_maps={"speed_rpm": _speed_law_table(plant, nuisance[0], s.heat_exponent)},
+        input_offsets=offsets)
+
+
+#: Speeds from 0 to the record's fastest at which the speed plant's law (n/n_max)^p is
+#: tabulated for :func:`speed_plant_state_space` (beside the record's own speeds)
+SPEED_MAP_POINTS = 65
+
+
+def _speed_law_table(plant, gain_um: float, p: float) -> tuple:
+    """(speeds [1/min], G·(n/n_max)^p [µm]): the speed plant's heat law at the record's
+    speeds and at :data:`SPEED_MAP_POINTS` speeds from 0 to n_max."""
+    sp = np.asarray(plant.speed_rpm, float)
+    n_max = float(np.max(sp))
+    xs = np.unique(np.concatenate([np.linspace(0.0, n_max, SPEED_MAP_POINTS),
+                                   sp[np.isfinite(sp) & (sp >= 0)]]))
+    return xs, gain_um * (xs / n_max) ** p
+
+
+def _plant_inputs(fit, plant, beta, a: float, dtau_s: float) -> tuple:
+    """(inputs, input_offsets, the rod state's input row, :class:`_Frame` s) of a speed
+    plant fit at the rod's step factor ``a``: ``speed_rpm``, ``ambient_C`` with an
+    ambient drift, then the frames' thermometers."""
+    kinds = tuple(c.kind for c in fit.causes)
+    inputs, offsets, frames = [InputSpec("speed_rpm", "1/min")], {}, []
+    rod = {"speed_rpm": 1.0 - a}
+    if "ambient_drift" in kinds:
+        inputs.append(InputSpec("ambient_C", "°C"))
+        offsets["ambient_C"] = float(plant.reference_C)
+        rod["ambient_C"] = (1.0 - a) * beta[kinds.index("ambient_drift")][0]
+    for c, b in zip(fit.causes, beta):
+        if c.kind in ("frame_expansion", "frame_lag"):
+            frames.append(_plant_frame(c, b, plant, fit.setting, dtau_s, inputs, offsets))
+    names = [i.name for i in inputs]
+    frames = [_Frame(np.vstack([w.get(nm, np.zeros(g.size)) for nm in names]), g, al, x0)
+              for w, g, al, x0 in frames]
+    return inputs, offsets, np.array([rod.get(nm, 0.0) for nm in names]), frames
+
+
+def _plant_coefficients(fit, plant) -> tuple:
+    """(per cause its linear coefficients, the nuisance coefficients (G, c[, o])) of a
+    speed plant fit: least squares of its prediction on its own design at its setting,
+    which reproduces it to round-off (refused otherwise: the fit is not this plant's)."""
+    d = plant.design(fit.causes, fit.setting)
+    cols = [np.asarray(c, float)[:, 0] for c in tuple(d.columns) + tuple(d.nuisance)]
+    target = np.asarray(fit.prediction, float)[:, 0] - np.asarray(d.base, float)[:, 0]
+    X = np.column_stack(cols)
+    beta, *_ = np.linalg.lstsq(X, target, rcond=None)
+    if np.max(np.abs(X @ beta - target)) > 1e-9 * max(1.0, float(np.max(np.abs(target)))):
+        raise ValueError("the fit's prediction is not on its plant's design")
+    out, j = [], 0
+    for c in fit.causes:
+        k = len(c.linear_parameters)
+        out.append(tuple(float(v) for v in beta[j:j + k]))
+        j += k
+    return out, tuple(float(v) for v in beta[j:])
+
+
+def _plant_frame(c, beta, plant, s, dtau_s, inputs, offsets) -> tuple:
+    """A speed plant's frame cause ``c`` as ({input: weights (k,)}, γ (k,), lag step
+    factor or None, initial lag states (k,)); its thermometers are appended to
+    ``inputs`` and their references to ``offsets``."""
+    from arfem.models.diagnosis.speed_frame import temperature_matrix
+    lag = c.kind == "frame_lag"
+    al = float(np.exp(-dtau_s / (s.frame_time_constant_h * 3600.0))) if lag else None
+    gamma = np.asarray(beta, float)
+    if c.target.startswith("pc1-"):
+        names, _ = temperature_matrix(plant.temperatures)
+        T = np.column_stack([plant._smoothed_C(nm) for nm in names])
+        mu, W = _component_weights(T, np.ones(T.shape[0], bool), gamma.size)
+        weights = {nm: W[i] for i, nm in enumerate(names)}
+        refs = dict(zip(names, mu))
+        x0 = (T[0] - mu) @ W
+    else:
+        T = plant._smoothed_C(c.target)
+        first = float(T[np.flatnonzero(np.isfinite(T))[0]])
+        weights, refs, x0 = {c.target: np.ones(1)}, {c.target: first}, np.zeros(1)
+    for nm, ref in refs.items():
+        if nm not in offsets:
+            inputs.append(InputSpec(nm, "°C"))
+            offsets[nm] = float(ref)
+    return weights, gamma, al, x0
 
 
 def _speed_gain_table(seen, gains, W):
@@ -239,18 +391,52 @@ def _speed_gain_table(seen, gains, W):
     return xs, np.array([level_gain[v] for v in xs])
 
 
-def _component_weights(info, k):
-    """The leading ``k`` principal components of the standardised temperatures as
-    weights on the raw ones: (names, T (N, m) [°C], fit-window means μ (m,) [°C],
-    W (m, k) [1/°C]) with component_j = Σ_i (T_i − μ_i) W_ij, as
+def _component_weights(T, rows, k):
+    """The leading ``k`` principal components of the standardised temperatures ``T``
+    (N, m) [°C] as weights on the raw ones: (μ (m,) [°C], W (m, k) [1/°C]) with
+    component_j = Σ_i (T_i − μ_i) W_ij, the standardisation and components from the
+    rows ``rows`` (N,) bool, as
     :func:`arfem.models.diagnosis.speed_frame.frame_components` makes them."""
-    rows = np.asarray(info.rows, bool)
-    names = [nm for nm, v in info.temps.items() if np.all(np.isfinite(np.asarray(v, float)))]
-    T = np.column_stack([np.asarray(info.temps[nm], float) for nm in names])
+    rows = np.asarray(rows, bool)
     mu, sd = T[rows].mean(0), T[rows].std(0)
     sd[sd == 0] = 1.0
     Z = (T - mu) / sd
     lam, V = np.linalg.eigh(Z[rows].T @ Z[rows])
     lam, V = lam[::-1], V[:, ::-1]
     scale = np.array([max(np.sqrt(max(lam[j], 0.0) / rows.sum()), 1e-12) for j in range(k)])
-    return names, T, mu, V[:, :k] / sd[:, None] / scale[None, :]
+    return mu, V[:, :k] / sd[:, None] / scale[None, :]
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """A frame that follows a linear combination of the model's inputs: components
+    c_j = Σ_i u_i W_ij (W (m, k), over every input, zero rows for the inputs it does not
+    read), through a first-order lag of step factor ``lag_a`` (one state each, initial
+    values ``x0`` (k,)) or, for ``lag_a`` None, straight through D; growth Σ_j γ_j c_j
+    (``gamma`` (k,) [µm per unit component])."""
+
+    W: np.ndarray
+    gamma: np.ndarray
+    lag_a: float | None
+    x0: np.ndarray
+
+
+def _ar1_with_frames(a: float, b_rod: np.ndarray, x0_rod: float, frames) -> tuple:
+    """(A, B, C, D, x0) of one AR(1) rod state (step factor ``a`` = e^{−Δτ/τ}, input row
+    ``b_rod`` (m,), initial value ``x0_rod`` [µm], output gain 1) beside the
+    :class:`_Frame` s ``frames``: the one state-space layout of a speed record's extended
+    model (:func:`speed_state_space`, :func:`speed_plant_state_space`)."""
+    b_rod = np.asarray(b_rod, float)
+    Ad, Brows, C, x0 = [a], [b_rod], [1.0], [x0_rod]
+    D = np.zeros(b_rod.size)
+    for f in frames:
+        gamma = np.asarray(f.gamma, float)
+        if f.lag_a is None:
+            D = D + np.asarray(f.W, float) @ gamma
+            continue
+        Ad += [f.lag_a] * gamma.size
+        Brows += list((1.0 - f.lag_a) * np.asarray(f.W, float).T)
+        C += list(gamma)
+        x0 += list(np.asarray(f.x0, float))
+    return (np.diag(np.asarray(Ad, float)), np.vstack(Brows), np.asarray(C, float)[None, :],
+            D[None, :], np.asarray(x0, float))

@@ -33,7 +33,10 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     A ``q_W_m2`` record gets the paper's AR(1) of its ``[rod]`` (eqs. 12-14, nothing
     fitted) and, given the :class:`Diagnosis` ``diag`` with a named cause, the extended
     model (:func:`arfem.models.diagnosis.export.fem_state_space`); a ``speed_rpm``
-    record the AR(1) calibrated by eq. 17 with its speed → C2 map; a record with complete
+    record the AR(1) calibrated by eq. 17 with its speed → C2 map and, given a named
+    cause, the extended model of the engine that named it (the speed branch's thermometer
+    frame, :func:`~arfem.models.diagnosis.export.speed_state_space`; the speed plant's,
+    :func:`~arfem.models.diagnosis.export.speed_plant_state_space`); a record with complete
     temperatures also the MLR of eq. 18. A model that cannot run as a compensator (C1 >=
     1, a cause with no linear time-invariant form) is not exported; the list
     ``"not_exported"`` says why.
@@ -69,28 +72,8 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     # the extended model of the cause the selection rules named, established or not
     # (an unconfirmed one is ``best_candidate`` in diagnosis.json; its file says so)
     if diag is not None and diag.causes:
-        from arfem.models.diagnosis import stats as st
-        from arfem.models.diagnosis.export import fem_state_space, speed_state_space
-        causes = " + ".join(c.name for c in diag.causes)
-        verdict = diag.verdict
-        label = ("" if verdict == "established" else
-                 f"; the best candidate, {verdict}: not established")
-        kw = {"R_um2": max(st.noise_sigma(ds.growth_um[fit]), ds.noise_floor_um) ** 2,
-              "arfem_version": __version__}
         try:
-            if diag.evidence.physics is not None:
-                out["model_extended.json"] = fem_state_space(
-                    diag.evidence.extended, diag.evidence.physics, dt,
-                    description=f"FEM rod with {causes} (the diagnosis's extended "
-                                f"model{label}), {span}", **kw)
-            elif diag.evidence.speed is not None:
-                out["model_extended.json"] = speed_state_space(
-                    diag.evidence.extended, diag.evidence.speed, dt,
-                    description=f"AR(1) of the speed + frame from thermometers (the "
-                                f"diagnosis's extended model{label}), {span}", **kw)
-            else:
-                why.append(f"model_extended.json: the extended model of this speed-only "
-                           f"record ({causes}) is not exported yet")
+            out["model_extended.json"] = _extended_model(ds, diag, dt, fit, span)
         except InputError as exc:
             why.append(f"model_extended.json: {exc}")
     temps = {k: np.asarray(v, float)[fit] for k, v in ds.temperatures.items()}
@@ -105,6 +88,44 @@ def compensator_models(ds, fit_end_s: float, diag=None) -> dict:
     if why:
         out["not_exported"] = why
     return out
+
+
+def _extended_model(ds, diag, dt: float, fit, span: str):
+    """The extended model of the causes ``diag`` named, as a compensator, by the engine
+    that named them (``fit``: the fit rows; ``span``: the fit window in words);
+    InputError where it has no such form."""
+    import numpy as np
+
+    from arfem import __version__
+    from arfem.models.diagnosis import stats as st
+    from arfem.models.diagnosis.export import (fem_state_space, speed_plant_state_space,
+                                               speed_state_space)
+    causes = " + ".join(c.name for c in diag.causes)
+    verdict = diag.verdict
+    label = ("" if verdict == "established" else
+             f"; the best candidate, {verdict}: not established")
+    kw = {"R_um2": max(st.noise_sigma(np.asarray(ds.growth_um)[fit]), ds.noise_floor_um) ** 2,
+          "arfem_version": __version__}
+    ev = diag.evidence
+    if ev.physics is not None:
+        return fem_state_space(ev.extended, ev.physics, dt,
+                               description=f"FEM rod with {causes} (the diagnosis's extended "
+                                           f"model{label}), {span}", **kw)
+    if ev.speed is not None:
+        return speed_state_space(ev.extended, ev.speed, dt,
+                                 description=f"AR(1) of the speed + frame from thermometers "
+                                             f"(the diagnosis's extended model{label}), "
+                                             f"{span}", **kw)
+    if ev.plant_fit is not None:
+        plant, named = ev.plant_fit
+        return speed_plant_state_space(
+            named, plant, dt, Q_um2=ev.extended.rss / max(ev.extended.n, 1),
+            description=f"speed plant: AR(1) of the speed-to-heat law (n/n_max)^p with "
+                        f"{causes} (the diagnosis's extended model{label}); thermometers "
+                        f"read raw (the diagnosis smooths them by a centred mean), {span}",
+            **kw)
+    raise InputError(f"the extended model of this speed-only record ({causes}) is not "
+                     f"exported yet")
 
 
 #: PROTOTYPE (branch speedswitch): ``ARFEM_SPEED_ENGINE=plant`` diagnoses a speed_rpm
