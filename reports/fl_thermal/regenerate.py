@@ -57,6 +57,10 @@ DATA = REPO / "scenarios" / "data" / "fl_thermal"
 WHOLE_CSV = "fl_thermal_whole.csv"
 #: rows of the first 28 h (t <= 100 800 s), on which the published table was made
 FIRST_28H_ROWS = 6721
+#: the engine every diagnosis here runs on: the rod engine's speed branch, the published
+#: procedure, pinned so that no default of ``arfem diagnose`` can change what this
+#: script reproduces (the one pipeline on this record: PREREGISTRATION.md, last section)
+SPEED_ENGINE = "branch"
 
 from arfem.scenarios.diagnosis.run import diagnose_file
 from arfem.scenarios.diagnosis.run import run_diagnosis
@@ -105,9 +109,10 @@ def _one(job):
     job_stability = rest[1] if len(rest) > 1 else STABILITY_ORIGINS
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
-        return job[1:4], document(diagnose_file(toml, hs, search, limits=limits))
+        return job[1:4], document(diagnose_file(toml, hs, search, limits=limits,
+                                                speed_engine=SPEED_ENGINE))
     return job[1:4], run_diagnosis(toml, out, hs, True, search, limits=limits,
-                                   stability=job_stability)
+                                   stability=job_stability, speed_engine=SPEED_ENGINE)
 
 
 def _scores(s):
@@ -261,7 +266,8 @@ def _roll_fit(toml, search, n_train, y_train):
     ds_o = origin_dataset(ds, n_train, y_train)
     fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
     d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
-                 intervals=False)     # predictions only: no jackknife refits
+                 intervals=False,     # predictions only: no jackknife refits
+                 speed_engine=SPEED_ENGINE)
     s = d.series
     fs = d.evidence.document["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},

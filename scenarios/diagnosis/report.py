@@ -400,8 +400,22 @@ def _naming_lines(j: dict) -> list[str]:
     return L
 
 
+#: report.md's line on the engine that diagnosed a speed_rpm record
+#: (diagnosis.json ``selection.speed_engine``; ``arfem diagnose --speed-engine``)
+_SPEED_ENGINE_LINE = {
+    "branch": "Speed engine: `branch`, the rod engine's speed branch (candidates chosen by "
+              "forward-chaining validation; the published procedure, the default).",
+    "pipeline": "Speed engine: `pipeline`, the one diagnosis pipeline on the speed plant "
+                "(candidates screened by BIC on N_eff; a prototype, chosen with "
+                "`--speed-engine pipeline`)."}
+
+
 def _markdown(diag, j: dict) -> str:
-    L = [f"# Diagnosis of `{j['dataset']}`", ""] + verdict(j)
+    L = [f"# Diagnosis of `{j['dataset']}`", ""]
+    engine = j["selection"].get("speed_engine")
+    if engine in _SPEED_ENGINE_LINE:
+        L += [_SPEED_ENGINE_LINE[engine], ""]
+    L += verdict(j)
     for w in j.get("warnings", []):
         L += [f"> **Warning:** {w}", ""]
     L += _cause_lines(j) + _residual_lines(j) + _naming_lines(j)
