@@ -1172,7 +1172,7 @@ def _initial_of(given: str | None, recorded: str, where: str) -> str:
 def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLike], *,
              rod: Rod | None = None, holdout_start_s: float | None = None,
              initial: str | None = None, name: str = "dataframe",
-             frame_search: str = "narrow",
+             frame_search: str = "narrow", speed_engine: str = "branch",
              progress: bool | Callable[[str], None] = False) -> DiagnosisResult:
     """What does the simulation get wrong on a measured record, and why?
 
@@ -1201,6 +1201,11 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
         The record's name in the result (samples only).
     frame_search : {"narrow", "wide", "average"}
         Speed-only records: frame structures compared (see ``arfem diagnose --help``).
+    speed_engine : {"branch", "pipeline"}
+        ``speed_rpm`` records (``arfem diagnose --speed-engine``): the rod engine's speed
+        branch (the default, published) or the one pipeline on the speed plant (a
+        prototype; ``frame_search`` must then stay ``"narrow"``, else ValueError). Which
+        one ran: ``summary["selection"]["speed_engine"]``.
     progress : bool or callable
         True: show the step under way and the elapsed time on stderr (a real record
         takes seconds to a minute); a callable is called with each step's name instead.
@@ -1238,13 +1243,23 @@ def diagnose(data: Record | str | Path | pandas.DataFrame | Mapping[str, ArrayLi
         # asked for: shown even where stderr is no terminal (a notebook's)
         with Progress(12, "arfem.diagnose", enabled=bool(progress), tty=True) as bar:
             return diagnose(data, rod=rod, holdout_start_s=holdout_start_s, initial=initial,
-                            name=name, frame_search=frame_search, progress=bar)
+                            name=name, frame_search=frame_search,
+                            speed_engine=speed_engine, progress=bar)
+    return _route(data, rod, holdout_start_s, initial, name, frame_search, speed_engine,
+                  progress)
+
+
+def _route(data, rod, holdout_start_s, initial, name, frame_search, speed_engine,
+           progress) -> DiagnosisResult:
+    """:func:`diagnose` with ``progress`` a callable: a path's TOML read once, and a mesh
+    record diagnosed on its mesh, every other record on the rod."""
     progress("reading the dataset")
     if isinstance(data, (str, Path)):
         data = _record_doc(data, rod=rod, initial=initial)     # the TOML, read once
         if data.is_mesh:
             return _diagnose_mesh(data, holdout_start_s, progress)
-    return _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search, progress)
+    return _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search, progress,
+                         speed_engine)
 
 
 def _record_doc(path, **rod_only):
@@ -1261,16 +1276,17 @@ def _record_doc(path, **rod_only):
 
 
 def _diagnose_rod(data, rod, holdout_start_s, initial, name, frame_search,
-                  progress) -> DiagnosisResult:
+                  progress, speed_engine="branch") -> DiagnosisResult:
     """:func:`diagnose` of a rod record (``data`` a :class:`Record`, the TOML as read, or
-    samples); the warnings of what was assumed join the result's."""
+    samples) on ``speed_engine`` where it is a speed record; the warnings of what was
+    assumed join the result's."""
     import dataclasses
 
     from arfem.models.diagnosis.engine import diagnose as _diagnose
     from arfem.models.diagnosis.result import frozen_mapping
     from arfem.scenarios.diagnosis.document import document
     ds, assumed = _dataset_of(data, rod, initial, name)
-    d = _diagnose(ds, holdout_start_s, frame_search, progress)
+    d = _diagnose(ds, holdout_start_s, frame_search, progress, speed_engine=speed_engine)
     summary = document(d)
     if assumed:
         summary["warnings"] = [*summary.get("warnings", []), *assumed]

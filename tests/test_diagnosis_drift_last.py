@@ -45,21 +45,28 @@ def test_drift_is_named_only_if_no_input_driven_cause_passes(robust):
 
 def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):
     """``arfem diagnose --drift-last`` passes drift_last=True to the engine (and the
-    default passes False): the engine is replaced by a recorder that stops the run."""
+    default passes False), ``--speed-engine`` its engine (default the speed branch): the
+    engine is replaced by a recorder that stops the run."""
+    from types import SimpleNamespace
+
     import arfem.scenarios.diagnosis.run as d
     seen = []
 
     class Stop(Exception):
         pass
 
-    def fake(ds, hs, search, progress, drift_last=False):
-        seen.append((search, drift_last))
+    def fake(ds, hs, search, progress, drift_last=False, speed_engine="branch"):
+        seen.append((search, drift_last, speed_engine))
         raise Stop
-    monkeypatch.setattr(d, "load_dataset", lambda path, limits=None: None)
+    monkeypatch.setattr(d, "load_dataset",
+                        lambda path, limits=None: SimpleNamespace(input_kind="speed_rpm",
+                                                                  source=path))
     monkeypatch.setattr(d, "diagnose", fake)
     (tmp_path / "x.toml").write_text("")
-    for extra, want in (([], ("narrow", False)),
-                        (["--frame-search", "average", "--drift-last"], ("average", True))):
+    for extra, want in (([], ("narrow", False, "branch")),
+                        (["--frame-search", "average", "--drift-last"],
+                         ("average", True, "branch")),
+                        (["--speed-engine", "pipeline"], ("narrow", False, "pipeline"))):
         with pytest.raises(Stop):
             cli(["diagnose", str(tmp_path / "x.toml"), "--out", str(tmp_path / "o"),
                  "--no-progress", *extra])

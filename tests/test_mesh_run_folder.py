@@ -153,6 +153,21 @@ def test_diagnose_routes_the_runs_record_to_the_mesh_and_names_no_cause(run_dir,
     assert s["cause"] == "none" and s["causes"] == [], s["verdict_text"]
 
 
+def test_diagnose_refuses_the_speed_branch_on_a_mesh_record(run_dir, tmp_path):
+    """A mesh record is always diagnosed by the one pipeline: ``--speed-engine branch``
+    (the rod's speed branch) is refused in one line naming the record, before any work,
+    nothing written; ``--speed-engine pipeline`` with the branch's --frame-search too."""
+    rec = str(run_dir / "out" / "record.toml")
+    for extra, words in ((["--speed-engine", "branch"], ("record.toml: --speed-engine branch",
+                                                        "mesh record")),
+                         (["--speed-engine", "pipeline", "--frame-search", "wide"],
+                          ("--frame-search: does not apply",))):
+        r = _cli("diagnose", rec, "--out", str(tmp_path / "d"), "--no-progress", *extra)
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert all(w in r.stderr for w in words), r.stderr
+        assert not (tmp_path / "d").exists()
+
+
 def test_python_api_diagnoses_the_runs_record_on_its_mesh(run_dir):
     """arfem.diagnose_mesh(record.toml), the Python door to the mesh diagnosis, on the
     FEM's own record: no cause established (the nominal model is the record), the verdict

@@ -1,5 +1,5 @@
 """``model_extended.json`` of a ``speed_rpm`` record diagnosed on the speed plant
-(``speed_engine="plant"``; :func:`arfem.models.diagnosis.export.speed_plant_state_space`).
+(``speed_engine="pipeline"``; :func:`arfem.models.diagnosis.export.speed_plant_state_space`).
 
 Synthetic records only (:func:`arfem.models.diagnosis.synth_speed.generate_speed`, seed 1,
 as ``benchmarks/bench_speed_plant.py`` writes them): never FL_THERMAL (pre-registration). What is verified and why:
@@ -20,7 +20,7 @@ as ``benchmarks/bench_speed_plant.py`` writes them): never FL_THERMAL (pre-regis
   a clean record (nothing named) gets no model_extended.json, as a q_W_m2 record;
 * the speed map is the fitted law at the record's speeds (exact) and near it between
   them; a speed above the record's fastest is flagged ``extrapolated:speed_rpm``;
-* ``ARFEM_SPEED_ENGINE=plant arfem diagnose`` writes model_extended.json (no "not
+* ``arfem diagnose --speed-engine pipeline`` writes model_extended.json (no "not
   exported yet" note) and ``arfem compensate`` runs it.
 """
 from __future__ import annotations
@@ -70,7 +70,7 @@ def diagnosed(tmp_path_factory, cause: str, thermometers: int = 1):
             y = y - case.truth["drift_um_per_h"] * case.time_s / 3600.0
         toml = _write(tmp_path_factory.mktemp(f"{cause}{thermometers}"), case, y)
         ds = load_dataset(toml)
-        _CACHE[key] = ds, diagnose(ds, case.holdout_start_s, speed_engine="plant"), toml
+        _CACHE[key] = ds, diagnose(ds, case.holdout_start_s, speed_engine="pipeline"), toml
     return _CACHE[key]
 
 
@@ -172,9 +172,9 @@ def test_arfem_diagnose_on_the_plant_writes_a_model_compensate_runs(tmp_path_fac
                                                                      capsys):
     from arfem.scenarios.cli import main
     _, _, toml = diagnosed(tmp_path_factory, "frame_expansion")
-    monkeypatch.setenv("ARFEM_SPEED_ENGINE", "plant")
     out = tmp_path / "diag"
-    assert main(["diagnose", str(toml), "--out", str(out), "--no-progress"]) == 0
+    assert main(["diagnose", str(toml), "--out", str(out), "--no-progress",
+                 "--speed-engine", "pipeline"]) == 0
     assert "not exported" not in capsys.readouterr().out
     doc = json.loads((out / "model_extended.json").read_text())
     assert doc["kind"] == "extended:frame_expansion:T_frame_C"

@@ -41,7 +41,7 @@ def drift6(tmp_path_factory):
 def test_the_reference_is_the_speed_branchs_paper_ar_baseline(drift6):
     ds, h0 = drift6
     branch = diagnose(ds, h0, intervals=False)
-    pipeline = diagnose(ds, h0, speed_engine="plant")
+    pipeline = diagnose(ds, h0, speed_engine="pipeline")
     ref = pipeline.evidence.document["ar_form"]["paper_ar"]
     assert ref["baseline_model"] == "ar"
     assert ref["baseline_holdout_rmse_um"] == pytest.approx(
@@ -53,5 +53,5 @@ def test_a_paper_ar_better_than_the_nominal_keeps_the_record_from_explained(drif
     d = diagnose_plant(speed_plant_from_dataset(ds), holdout_start_s=h0)
     assert d.evidence.data_baseline_better
     assert d.verdict == "not_explained", d.verdict
-    doc = diagnose(ds, h0, speed_engine="plant").evidence.document
+    doc = diagnose(ds, h0, speed_engine="pipeline").evidence.document
     assert "paper AR(1) of eq. 17 does better on the hold-out" in doc["verdict_detail"]["text"]

@@ -75,7 +75,8 @@ from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diag
                                            NamedCause, frozen_mapping)
 
 __all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN",
-           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "INFORMATIVE_NOISE_LEVELS"]
+           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "INFORMATIVE_NOISE_LEVELS",
+           "SPEED_ENGINES", "BRANCH_ONLY"]
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
@@ -117,7 +118,7 @@ class RodEvidence:
     speed : SpeedFrameInputs or None
         What a speed record's thermometer frame fit ran on.
     plant_fit : tuple or None
-        A speed record diagnosed on the speed plant (``speed_engine="plant"``): (the
+        A speed record diagnosed on the speed plant (``speed_engine="pipeline"``): (the
         :class:`~arfem.models.diagnosis.speed_plant.SpeedPlant`, the pipeline's named
         :class:`~arfem.models.geodiagnosis.fit.Fit`, its nominal fit where nothing was
         named), for export (:func:`arfem.models.diagnosis.export.speed_plant_state_space`).
@@ -447,7 +448,7 @@ SPEED_PLANT_LABEL = ("speed plant: one AR(1) of the speed-to-heat law (n/n_max)^
 
 
 def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
-    """speed_rpm records on the one pipeline (PROTOTYPE, ``speed_engine="plant"``):
+    """speed_rpm records on the one pipeline (PROTOTYPE, ``speed_engine="pipeline"``):
     :func:`arfem.models.geodiagnosis.engine.diagnose_plant` on the speed plant
     (:func:`arfem.models.diagnosis.speed_plant.speed_plant_from_dataset`), written as
     :func:`_diagnose_fem` writes the rod's: the named causes and their 95 % intervals in
@@ -1009,6 +1010,35 @@ def add_verdict(summary: dict, baseline_residual, nominal_h_W_m2K=None,
                                 resolution_um or vd.DEFAULT_RESOLUTION))
 
 
+#: The engines a ``speed_rpm`` record can be diagnosed on (:func:`diagnose`'s
+#: ``speed_engine``): the rod engine's speed branch (published) and the one pipeline.
+SPEED_ENGINES = ("branch", "pipeline")
+
+#: The speed branch's options, each with why it does not apply to the pipeline (one
+#: wording, for :func:`diagnose`'s ValueError and for ``arfem diagnose``'s error line).
+BRANCH_ONLY = {
+    "frame_search": "the pipeline offers frames per thermometer (on 3 principal "
+                    "components above 3 thermometers), not a search over frame structures",
+    "intervals": "the pipeline always computes its intervals",
+    "drift_last": "the pipeline has no drift-last rule (it names sensor_drift by the "
+                  "same screen as every cause)",
+    "on_fit": "the pipeline screens the candidates together and makes no per-candidate "
+              "naming fit to report"}
+
+
+def _check_speed_engine(speed_engine, frame_search, intervals, drift_last, on_fit) -> None:
+    """ValueError for an unknown ``speed_engine``, or a speed-branch option
+    (:data:`BRANCH_ONLY`) given with the pipeline."""
+    if speed_engine not in SPEED_ENGINES:
+        raise ValueError(f"speed_engine: {speed_engine!r} is not 'branch' or 'pipeline'")
+    given = {"frame_search": frame_search != "narrow", "intervals": not intervals,
+             "drift_last": bool(drift_last), "on_fit": on_fit is not None}
+    for key, on in given.items():
+        if on and speed_engine == "pipeline":
+            raise ValueError(f"{key}: applies to speed_engine='branch' only; "
+                             f"{BRANCH_ONLY[key]}")
+
+
 @one_blas_thread
 def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
              progress=None, intervals: bool = True, drift_last: bool = False,
@@ -1039,21 +1069,21 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
         cause is fitted for naming (``rows``: the boolean fit rows; ``fit``: its
         :class:`~arfem.models.diagnosis.candidates.CandidateFit`, or None where it failed),
         for exploratory scripts that study every candidate, not only the one named.
-    speed_engine : {"branch", "plant"}
-        Speed-only records: the rod engine's speed branch (:func:`_diagnose_speed`, the
-        default, what every published figure ran) or the one pipeline on the speed
-        plant (:func:`_diagnose_speed_plant`, a PROTOTYPE on branch speedswitch;
-        ``frame_search``, ``intervals``, ``drift_last`` and ``on_fit`` do not apply).
+    speed_engine : {"branch", "pipeline"}
+        Speed-only records (written as ``selection["speed_engine"]``): the rod engine's
+        speed branch (:func:`_diagnose_speed`, the default, the published procedure) or
+        the one pipeline on the speed plant (:func:`_diagnose_speed_plant`, a prototype);
+        ``frame_search``, ``intervals``, ``drift_last`` and ``on_fit`` are the branch's:
+        given with ``"pipeline"`` they raise ValueError (:data:`BRANCH_ONLY`).
     """
-    if speed_engine not in ("branch", "plant"):
-        raise ValueError(f"speed_engine: {speed_engine!r} is not 'branch' or 'plant'")
+    _check_speed_engine(speed_engine, frame_search, intervals, drift_last, on_fit)
     step = progress if progress is not None else (lambda name: None)
     _refuse_dead_sensor(ds)
     r = _prepare_record(ds, holdout_start_s)
     text, warnings = [], []
     if ds.input_kind == "q_W_m2":
         branch = _diagnose_fem(ds, r, warnings, step)
-    elif speed_engine == "plant":
+    elif speed_engine == "pipeline":
         branch = _diagnose_speed_plant(ds, r, warnings, step)
     else:
         branch = _diagnose_speed(ds, r.t, r.u, r.y, r.rows, r.amb_K, r.temps, frame_search, text,
@@ -1069,6 +1099,8 @@ def diagnose(ds, holdout_start_s=None, frame_search: str = "narrow",
     eres = _residual_analysis(t, y, ext.prediction, good, r.signals, running,
                               branch.time_constant_s)
     summary = _summary(ds, branch, bres, eres, holdout)
+    if ds.input_kind == "speed_rpm":         # which engine ran: a reader must know
+        summary["selection"]["speed_engine"] = speed_engine
     summary["ar_form"] = _ar_form(branch.ar_forms, y, r.hold)
     summary["ar_form_description"] = branch.ar_label
     _add_version2(summary, branch, y, r.rows, r.hold, good, warnings, ds.noise_floor_um)

@@ -49,7 +49,7 @@ def run() -> dict:
     rows, series = [], {}
     for ch in range(1, 6):
         ds = load_dataset(DATA / f"fl_thermal_ch{ch}.toml")
-        diag = diagnose(ds, FIT_END_S, intervals=False)
+        diag = diagnose(ds, FIT_END_S, intervals=False, speed_engine="branch")
         models = compensator_models(ds, FIT_END_S, diag)
         # the cause the selection rules named, whether or not established (issue 30:
         # without intervals no speed-only cause is; the verdicts are in ch*/report.md)

@@ -50,7 +50,8 @@ def one(ch, o_idx, search="average"):
     m = blocks(t, org)[o_idx] & ~ds.outliers
     n = int(np.searchsorted(t, org[o_idx]))
     _CAUGHT.clear()
-    d = E.diagnose(R.origin_dataset(ds, n, y[:n]), float(t[n]), search, on_fit=_keep)
+    d = E.diagnose(R.origin_dataset(ds, n, y[:n]), float(t[n]), search, on_fit=_keep,
+                   speed_engine=R.SPEED_ENGINE)
 
     def rm(p):
         return float(np.sqrt(np.mean((y - p)[m] ** 2)))

@@ -111,7 +111,8 @@ def one_split(job):
     g = np.asarray(ds.growth_um, float)
     n_train = int(np.searchsorted(t, split))
     ds_o = origin_dataset(ds, n_train, g[:n_train])
-    diag = diagnose(ds_o, float(t[n_train]), "narrow", intervals=False)
+    diag = diagnose(ds_o, float(t[n_train]), "narrow", intervals=False,
+                    speed_engine="branch")
     models = compensator_models(ds_o, float(t[n_train]), diag)
     peers, info = peer_models(ds_o, n_train)
     entry = {"channel": f"ch{ch}", "split_s": split, "block_end_s": end,

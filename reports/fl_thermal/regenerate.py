@@ -60,6 +60,10 @@ DATA = REPO / "scenarios" / "data" / "fl_thermal"
 WHOLE_CSV = "fl_thermal_whole.csv"
 #: rows of the first 28 h (t <= 100 800 s), on which the published table was made
 FIRST_28H_ROWS = 6721
+#: the engine every diagnosis here runs on: the rod engine's speed branch, the published
+#: procedure, pinned so that no default of ``arfem diagnose`` can change what this
+#: script reproduces (the one pipeline on this record: PREREGISTRATION.md, last section)
+SPEED_ENGINE = "branch"
 
 from arfem.scenarios.diagnosis.run import diagnose_file
 from arfem.scenarios.diagnosis.run import run_diagnosis
@@ -106,13 +110,13 @@ def _one(job):
     data, ch, hs, search, out, *rest = job
     limits = rest[0] if rest else None
     job_stability = rest[1] if len(rest) > 1 else STABILITY_ORIGINS
-    engine = rest[2] if len(rest) > 2 else "branch"
+    engine = rest[2] if len(rest) > 2 else SPEED_ENGINE
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
         return job[1:4], document(diagnose_file(toml, hs, search, limits=limits,
                                                 speed_engine=engine))
     return job[1:4], run_diagnosis(toml, out, hs, True, search, limits=limits,
-                                   stability=job_stability)
+                                   stability=job_stability, speed_engine=engine)
 
 
 def _scores(s):
@@ -395,7 +399,8 @@ def _roll_fit(toml, search, n_train, y_train):
                 {"cause": named_cause(doc), "verdict": doc["verdict"]})
     fs, _, rule = search.partition("+")          # e.g. "average+drift-last"
     d = diagnose(ds_o, float(t[n_train]), fs, drift_last=rule == "drift-last",
-                 intervals=False)     # predictions only: no jackknife refits
+                 intervals=False,     # predictions only: no jackknife refits
+                 speed_engine=SPEED_ENGINE)
     s = d.series
     fs = d.evidence.document["selection"].get("frame_structure") or {}
     return ({"paper_ar": s["baseline_um"], "mlr": s["mlr_um"], "extended": s["extended_um"]},

@@ -131,7 +131,8 @@ def base_models(ch: int, split_s: float):
     g = np.asarray(ds.growth_um, float)
     n_train = int(np.searchsorted(t, split_s))
     ds_o = origin_dataset(ds, n_train, g[:n_train])
-    diag = diagnose(ds_o, float(t[n_train]), "narrow", intervals=False)
+    diag = diagnose(ds_o, float(t[n_train]), "narrow", intervals=False,
+                    speed_engine="branch")
     models = compensator_models(ds_o, float(t[n_train]), diag)
     peers, info = peer_models(ds_o, n_train)
     return ds, ds_o, n_train, models, peers, info, diag.cause

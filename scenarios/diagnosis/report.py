@@ -191,11 +191,21 @@ def _unbounded(name, ci) -> str:
             if at_search_edge(name, ci[0]) or at_search_edge(name, ci[1]) else "")
 
 
+#: report.md's line on the engine that diagnosed a speed_rpm record
+#: (diagnosis.json ``selection.speed_engine``; ``arfem diagnose --speed-engine``)
+_SPEED_ENGINE_LINE = {
+    "branch": "Speed engine: `branch`, the rod engine's speed branch (candidates chosen by "
+              "forward-chaining validation; the published procedure).",
+    "pipeline": "Speed engine: `pipeline`, the one diagnosis pipeline on the speed plant "
+                "(candidates screened by BIC on N_eff; a prototype)."}
+
+
 def verdict(j: dict) -> list[str]:
     """The report's opening: the verdict (``explained``, ``established``, ``unconfirmed``
     or ``not_explained``, chosen by the rules of :mod:`arfem.models.diagnosis.verdict`)
     in the same words diagnosis.json's ``verdict_detail.text`` and the terminal carry,
-    then the key figure and the hold-out table (everything else follows as evidence)."""
+    then the key figure and the hold-out table, and for a speed record the engine that
+    diagnosed it (everything else follows as evidence)."""
     b, e, h = j["baseline"], j["extended"], j["holdout"]
     base, ext = h["baseline_rmse_um"], h["extended_rmse_um"]
     mlr = (j.get("mlr") or {}).get("holdout_rmse_um")
@@ -216,6 +226,9 @@ def verdict(j: dict) -> list[str]:
          f"| {ext_label} ({e['model']}) | {_fmt(ext)} |"]
     if mlr is not None:
         L.append(f"| MLR on {len(j['mlr']['sensors'])} temperatures (eq. 18) | {_fmt(mlr)} |")
+    engine = (j.get("selection") or {}).get("speed_engine")     # speed_rpm records
+    if engine in _SPEED_ENGINE_LINE:
+        L += ["", _SPEED_ENGINE_LINE[engine]]
     return L + ["", "## Warnings and the named cause in full", ""]
 
 

@@ -16,7 +16,7 @@ from arfem.scenarios.html_report import write_html_report
 from arfem.scenarios.outdir import prepare_out_dir, staged_out_dir
 
 __all__ = ["WRITES", "compensator_models", "diagnose_file", "add_stability",
-           "run_diagnosis", "diagnose_and_write"]
+           "run_diagnosis", "diagnose_and_write", "speed_options"]
 
 #: The files ``write_all`` puts into --out (checked before the work: never an input or
 #: a file arfem did not write; see arfem.scenarios.outdir).
@@ -128,19 +128,38 @@ def _extended_model(ds, diag, dt: float, fit, span: str):
                      f"exported yet")
 
 
-#: PROTOTYPE (branch speedswitch): ``ARFEM_SPEED_ENGINE=plant`` diagnoses a speed_rpm
-#: record on the one pipeline (:func:`arfem.models.diagnosis.engine._diagnose_speed_plant`);
-#: unset or ``branch``: the rod engine's speed branch, as published
-SPEED_ENGINE_VARIABLE = "ARFEM_SPEED_ENGINE"
+def speed_options(input_kind: str, speed_engine: str | None = None,
+                  frame_search: str | None = None, drift_last: bool = False,
+                  source=None) -> tuple[str, str]:
+    """``(speed_engine, frame_search)`` for :func:`arfem.models.diagnosis.engine.diagnose`
+    from ``arfem diagnose``'s options as the user gave them (None: not given; then the
+    speed branch, ``"branch"``, and ``"narrow"``).
 
-
-def _speed_engine() -> str:
-    """The speed engine :data:`SPEED_ENGINE_VARIABLE` selects (``branch`` if unset)."""
-    import os
-    v = os.environ.get(SPEED_ENGINE_VARIABLE, "branch") or "branch"
-    if v not in ("branch", "plant"):
-        raise InputError(f"{SPEED_ENGINE_VARIABLE}: {v!r} is not 'branch' or 'plant'")
-    return v
+    ``input_kind``: the record's (``"speed_rpm"``, ``"q_W_m2"``) or ``"mesh"`` for a
+    contract-v3 record. A ``q_W_m2`` or mesh record is always diagnosed by the one
+    pipeline, so an explicit ``branch`` is refused there; ``--frame-search`` and
+    ``--drift-last`` belong to the branch
+    (:data:`arfem.models.diagnosis.engine.BRANCH_ONLY`) and are refused with
+    ``pipeline``. Each refusal is an InputError (one line, exit 2), raised before
+    anything is written; ``source`` (the record's file) locates the one that is about
+    the record.
+    """
+    from arfem.models.diagnosis.engine import BRANCH_ONLY, SPEED_ENGINES
+    if speed_engine is not None and speed_engine not in SPEED_ENGINES:
+        raise InputError(f"{speed_engine!r} is not 'branch' or 'pipeline'", "--speed-engine")
+    if speed_engine == "branch" and input_kind != "speed_rpm":
+        what = "mesh record (contract v3)" if input_kind == "mesh" else f"{input_kind} record"
+        raise InputError(f"applies to speed_rpm records on the rod only; this {what} is "
+                         f"always diagnosed by the one pipeline (leave the option out)",
+                         "--speed-engine branch" if source is None
+                         else f"{source}: --speed-engine branch")
+    if speed_engine == "pipeline":
+        for key, flag, given in (("frame_search", "--frame-search", frame_search is not None),
+                                 ("drift_last", "--drift-last", drift_last)):
+            if given:
+                raise InputError(f"does not apply with --speed-engine pipeline: "
+                                 f"{BRANCH_ONLY[key]}", flag)
+    return speed_engine or "branch", frame_search or "narrow"
 
 
 def _rod_dataset(toml_path, limits):
@@ -154,27 +173,34 @@ def _rod_dataset(toml_path, limits):
     return ds
 
 
-def diagnose_file(toml_path, holdout_start_s=None, frame_search: str = "narrow",
+def diagnose_file(toml_path, holdout_start_s=None, frame_search: str | None = None,
                   progress=None, drift_last: bool = False, limits=None,
-                  stability: int = 0) -> Diagnosis:
+                  stability: int = 0, speed_engine: str | None = None) -> Diagnosis:
     """Load a contract dataset (TOML + CSV) and diagnose it; ``progress`` and
     ``drift_last`` as in :func:`arfem.models.diagnosis.engine.diagnose`, ``limits``
     (:class:`arfem.limits.Limits`) as :func:`arfem.scenarios.records.dataset.load_dataset`,
-    ``stability`` as in :func:`add_stability`."""
+    ``stability`` as in :func:`add_stability`; ``speed_engine`` and ``frame_search`` as
+    the user gave them (None: not given), checked by :func:`speed_options`."""
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(toml_path, limits)
+    engine, frame_search = speed_options(ds.input_kind, speed_engine, frame_search,
+                                         drift_last, ds.source)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
-                    speed_engine=_speed_engine())
-    return add_stability(diag, ds, stability, frame_search, drift_last, progress)
+                    speed_engine=engine)
+    return add_stability(diag, ds, stability, frame_search, drift_last, progress,
+                         speed_engine=engine)
 
 
 def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narrow",
-                  drift_last: bool = False, progress=None, mapper=map) -> Diagnosis:
+                  drift_last: bool = False, progress=None, mapper=map,
+                  speed_engine: str = "branch") -> Diagnosis:
     """``diag`` with the verdict's stability across hold-out splits (in its document's
     ``verdict_detail.stability`` and the verdict's text): the diagnosis rerun with its
     hold-out from each of up to ``n_origins`` rolling origins
-    (:func:`arfem.models.diagnosis.rolling.stability_origins`), without intervals
+    (:func:`arfem.models.diagnosis.rolling.stability_origins`), on the same
+    ``speed_engine`` as ``diag``, without intervals where the engine can leave them out
+    (the speed branch; the pipeline always computes them)
     (:func:`arfem.models.diagnosis.rolling.verdict_stability`). ``n_origins`` 0: ``diag``
     as it is. Each rerun costs about one diagnosis without intervals."""
     if not n_origins:
@@ -191,9 +217,9 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
     def at(origin_s):
         if progress is not None:
             progress(f"stability: hold-out from {origin_s / 3600:.2f} h")
-        return diagnose(ds, origin_s, frame_search, None, intervals=False,
-                        drift_last=drift_last,
-                        speed_engine=_speed_engine()).evidence.document
+        return diagnose(ds, origin_s, frame_search, None,
+                        intervals=speed_engine == "pipeline", drift_last=drift_last,
+                        speed_engine=speed_engine).evidence.document
 
     subject = s["verdict_detail"]["subject"] if s["verdict"] != "not_explained" else None
     if s["verdict"] == "explained" and not s.get("causes"):
@@ -210,18 +236,21 @@ def add_stability(diag: Diagnosis, ds, n_origins: int, frame_search: str = "narr
                         ds.rod.convection_W_m2K)
 
 
-def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search="narrow",
-                  progress=None, drift_last=False, limits=None, stability=0) -> dict:
+def run_diagnosis(case, out, holdout_start_s=None, force=False, frame_search=None,
+                  progress=None, drift_last=False, limits=None, stability=0,
+                  speed_engine=None) -> dict:
     """Diagnose ``case`` (TOML path) and write every output, with ``report.html``, into
-    ``out``; returns the summary (diagnosis.json's content). ``progress`` as in
-    :func:`diagnose_file`; the typed result: :func:`diagnose_and_write`."""
+    ``out``; returns the summary (diagnosis.json's content). ``progress``,
+    ``frame_search`` and ``speed_engine`` as in :func:`diagnose_file`; the typed result:
+    :func:`diagnose_and_write`."""
     return document(diagnose_and_write(case, out, holdout_start_s, force, frame_search,
-                                       progress, drift_last, limits, stability))
+                                       progress, drift_last, limits, stability,
+                                       speed_engine))
 
 
-def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_search="narrow",
+def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_search=None,
                        progress=None, drift_last=False, limits=None,
-                       stability=0) -> Diagnosis:
+                       stability=0, speed_engine=None) -> Diagnosis:
     """:func:`run_diagnosis`, returning the typed result (what ``arfem diagnose`` prints
     from, :func:`arfem.scenarios.diagnosis.terminal.diagnosis_terminal_line`)."""
     from arfem.scenarios.diagnosis.report import write_all
@@ -232,9 +261,12 @@ def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_searc
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(doc, limits)
+    engine, frame_search = speed_options(ds.input_kind, speed_engine, frame_search,
+                                         drift_last, ds.source)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
-                    speed_engine=_speed_engine())
-    diag = add_stability(diag, ds, stability, frame_search, drift_last, progress)
+                    speed_engine=engine)
+    diag = add_stability(diag, ds, stability, frame_search, drift_last, progress,
+                         speed_engine=engine)
     if progress is not None:
         progress("writing outputs")
     models = compensator_models(ds, diag.holdout.start_s, diag)
