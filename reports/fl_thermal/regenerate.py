@@ -111,6 +111,7 @@ def _one(job):
     limits = rest[0] if rest else None
     job_stability = rest[1] if len(rest) > 1 else STABILITY_ORIGINS
     engine = rest[2] if len(rest) > 2 else SPEED_ENGINE
+    search = search if engine == "branch" else None       # the pipeline has no search
     toml = Path(data) / f"fl_thermal_ch{ch}.toml"
     if out is None:                       # experiments: numbers only, nothing written
         return job[1:4], document(diagnose_file(toml, hs, search, limits=limits,
