@@ -69,6 +69,7 @@ from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
 from arfem.models.diagnosis.dataset import observations
 from arfem.models.diagnosis.rod_plant import CONTRACT_NAME, contract_entries, rod_plant
+from arfem.models.diagnosis.speed_plant import FRAME_COMPONENTS
 from arfem.models.geodiagnosis.engine import DELTA_BIC, diagnose_plant, named_causes
 from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
@@ -79,15 +80,23 @@ __all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
+#: the gains of a frame that follows principal components of many thermometers, on the
+#: speed plant (``speed_engine="plant"``): ``frame_gain_pc<j>_um`` [µm per unit component]
+_FRAME_PC_GAINS = tuple(f"frame_gain_pc{j}_um" for j in range(1, max(FRAME_COMPONENTS) + 1))
 #: the ``parameters`` of diagnosis.json, by cause, exactly as the measured-data contract
-#: names them; anything else a fit reports goes under ``parameters_detail``
+#: names them; anything else a fit reports goes under ``parameters_detail``. A frame:
+#: ``frame_gain`` [-] per unit of the rod's growth (the rod engine's, a frame driven by
+#: the heat input), or, on the speed plant, ``frame_gain_um_per_K`` [µm/K] per kelvin of
+#: the thermometer it follows or the component gains; ``frame_time_constant_h`` where
+#: it lags
 CONTRACT_PARAMETERS = {
     "none": (),
     "ambient_drift": ("ambient_gain_um_per_K",),
     "convection_mismatch": ("h_W_m2K",),
     "speed_dependent_convection": ("h_running_W_m2K", "h_stopped_W_m2K"),
     "heat_input_scale": ("scale",),
-    "frame_expansion": ("frame_time_constant_h", "frame_gain"),
+    "frame_expansion": ("frame_time_constant_h", "frame_gain", "frame_gain_um_per_K")
+    + _FRAME_PC_GAINS,
     "sensor_drift": ("drift_um_per_h",),
     "nonlinear_convection": ("exponent",),
 }
@@ -443,7 +452,8 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     the contract's names (:func:`~arfem.models.diagnosis.speed_plant.speed_contract_entries`),
     every single cause's BIC on N_eff and F test as the candidates, the pipeline's
     verdict. No rule 5 unit check (no nominal magnitude), no AR form, no export."""
-    from arfem.models.diagnosis.speed_plant import (contract_names, speed_contract_entries,
+    from arfem.models.diagnosis.speed_plant import (contract_names, speed_candidate_parameters,
+                                                    speed_contract_entries,
                                                     speed_plant_from_dataset)
     rod = ds.rod
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
@@ -455,14 +465,12 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     noise = max(st.noise_sigma(y[rows]), ds.noise_floor_um)
     base = _pipeline_fit("none", "ar_speed_plant", {}, (), ev.baseline, y, rows)
     tau_of = (lambda fit: float(getattr(fit.setting, "time_constant_h", 1.0)))
-    # the screen's candidates keep the plant's parameters (h_scale, not the h's): the
-    # screen (Ranked) does not keep each candidate's own τ, which the h's need
-    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K, names,
-                                               lambda one: dict(one.parameters))
+    scores, tests, params, reasons = _screened(
+        ev, rod.convection_W_m2K, names,
+        lambda one, rk: speed_candidate_parameters(one, rk.nominal, rho_c_R))
     named = ev.named
     entries = () if named is None else sorted(
-        speed_contract_entries(named_causes(named), tau_of(named), rho_c_R),
-        key=lambda e: scores.get(e.cause, np.inf))
+        speed_contract_entries(named, rho_c_R), key=lambda e: scores.get(e.cause, np.inf))
     causes = tuple(e.cause for e in entries)
     ext = base if not entries else _pipeline_fit(
         "+".join(causes), "ar_speed_plant+" + "+".join(causes),
@@ -502,11 +510,12 @@ def _screened(ev, h0_W_m2K: float, names=None,
     alone, None where it did}). A cause the contract writes once though the plant has
     two (a plain and a running-only h) keeps the better-ranked. ``names`` (plant cause
     name -> contract name, default the rod's :data:`CONTRACT_NAME`) and ``entries_of``
-    (one :class:`NamedCause` -> its contract parameters, default the rod's) serve
+    (one :class:`NamedCause` and its :class:`~arfem.models.geodiagnosis.engine.Ranked`
+    -> its contract parameters, default the rod's) serve
     another plant (:func:`_diagnose_speed_plant`)."""
     names = CONTRACT_NAME if names is None else names
     entries_of = entries_of or (
-        lambda one: dict(contract_entries((one,), h0_W_m2K)[0].parameters))
+        lambda one, rk: dict(contract_entries((one,), h0_W_m2K)[0].parameters))
     level = naming_level(max(len(ev.ranking), 1))
     scores, tests, params, reasons = {}, {}, {}, {}
     for rk in ev.ranking:
@@ -517,7 +526,7 @@ def _screened(ev, h0_W_m2K: float, names=None,
         tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
                     "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
         one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
-        params[c] = entries_of(one)
+        params[c] = entries_of(one, rk)
         reasons[c] = None if rk.refused is None else _in_contract_names(rk.refused, names)
     scores["none"] = float(ev.baseline_bic)
     return scores, tests, params, reasons
@@ -973,9 +982,14 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0,
     subject = None if d.subject is None else _in_contract_names(d.subject, names)
     if subject is None and d.verdict == "not_explained" and summary.get("runner_up"):
         subject = summary["runner_up"]["cause"]
-    vd.apply(summary, vd.Verdict(d.verdict, subject,
-                                 tuple(_in_contract_names(f, names) for f in d.failed),
-                                 within))
+    verdict, failed = d.verdict, tuple(_in_contract_names(f, names) for f in d.failed)
+    # the contract's own rule for speed_dependent_convection (the two h's intervals do
+    # not overlap), beside the pipeline's check of its plant parameter (h_scale excludes 1)
+    two_h = [f for e in summary.get("causes") or ()
+             if e["cause"] == "speed_dependent_convection" for f in vd.two_h_failures(e)]
+    if verdict == "established" and two_h:
+        verdict, failed = "unconfirmed", failed + tuple(two_h)
+    vd.apply(summary, vd.Verdict(verdict, subject, failed, within))
     vdet = summary["verdict_detail"]
     vdet["best_candidate_beaten_by_mlr"] = bool(d.beaten_by_regression)
     vdet["text"] = vd.text(summary)
