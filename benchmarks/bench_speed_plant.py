@@ -18,6 +18,16 @@ marginal σ. Prints one row per record and engine: verdict, named contract cause
 the truth's parameter with its estimate and 95 % interval, seconds; then the counts
 per cause: right cause named, established, interval holding the truth.
 
+``--contract`` adds the plant as ``arfem diagnose`` writes it
+(``diagnose(..., speed_engine="plant")``): the contract's parameters and verdict, every
+parameter of the truth the contract names scored (a speed_dependent_convection covered
+when the intervals of both ``h_running_W_m2K`` and ``h_stopped_W_m2K`` hold theirs; the
+latter's from the plant's τ). Measured 2026-11-28 (branch spci, ``--no-rod --contract``,
+right / established / covered of 6, contract engine): speed_dependent_convection
+6 / 6 / 6 on seeds 1-6 AR, 6 / 6 / 6 white, 6 / 6 / 6 fresh seeds 101-106 AR,
+6 / 6 / 6 with M = 8; frame_expansion (``frame_gain_um_per_K``) 6 / 6 / 6 on seeds 1-6
+AR, white, and 101-106.
+
 ``--thermometers M`` gives every record M thermometers (synth_speed's ``thermometers``:
 a frame then grows as a mix of two of them; no one gain to score, so "covered" is 0).
 

@@ -25,7 +25,8 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis import speed_plant
-from arfem.models.diagnosis.engine import CONTRACT_PARAMETERS, diagnose
+from arfem.models.diagnosis.engine import (CONTRACT_PARAMETERS,
+                                          SPEED_PLANT_CONTRACT_PARAMETERS, diagnose)
 from arfem.models.diagnosis.speed_plant import (TIME_CONSTANT, convection_h_W_m2K,
                                                 speed_plant as make_speed_plant)
 from arfem.models.diagnosis.synth_speed import SPEED_SYNTH_CAUSES, generate_speed
@@ -140,6 +141,8 @@ def test_a_frame_writes_its_gain_per_kelvin_with_its_interval(tmp_path):
     assert "`frame_expansion` ()" not in doc["verdict_detail"]["text"]
 
 
-def test_frame_component_gains_are_contract_parameters():
+def test_frame_component_gains_are_contract_parameters_of_the_speed_plant_only():
+    """The speed plant's frame names its own parameters; the rod's contract stays."""
     assert {"frame_gain_um_per_K", "frame_time_constant_h", "frame_gain_pc1_um",
-            "frame_gain_pc3_um"} <= set(CONTRACT_PARAMETERS["frame_expansion"])
+            "frame_gain_pc3_um"} <= set(SPEED_PLANT_CONTRACT_PARAMETERS["frame_expansion"])
+    assert CONTRACT_PARAMETERS["frame_expansion"] == ("frame_time_constant_h", "frame_gain")

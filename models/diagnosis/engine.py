@@ -76,29 +76,32 @@ from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diag
                                            NamedCause, frozen_mapping)
 
 __all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN",
-           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "INFORMATIVE_NOISE_LEVELS"]
+           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "SPEED_PLANT_CONTRACT_PARAMETERS",
+           "INFORMATIVE_NOISE_LEVELS"]
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
-#: the gains of a frame that follows principal components of many thermometers, on the
-#: speed plant (``speed_engine="plant"``): ``frame_gain_pc<j>_um`` [µm per unit component]
-_FRAME_PC_GAINS = tuple(f"frame_gain_pc{j}_um" for j in range(1, max(FRAME_COMPONENTS) + 1))
 #: the ``parameters`` of diagnosis.json, by cause, exactly as the measured-data contract
-#: names them; anything else a fit reports goes under ``parameters_detail``. A frame:
-#: ``frame_gain`` [-] per unit of the rod's growth (the rod engine's, a frame driven by
-#: the heat input), or, on the speed plant, ``frame_gain_um_per_K`` [µm/K] per kelvin of
-#: the thermometer it follows or the component gains; ``frame_time_constant_h`` where
-#: it lags
+#: names them; anything else a fit reports goes under ``parameters_detail``
 CONTRACT_PARAMETERS = {
     "none": (),
     "ambient_drift": ("ambient_gain_um_per_K",),
     "convection_mismatch": ("h_W_m2K",),
     "speed_dependent_convection": ("h_running_W_m2K", "h_stopped_W_m2K"),
     "heat_input_scale": ("scale",),
-    "frame_expansion": ("frame_time_constant_h", "frame_gain", "frame_gain_um_per_K")
-    + _FRAME_PC_GAINS,
+    "frame_expansion": ("frame_time_constant_h", "frame_gain"),
     "sensor_drift": ("drift_um_per_h",),
     "nonlinear_convection": ("exponent",),
+}
+#: :data:`CONTRACT_PARAMETERS` of a speed record on the speed plant
+#: (``speed_engine="plant"``), whose frame follows a thermometer, not the rod: its gain
+#: ``frame_gain_um_per_K`` [µm per K of the thermometer's rise] or, on the leading
+#: principal components of many thermometers, ``frame_gain_pc<j>_um`` [µm per unit
+#: component]; ``frame_time_constant_h`` [h] where it lags (docs/measured-data.md)
+SPEED_PLANT_CONTRACT_PARAMETERS = {
+    **CONTRACT_PARAMETERS,
+    "frame_expansion": ("frame_time_constant_h", "frame_gain_um_per_K")
+    + tuple(f"frame_gain_pc{j}_um" for j in range(1, max(FRAME_COMPONENTS) + 1)),
 }
 
 
@@ -248,14 +251,15 @@ def _refuse_dead_sensor(ds):
                          f"{ds.csv_path or ds.source}: column growth_um")
 
 
-def _cause_entries(fit, causes, y, rows, ci=None):
-    """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
-    intervals from the (joint) fit (``ci``, if given: intervals computed otherwise)."""
+def _cause_entries(fit, causes, y, rows, ci=None, table=None):
+    """``causes`` of diagnosis.json: each cause with its contract parameters (``table``,
+    default :data:`CONTRACT_PARAMETERS`) and 95 % intervals from the (joint) fit (``ci``,
+    if given: intervals computed otherwise)."""
     if ci is None:
         ci = parameter_ci95(fit, y, rows) if fit is not None else {}
     out = []
     for c in causes:
-        names = CONTRACT_PARAMETERS[c]
+        names = (table or CONTRACT_PARAMETERS)[c]
         out.append({"cause": c,
                     "parameters": {k: fit.parameters[k] for k in names if k in fit.parameters},
                     "ci95": {k: ci[k] for k in names if k in ci}})
@@ -324,6 +328,9 @@ class BranchResult:
     contract_names : dict or None
         The pipeline plant's cause names -> the contract's, where the plant is not the
         rod (:func:`_diagnose_speed_plant`); None: the rod's :data:`CONTRACT_NAME`.
+    contract_parameters : dict or None
+        The contract's parameters by cause where they are not the rod's
+        (:data:`SPEED_PLANT_CONTRACT_PARAMETERS`); None: :data:`CONTRACT_PARAMETERS`.
     screen_reasons : dict of str to str or None
         ``q_W_m2`` records: why the pipeline's screen did not name each single cause
         alone (:attr:`arfem.models.geodiagnosis.engine.Ranked.refused`, in the
@@ -360,6 +367,7 @@ class BranchResult:
     pipeline: Diagnosis | None = None
     screen_reasons: dict = field(default_factory=dict)
     contract_names: dict | None = None
+    contract_parameters: dict | None = None
 
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
@@ -499,7 +507,7 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),
         candidate_parameters=params, pipeline=d, screen_reasons=reasons,
-        contract_names=names)
+        contract_names=names, contract_parameters=SPEED_PLANT_CONTRACT_PARAMETERS)
 
 
 def _screened(ev, h0_W_m2K: float, names=None,
@@ -828,7 +836,8 @@ def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
     ext = branch.extended
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
-    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
+    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95,
+                             branch.contract_parameters)
     if branch.physics is not None or branch.score_kind == "bic_on_n_eff":
         eq = branch.equivalent
         if eq is not None:
@@ -907,6 +916,7 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
     :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
     fits, cause, scores, tests = branch.fits, branch.cause, branch.scores, branch.tests
     ext, base_model, score_kind = branch.extended, branch.baseline_model, branch.score_kind
+    table = branch.contract_parameters or CONTRACT_PARAMETERS
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -923,9 +933,9 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
                      "per_phase": eres["per_phase"]},
         "holdout": holdout,
         "parameters": {k: v for k, v in ext.parameters.items()
-                       if k in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+                       if k in table[cause]} if cause != "none" else {},
         "parameters_detail": {k: v for k, v in ext.parameters.items()
-                              if k not in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+                              if k not in table[cause]} if cause != "none" else {},
         # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
         # forward-chaining validation RMSE [µm] for speed-only ones
         "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
