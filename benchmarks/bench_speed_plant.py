@@ -18,6 +18,16 @@ marginal σ. Prints one row per record and engine: verdict, named contract cause
 the truth's parameter with its estimate and 95 % interval, seconds; then the counts
 per cause: right cause named, established, interval holding the truth.
 
+``--contract`` adds the plant as ``arfem diagnose`` writes it
+(``diagnose(..., speed_engine="plant")``): the contract's parameters and verdict, every
+parameter of the truth the contract names scored (a speed_dependent_convection covered
+when the intervals of both ``h_running_W_m2K`` and ``h_stopped_W_m2K`` hold theirs; the
+latter's from the plant's τ). Measured 2026-11-28 (branch spci, ``--no-rod --contract``,
+right / established / covered of 6, contract engine): speed_dependent_convection
+6 / 6 / 6 on seeds 1-6 AR, 6 / 6 / 6 white, 6 / 6 / 6 fresh seeds 101-106 AR,
+6 / 6 / 6 with M = 8; frame_expansion (``frame_gain_um_per_K``) 6 / 6 / 6 on seeds 1-6
+AR, white, and 101-106.
+
 ``--thermometers M`` gives every record M thermometers (synth_speed's ``thermometers``:
 a frame then grows as a mix of two of them; no one gain to score, so "covered" is 0).
 
@@ -124,18 +134,23 @@ def write(directory: Path, case, y) -> Path:
     return directory / "rec.toml"
 
 
-def score(named, truth, right: str):
-    """(right cause named?, 'param est [lo, hi]' text, covered?) of one engine."""
+def score(named, truth, right: str, every: bool = False):
+    """(right cause named?, 'param est [lo, hi]' text, covered?) of one engine: the
+    first of the truth's parameters the engine reports, or (``every``) each of them,
+    covered when every interval holds its truth."""
     hit = next((c for c in named if c[0] == right), None)
     if hit is None:
         return False, "", None
     _, p, ci = hit
+    texts, covs = [], []
     for k, v in truth.items():
         if k in p:
             lo, hi = ci.get(k, (np.nan, np.nan))
-            cov = bool(lo <= v <= hi)
-            return True, f"{k} {p[k]:.4g} [{lo:.4g}, {hi:.4g}] truth {v:.4g}", cov
-    return True, "", None
+            covs.append(bool(lo <= v <= hi))
+            texts.append(f"{k} {p[k]:.4g} [{lo:.4g}, {hi:.4g}] truth {v:.4g}")
+            if not every:
+                break
+    return True, "; ".join(texts), (all(covs) if covs else None)
 
 
 def run_rod(ds, h0):
@@ -148,6 +163,17 @@ def run_plant(ds, h0):
     return d.verdict, contract_causes(d.causes)
 
 
+def run_contract(ds, h0):
+    """The plant as ``arfem diagnose`` writes it (``speed_engine="plant"``): the
+    contract's parameters and verdict (a speed_dependent_convection's two h with
+    intervals from the plant's τ and h_scale, the two-h rule)."""
+    d = diagnose(ds, h0, speed_engine="plant")
+    doc = d.evidence.document
+    causes = doc.get("causes") or (doc.get("best_candidate") or {}).get("causes", [])
+    return d.verdict, tuple((c["cause"], dict(c["parameters"]), dict(c["ci95"]))
+                            for c in causes)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=6)
@@ -155,10 +181,15 @@ def main(argv=None) -> int:
     ap.add_argument("--causes", default=",".join(CAUSES))
     ap.add_argument("--white", action="store_true")
     ap.add_argument("--no-rod", action="store_true")
+    ap.add_argument("--contract", action="store_true",
+                    help="also the plant through diagnose(speed_engine='plant'), scoring "
+                         "every contract parameter of the truth")
     ap.add_argument("--thermometers", type=int, default=1,
                     help="thermometers per record (synth_speed's thermometers)")
     a = ap.parse_args(argv)
     engines = {"plant": run_plant} if a.no_rod else {"rod": run_rod, "plant": run_plant}
+    if a.contract:
+        engines["contract"] = run_contract
     tally = {}
     for cause in a.causes.split(","):
         for seed in range(a.seed0, a.seed0 + a.seeds):
@@ -173,7 +204,12 @@ def main(argv=None) -> int:
                 if cause == "clean":
                     ok, txt, cov = (not named or verdict != "established"), "", None
                 else:
-                    ok, txt, cov = score(named, truth, cause)
+                    # the synth's frame lags the rod's growth and its thermometer
+                    # reads the lagged frame: the plant's frame follows it without a
+                    # lag of its own, so only its per-kelvin gain has a truth
+                    ok, txt, cov = score(named, truth, cause) if eng != "contract" else \
+                        score(named, {k: v for k, v in truth.items()
+                                      if k != "frame_time_constant_h"}, cause, every=True)
                 est = ok and verdict == "established"
                 row = tally.setdefault((cause, eng), [0, 0, 0, 0, 0.0])
                 row[0] += ok
@@ -181,7 +217,7 @@ def main(argv=None) -> int:
                 row[2] += bool(cov)
                 row[3] += 1
                 row[4] += sec
-                print(f"{cause:27s} {seed:3d} {eng:5s} {verdict:14s} {names:38s} "
+                print(f"{cause:27s} {seed:3d} {eng:8s} {verdict:14s} {names:38s} "
                       f"{txt:60s} {'' if cov is None else ('in' if cov else 'OUT'):3s} "
                       f"{sec:6.1f} s", flush=True)
     print("\ncause                       engine  right  established  covered  n  seconds")

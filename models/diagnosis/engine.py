@@ -69,14 +69,15 @@ from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
 from arfem.models.diagnosis.dataset import observations
 from arfem.models.diagnosis.rod_plant import CONTRACT_NAME, contract_entries, rod_plant
+from arfem.models.diagnosis.speed_plant import FRAME_COMPONENTS
 from arfem.models.geodiagnosis.engine import DELTA_BIC, diagnose_plant, named_causes
 from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
 __all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN",
-           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "INFORMATIVE_NOISE_LEVELS",
-           "SPEED_ENGINES", "BRANCH_ONLY"]
+           "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "SPEED_PLANT_CONTRACT_PARAMETERS",
+           "INFORMATIVE_NOISE_LEVELS", "SPEED_ENGINES", "BRANCH_ONLY"]
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
@@ -91,6 +92,16 @@ CONTRACT_PARAMETERS = {
     "frame_expansion": ("frame_time_constant_h", "frame_gain"),
     "sensor_drift": ("drift_um_per_h",),
     "nonlinear_convection": ("exponent",),
+}
+#: :data:`CONTRACT_PARAMETERS` of a speed record on the speed plant
+#: (``speed_engine="plant"``), whose frame follows a thermometer, not the rod: its gain
+#: ``frame_gain_um_per_K`` [µm per K of the thermometer's rise] or, on the leading
+#: principal components of many thermometers, ``frame_gain_pc<j>_um`` [µm per unit
+#: component]; ``frame_time_constant_h`` [h] where it lags (docs/measured-data.md)
+SPEED_PLANT_CONTRACT_PARAMETERS = {
+    **CONTRACT_PARAMETERS,
+    "frame_expansion": ("frame_time_constant_h", "frame_gain_um_per_K")
+    + tuple(f"frame_gain_pc{j}_um" for j in range(1, max(FRAME_COMPONENTS) + 1)),
 }
 
 
@@ -246,14 +257,15 @@ def _refuse_dead_sensor(ds):
                          f"{ds.csv_path or ds.source}: column growth_um")
 
 
-def _cause_entries(fit, causes, y, rows, ci=None):
-    """``causes`` of diagnosis.json: each cause with its contract parameters and 95 %
-    intervals from the (joint) fit (``ci``, if given: intervals computed otherwise)."""
+def _cause_entries(fit, causes, y, rows, ci=None, table=None):
+    """``causes`` of diagnosis.json: each cause with its contract parameters (``table``,
+    default :data:`CONTRACT_PARAMETERS`) and 95 % intervals from the (joint) fit (``ci``,
+    if given: intervals computed otherwise)."""
     if ci is None:
         ci = parameter_ci95(fit, y, rows) if fit is not None else {}
     out = []
     for c in causes:
-        names = CONTRACT_PARAMETERS[c]
+        names = (table or CONTRACT_PARAMETERS)[c]
         out.append({"cause": c,
                     "parameters": {k: fit.parameters[k] for k in names if k in fit.parameters},
                     "ci95": {k: ci[k] for k in names if k in ci}})
@@ -322,6 +334,9 @@ class BranchResult:
     contract_names : dict or None
         The pipeline plant's cause names -> the contract's, where the plant is not the
         rod (:func:`_diagnose_speed_plant`); None: the rod's :data:`CONTRACT_NAME`.
+    contract_parameters : dict or None
+        The contract's parameters by cause where they are not the rod's
+        (:data:`SPEED_PLANT_CONTRACT_PARAMETERS`); None: :data:`CONTRACT_PARAMETERS`.
     screen_reasons : dict of str to str or None
         ``q_W_m2`` records: why the pipeline's screen did not name each single cause
         alone (:attr:`arfem.models.geodiagnosis.engine.Ranked.refused`, in the
@@ -362,6 +377,7 @@ class BranchResult:
     screen_reasons: dict = field(default_factory=dict)
     contract_names: dict | None = None
     plant_fit: tuple | None = None
+    contract_parameters: dict | None = None
 
 
 def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
@@ -457,7 +473,8 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     verdict; the paper AR(1) of eq. 17 (the plant's reference model, a data baseline of
     the verdict) is scored as ``ar_form["paper_ar"]``. No rule 5 unit check (no nominal
     magnitude); the plant and its fit kept for export (:attr:`BranchResult.plant_fit`)."""
-    from arfem.models.diagnosis.speed_plant import (contract_names, speed_contract_entries,
+    from arfem.models.diagnosis.speed_plant import (contract_names, speed_candidate_parameters,
+                                                    speed_contract_entries,
                                                     speed_plant_from_dataset)
     rod = ds.rod
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
@@ -471,14 +488,12 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     (_, ref), = plant.reference_models(rows)
     paper = CandidateFit("none", "ar", {}, ref[plant.channels[0].column], 0)
     tau_of = (lambda fit: float(getattr(fit.setting, "time_constant_h", 1.0)))
-    # the screen's candidates keep the plant's parameters (h_scale, not the h's): the
-    # screen (Ranked) does not keep each candidate's own τ, which the h's need
-    scores, tests, params, reasons = _screened(ev, rod.convection_W_m2K, names,
-                                               lambda one: dict(one.parameters))
+    scores, tests, params, reasons = _screened(
+        ev, rod.convection_W_m2K, names,
+        lambda one, rk: speed_candidate_parameters(one, rk.nominal, rho_c_R))
     named = ev.named
     entries = () if named is None else sorted(
-        speed_contract_entries(named_causes(named), tau_of(named), rho_c_R),
-        key=lambda e: scores.get(e.cause, np.inf))
+        speed_contract_entries(named, rho_c_R), key=lambda e: scores.get(e.cause, np.inf))
     causes = tuple(e.cause for e in entries)
     ext = base if not entries else _pipeline_fit(
         "+".join(causes), "ar_speed_plant+" + "+".join(causes),
@@ -508,7 +523,8 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),
         candidate_parameters=params, pipeline=d, screen_reasons=reasons,
-        contract_names=names, plant_fit=(plant, ev.baseline if named is None else named))
+        contract_names=names, contract_parameters=SPEED_PLANT_CONTRACT_PARAMETERS,
+        plant_fit=(plant, ev.baseline if named is None else named))
 
 
 def _screened(ev, h0_W_m2K: float, names=None,
@@ -519,11 +535,12 @@ def _screened(ev, h0_W_m2K: float, names=None,
     alone, None where it did}). A cause the contract writes once though the plant has
     two (a plain and a running-only h) keeps the better-ranked. ``names`` (plant cause
     name -> contract name, default the rod's :data:`CONTRACT_NAME`) and ``entries_of``
-    (one :class:`NamedCause` -> its contract parameters, default the rod's) serve
+    (one :class:`NamedCause` and its :class:`~arfem.models.geodiagnosis.engine.Ranked`
+    -> its contract parameters, default the rod's) serve
     another plant (:func:`_diagnose_speed_plant`)."""
     names = CONTRACT_NAME if names is None else names
     entries_of = entries_of or (
-        lambda one: dict(contract_entries((one,), h0_W_m2K)[0].parameters))
+        lambda one, rk: dict(contract_entries((one,), h0_W_m2K)[0].parameters))
     level = naming_level(max(len(ev.ranking), 1))
     scores, tests, params, reasons = {}, {}, {}, {}
     for rk in ev.ranking:
@@ -534,7 +551,7 @@ def _screened(ev, h0_W_m2K: float, names=None,
         tests[c] = {"p_value": float(rk.f_test_p), "p_threshold": level,
                     "significant": bool(rk.f_test_p < level), "plant_cause": rk.cause}
         one = NamedCause(rk.cause.split(":")[0], rk.cause, "", rk.parameters, {}, {})
-        params[c] = entries_of(one)
+        params[c] = entries_of(one, rk)
         reasons[c] = None if rk.refused is None else _in_contract_names(rk.refused, names)
     scores["none"] = float(ev.baseline_bic)
     return scores, tests, params, reasons
@@ -836,7 +853,8 @@ def _add_version2(summary, branch: BranchResult, y, rows, hold, good, warnings,
     ext = branch.extended
     # speed-only records bring their intervals (block jackknife); q_W_m2 ones get them
     # from the joint fit, and also record parsimony and the second-cause tests
-    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95)
+    entries = _cause_entries(ext, branch.causes, y, rows, branch.ci95,
+                             branch.contract_parameters)
     if branch.physics is not None or branch.score_kind == "bic_on_n_eff":
         eq = branch.equivalent
         if eq is not None:
@@ -915,6 +933,7 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
     :func:`_diagnose_speed`), the residual analyses and the hold-out scores."""
     fits, cause, scores, tests = branch.fits, branch.cause, branch.scores, branch.tests
     ext, base_model, score_kind = branch.extended, branch.baseline_model, branch.score_kind
+    table = branch.contract_parameters or CONTRACT_PARAMETERS
     summary = {
         "dataset": ds.name,
         "cause": cause,
@@ -931,9 +950,9 @@ def _summary(ds, branch: BranchResult, bres, eres, holdout):
                      "per_phase": eres["per_phase"]},
         "holdout": holdout,
         "parameters": {k: v for k, v in ext.parameters.items()
-                       if k in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+                       if k in table[cause]} if cause != "none" else {},
         "parameters_detail": {k: v for k, v in ext.parameters.items()
-                              if k not in CONTRACT_PARAMETERS[cause]} if cause != "none" else {},
+                              if k not in table[cause]} if cause != "none" else {},
         # what "score" is (lower is better either way): a BIC for q_W_m2 records, a
         # forward-chaining validation RMSE [µm] for speed-only ones
         "candidates": [{"cause": c, "score": scores[c], "score_kind": score_kind,
@@ -990,9 +1009,14 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0,
     subject = None if d.subject is None else _in_contract_names(d.subject, names)
     if subject is None and d.verdict == "not_explained" and summary.get("runner_up"):
         subject = summary["runner_up"]["cause"]
-    vd.apply(summary, vd.Verdict(d.verdict, subject,
-                                 tuple(_in_contract_names(f, names) for f in d.failed),
-                                 within))
+    verdict, failed = d.verdict, tuple(_in_contract_names(f, names) for f in d.failed)
+    # the contract's own rule for speed_dependent_convection (the two h's intervals do
+    # not overlap), beside the pipeline's check of its plant parameter (h_scale excludes 1)
+    two_h = [f for e in summary.get("causes") or ()
+             if e["cause"] == "speed_dependent_convection" for f in vd.two_h_failures(e)]
+    if verdict == "established" and two_h:
+        verdict, failed = "unconfirmed", failed + tuple(two_h)
+    vd.apply(summary, vd.Verdict(verdict, subject, failed, within))
     vdet = summary["verdict_detail"]
     vdet["best_candidate_beaten_by_mlr"] = bool(d.beaten_by_regression)
     vdet["text"] = vd.text(summary)

@@ -65,7 +65,8 @@ from arfem.models.plant import Design, Parameter, SelectionRules, cause, compone
 __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_dataset",
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT", "THERMOMETER_SMOOTHING_S",
            "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "PAPER_AR_LABEL", "contract_names",
-           "speed_contract_entries"]
+           "speed_contract_entries", "speed_candidate_parameters", "convection_h_W_m2K",
+           "convection_h_ci95"]
 
 #: how the verdict names the paper's AR(1), the speed plant's reference model
 PAPER_AR_LABEL = "the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 for new speeds)"
@@ -353,25 +354,96 @@ def _h_stopped_W_m2K(rho_c_R_J_m2K: float, time_constant_h: float) -> float:
     return rho_c_R_J_m2K / (2.0 * time_constant_h * 3600.0)
 
 
-def speed_contract_entries(causes, time_constant_h: float, rho_c_R_J_m2K: float) -> tuple:
-    """The named causes of a speed diagnosis as the measured-data contract writes them
-    (:class:`arfem.models.diagnosis.rod_plant.ContractCause`, in the order given).
+def convection_h_W_m2K(h_scale: float, time_constant_h: float,
+                       rho_c_R_J_m2K: float) -> dict:
+    """The two h of a running-only rate (``convection_scale:running``) as the contract's
+    ``speed_dependent_convection`` writes them: h_stopped = ρcR/(2τ) (paper eq. 13,
+    b = 1/τ at rest) and h_running = h_scale · h_stopped [W/(m²K)].
 
-    ``time_constant_h``: the named fit's τ [h] (the nominal model's own parameter, no
-    interval); ``rho_c_R_J_m2K``: ρ·c·R of the ``[rod]`` [J/(m²K)], which turns τ into
-    the h at rest (paper eq. 13). PROTOTYPE (branch speedswitch): ``h_stopped_W_m2K``
-    has no interval (τ is not interval-estimated), the interval of ``h_running_W_m2K``
-    is the h_scale one at the fitted τ; a frame's gain stays ``frame_gain_um_per_K``
-    (per kelvin of its thermometer), not the contract's ``frame_gain`` (per unit of
-    the rod's growth), so it is absent from the contract's ``parameters``.
+    Parameters
+    ----------
+    h_scale : float, the factor on the rate while the spindle turns [-]
+    time_constant_h : float, the plant's τ at rest [h]
+    rho_c_R_J_m2K : float, ρ·c·R of the ``[rod]`` [J/(m²K)]
+
+    Examples
+    --------
+    >>> h = convection_h_W_m2K(1.5, 0.5, 7850 * 460 * 0.1)
+    >>> round(h["h_stopped_W_m2K"], 2), round(h["h_running_W_m2K"], 2)
+    (100.31, 150.46)
+    """
+    h0 = _h_stopped_W_m2K(rho_c_R_J_m2K, time_constant_h)
+    return {"h_running_W_m2K": float(h_scale) * h0, "h_stopped_W_m2K": h0}
+
+
+def convection_h_ci95(h_scale: float, time_constant_h: float, rho_c_R_J_m2K: float,
+                      var_scale: float, var_tau_h2: float, cov_scale_tau_h: float) -> dict:
+    """95 % intervals of :func:`convection_h_W_m2K`'s two h by the delta method on the
+    named fit's joint covariance of h_scale and τ (:attr:`arfem.models.geodiagnosis.fit.Fit.covariance`,
+    Gauss–Newton on the whitened residual, as every interval of the pipeline):
+    with h0 = ρcR/(2τ), var h_stopped = (h0/τ)² var τ and
+    var h_running = h0² var s + (s·h0/τ)² var τ − 2 s h0²/τ cov(s, τ); each h ± 1.96 σ.
+
+    Examples
+    --------
+    >>> ci = convection_h_ci95(1.5, 0.5, 7850 * 460 * 0.1, 0.0, 0.0, 0.0)
+    >>> [round(v, 2) for v in ci["h_stopped_W_m2K"]]
+    [100.31, 100.31]
+    """
+    from scipy.stats import norm
+    z = float(norm.ppf(0.975))
+    h = convection_h_W_m2K(h_scale, time_constant_h, rho_c_R_J_m2K)
+    h0, s, tau = h["h_stopped_W_m2K"], float(h_scale), float(time_constant_h)
+    var_stop = (h0 / tau) ** 2 * var_tau_h2
+    var_run = h0 * h0 * var_scale + (s * h0 / tau) ** 2 * var_tau_h2 \
+        - 2.0 * s * h0 * h0 / tau * cov_scale_tau_h
+    return {k: (float(h[k] - z * np.sqrt(max(v, 0.0))), float(h[k] + z * np.sqrt(max(v, 0.0))))
+            for k, v in (("h_running_W_m2K", var_run), ("h_stopped_W_m2K", var_stop))}
+
+
+def speed_candidate_parameters(one, nominal, rho_c_R_J_m2K: float) -> dict:
+    """A screened single cause's parameters in the contract's names (no intervals: the
+    screen computes none): a running-only rate as its two h at that fit's own τ
+    (:func:`convection_h_W_m2K`), any other cause's the plant's own.
+
+    ``one``: the cause (:class:`~arfem.models.diagnosis.result.NamedCause`);
+    ``nominal``: its fit's nominal parameters {``time_constant_h``: τ [h], ...}
+    (:attr:`arfem.models.geodiagnosis.engine.Ranked.nominal`); ``rho_c_R_J_m2K``:
+    ρ·c·R of the ``[rod]`` [J/(m²K)].
+    """
+    if one.cause == "convection_scale" and TIME_CONSTANT.name in nominal:
+        return convection_h_W_m2K(one.parameters["h_scale"], nominal[TIME_CONSTANT.name],
+                                  rho_c_R_J_m2K)
+    return dict(one.parameters)
+
+
+def speed_contract_entries(fit, rho_c_R_J_m2K: float) -> tuple:
+    """The named causes of a speed diagnosis as the measured-data contract writes them
+    (:class:`arfem.models.diagnosis.rod_plant.ContractCause`, in the fit's order).
+
+    ``fit``: the pipeline's named :class:`arfem.models.geodiagnosis.fit.Fit` (its τ in
+    :attr:`~arfem.models.geodiagnosis.fit.Fit.nominal`, their joint covariance in
+    :attr:`~arfem.models.geodiagnosis.fit.Fit.covariance`); ``rho_c_R_J_m2K``: ρ·c·R
+    of the ``[rod]`` [J/(m²K)], which turns τ into the h at rest (paper eq. 13).
+    ``speed_dependent_convection``: ``h_running_W_m2K`` and ``h_stopped_W_m2K``
+    (:func:`convection_h_W_m2K`), their intervals by the delta method on the joint
+    covariance of h_scale and τ (:func:`convection_h_ci95`). A frame keeps the plant's
+    own parameters, which the contract names for speed records (docs/measured-data.md):
+    ``frame_gain_um_per_K`` (per kelvin of its thermometer's rise),
+    ``frame_gain_pc<j>_um`` (per unit principal component) and, lagged,
+    ``frame_time_constant_h``.
     """
     from arfem.models.diagnosis.rod_plant import ContractCause
-    h0 = _h_stopped_W_m2K(rho_c_R_J_m2K, time_constant_h)
+    from arfem.models.geodiagnosis.engine import named_causes
+    tau = float(fit.nominal.get(TIME_CONSTANT.name, TIME_CONSTANT.start))
+    cov = fit.covariance
     out = []
-    for name, p, ci in contract_causes(causes):
+    for c, (name, p, ci) in zip(fit.causes, contract_causes(named_causes(fit))):
         if name == "speed_dependent_convection":
-            hs = ci.get("h_scale")
-            p = {"h_running_W_m2K": p["h_scale"] * h0, "h_stopped_W_m2K": h0}
-            ci = {} if hs is None else {"h_running_W_m2K": (hs[0] * h0, hs[1] * h0)}
+            s = p["h_scale"]
+            p = convection_h_W_m2K(s, tau, rho_c_R_J_m2K)
+            t, k = (None, TIME_CONSTANT.name), (c.name, "h_scale")
+            ci = {} if cov is None or t not in cov.keys else convection_h_ci95(
+                s, tau, rho_c_R_J_m2K, cov.of(k, k), cov.of(t, t), cov.of(k, t))
         out.append(ContractCause(name, p, {k: tuple(v) for k, v in ci.items()}))
     return tuple(out)

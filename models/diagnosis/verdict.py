@@ -63,7 +63,7 @@ __all__ = ["VERDICTS", "Verdict", "decide", "apply", "text", "whiteness_p",
            "ljung_box_p_neff", "NO_EFFECT", "ALPHA", "WHITE_P", "BETTER_CUT", "UNITS_RATIO",
            "MIN_INDEPENDENT_SAMPLES", "DEFAULT_RESOLUTION", "ACTIONS", "named_cause",
            "naming_level", "channels_white", "correlation_bound", "signal_level", "better",
-           "units_suspect", "below_resolution", "outcome", "reaches_edge",
+           "units_suspect", "two_h_failures", "below_resolution", "outcome", "reaches_edge",
            "RESOLUTION_DEFAULTS", "EQUIVALENCE_P", "holdout_tells_apart_p", "beaten_text"]
 
 #: the four outcomes, as written to ``diagnosis.json``'s ``verdict``
@@ -409,6 +409,31 @@ def _range(name) -> str:
     return f" ({lo:g} to {hi:g})" if lo is not None and hi is not None else ""
 
 
+def two_h_failures(entry) -> list[str]:
+    """Rule 1a for ``speed_dependent_convection`` (one diagnosis.json ``causes`` entry):
+    established only where the 95 % intervals of ``h_running_W_m2K`` and
+    ``h_stopped_W_m2K`` both exist and do not overlap (else one h for both is not
+    excluded); the reason in words, or []. The one implementation of the rule, for the
+    speed branch's verdict (:func:`establishment_failures`) and the one pipeline's
+    (:func:`arfem.models.diagnosis.engine.diagnose`).
+
+    >>> two_h_failures({"cause": "speed_dependent_convection",
+    ...                 "ci95": {"h_running_W_m2K": [50, 60], "h_stopped_W_m2K": [90, 95]}})
+    []
+    """
+    c, ci = entry["cause"], entry.get("ci95") or {}
+    a, b = ci.get("h_running_W_m2K"), ci.get("h_stopped_W_m2K")
+    if a is None or b is None:
+        return [f"{c}: established only with 95 % intervals of its h values; "
+                "none was computed"]
+    if a[0] <= b[1] and b[0] <= a[1]:
+        return [f"{c}: established only if the 95 % intervals of h_running_W_m2K "
+                "and h_stopped_W_m2K do not overlap (else one h for both is not "
+                f"excluded); they are {a[0]:.3g} to {a[1]:.3g} and {b[0]:.3g} to "
+                f"{b[1]:.3g}"]
+    return []
+
+
 def establishment_failures(entries, gain_pct, nominal_h=None) -> list[str]:
     """Why the named causes ``entries`` (diagnosis.json's ``causes``) are not established,
     in words; empty if they are (rules 1a-1c of the module docstring).
@@ -426,15 +451,7 @@ def establishment_failures(entries, gain_pct, nominal_h=None) -> list[str]:
     for e in entries:
         c, ci = e["cause"], e.get("ci95") or {}
         if c == "speed_dependent_convection":
-            a, b = ci.get("h_running_W_m2K"), ci.get("h_stopped_W_m2K")
-            if a is None or b is None:
-                out.append(f"{c}: established only with 95 % intervals of its h values; "
-                           "none was computed")
-            elif a[0] <= b[1] and b[0] <= a[1]:
-                out.append(f"{c}: established only if the 95 % intervals of h_running_W_m2K "
-                           "and h_stopped_W_m2K do not overlap (else one h for both is not "
-                           f"excluded); they are {a[0]:.3g} to {a[1]:.3g} and {b[0]:.3g} to "
-                           f"{b[1]:.3g}")
+            out += two_h_failures(e)
         else:
             keys = [k for k in e.get("parameters", {}) if k in NO_EFFECT]
             if not keys:

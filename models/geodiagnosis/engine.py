@@ -125,6 +125,9 @@ class Ranked(NamedTuple):
         numbers the rule read (the first of step 2's tests it fails, parsimony, step 3's
         cut at three, its BIC gap or hold-out); None for the single cause step 3 named
         (step 4 may still pair or replace it)
+    nominal : mapping, its fit's values of the plant's own nonlinear parameters
+        (:attr:`arfem.models.geodiagnosis.fit.Fit.nominal`: the speed plant's τ and p;
+        empty on the rod and the mesh)
     """
 
     cause: str
@@ -133,6 +136,7 @@ class Ranked(NamedTuple):
     holdout_whitened_rms: float
     parameters: Mapping
     refused: str | None = None
+    nominal: Mapping = frozen_mapping({})
 
 
 @dataclass(frozen=True)
@@ -342,7 +346,7 @@ def _screen(ctx, singles, train, hold, base, n_tests):
         named = min(near, key=lambda r: r[4])
         why.update({r[0].name: _lost(r, passing[0], named) for r in passing if r is not named})
     ranking = tuple(Ranked(r[0].name, r[2], r[3], r[4], frozen_mapping(r[1].params[0]),
-                           why[r[0].name]) for r in rows)
+                           why[r[0].name], frozen_mapping(r[1].nominal)) for r in rows)
     if named is None:
         return ranking, None, (), ()
     return ranking, named[1], leads, tuple(r[1].causes for r in near)

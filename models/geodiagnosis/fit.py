@@ -43,6 +43,12 @@ Jacobian J̃ (Gauss–Newton), s² the whitened residual's variance (1 when the 
 model is right; estimated, not assumed). Without a fitted noise (a bare
 :func:`make_context`) they are the earlier sandwich A (Σ_c w_c⁴ J_cᵀ Σ_c J_c) A under a
 slow AR(1) or random walk (:func:`arfem.models.diagnosis.stats.slow_noise_sandwich`).
+
+The plant's own nonlinear parameters (the speed plant's time constant τ and heat
+exponent p: searched in every fit, never a cause) are columns of the same Jacobian, so
+they get their 95 % intervals from the same matrix (:attr:`Fit.nominal_ci95`), and
+:attr:`Fit.covariance` keeps their covariance with the causes' parameters, for a
+quantity derived from both (an h from τ and an h scale) by the delta method.
 """
 from __future__ import annotations
 
@@ -58,7 +64,7 @@ from arfem.models.geodiagnosis.noise import reml_joint, whitener
 from arfem.models.geodiagnosis.plant import BOUNDS, PLAUSIBLE, Cause, mesh_plant
 from arfem.models.plant import Plant, linear_value
 
-__all__ = ["Cause", "Fit", "FitContext", "make_context", "with_noise", "whitened",
+__all__ = ["Cause", "Fit", "ParameterCovariance", "FitContext", "make_context", "with_noise", "whitened",
            "candidate_causes", "channel_rows", "fit_mesh_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
@@ -112,6 +118,13 @@ class Fit:
     sse_w : float, weighted SSE on the fit rows [-]
     n_params : int
     setting : the plant's setting of the fit (:meth:`arfem.models.plant.Plant.setting`)
+    nominal : dict, the plant's own nonlinear parameters {name: value}
+        (:attr:`arfem.models.plant.Plant.nominal_parameters`, searched in every fit;
+        empty where the plant has none: the rod, the mesh)
+    nominal_ci95 : dict, their 95 % intervals {name: (low, high)}, by the same
+        covariance as the causes' (empty without intervals)
+    covariance : ParameterCovariance or None, the joint covariance of every reported
+        parameter (the causes' and the nominal ones; None without intervals)
     """
 
     causes: tuple
@@ -121,6 +134,36 @@ class Fit:
     sse_w: float
     n_params: int
     setting: object
+    nominal: dict = field(default_factory=dict)
+    nominal_ci95: dict = field(default_factory=dict)
+    covariance: "ParameterCovariance | None" = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
+class ParameterCovariance:
+    """The covariance of a fit's parameters (Gauss–Newton on the whitened residual, the
+    matrix the 95 % intervals are read from: :func:`fit_mesh_causes`).
+
+    Attributes
+    ----------
+    keys : tuple of (str or None, str), each row's (cause name ``kind:target``, or None
+        for a nominal parameter of the plant; parameter name)
+    matrix : ndarray (k, k), in the parameters' own units
+
+    Examples
+    --------
+    >>> c = ParameterCovariance(((None, "time_constant_h"), ("a:b", "h_scale")),
+    ...                         np.array([[4.0, -1.0], [-1.0, 1.0]]))
+    >>> c.of((None, "time_constant_h"), ("a:b", "h_scale"))
+    -1.0
+    """
+
+    keys: tuple
+    matrix: np.ndarray = field(repr=False)
+
+    def of(self, a: tuple, b: tuple) -> float:
+        """The covariance of the parameters keyed ``a`` and ``b``."""
+        return float(self.matrix[self.keys.index(a), self.keys.index(b)])
 
 
 def _sigma(y: np.ndarray, unit: str) -> float:
@@ -386,8 +429,10 @@ def _channel_meat(J: np.ndarray, r: np.ndarray) -> list:
 
 
 def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarray:
-    """Standard errors of (the causes' nonlinear params in cause order, then β, then
-    the nominal model's own nonlinear params)."""
+    """The covariance (p, p) of (the causes' nonlinear params in cause order, then β,
+    then the nominal model's own nonlinear params): one Gauss–Newton linearisation of
+    them all, so the nominal parameters' intervals (the speed plant's τ) and their
+    covariance with a cause's come from the same matrix as the causes' own."""
     J_nl = []
     for key, par in _nonlinear(ctx, causes):
         v = nl[key]
@@ -405,9 +450,9 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
     n_causes = sum(len(c.nonlinear_parameters) for c in causes)
     J_all = J_nl[:n_causes] + cols + J_nl[n_causes:]
     if not J_all:
-        return np.zeros(0)
+        return np.zeros((0, 0))
     if ctx.noise is not None:
-        return _gls_se(ctx, J_all, rows, pred)
+        return _gls_cov(ctx, J_all, rows, pred)
     p = len(J_all)
     bread = np.zeros((p, p))
     meats = None
@@ -427,13 +472,21 @@ def _intervals(ctx: FitContext, causes, nl: dict, beta, rows, pred) -> np.ndarra
         meats = m if meats is None else [a + b for a, b in zip(meats, m)]
     A = np.linalg.pinv(bread)
     if meats is None:
-        return np.full(p, np.inf)
-    var = np.max([np.diag(A @ M @ A) for M in meats], axis=0)
-    return np.sqrt(np.maximum(var, 0.0))
+        return np.diag(np.full(p, np.inf))
+    covs = [A @ M @ A for M in meats]
+    # each variance the larger of the two noise models' (as always); the correlations
+    # those of their sum
+    sd = np.sqrt(np.maximum(np.max([np.diag(c) for c in covs], axis=0), 0.0))
+    tot = covs[0] + covs[1]
+    d = np.sqrt(np.maximum(np.diag(tot), 0.0))
+    corr = np.divide(tot, np.outer(d, d), out=np.eye(p), where=np.outer(d, d) > 0)
+    cov = corr * np.outer(sd, sd)
+    np.fill_diagonal(cov, sd * sd)
+    return cov
 
 
-def _gls_se(ctx: FitContext, J_all, rows, pred) -> np.ndarray:
-    """Standard errors of generalised least squares on the fitted noise:
+def _gls_cov(ctx: FitContext, J_all, rows, pred) -> np.ndarray:
+    """The covariance of generalised least squares on the fitted noise:
     s² (Σ_c J̃_cᵀ J̃_c)⁻¹ with J̃ the whitened Jacobian and s² the whitened residual's
     variance (1 when the noise model is right; estimated, not assumed)."""
     J3 = np.stack(J_all, axis=2)
@@ -442,8 +495,7 @@ def _gls_se(ctx: FitContext, J_all, rows, pred) -> np.ndarray:
     rw = np.concatenate([whitened(ctx, y - pred, c, rows) for c in range(y.shape[1])])
     p = Jw.shape[1]
     s2 = float(rw @ rw) / max(rw.size - p, 1)
-    A = np.linalg.pinv(Jw.T @ Jw)
-    return np.sqrt(np.maximum(np.diag(A) * s2, 0.0))
+    return np.linalg.pinv(Jw.T @ Jw) * s2
 
 
 def _predict(ctx: FitContext, causes, nl: dict, beta) -> np.ndarray:
@@ -477,25 +529,38 @@ def fit_mesh_causes(ctx: FitContext, causes, rows: np.ndarray, intervals: bool =
     pred = base.copy()
     for b, c in zip(beta, cols):
         pred = pred + b * c
-    se = _intervals(ctx, causes, nl, beta, rows, pred) if intervals else None
+    cov = _intervals(ctx, causes, nl, beta, rows, pred) if intervals else None
     params = [dict() for _ in causes]
-    ci = [dict() for _ in causes]
-    k = 0
+    at = []                             # (row of cov, cause index or None, parameter)
     for i, c in enumerate(causes):
         for par in c.nonlinear_parameters:
-            v = nl[c.key(par)]
-            params[i][par.name] = v
-            if se is not None:
-                ci[i][par.name] = (v - _Z95 * se[k], v + _Z95 * se[k])
-            k += 1
+            params[i][par.name] = nl[c.key(par)]
+            at.append((len(at), i, par.name))
+    k = len(at)
     for j, (i, par) in enumerate(names):
-        if par is None:                 # a nuisance column of the plant
-            continue
-        v = linear_value(par, beta[j])
-        nm = par.name
-        params[i][nm] = v
-        if se is not None:
-            e = se[k + j]
-            ci[i][nm] = (v - _Z95 * e, v + _Z95 * e)
+        if par is not None:             # else a nuisance column of the plant
+            params[i][par.name] = linear_value(par, beta[j])
+            at.append((k + j, i, par.name))
+    nominal = {p.name: float(nl[p.name]) for p in ctx.plant.nominal_parameters}
+    at += [(k + len(beta) + m, None, nm) for m, nm in enumerate(nominal)]
+    ci, nominal_ci, covariance = _reported(causes, params, nominal, at, cov)
     return Fit(causes, tuple(params), tuple(ci), pred, sse,
-               len(beta) + len(_nonlinear(ctx, causes)), s)
+               len(beta) + len(_nonlinear(ctx, causes)), s, nominal, nominal_ci, covariance)
+
+
+def _reported(causes, params, nominal: dict, at: list, cov):
+    """(the causes' 95 % intervals, the nominal parameters', their
+    :class:`ParameterCovariance`) from the covariance ``cov`` of every fitted parameter
+    (None: no intervals, ``([{}...], {}, None)``); ``at`` lists the reported ones as (row
+    of ``cov``, cause index or None for a nominal parameter, name)."""
+    ci = [dict() for _ in causes]
+    if cov is None:
+        return ci, {}, None
+    nominal_ci = {}
+    for row, i, nm in at:
+        v = nominal[nm] if i is None else params[i][nm]
+        e = float(np.sqrt(max(cov[row, row], 0.0)))
+        (nominal_ci if i is None else ci[i])[nm] = (v - _Z95 * e, v + _Z95 * e)
+    rows = [row for row, _, _ in at]
+    keys = tuple((None if i is None else causes[i].name, nm) for _, i, nm in at)
+    return ci, nominal_ci, ParameterCovariance(keys, cov[np.ix_(rows, rows)])
