@@ -19,7 +19,7 @@ the truth's parameter with its estimate and 95 % interval, seconds; then the cou
 per cause: right cause named, established, interval holding the truth.
 
 ``--contract`` adds the plant as ``arfem diagnose`` writes it
-(``diagnose(..., speed_engine="plant")``): the contract's parameters and verdict, every
+(``diagnose(..., speed_engine="pipeline")``): the contract's parameters and verdict, every
 parameter of the truth the contract names scored (a speed_dependent_convection covered
 when the intervals of both ``h_running_W_m2K`` and ``h_stopped_W_m2K`` hold theirs; the
 latter's from the plant's τ). Measured 2026-11-28 (branch spci, ``--no-rod --contract``,
@@ -164,10 +164,10 @@ def run_plant(ds, h0):
 
 
 def run_contract(ds, h0):
-    """The plant as ``arfem diagnose`` writes it (``speed_engine="plant"``): the
+    """The plant as ``arfem diagnose`` writes it (``speed_engine="pipeline"``): the
     contract's parameters and verdict (a speed_dependent_convection's two h with
     intervals from the plant's τ and h_scale, the two-h rule)."""
-    d = diagnose(ds, h0, speed_engine="plant")
+    d = diagnose(ds, h0, speed_engine="pipeline")
     doc = d.evidence.document
     causes = doc.get("causes") or (doc.get("best_candidate") or {}).get("causes", [])
     return d.verdict, tuple((c["cause"], dict(c["parameters"]), dict(c["ci95"]))
@@ -182,7 +182,7 @@ def main(argv=None) -> int:
     ap.add_argument("--white", action="store_true")
     ap.add_argument("--no-rod", action="store_true")
     ap.add_argument("--contract", action="store_true",
-                    help="also the plant through diagnose(speed_engine='plant'), scoring "
+                    help="also the plant through diagnose(speed_engine="pipeline"), scoring "
                          "every contract parameter of the truth")
     ap.add_argument("--thermometers", type=int, default=1,
                     help="thermometers per record (synth_speed's thermometers)")

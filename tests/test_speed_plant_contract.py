@@ -1,4 +1,4 @@
-"""The contract fields of a speed diagnosis on the plant path (``speed_engine="plant"``,
+"""The contract fields of a speed diagnosis on the plant path (``speed_engine="pipeline"``,
 branch speedswitch), on synth_speed's records (AR(1) noise), each interval's tolerance
 being the interval itself:
 
@@ -83,7 +83,7 @@ def test_tau_of_the_named_fit_has_an_interval_holding_the_truth(convection):
 def test_speed_dependent_convection_writes_both_h_with_intervals_holding_the_truth(
         convection):
     case, ds = convection
-    d = diagnose(ds, case.holdout_start_s, speed_engine="plant")
+    d = diagnose(ds, case.holdout_start_s, speed_engine="pipeline")
     assert d.verdict == "established"
     (c,) = _causes(d)
     assert c["cause"] == "speed_dependent_convection"
@@ -107,7 +107,7 @@ def test_the_plant_path_applies_the_contracts_two_h_rule(convection, monkeypatch
         h = convection_h_W_m2K(h_scale, tau_h, rho_c_R)
         return {k: (0.5 * v, 2.0 * v) for k, v in h.items()}
     monkeypatch.setattr(speed_plant, "convection_h_ci95", overlapping)
-    d = diagnose(ds, case.holdout_start_s, speed_engine="plant")
+    d = diagnose(ds, case.holdout_start_s, speed_engine="pipeline")
     assert d.verdict == "unconfirmed"
     failed = d.evidence.document["verdict_detail"]["failed_checks"]
     assert any("do not overlap" in f for f in failed), failed
@@ -128,7 +128,7 @@ def test_a_frame_writes_its_gain_per_kelvin_with_its_interval(tmp_path):
     cr = np.random.default_rng([1, SPEED_SYNTH_CAUSES.index("frame_expansion")])
     cr.choice([-1.0, 1.0]), cr.uniform(0.3, 0.8), cr.uniform(3.0, 10.0)
     truth = case.truth["frame_gain"] * case.settings["steady_growth_um"] / cr.uniform(2, 6)
-    d = diagnose(_dataset(tmp_path, case), case.holdout_start_s, speed_engine="plant")
+    d = diagnose(_dataset(tmp_path, case), case.holdout_start_s, speed_engine="pipeline")
     assert d.verdict == "established"
     doc = d.evidence.document
     (c,) = _causes(d)

@@ -94,7 +94,7 @@ CONTRACT_PARAMETERS = {
     "nonlinear_convection": ("exponent",),
 }
 #: :data:`CONTRACT_PARAMETERS` of a speed record on the speed plant
-#: (``speed_engine="plant"``), whose frame follows a thermometer, not the rod: its gain
+#: (``speed_engine="pipeline"``), whose frame follows a thermometer, not the rod: its gain
 #: ``frame_gain_um_per_K`` [µm per K of the thermometer's rise] or, on the leading
 #: principal components of many thermometers, ``frame_gain_pc<j>_um`` [µm per unit
 #: component]; ``frame_time_constant_h`` [h] where it lags (docs/measured-data.md)
