@@ -182,7 +182,7 @@ def main(argv=None) -> int:
     ap.add_argument("--white", action="store_true")
     ap.add_argument("--no-rod", action="store_true")
     ap.add_argument("--contract", action="store_true",
-                    help="also the plant through diagnose(speed_engine="pipeline"), scoring "
+                    help="also the plant through diagnose(speed_engine='pipeline'), scoring "
                          "every contract parameter of the truth")
     ap.add_argument("--thermometers", type=int, default=1,
                     help="thermometers per record (synth_speed's thermometers)")
