@@ -248,7 +248,8 @@ def switch_outcome(split: dict, roll: dict, published_split: dict,
                if roll[c]["median_extended_um"] <= SWITCH_FACTOR * published_roll[c]]
     over = [f"{c} (28 h split)" for c, v in split.items()
             if v["verdict"] == "established" and v["extended_rmse_um"] > v["paper_ar_rmse_um"]]
-    over += [f"{c} ({v['established_losing_to_paper_ar']} rolling origins)"
+    over += [f"{c} ({v['established_losing_to_paper_ar']} rolling "
+             f"origin{'s' if v['established_losing_to_paper_ar'] > 1 else ''})"
              for c, v in roll.items() if v["established_losing_to_paper_ar"]]
     return {"split_within": within, "rolling_within": rolling, "overclaims": over,
             "passes": bool(len(within) >= SWITCH_CHANNELS and len(rolling) >= SWITCH_CHANNELS

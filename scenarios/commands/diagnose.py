@@ -37,11 +37,11 @@ def add_parser(subparsers):
                         "engine's speed branch, candidates chosen by forward-chaining "
                         "validation, the published procedure (branch, default), or the one "
                         "diagnosis pipeline on the speed plant, candidates screened by BIC "
-                        "on N_eff with frames per thermometer (pipeline, a prototype; "
-                        "--frame-search and --drift-last do not apply to it). q_W_m2 and "
-                        "mesh records always run the pipeline. The default stays branch "
-                        "until the pre-registered comparison on the real record "
-                        "(reports/fl_thermal/PREREGISTRATION.md) decides")
+                        "on N_eff with frames per thermometer (pipeline; --frame-search and "
+                        "--drift-last do not apply to it). q_W_m2 and mesh records always "
+                        "run the pipeline. The default stays branch: the pipeline failed "
+                        "its pre-registered comparison on the real record "
+                        "(reports/fl_thermal/switch.md)")
     p.add_argument("--frame-search", choices=("narrow", "wide", "average"), default=None,
                    help="speed-only records on the speed branch: frame structures compared "
                         "by validation -- "
