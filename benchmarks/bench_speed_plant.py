@@ -56,6 +56,15 @@ speed_dependent_convection  6 / 6 / 6   6 / 6 / 6     6 / 6 / 6
 clean (no cause)            6           6             6
 =========================== =========== ============= ===========
 
+At the commit that proposed the switch (3369e73: the paper AR(1) of eq. 17 held as a
+data baseline, intervals of τ and both h, the two-h rule), ``--seeds 6 --no-rod
+--contract [--thermometers 16]``, AR noise, plant and contract engines alike:
+sensor_drift 5 / 5 / 5 (M = 1; seed 6: no cause, "not explained", the paper AR(1)
+beating the nominal) and 4 / 4 / 4 (M = 16; seeds 3 and 6: a frame "unconfirmed" in its
+place); ambient_drift, frame_expansion, speed_dependent_convection 6 / 6 / 6 at both
+(frame at M = 16: 6 / 6 / --); clean: no cause on 6 of 6, 4 "explained" and 2 "not
+explained" at both. These are the numbers PREREGISTRATION.md's amendment names.
+
 Before the thermometer was smoothed (noise model of AR(1) slow state merged, AR,
 M = 1, seeds 1-6) the frame scored 5 / 1 / 3. The drift misses: seed 3 (M = 8 and 16)
 and fresh seed 103 (M = 1: no cause passes; M = 8: a frame on the components

@@ -55,3 +55,26 @@ def test_a_paper_ar_better_than_the_nominal_keeps_the_record_from_explained(drif
     assert d.verdict == "not_explained", d.verdict
     doc = diagnose(ds, h0, speed_engine="pipeline").evidence.document
     assert "paper AR(1) of eq. 17 does better on the hold-out" in doc["verdict_detail"]["text"]
+
+
+def test_the_published_switch_outcome_follows_from_its_own_numbers():
+    """reports/fl_thermal/switch.json (the pre-registered comparison, run once): its
+    outcome is the criterion applied to the numbers it stores, and it failed, which is
+    why the speed branch stays the default."""
+    import importlib.util
+    import inspect
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "reports" / "fl_thermal"
+    spec = importlib.util.spec_from_file_location("regenerate", root / "regenerate.py")
+    regen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(regen)
+    out = json.loads((root / "switch.json").read_text(encoding="utf-8"))
+    again = regen.switch_outcome(out["split"], out["rolling"],
+                                 out["published_split_extended_rmse_um"],
+                                 out["published_rolling_median_extended_um"])
+    assert again == out["outcome"]
+    assert not again["passes"]
+    assert inspect.signature(diagnose).parameters["speed_engine"].default == "branch"
+    assert regen.SPEED_ENGINE == "branch"
