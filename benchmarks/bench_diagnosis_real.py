@@ -75,7 +75,8 @@ def main(argv=None) -> int:
                 ref_wall.append(w)
                 ref_cpu.append(c)
                 w, c, _ = timed(ARFEM + ["diagnose", f"scenarios/data/fl_thermal/fl_thermal_ch{ch}.toml",
-                                         "--out", f"{tmp}/ch{ch}_{i}", "--no-progress"])
+                                         "--out", f"{tmp}/ch{ch}_{i}", "--no-progress",
+                                         "--speed-engine", "branch"])
                 rows.setdefault(ch, []).append((w, c))
         peaks = {}
         if not a.no_peak:
@@ -84,7 +85,8 @@ def main(argv=None) -> int:
             for ch in a.channels:
                 peaks[ch] = peak_of(ARFEM + ["diagnose",
                                              f"scenarios/data/fl_thermal/fl_thermal_ch{ch}.toml",
-                                             "--out", f"{tmp}/ch{ch}_peak", "--no-progress"])
+                                             "--out", f"{tmp}/ch{ch}_peak", "--no-progress",
+                                             "--speed-engine", "branch"])
     load1 = os.getloadavg()
     ref = statistics.median(ref_cpu)
     print(f"\narfem run scenarios/data/paper_fig2.toml: CPU {ref:.2f} s (median of {len(ref_cpu)}), "
