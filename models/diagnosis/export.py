@@ -97,8 +97,7 @@ def fem_state_space(fit, phys, dtau_s: float, *, R_um2: float = 0.0, description
     bad = [c for c in causes if c in NOT_LTI]
     if bad:
         raise InputError(f"{bad[0]} changes the rod's modes with the input or the state: "
-                         "not a linear time-invariant model, so it is not exported",
-                         "model_extended.json")
+                         "not a linear time-invariant model, so it is not exported")
     theta, lin = fit.theta, (fit.joint.linear if fit.joint is not None else {})
     rod, m = phys.rod, phys.m
     h = float(np.exp(theta["log_h"])) if "convection_mismatch" in causes \
@@ -284,8 +283,7 @@ def speed_plant_state_space(fit, plant, dtau_s: float, *, Q_um2: float = 0.0,
     kinds = tuple(c.kind for c in causes)
     if "convection_scale" in kinds:
         raise InputError("speed_dependent_convection changes the rod's rate with the speed: "
-                         "not a linear time-invariant model, so it is not exported",
-                         "model_extended.json")
+                         "not a linear time-invariant model, so it is not exported")
     s = fit.setting
     beta, nuisance = _plant_coefficients(fit, plant)
     a = float(np.exp(-dtau_s / (s.time_constant_h * 3600.0)))
