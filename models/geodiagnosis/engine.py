@@ -102,13 +102,16 @@ from arfem.models.plant import Plant
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["MeshEvidence", "Ranked", "diagnose_geometry", "diagnose_plant", "named_causes",
+__all__ = ["MeshEvidence", "Ranked", "NAMED_BY_SCREEN", "diagnose_geometry", "diagnose_plant", "named_causes",
            "mlr_holdout", "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself
 #: (Kass R. E., Raftery A. E., J. Amer. Statist. Assoc. 90 (1995) 773-795, sec. 3.2).
 DELTA_BIC = 10.0
+
+#: how a report reads a single cause the screen named alone (:attr:`Ranked.refused` None)
+NAMED_BY_SCREEN = "the screen named it"
 
 
 class Ranked(NamedTuple):

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from arfem.io import atomic_write_text, write_csv
+from arfem.models.geodiagnosis.engine import NAMED_BY_SCREEN
 from arfem.scenarios.html_report import write_html_report
 
 __all__ = ["write_report", "highlighted_picture", "named_groups"]
@@ -186,7 +187,7 @@ def _markdown(s: dict, d, sc) -> str:
     for r in shown:
         lines.append(f"| {r['cause']} | {r['bic']:.1f} | {r['f_test_p']:.2g} | "
                      f"{r['holdout_whitened_rms']:.3g} | "
-                     f"{r.get('not_named_alone_because') or 'the screen named it'} |")
+                     f"{r.get('not_named_alone_because') or NAMED_BY_SCREEN} |")
     if len(s["ranking"]) > len(shown):
         lines += ["", f"The {len(shown)} best of {len(s['ranking'])} single causes; every one "
                       "is in diagnosis.json (`ranking`)."]

@@ -11,6 +11,7 @@ import numpy as np
 from arfem.models.diagnosis import stats as st
 from arfem.models.diagnosis.rules import MIN_GAIN, blocks_needed
 from arfem.models.diagnosis.speed_intervals import at_search_edge
+from arfem.models.geodiagnosis.engine import NAMED_BY_SCREEN
 from arfem.io import atomic_write_text, write_csv, write_json
 from arfem.scenarios.diagnosis.document import document
 
@@ -313,7 +314,7 @@ def _heat_flux_candidates(j: dict) -> list[str]:
                 + (" – |" if why else ""))
             continue
         reason = " " + (c.get("not_named_alone_because") or (
-            "the screen named it" if "not_named_alone_because" in c else "–")) + " |"
+            NAMED_BY_SCREEN if "not_named_alone_because" in c else "–")) + " |"
         L.append(f"| {c['cause']} | {c['score']:.1f} | {st.format_p(c.get('p_value'))} | "
                  f"{_fmt(c.get('rmse_cut_pct'))} | " + ", ".join(
                      f"{k}={_fmt(v, 4)}" for k, v in c["parameters"].items()) + " |"
