@@ -79,6 +79,7 @@ import os
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -88,7 +89,7 @@ import numpy as np
 
 from arfem.models.diagnosis.engine import diagnose
 from arfem.models.diagnosis.speed_plant import contract_causes, speed_plant_from_dataset
-from arfem.models.diagnosis.synth_speed import SPEED_SYNTH_CAUSES, generate_speed
+from arfem.models.diagnosis.synth_speed import HEAT_LAWS, SPEED_SYNTH_CAUSES, generate_speed
 from arfem.models.geodiagnosis.engine import diagnose_plant
 from arfem.scenarios.records.dataset import load_dataset
 
@@ -105,14 +106,16 @@ def frame_truth_um_per_K(seed: int, case) -> float:
     return case.truth["frame_gain"] * case.settings["steady_growth_um"] / k_per_unit
 
 
-def record(cause: str, seed: int, white: bool, thermometers: int = 1):
+def record(cause: str, seed: int, white: bool, thermometers: int = 1,
+           heat_law: str = "power"):
     """(case, growth [µm], truth {contract or plant parameter: value}); a frame on
     several thermometers has no one gain to score (truth {})."""
     src = "sensor_drift" if cause == "clean" else cause
-    case = generate_speed(src, seed, thermometers=thermometers)
+    case = generate_speed(src, seed, thermometers=thermometers, heat_law=heat_law)
     y = case.growth_um.copy()
     if white:
-        clean = generate_speed(src, seed, noise_um=0.0, thermometers=thermometers).growth_um
+        clean = generate_speed(src, seed, noise_um=0.0, thermometers=thermometers,
+                               heat_law=heat_law).growth_um
         y = clean + np.random.default_rng([seed, 99]).normal(
             0.0, case.settings["noise_sigma_um"], y.size)
     truth = dict(case.truth)
@@ -162,14 +165,20 @@ def score(named, truth, right: str, every: bool = False):
     return True, "; ".join(texts), (all(covs) if covs else None)
 
 
+def _rmse(d) -> float:
+    """The extended model's hold-out RMSE [µm] of a diagnosis."""
+    return float(d.holdout.channels[0].extended_rmse)
+
+
 def run_rod(ds, h0):
     d = diagnose(ds, h0)
-    return d.verdict, tuple((c.cause, dict(c.parameters), dict(c.ci95)) for c in d.causes)
+    return d.verdict, tuple((c.cause, dict(c.parameters), dict(c.ci95))
+                            for c in d.causes), _rmse(d)
 
 
-def run_plant(ds, h0):
-    d = diagnose_plant(speed_plant_from_dataset(ds), h0)
-    return d.verdict, contract_causes(d.causes)
+def run_plant(ds, h0, heat_model: str = "auto"):
+    d = diagnose_plant(speed_plant_from_dataset(ds, h0, heat_model), h0)
+    return d.verdict, contract_causes(d.causes), _rmse(d)
 
 
 def run_contract(ds, h0):
@@ -180,7 +189,7 @@ def run_contract(ds, h0):
     doc = d.evidence.document
     causes = doc.get("causes") or (doc.get("best_candidate") or {}).get("causes", [])
     return d.verdict, tuple((c["cause"], dict(c["parameters"]), dict(c["ci95"]))
-                            for c in causes)
+                            for c in causes), _rmse(d)
 
 
 def main(argv=None) -> int:
@@ -195,19 +204,27 @@ def main(argv=None) -> int:
                          "every contract parameter of the truth")
     ap.add_argument("--thermometers", type=int, default=1,
                     help="thermometers per record (synth_speed's thermometers)")
+    ap.add_argument("--heat-law", default="power", choices=HEAT_LAWS,
+                    help="the synth's speed-to-heat law (synth_speed's heat_law)")
+    ap.add_argument("--heat-models", default="auto",
+                    help="the plant's nominal heat, comma-separated: one plant engine each "
+                         "(speed_plant's heat_model: law, per_speed, auto)")
     a = ap.parse_args(argv)
-    engines = {"plant": run_plant} if a.no_rod else {"rod": run_rod, "plant": run_plant}
+    engines = {} if a.no_rod else {"rod": run_rod}
+    for hm in a.heat_models.split(","):
+        engines["plant" if hm == "auto" else f"p:{hm}"] = partial(run_plant, heat_model=hm)
     if a.contract:
         engines["contract"] = run_contract
-    tally = {}
+    tally, rmse = {}, {}
     for cause in a.causes.split(","):
         for seed in range(a.seed0, a.seed0 + a.seeds):
-            case, y, truth = record(cause, seed, a.white, a.thermometers)
+            case, y, truth = record(cause, seed, a.white, a.thermometers, a.heat_law)
             with tempfile.TemporaryDirectory() as tmp:
                 ds = load_dataset(write(Path(tmp), case, y))
             for eng, run in engines.items():
                 t0 = time.perf_counter()
-                verdict, named = run(ds, case.holdout_start_s)
+                verdict, named, err = run(ds, case.holdout_start_s)
+                rmse.setdefault(eng, []).append(err)
                 sec = time.perf_counter() - t0
                 names = "+".join(c[0] for c in named) or "-"
                 if cause == "clean":
@@ -228,11 +245,16 @@ def main(argv=None) -> int:
                 row[4] += sec
                 print(f"{cause:27s} {seed:3d} {eng:8s} {verdict:14s} {names:38s} "
                       f"{txt:60s} {'' if cov is None else ('in' if cov else 'OUT'):3s} "
-                      f"{sec:6.1f} s", flush=True)
+                      f"{sec:6.1f} s  hold-out RMSE {err:.4f} um", flush=True)
     print("\ncause                       engine  right  established  covered  n  seconds")
     for (cause, eng), (ok, est, cov, n, sec) in tally.items():
         label = "no cause" if cause == "clean" else "right"
         print(f"{cause:27s} {eng:6s} {ok:3d} ({label})  {est:3d}  {cov:5d}  {n:3d}  {sec:7.1f}")
+    print("\nextended model's hold-out RMSE [um] over every record (engine, median, mean, "
+          "median of the plant's RMSE over the engine's, record by record)")
+    for eng, v in rmse.items():
+        ratio = np.median(np.divide(rmse["plant"], v)) if "plant" in rmse else np.nan
+        print(f"{eng:10s} {np.median(v):.4f}  {np.mean(v):.4f}  {ratio:.3f}")
     return 0
 
 

@@ -457,8 +457,10 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
 
 #: what the baseline of a speed_rpm record is on the one pipeline (PROTOTYPE, branch
 #: speedswitch; :func:`_diagnose_speed_plant`)
-SPEED_PLANT_LABEL = ("speed plant: one AR(1) of the speed-to-heat law (n/n_max)^p, its τ "
-                     "and p searched in every fit (arfem.models.diagnosis.speed_plant); "
+SPEED_PLANT_LABEL = ("speed plant: one AR(1) driven by one steady gain per speed seen "
+                     "before the hold-out (a speed first met after it by eqs. 20-21; one "
+                     "law (n/n_max)^p where no speed is seen), its τ searched in every fit "
+                     "(arfem.models.diagnosis.speed_plant); "
                      "beside it, the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 "
                      "for new speeds) is scored and held as a data baseline")
 
@@ -479,7 +481,7 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     rod = ds.rod
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
     y, rows = r.y, r.rows
-    plant = speed_plant_from_dataset(ds)
+    plant = speed_plant_from_dataset(ds, holdout_start_s=r.start_s)
     names = contract_names(plant)
     d = diagnose_plant(plant, holdout_start_s=r.start_s, progress=progress)
     ev = d.evidence

@@ -229,7 +229,9 @@ def speed_plant_state_space(fit, plant, dtau_s: float, *, Q_um2: float = 0.0,
     """A fit of the speed plant (:mod:`arfem.models.diagnosis.speed_plant`) as a model at
     interval Δτ.
 
-    The plant's prediction is G·AR1_b[(n/n_max)^p] + c·e^{−bt} [+ o] plus its causes'
+    The plant's prediction is G·AR1_b[(n/n_max)^p] + c·e^{−bt} [+ o] (per speed:
+    Σ_s K_s·AR1_b[u_s] + c·e^{−bt} [+ o], its ``input_maps`` the gain of each speed of
+    the record, 0 at rest, an unseen one's by eqs. 20-21 as in the fit) plus its causes'
     columns, each AR(1) an exact zero-order-hold recursion at the step factor
     a = e^{−Δτ/τ} (paper eqs. 12-13). As a state-space model (:func:`_ar1_with_frames`):
 
@@ -286,6 +288,7 @@ def speed_plant_state_space(fit, plant, dtau_s: float, *, Q_um2: float = 0.0,
                          "not a linear time-invariant model, so it is not exported")
     s = fit.setting
     beta, nuisance = _plant_coefficients(fit, plant)
+    speed_map, nuisance = _plant_speed_map(plant, nuisance, s.heat_exponent)
     a = float(np.exp(-dtau_s / (s.time_constant_h * 3600.0)))
     inputs, offsets, b_rod, frames = _plant_inputs(fit, plant, beta, a, dtau_s)
     A, B, C, D, x0 = _ar1_with_frames(a, b_rod, nuisance[1], frames)
@@ -295,13 +298,26 @@ def speed_plant_state_space(fit, plant, dtau_s: float, *, Q_um2: float = 0.0,
         dtau_s=float(dtau_s), A=A, B=B, C=C, D=D, inputs=tuple(inputs), x0=x0,
         d0_um=float(nuisance[2]) if len(nuisance) > 2 else 0.0, Q=float(Q_um2),
         R=float(R_um2), description=desc, arfem_version=arfem_version,
-        input_maps={"speed_rpm": _speed_law_table(plant, nuisance[0], s.heat_exponent)},
+        input_maps={"speed_rpm": speed_map},
         input_offsets=offsets)
 
 
 #: Speeds from 0 to the record's fastest at which the speed plant's law (n/n_max)^p is
 #: tabulated for :func:`speed_plant_state_space` (beside the record's own speeds)
 SPEED_MAP_POINTS = 65
+
+
+def _plant_speed_map(plant, nuisance: tuple, p: float) -> tuple:
+    """(the speed plant's ``input_maps["speed_rpm"]``, its nuisance coefficients with
+    the heat's reduced to one (G, c[, o])): the law's table (:func:`_speed_law_table`),
+    or per speed the fitted gain of each seen speed, 0 at rest and the eqs. 20-21 gain
+    of each unseen one (:func:`_speed_gain_table`)."""
+    heat = plant.heat
+    if heat.kind == "law":
+        return _speed_law_table(plant, nuisance[0], p), nuisance
+    k = len(heat.seen_rpm)
+    return (_speed_gain_table((0.0,) + heat.seen_rpm, (0.0,) + nuisance[:k],
+                              heat.unseen_weights), nuisance[k - 1:])
 
 
 def _speed_law_table(plant, gain_um: float, p: float) -> tuple:

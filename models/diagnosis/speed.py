@@ -39,7 +39,7 @@ from arfem.models.diagnosis.candidates import CandidateFit, project
 from arfem.models.diagnosis.forward import (ar_columns_rates, ar_first_order, first_order_lag,
                                             intervals)
 
-__all__ = ["speed_to_heat_map", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
+__all__ = ["speed_to_heat_map", "level_inputs", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
 
 #: causes identifiable for a calibrated AR(1) (h and heat scale are absorbed by C1, C2)
 SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_expansion",
@@ -153,8 +153,10 @@ def _speed_following_sensor(t, speed, levels, seen, temperatures, rows, window_s
     return best, rise, rejected
 
 
-def _level_inputs(speed, seen, W):
-    """Unit inputs per seen level, with unseen levels folded in by the mapping weights."""
+def level_inputs(speed, seen, W):
+    """Unit inputs per seen level {seen speed [1/min]: (N,) [-]}, with unseen levels
+    folded in by the mapping weights ``W`` of :func:`speed_to_heat_map` (a weight on a
+    level not in ``seen`` is dropped: that level has no gain)."""
     speed = np.asarray(speed, float)
     cols = {}
     for s in seen:
@@ -254,7 +256,7 @@ def fit_speed_candidate(cause, t, y, speed, rows, seen, W, ambient_K=None,
         cause does not apply to this record.
     """
     t, y, speed = (np.asarray(a, float) for a in (t, y, speed))
-    pb = _SpeedProblem(t, y, rows, _level_inputs(speed, seen, W),
+    pb = _SpeedProblem(t, y, rows, level_inputs(speed, seen, W),
                        "ar" if cause == "none" else f"ar+{cause}")
     if cause in ("none", "sensor_drift"):
         return _fit_rate(pb, cause, [t / 3600.0] if cause == "sensor_drift" else [])
@@ -290,7 +292,7 @@ class _SpeedProblem:
     squares on the fit rows, and the fit made of them (:func:`fit_speed_candidate`).
 
     ``t`` [s], ``y`` [µm] and ``rows`` (bool) of shape (N,); ``units`` the unit input of
-    each speed level (:func:`_level_inputs`); ``tag`` the model's name."""
+    each speed level (:func:`level_inputs`); ``tag`` the model's name."""
 
     def __init__(self, t, y, rows, units: dict, tag: str):
         self.t, self.y, self.rows, self.units, self.tag = t, y, rows, units, tag

@@ -13,7 +13,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from arfem.models.diagnosis.candidates import CandidateFit, FrameFit, project
 from arfem.models.diagnosis.forward import ar_columns, first_order_lag
-from arfem.models.diagnosis.speed import _level_inputs
+from arfem.models.diagnosis.speed import level_inputs
 
 __all__ = ["FrameStructure", "FrameEnsemble", "frame_structures", "heat_law",
            "frame_components", "fit_frame_thermometers", "FRAME_SEARCHES",
@@ -421,7 +421,7 @@ def _heat_inputs(speed, seen, W, p, rows):
     ``W``) or, with a heat-law exponent ``p``, the one input (n/n_ref)^p with n_ref the
     fastest speed on ``rows``; None where ``rows`` hold no running speed."""
     if p is None:
-        return list(_level_inputs(speed, seen, W).values())
+        return list(level_inputs(speed, seen, W).values())
     ref = float(np.max(speed[rows], initial=0.0))
     if ref <= 0:
         return None

@@ -2,7 +2,20 @@
 of the one diagnosis pipeline (issue 41, build item 1): the seed paper's AR(1) whose
 heat is unknown per speed, with a frame that follows a thermometer.
 
-Nominal model (paper eqs. 12-14 with the heat of a speed unknown): the growth [µm] is
+Nominal model (paper eqs. 12-14 with the heat of a speed unknown), one of two
+(:data:`HEAT_MODELS`, chosen by :func:`choose_heat_model`, below):
+
+* ``"per_speed"`` -- one steady gain per speed (paper eqs. 12 and 17): the growth [µm]
+  is Σ_s K_s · AR1_b[u_s] + c · exp(−b t), u_s the indicator of the non-zero speed s
+  seen in the fit rows (before the hold-out) and K_s its steady growth [µm], each a
+  nuisance column; at rest no heat. A speed first met after the fit window gets
+  K(u) = ratio · K(s_ref) by the paper's eqs. 20-21 (the early temperature rise after
+  a step to it against the nearest seen speed's, heat ∝ speed without a usable
+  thermometer: :func:`arfem.models.diagnosis.speed.speed_to_heat_map`, the branch's and
+  the reference model's own mapping; K(0) = 0, the plant's rest), folded into the
+  columns (:func:`arfem.models.diagnosis.speed.level_inputs`), so an unseen speed's
+  prediction stays linear in the fitted gains. τ [h] is the one nonlinear parameter.
+* ``"law"`` -- the growth [µm] is
 G · AR1_b[(n/n_max)^p] + c · exp(−b t): the unit-gain AR(1) (rate b = 1/τ) of the
 speed-to-heat law (n/n_max)^p (heat ∝ n^p, zero at rest:
 :func:`arfem.models.diagnosis.speed_frame.heat_law`'s family; p = 5/3 for viscous
@@ -14,49 +27,40 @@ for every speed, so a speed first met in the hold-out is predicted (the rod engi
 it by the paper's eqs. 20-21 instead). At rest no heat enters, so the growth returns to
 the reference: the sensor's offset stays identifiable.
 
-Causes (the one vocabulary, :func:`arfem.models.plant.cause`), each exact for the model
-it names (the truth of :mod:`arfem.models.diagnosis.synth_speed` is of this family):
+The choice (``heat_model="auto"``, the default; :func:`speed_plant`): where the fit rows
+see a non-zero speed, both nominal models are fitted on them beside every linear
+candidate cause at once (the largest model the pipeline fits its noise on: a cause left
+out, a drift say, made the nominal fits' N_eff a handful and the choice the drift's),
+GLS on one noise (:func:`~arfem.models.geodiagnosis.fit.with_noise` on the per-speed
+plant), and the one of lower BIC on N_eff (the screen's criterion,
+:func:`arfem.models.diagnosis.stats.bic`) is the plant's nominal; the per-speed gains
+must beat the law by the screen's margin
+(:data:`arfem.models.geodiagnosis.engine.DELTA_BIC`, 10: very strong evidence), else
+the law (fewer unknowns). On the fit rows the
+per-speed gains nest the law, so the law is kept where the heat follows one law --
+always per speed, development synth seeds 1 and 5 (power law, M = 1) lost their
+established drift, the gains absorbing part of the ramp before the drift-against-walk
+test -- and the gains are taken where it does not (the real FL_THERMAL record,
+README.posthoc.md 1.4). Where no non-zero speed is seen before the hold-out: the law.
+The plant must be built with the diagnosis's hold-out start (``holdout_start_s``; None:
+the default hold-out of :func:`arfem.models.diagnosis.holdout.default_holdout`, what
+:func:`~arfem.models.geodiagnosis.engine.diagnose_plant` takes when given none): the
+seen speeds and the fit rows of the choice are those before it.
 
-* ``sensor_drift:growth_um``: an offset [µm] and a drift [µm/h];
-* ``ambient_drift`` (where an ambient is recorded and varies): the rod's own AR(1) at
-  its rate of the recorded ambient above the reference (the rod's nominal ambient,
-  paper: 20 °C) with unit steady gain, times ``ambient_gain_um_per_K`` [µm/K];
-* ``convection_scale:running`` (where the spindle both runs and rests): the rod's rate
-  1/τ times ``h_scale`` [-] while the spindle turns (b = 2h/(ρcR), paper eq. 13, so a
-  factor on b is one on h): contract ``speed_dependent_convection``, with
-  h_running / h_stopped = h_scale and h_stopped = ρcR/(2τ);
-* ``frame_expansion:<T column>``: the frame grows ``frame_gain_um_per_K`` × the rise of
-  a recorded thermometer (°C above its first reading), no lag;
-* ``frame_lag:<T column>``: the same through a first-order lag of
-  ``frame_time_constant_h`` [h] (nonlinear, 2-200 h), its gain ``frame_gain_um_per_K``;
-* above :data:`PER_THERMOMETER_FRAMES` thermometers, ``frame_expansion:pc1-3`` and
-  ``frame_lag:pc1-3`` in their place: the frame follows the three leading principal
-  components of the standardised thermometers
-  (:func:`arfem.models.diagnosis.speed_frame.frame_components`, the speed branch's),
-  one gain ``frame_gain_pc<j>_um`` [µm per unit component] each, without and with
-  the lag. The components are taken over the whole record: the thermometers are
-  inputs, no growth reading of the hold-out enters them.
-
-Every thermometer is smoothed by a centred mean of ±:data:`THERMOMETER_SMOOTHING_S`
-before it is a regressor (its noise is an error in the variable, which the fitted slow
-noise turns into a gain drawn to zero).
-
-Contract names: :func:`contract_causes`.
-
-What this plant does not do (the rod engine's speed branch does): one gain per speed
-with the paper's eqs. 20-21 mapping, the choice of the frame's structure among numbers
+What this plant does not do (the rod engine's speed branch does): the choice of the frame's structure among numbers
 of components and lags by forward-chaining validation, and a frame without a thermometer (the
 frame's own lag of the rod's steady growth: its gain is a product with the nominal
 model's unknown steady growth G, not a linear column).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from arfem.models.diagnosis.forward import ar_columns_rates, first_order_lag, intervals
-from arfem.models.diagnosis.speed import paper_ar, speed_to_heat_map
+from arfem.models.diagnosis.holdout import default_holdout
+from arfem.models.diagnosis.speed import level_inputs, paper_ar, speed_to_heat_map
 from arfem.models.diagnosis.speed_frame import (centred_mean, frame_components,
                                                 temperature_matrix)
 from arfem.models.geodiagnosis.problem import Channel
@@ -66,7 +70,7 @@ __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_datase
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT", "THERMOMETER_SMOOTHING_S",
            "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "PAPER_AR_LABEL", "contract_names",
            "speed_contract_entries", "speed_candidate_parameters", "convection_h_W_m2K",
-           "convection_h_ci95"]
+           "convection_h_ci95", "HEAT_MODELS", "choose_heat_model", "HeatModel"]
 
 #: how the verdict names the paper's AR(1), the speed plant's reference model
 PAPER_AR_LABEL = "the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 for new speeds)"
@@ -103,6 +107,79 @@ PER_THERMOMETER_FRAMES = 3
 #: of 6 and a pair of frames on 2 on the sixth ("explained"); three alone named and
 #: established all 6, also with 16 thermometers, and halved the Bonferroni count.
 FRAME_COMPONENTS = (3,)
+
+
+#: the nominal models of the speed-to-heat relation: one law (n/n_max)^p, one gain per
+#: speed (eqs. 20-21 for a speed first met in the hold-out), or the lower BIC on N_eff
+#: of the two (module docstring)
+HEAT_MODELS = ("law", "per_speed", "auto")
+
+
+@dataclass(frozen=True)
+class HeatModel:
+    """The nominal model's heat, resolved for one fit window.
+
+    Attributes
+    ----------
+    kind : str, ``"law"`` or ``"per_speed"``
+    seen_rpm : tuple of float, the non-zero speeds seen in the fit rows, one gain each
+        (``"per_speed"``; () for the law) [1/min]
+    unseen_weights : dict, unseen speed [1/min] -> {seen speed [1/min]: weight [-]}
+        (eqs. 20-21, :func:`arfem.models.diagnosis.speed.speed_to_heat_map`; a weight on
+        speed 0 has no gain: K(0) = 0)
+    inputs : ndarray (N, len(seen_rpm)), the unit heat input of each seen speed, the
+        unseen ones folded in by their weights [-]
+    why : str, the choice in words
+    """
+
+    kind: str
+    seen_rpm: tuple = ()
+    unseen_weights: dict = field(default_factory=dict)
+    inputs: np.ndarray | None = None
+    why: str = ""
+
+
+def choose_heat_model(time_s, speed_rpm, temperatures: dict, rows,
+                      heat_model: str = "auto") -> HeatModel:
+    """The speed plant's nominal heat for the fit rows ``rows`` (module docstring):
+    ``"law"``; ``"per_speed"`` or ``"auto"``: per speed when ``rows`` see a non-zero
+    speed, else the law (``"auto"``'s choice by BIC between the two is
+    :func:`speed_plant`'s).
+
+    Parameters
+    ----------
+    time_s : (N,) sample times [s]
+    speed_rpm : (N,) spindle speed [1/min]
+    temperatures : dict, ``T_<name>_C`` -> (N,) [°C] (the eqs. 20-21 early rise)
+    rows : (N,) bool, the fit rows (before the hold-out, a growth reading)
+    heat_model : one of :data:`HEAT_MODELS`
+
+    Examples
+    --------
+    >>> t = np.arange(1, 7) * 60.0
+    >>> sp = np.array([0.0, 1000.0, 1000.0, 0.0, 2000.0, 2000.0])
+    >>> hm = choose_heat_model(t, sp, {}, t < 250.0)
+    >>> hm.kind, hm.seen_rpm, float(hm.unseen_weights[2000.0][1000.0])
+    ('per_speed', (1000.0,), 2.0)
+    >>> hm.inputs[:, 0].tolist()
+    [0.0, 1.0, 1.0, 0.0, 2.0, 2.0]
+    """
+    if heat_model not in HEAT_MODELS:
+        raise ValueError(f"heat_model must be one of {HEAT_MODELS}, not {heat_model!r}")
+    sp = np.asarray(speed_rpm, float)
+    rows = np.asarray(rows, bool)
+    seen = tuple(float(v) for v in np.unique(sp[rows]) if v > 0)
+    if heat_model == "law" or not seen:
+        why = "asked for" if heat_model == "law" else \
+            "no non-zero speed before the hold-out to take a gain from"
+        return HeatModel("law", why=f"one law (n/n_max)^p: {why}")
+    _, _, W, _ = speed_to_heat_map(time_s, sp, temperatures, rows)
+    cols = level_inputs(sp, seen, W)
+    unseen = sorted(W)
+    return HeatModel("per_speed", seen, W, np.column_stack([cols[v] for v in seen]),
+                     f"one gain per speed ({len(seen)} seen before the hold-out"
+                     + (f"; {len(unseen)} first met after it, by eqs. 20-21)" if unseen
+                        else ")"))
 
 
 @dataclass(frozen=True)
@@ -160,6 +237,7 @@ class SpeedPlant:
     nominal_parameters: tuple = (TIME_CONSTANT, HEAT_EXPONENT)
     regrows: bool = False
     rules: SelectionRules = SelectionRules()
+    heat: HeatModel = HeatModel("law")
 
     def candidate_causes(self) -> tuple:
         """A sensor drift; an ambient drift where the ambient is recorded and varies; a
@@ -201,16 +279,19 @@ class SpeedPlant:
         return self.cache[key]
 
     def _nuisance(self, s: SpeedSetting) -> tuple:
-        """The unit-gain AR(1) of the heat law and the initial state's decay."""
+        """The unit-gain AR(1) of the heat law (or of each seen speed's heat input, per
+        speed: :attr:`heat`) and the initial state's decay."""
+        per_speed = self.heat.kind == "per_speed"
+
         def make():
             t, b = self.time_s, self._rate_1_s(s)
-            heat = np.maximum(self.load_shape, 0.0) ** s.heat_exponent
-            cols = [ar_columns_rates(t, heat[:, None], b)[:, 0],
-                    np.exp(-np.cumsum(b * intervals(t)))]
+            U = self.heat.inputs if per_speed else \
+                (np.maximum(self.load_shape, 0.0) ** s.heat_exponent)[:, None]
+            cols = list(ar_columns_rates(t, U, b).T) + [np.exp(-np.cumsum(b * intervals(t)))]
             return tuple(c[:, None] for c in cols)
-        return self._cached(("nuisance", round(s.time_constant_h, 10),
-                             round(s.heat_exponent, 10), round(s.running_rate_scale, 10)),
-                            make)
+        p = 0.0 if per_speed else round(s.heat_exponent, 10)
+        return self._cached(("nuisance", round(s.time_constant_h, 10), p,
+                             round(s.running_rate_scale, 10)), make)
 
     def _ambient(self, s: SpeedSetting) -> np.ndarray:
         """The unit-gain AR(1) at the rod's rate of the ambient above the reference [K]."""
@@ -295,30 +376,70 @@ class SpeedPlant:
 
 
 def speed_plant(name: str, time_s, growth_um, speed_rpm, temperatures=None,
-                ambient_C=None, reference_C: float = 20.0) -> SpeedPlant:
+                ambient_C=None, reference_C: float = 20.0,
+                holdout_start_s: float | None = None, heat_model: str = "auto") -> SpeedPlant:
     """The :class:`SpeedPlant` of a speed-only record: times [s], growth [µm], speed
     [1/min], thermometers {``T_<name>_C``: (N,) [°C]}, the recorded ambient [°C] (or
-    None) and the rod's nominal ambient ``reference_C`` [°C]."""
+    None), the rod's nominal ambient ``reference_C`` [°C], the diagnosis's hold-out
+    start [s] (None: the default hold-out, :func:`~arfem.models.diagnosis.holdout.default_holdout`)
+    and the nominal heat (one of :data:`HEAT_MODELS`, :func:`choose_heat_model` on the
+    rows before the hold-out with a growth reading)."""
     t = np.asarray(time_s, float)
     sp = np.asarray(speed_rpm, float)
+    y = np.asarray(growth_um, float).reshape(-1, 1)
     shape = sp / float(np.max(sp)) if np.max(sp) > 0 else np.zeros_like(sp)
     amb = None if ambient_C is None else np.asarray(ambient_C, float)
-    return SpeedPlant(name, t, np.asarray(growth_um, float).reshape(-1, 1), sp,
-                      dict(temperatures or {}), shape, ambient_C=amb,
-                      reference_C=float(reference_C))
+    temps = dict(temperatures or {})
+    h0 = default_holdout(t, shape)[0] if holdout_start_s is None else float(holdout_start_s)
+    rows = (t < h0) & np.isfinite(y[:, 0])
+    heat = choose_heat_model(t, sp, temps, rows, heat_model)
+    nominal = (TIME_CONSTANT,) if heat.kind == "per_speed" else (TIME_CONSTANT, HEAT_EXPONENT)
+    plant = SpeedPlant(name, t, y, sp, temps, shape, ambient_C=amb,
+                       reference_C=float(reference_C), nominal_parameters=nominal, heat=heat)
+    if heat_model != "auto" or heat.kind == "law":
+        return plant
+    law = replace(plant, nominal_parameters=(TIME_CONSTANT, HEAT_EXPONENT), cache={},
+                  heat=HeatModel("law"))
+    return _lower_bic(law, plant, rows)
 
 
-def speed_plant_from_dataset(ds) -> SpeedPlant:
+def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:
+    """Of the two nominal models, the one of lower BIC on N_eff on ``rows`` (the law
+    unless the per-speed gains beat it by the screen's ``DELTA_BIC``), each fitted
+    beside every linear candidate cause by GLS on the noise the pipeline fits on the
+    per-speed plant; its ``heat.why`` says the BICs."""
+    from arfem.models.diagnosis.stats import bic
+    from arfem.models.geodiagnosis.engine import DELTA_BIC, _n_eff
+    from arfem.models.geodiagnosis.fit import fit_mesh_causes, make_context, with_noise
+    ctx = with_noise(make_context(per_speed), rows)
+    lin = tuple(c for c in per_speed.candidate_causes() if not c.nonlinear)
+    out = {}
+    for p in (law, per_speed):
+        c = replace(ctx, plant=p, wcache={}, n_eff_full=None)
+        f = fit_mesh_causes(c, lin, rows, intervals=False)
+        N = int((c.valid & rows[:, None]).sum())
+        out[p.heat.kind] = float(bic(f.sse_w, N, _n_eff(c, f.prediction, rows), f.n_params))
+    pick = per_speed if out["per_speed"] < out["law"] - DELTA_BIC else law
+    why = (f"BIC on N_eff {out['per_speed']:.1f} per speed against {out['law']:.1f} for "
+           f"one law, the lower by more than {DELTA_BIC:g} chosen, else the law")
+    first = ("one gain per speed" if pick is per_speed else "one law (n/n_max)^p") + ": "
+    return replace(pick, heat=replace(pick.heat, why=first + why + (
+        f"; {per_speed.heat.why}" if pick is per_speed else "")))
+
+
+def speed_plant_from_dataset(ds, holdout_start_s: float | None = None,
+                             heat_model: str = "auto") -> SpeedPlant:
     """The :class:`SpeedPlant` of a validated ``speed_rpm`` record
     (:class:`arfem.models.diagnosis.dataset.Dataset`): growth with its flagged outliers
     left out, the speed, the thermometers ``T_<name>_C`` and the ambient, the rod's
-    nominal ambient its reference."""
+    nominal ambient its reference; ``holdout_start_s`` and ``heat_model`` as
+    :func:`speed_plant`'s."""
     if ds.speed_rpm is None:
         raise ValueError(f"{ds.name}: the speed plant needs a speed_rpm record")
     y = np.array(ds.growth_um, float)
     y[np.asarray(ds.outliers, bool)] = np.nan
     return speed_plant(ds.name, ds.time_s, y, ds.speed_rpm, dict(ds.temperatures),
-                       ds.ambient_C, ds.rod.ambient_C)
+                       ds.ambient_C, ds.rod.ambient_C, holdout_start_s, heat_model)
 
 
 #: the contract cause (docs/measured-data.md) of each kind of the plant

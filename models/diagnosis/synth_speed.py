@@ -25,6 +25,12 @@ interval is a miss of the interval, not a model-form error:
                                  h = bρcR/2 with the default :class:`~arfem.params.Rod`
   ============================== =======================================================
 
+* with ``heat_law="per_speed"`` (off by default: the records above are unchanged) the
+  heat of a speed level is NOT a power law of the speed: each non-zero level's heat is
+  (n/n_max)^(5/3) times its own factor exp(N(0, 0.35²)) (drawn from
+  ``default_rng([seed, 60])``, levels in increasing speed), then scaled so that the
+  largest level's heat is 1 -- one steady gain per speed, the paper's eq. 17 structure,
+  which no one law (n/n_max)^p follows (:func:`per_speed_heat`);
 * measurement noise: AR(1) with ρ 0.6-0.9 (as real records have) and marginal σ
   0.03-0.15 µm.
 
@@ -50,11 +56,40 @@ import numpy as np
 from arfem.models.diagnosis.forward import ar_first_order, first_order_lag
 from arfem.params import Rod
 
-__all__ = ["SPEED_SYNTH_CAUSES", "SpeedCase", "generate_speed", "ar1_noise"]
+__all__ = ["SPEED_SYNTH_CAUSES", "HEAT_LAWS", "SpeedCase", "generate_speed", "ar1_noise",
+           "per_speed_heat"]
 
 SPEED_SYNTH_CAUSES = ("sensor_drift", "ambient_drift", "frame_expansion",
                       "speed_dependent_convection")
 HEAT_EXPONENT = 5.0 / 3.0
+#: the speed-to-heat laws of :func:`generate_speed` (``heat_law``)
+HEAT_LAWS = ("power", "per_speed")
+#: σ of the log of each speed level's factor off the power law (``heat_law="per_speed"``)
+PER_SPEED_LOG_SIGMA = 0.35
+
+
+def per_speed_heat(seed: int, speed_rpm, n_max_rpm: float) -> np.ndarray:
+    """The heat [-] of each row when each speed level has its own steady heat (module
+    docstring, ``heat_law="per_speed"``): (n/n_max)^(5/3) times a factor
+    exp(N(0, :data:`PER_SPEED_LOG_SIGMA`²)) per non-zero level, the largest level's heat
+    scaled to 1; zero at rest.
+
+    Examples
+    --------
+    >>> sp = np.array([0.0, 1000.0, 2000.0, 4000.0, 1000.0])
+    >>> q = per_speed_heat(1, sp, 4000.0)
+    >>> float(q.max()), float(q[0]), bool(q[1] == q[4])
+    (1.0, 0.0, True)
+    """
+    speed = np.asarray(speed_rpm, float)
+    levels = np.unique(speed[speed > 0])
+    f = np.exp(np.random.default_rng([seed, 60]).normal(0.0, PER_SPEED_LOG_SIGMA, levels.size))
+    q = (levels / float(n_max_rpm)) ** HEAT_EXPONENT * f
+    q = q / q.max()
+    out = np.zeros(speed.size)
+    for lv, h in zip(levels, q):
+        out[speed == lv] = h
+    return out
 
 
 @dataclass
@@ -121,6 +156,15 @@ def ar1_noise(rng, n: int, sigma: float, rho: float) -> np.ndarray:
     return out
 
 
+def _heat(heat_law: str, seed: int, speed, n_max: float) -> np.ndarray:
+    """The heat [-] of each row by ``heat_law`` (one of :data:`HEAT_LAWS`)."""
+    if heat_law not in HEAT_LAWS:
+        raise ValueError(f"heat_law must be one of {HEAT_LAWS}, not {heat_law!r}")
+    if heat_law == "power":
+        return (speed / n_max) ** HEAT_EXPONENT
+    return per_speed_heat(seed, speed, n_max)
+
+
 def _schedule(rng, duration_h: float, step_s: float):
     levels = np.sort(rng.choice([1000.0, 1500.0, 2000.0, 2500.0, 3000.0, 3500.0, 4000.0],
                                 size=int(rng.integers(3, 5)), replace=False))
@@ -182,7 +226,7 @@ def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: in
 
 def generate_speed(cause: str, seed: int, noise_um: float | None = None,
                    duration_h: float = 30.0, step_s: float = 120.0,
-                   thermometers: int = 1) -> SpeedCase:
+                   thermometers: int = 1, heat_law: str = "power") -> SpeedCase:
     """A speed-only record with ``cause`` injected at known parameters.
 
     Parameters
@@ -201,6 +245,8 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
         1: the record of one cause as always (a ``frame_expansion`` carries its frame's
         thermometer ``T_frame_C``); m > 1: m thermometers on every record (module
         docstring).
+    heat_law : str
+        ``"power"``: heat (n/n_max)^(5/3); ``"per_speed"``: :func:`per_speed_heat`.
 
     Returns
     -------
@@ -216,7 +262,7 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
         raise ValueError(f"cause must be one of {SPEED_SYNTH_CAUSES}, not {cause!r}")
     rng = np.random.default_rng(seed)
     t, speed, n_max = _schedule(rng, duration_h, step_s)
-    heat = (speed / n_max) ** HEAT_EXPONENT
+    heat = _heat(heat_law, seed, speed, n_max)
     tau_rod_h = float(rng.uniform(0.6, 2.0))
     k_um = float(rng.uniform(12.0, 30.0))
     sigma = float(rng.uniform(0.03, 0.15)) if noise_um is None else float(noise_um)

@@ -120,7 +120,7 @@ def _extended_model(ds, diag, dt: float, fit, span: str):
         plant, named = ev.plant_fit
         return speed_plant_state_space(
             named, plant, dt, Q_um2=ev.extended.rss / max(ev.extended.n, 1),
-            description=f"speed plant: AR(1) of the speed-to-heat law (n/n_max)^p with "
+            description=f"speed plant: AR(1) of {plant.heat.why} with "
                         f"{causes} (the diagnosis's extended model{label}); thermometers "
                         f"read raw (the diagnosis smooths them by a centred mean), {span}",
             **kw)
