@@ -54,7 +54,8 @@ model's unknown steady growth G, not a linear column).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from dataclasses import replace as with_fields
 
 import numpy as np
 
@@ -398,7 +399,7 @@ def speed_plant(name: str, time_s, growth_um, speed_rpm, temperatures=None,
                        reference_C=float(reference_C), nominal_parameters=nominal, heat=heat)
     if heat_model != "auto" or heat.kind == "law":
         return plant
-    law = replace(plant, nominal_parameters=(TIME_CONSTANT, HEAT_EXPONENT), cache={},
+    law = with_fields(plant, nominal_parameters=(TIME_CONSTANT, HEAT_EXPONENT), cache={},
                   heat=HeatModel("law"))
     return _lower_bic(law, plant, rows)
 
@@ -415,7 +416,7 @@ def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:
     lin = tuple(c for c in per_speed.candidate_causes() if not c.nonlinear)
     out = {}
     for p in (law, per_speed):
-        c = replace(ctx, plant=p, wcache={}, n_eff_full=None)
+        c = with_fields(ctx, plant=p, wcache={}, n_eff_full=None)
         f = fit_mesh_causes(c, lin, rows, intervals=False)
         N = int((c.valid & rows[:, None]).sum())
         out[p.heat.kind] = float(bic(f.sse_w, N, _n_eff(c, f.prediction, rows), f.n_params))
@@ -423,7 +424,7 @@ def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:
     why = (f"BIC on N_eff {out['per_speed']:.1f} per speed against {out['law']:.1f} for "
            f"one law, the lower by more than {DELTA_BIC:g} chosen, else the law")
     first = ("one gain per speed" if pick is per_speed else "one law (n/n_max)^p") + ": "
-    return replace(pick, heat=replace(pick.heat, why=first + why + (
+    return with_fields(pick, heat=with_fields(pick.heat, why=first + why + (
         f"; {per_speed.heat.why}" if pick is per_speed else "")))
 
 
