@@ -9,7 +9,10 @@ What the line shows of the hold-out follows from the result (one channel scored 
 is, or channels whitened by their fitted noise), not from the plant's name."""
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
+
+import pytest
 
 from arfem.models.diagnosis.result import (ChannelHoldout, Diagnosis, Holdout, NamedCause,
                                            frozen_mapping)
@@ -95,3 +98,18 @@ def test_the_hold_out_part_follows_the_result_not_the_plant():
     assert two.endswith("hold-out gain 50.0 %") and "RMSE" not in two
     one = diagnosis_terminal_line(_diag(plant="mesh", gain_whitened_pct=1.0))
     assert "(whitened 1.0 %, the one the verdict uses)" in one and "RMSE" not in one
+
+
+@pytest.mark.parametrize("heat, how", [
+    ("law", "follow the plant's law (n/n_max)^p"),
+    ("per_speed", "by eqs. 20-21 from the plant's per-speed gains")])
+def test_pipeline_line_says_how_the_plant_predicts_unseen_speeds(heat, how):
+    """On the speed plant (``speed_engine="pipeline"``) a speed first met in the hold-out
+    is predicted by the nominal the plant chose (``selection.speed_plant_heat``): the
+    law, or the per-speed gains mapped by eqs. 20-21; the line says which."""
+    d = _diag(doc_holdout=UNSEEN)
+    doc = frozen_mapping({"holdout": UNSEEN, "selection": {
+        "speed_engine": "pipeline", "speed_plant_heat": heat}})
+    d = dataclasses.replace(d, evidence=SimpleNamespace(document=doc))
+    line = diagnosis_terminal_line(d)
+    assert f"(500, 1500, 3500, 4500 rpm) {how}; its paper AR(1) reference maps" in line

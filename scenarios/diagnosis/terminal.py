@@ -60,12 +60,13 @@ def _holdout_text(d) -> str:
         if h.gain_whitened_pct is not None:
             text += f" (whitened {h.gain_whitened_pct:.1f} %, the one the verdict uses)"
     unseen = _speeds_not_seen_rpm(d)
-    pipeline = unseen and (d.evidence.document.get("selection") or {}).get(
-        "speed_engine") == "pipeline"
-    if pipeline:        # the plant's one law predicts them; the paper AR(1) maps them
+    sel = d.evidence.document.get("selection") or {}
+    pipeline = unseen and sel.get("speed_engine") == "pipeline"
+    if pipeline:        # the plant's law or its eqs. 20-21 predicts them
+        how = "by eqs. 20-21 from the plant's per-speed gains" \
+            if sel.get("speed_plant_heat") == "per_speed" else "follow the plant's law (n/n_max)^p"
         text += (f"; speeds not seen before the hold-out ({', '.join(f'{v:g}' for v in unseen)}"
-                 " rpm) follow the plant's law (n/n_max)^p; its paper AR(1) reference maps "
-                 "them by eqs. 20-21")
+                 f" rpm) {how}; its paper AR(1) reference maps them by eqs. 20-21")
     elif unseen:
         text += (f"; the baseline maps speeds not seen before the hold-out "
                  f"({', '.join(f'{v:g}' for v in unseen)} rpm) by eqs. 20-21, model.json "
