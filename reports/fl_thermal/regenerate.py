@@ -264,11 +264,13 @@ def _commit() -> str:
     return run("rev-parse", "HEAD") + ("+dirty" if run("status", "--porcelain", "-uno") else "")
 
 
-def _run_switch(data, jobs) -> int:
+def _run_switch(data, jobs, name: str = "switch") -> int:
     """The pre-registered comparison of the speed engines (PREREGISTRATION.md,
     2026-11-28): the one pipeline on the speed plant at the 28 h split and the rolling
     origins, against the speed branch's published numbers (preregistered.json,
-    rolling.json); writes switch.json and switch.md. Run once."""
+    rolling.json); writes switch.json and switch.md. Run once. ``name`` other than
+    "switch" (``--switch-posthoc``): the same comparison of a later pipeline, written to
+    <name>.json/md and labelled post hoc: it decides nothing."""
     import time
     t0 = time.time()
     sp = preregistered_scores(Path(data) / WHOLE_CSV, data, jobs=jobs, engine="pipeline")
@@ -276,7 +278,8 @@ def _run_switch(data, jobs) -> int:
                          "extended_rmse_um": ext,
                          "paper_ar_rmse_um": s["ar_form"]["paper_ar"]["baseline_holdout_rmse_um"],
                          "nominal_rmse_um": s["holdout"]["baseline_rmse_um"],
-                         "mlr_rmse_um": ml}
+                         "mlr_rmse_um": ml,
+                         "heat": s["selection"].get("speed_plant_heat")}
              for ch, (_, ml, ext, s) in sp.items()}
     rs = rolling_scores(data, search="pipeline", jobs=jobs)
     roll = {f"ch{ch}": {"median_extended_um": summ["rmse"]["extended"]["median_um"],
@@ -294,13 +297,14 @@ def _run_switch(data, jobs) -> int:
                 json.loads((HERE / "rolling.json").read_text(encoding="utf-8"))[
                     "channels"].items()}
     out = {"commit": _commit(), "wall_time_s": time.time() - t0, "jobs": jobs,
+           "post_hoc": name != "switch",
            "factor": SWITCH_FACTOR, "channels_needed": SWITCH_CHANNELS,
            "split": split, "rolling": roll, "published_split_extended_rmse_um": pub_split,
            "published_rolling_median_extended_um": pub_roll,
            "outcome": switch_outcome(split, roll, pub_split, pub_roll)}
-    atomic_write_text(HERE / "switch.json", json.dumps(out, indent=1) + "\n")
+    atomic_write_text(HERE / f"{name}.json", json.dumps(out, indent=1) + "\n")
     text = _switch_text(out)
-    atomic_write_text(HERE / "switch.md", text)
+    atomic_write_text(HERE / f"{name}.md", text)
     print(text)
     return 0
 
@@ -315,9 +319,20 @@ def _switch_text(out) -> str:
             f"{out['rolling'][c]['median_extended_um']:.2f} | "
             f"{'yes' if c in o['rolling_within'] else '**no**'} |"
             for c, v in out["split"].items()]
+    if out.get("post_hoc"):
+        head = ("# The speed switch's comparison, rerun POST HOC on a later pipeline", "",
+                "**Post hoc**: the pipeline was changed after the pre-registered run "
+                "(switch.md) had been seen; this table decides nothing. At")
+        outcome = ("**Post hoc, the criterion would " + ("hold" if o["passes"] else "fail")
+                   + "; the pre-registered outcome (switch.md) stands.**")
+    else:
+        head = ("# The speed switch, pre-registered (PREREGISTRATION.md, 2026-11-28; issue 41)",
+                "", "Run once, at")
+        outcome = "**Outcome: the criterion " + (
+            "holds: speed-only records move to the one pipeline." if o["passes"] else
+            "fails: speed-only records stay on the speed branch.") + "**"
     return "\n".join([
-        "# The speed switch, pre-registered (PREREGISTRATION.md, 2026-11-28; issue 41)", "",
-        f"Run once, at commit `{out['commit']}` ({out['wall_time_s'] / 60:.0f} min on "
+        *head[:-1], head[-1] + f" commit `{out['commit']}` ({out['wall_time_s'] / 60:.0f} min on "
         f"{out['jobs']} processes). **Not an out-of-sample test**: every row of this record "
         "was in a scored hold-out before; it compares two fixed procedures. Hold-out RMSE "
         "[µm]. *Branch*: the speed branch as published (preregistered.json, rolling.json); "
@@ -330,10 +345,7 @@ def _switch_text(out) -> str:
         f"the 28 h split, {len(o['rolling_within'])} of 5 in the rolling median (needed: "
         f"{out['channels_needed']} at both). Established causes that lose to the paper "
         f"AR(1) on their split: {', '.join(o['overclaims']) or 'none'}.", "",
-        "**Outcome: the criterion " + ("holds: speed-only records move to the one pipeline."
-                                       if o["passes"] else
-                                       "fails: speed-only records stay on the speed branch.")
-        + "**", ""])
+        outcome, ""])
 
 
 def _verdict(wins):
@@ -637,6 +649,9 @@ def main(argv=None) -> int:
                     help="published folders: the verdict's stability at up to N rolling "
                          "origins (arfem diagnose --stability; each origin costs one "
                          "diagnosis; default %(default)s = not computed)")
+    ap.add_argument("--switch-posthoc", action="store_true",
+                    help="the same comparison of the pipeline as it is now, labelled post "
+                         "hoc (switch_posthoc.json/md; decides nothing)")
     ap.add_argument("--switch", action="store_true",
                     help="the pre-registered comparison of the speed engines "
                          "(PREREGISTRATION.md, 2026-11-28): switch.json/md. Run once")
@@ -647,6 +662,8 @@ def main(argv=None) -> int:
         return _run_readme()
     if a.switch:
         return _run_switch(a.data, a.jobs)
+    if a.switch_posthoc:
+        return _run_switch(a.data, a.jobs, "switch_posthoc")
     if a.posthoc_split:
         return _run_posthoc_split(Path(a.data) / WHOLE_CSV, a.data, a.jobs)
     if a.rolling or a.rolling_only:
