@@ -196,6 +196,28 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
     return Whitener(K, F, A)
 
 
+#: :func:`_unit_filter`'s memo: {(λ, φ, rows): Whitener}, emptied when it holds
+#: ``_UNIT_FILTERS_MAX`` (at most ~60 MB on a record of 10 000 rows)
+_UNIT_FILTERS: dict = {}
+_UNIT_FILTERS_MAX = 256
+
+
+def _unit_filter(lam: float, phi: float, idx: np.ndarray) -> Whitener:
+    """:func:`whitener` of unit white noise with ratio λ and AR coefficient φ on rows
+    ``idx``, memoised: the grids of :func:`profile_noise` recur in every profile of a
+    record's residual on the same rows (a sensor kind's φ, the tests of a drift and of
+    the thermometers), and each filter is a loop over the rows. The same filter (a pure
+    function of its key), so the same bits."""
+    idx = np.asarray(idx)
+    key = (float(lam), float(phi), idx.dtype.str, idx.tobytes())
+    W = _UNIT_FILTERS.get(key)
+    if W is None:
+        if len(_UNIT_FILTERS) >= _UNIT_FILTERS_MAX:
+            _UNIT_FILTERS.clear()
+        W = _UNIT_FILTERS[key] = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+    return W
+
+
 #: the walk-to-white ratios λ = σ_w²/σ_e² searched for a random walk (φ = 1)
 WALK_RATIOS = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
 #: the AR coefficients φ searched for a stationary slow state, and the stationary ratios
@@ -293,7 +315,7 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
 def _reml_terms(y, X, idx, lam, phi=1.0):
     """(−2 × restricted log-likelihood with σ_e² profiled out, σ_e²) at ratio λ and AR
     coefficient φ."""
-    W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+    W = _unit_filter(lam, phi, idx)
     yw, Xw = _split(W.apply(np.column_stack([y, X])), (1, X.shape[1]))
     yw = yw[:, 0]
     n = y.size
@@ -542,7 +564,7 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     def whitened(lam, phi):
         key = (float(lam), float(phi))
         if key not in cache:
-            W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+            W = _unit_filter(lam, phi, idx)
             cache[key] = (_split(W.apply(Z), widths), float(np.sum(np.log(W.F))))
         return cache[key]
 
