@@ -195,31 +195,46 @@ def _chunk_sums(step: np.ndarray, b: np.ndarray, first: np.ndarray, rest: np.nda
 def _chunk_carry(a_first, b_first, last, col, x0) -> np.ndarray:
     """Each chunk's first value x_s = a_s x_prev + b_s, x_prev the previous chunk's
     last value (P (x_s + S) at its last row; x0 before a column's first chunk): the
-    one sequential part of :func:`_linear_recursion`, run over the chunks' ordinal in
-    their column with every column at once (elementwise, the operations of the loop
-    over chunks); with few chunks per column, a loop over the chunks on Python floats
-    (IEEE doubles, the same operations) has less overhead (the growth modes of
-    :class:`RodModel`: ~6000 chunks, 190 in the fastest column)."""
+    one sequential part of :func:`_linear_recursion` (chunks in column order, each
+    column's in row order). With few chunks per column, a loop over the chunks on
+    Python floats (IEEE doubles, the loop's operations; the growth modes of
+    :class:`RodModel`: ~6000 chunks, 190 in the fastest column); with many, the loop
+    vectorised as a fixed point (:func:`_plain_recursion`'s argument): one sweep over
+    every chunk from x_s = b_s, then sweeps over the chunks after those that changed,
+    until none changes. A chunk's value is the loop's once its predecessor's is, and
+    the step from one chunk to the next decays by more than e^-36 (a chunk ends where
+    its decay passes 400 or before a step past e^-36), so the later sweeps touch only
+    the few chunks after the input-free stretches (the ~280 mid-speed modes of the
+    all-mode rod: ~90 000 chunks, where a loop over the chunks' ordinal ran ~3000
+    vectorised steps)."""
     n_chunks = col.size
     start = np.flatnonzero(np.r_[True, col[1:] != col[:-1]])      # each column's first
     count = np.diff(np.r_[start, n_chunks])
-    ordinal = np.arange(n_chunks) - np.repeat(start, count)
-    order = np.lexsort((col, ordinal))                 # by ordinal, then column
-    bounds = np.searchsorted(ordinal[order], np.arange(count.max() + 1))
     if n_chunks < 30 * count.max():
         return _chunk_carry_loop(a_first, b_first, last, col, x0)
-    cols_present = col[start]
-    x_prev = np.zeros(int(col.max()) + 1)
-    x_prev[cols_present] = np.asarray(x0, float)[cols_present]
-    xs = np.empty(n_chunks)
+    first = np.zeros(n_chunks, bool)
+    first[start] = True
     one = np.isnan(last[0])
-    for j in range(count.max()):
-        i = order[bounds[j]:bounds[j + 1]]
-        c = col[i]
-        x = a_first[i] * x_prev[c] + b_first[i]
-        xs[i] = x
-        x_prev[c] = np.where(one[i], x, last[0, i] * (x + last[1, i]))
-    return xs
+
+    def carried(p):
+        """The value that chunk p hands to the next (its last row's)."""
+        return np.where(one[p], xs[p], last[0, p] * (xs[p] + last[1, p]))
+    xs = b_first.copy()
+    prev = np.asarray(x0, float)[col]
+    k = np.flatnonzero(~first)
+    prev[k] = carried(k - 1)
+    new = a_first * prev + b_first
+    rows = np.flatnonzero(new != xs) + 1
+    xs = new
+    while True:
+        rows = rows[rows < n_chunks]
+        rows = rows[~first[rows]]
+        if rows.size == 0:
+            return xs
+        new = a_first[rows] * carried(rows - 1) + b_first[rows]
+        changed = new != xs[rows]
+        xs[rows] = new
+        rows = rows[changed] + 1
 
 
 def _chunk_carry_loop(a_first, b_first, last, col, x0) -> np.ndarray:
