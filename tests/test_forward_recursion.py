@@ -65,3 +65,27 @@ def test_fast_columns_after_a_zero_first_interval_are_the_loop_bit_for_bit():
     got, ref = _linear_recursion(a, b, x0), _sequential(a, b, x0)
     assert np.array_equal(got[:, 1:], ref[:, 1:])
     assert np.max(np.abs(got[:, 0] - ref[:, 0])) <= 1e-12 * np.max(np.abs(b))
+
+
+def test_chunk_carry_fixed_point_is_the_loop_bit_for_bit():
+    """Many chunks per column (the all-mode rod's mid-speed modes): the carry runs as a
+    fixed point over the chunks (:func:`_chunk_carry`), which must give the loop over
+    the chunks (:func:`_chunk_carry_loop`) in every bit, input-free stretches (b = 0,
+    S = 0: a value carried on through tiny decays) and one-row chunks (NaN P) included."""
+    from arfem.models.diagnosis.forward import _chunk_carry, _chunk_carry_loop
+    rng = np.random.default_rng(11)
+    count = rng.integers(1, 120, size=200)
+    col = np.repeat(np.arange(count.size), count)
+    n = col.size
+    a_first = np.exp(-rng.uniform(0.0, 60.0, n))
+    b_first = rng.normal(size=n)
+    P = np.exp(-rng.uniform(5.0, 400.0, n))
+    S = rng.normal(size=n)
+    off = rng.random(n) < 0.4
+    b_first[off], S[off] = 0.0, 0.0
+    P[rng.random(n) < 0.3] = np.nan                  # one-row chunks
+    x0 = rng.normal(size=count.size)
+    assert n >= 30 * count.max()                     # the fixed-point path
+    got = _chunk_carry(a_first, b_first, np.array([P, S]), col, x0)
+    ref = _chunk_carry_loop(a_first, b_first, np.array([P, S]), col, x0)
+    assert np.array_equal(got, ref)
