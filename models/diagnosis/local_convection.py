@@ -139,6 +139,8 @@ class LocalConvectionRod:
         with np.errstate(divide="ignore", invalid="ignore"):
             v["ratio"] = np.where(span > 0.0, v["t_mid"] / span, np.nan)
         v["ratio"][0] = np.nan
+        # each block's rows and extrapolation factor, for the loop of :meth:`_run`
+        v["rows"] = list(zip(v["dT_mid"], v["Pend"], v["Qend"], v["ratio"].tolist()))
         if len(self._lin) > 8:
             self._lin.clear()
         self._lin[key] = v
@@ -187,30 +189,43 @@ class LocalConvectionRod:
 
     def _run(self, v, exponent, h_ref_W_m2K, dT_ref_K):
         """Growth [µm] at the samples for one exponent and h_ref: the blocks in turn
-        (module docstring), their per-block factors precomputed once per record."""
+        (module docstring), their per-block factors precomputed once per record.
+
+        The loop is most of a natural convection's fit (a screen's polish runs it ~75
+        times per record): each step writes into buffers and the modal states' rows
+        (``out=``) instead of allocating, with the same operations in the same order,
+        so the same bits."""
         L, W, h0 = self.L, self.W, self.h0
         n = float(exponent)
         c = float(h_ref_W_m2K) / float(dT_ref_K) ** n
-        dT_mid, Pend, Qend, ratio = v["dT_mid"], v["Pend"], v["Qend"], v["ratio"]
-        nb = Pend.shape[0]
-        S = np.empty((nb, self.lam.size))
-        zn0 = np.empty((nb, self.lam.size))
-        zn = np.zeros(self.lam.size)
-        zp = None
-        power, absolute, lower, upper = np.power, np.abs, np.maximum, np.minimum
+        nb, m = v["Pend"].shape
+        S = np.empty((nb, m))
+        Z = np.empty((nb + 1, m))                    # Z[b]: the modes at block b's start
+        Z[0] = 0.0
+        zs, tmp = np.empty(m), np.empty(m)
+        dT, h = np.empty(L.shape[0]), np.empty(L.shape[0])
         lo, hi = H_FLOOR * h0, H_CAP * h0
-        for b in range(nb):
-            zn0[b] = zn
-            r = ratio[b]
-            zs = zn if (zp is None or r != r) else zn + r * (zn - zp)
-            dT = dT_mid[b] + L.dot(zs)
-            Sb = S[b]
-            # the clip as maximum then minimum (np.clip's own overhead was a tenth of a run)
-            np.dot(W, (upper(lower(c * power(absolute(dT) + 1e-12, n), lo), hi) - h0) * dT,
-                   out=Sb)
-            zp = zn
-            zn = Pend[b] * zn - Qend[b] * Sb
+        power, absolute, lower, upper = np.power, np.abs, np.maximum, np.minimum
+        add, sub, mul, dot = np.add, np.subtract, np.multiply, np.dot
+        for b, (dT_mid, Pend, Qend, r) in enumerate(v["rows"]):
+            zn = Z[b]
+            if b and r == r:
+                # the state extrapolated to the block's middle: zn + r (zn − zp)
+                sub(zn, Z[b - 1], out=zs)
+                mul(r, zs, out=zs)
+                add(zn, zs, out=zs)
+                add(dT_mid, L.dot(zs), out=dT)
+            else:
+                add(dT_mid, L.dot(zn), out=dT)
+            # h = clip(c (|ΔT| + 1e-12)^n), as maximum then minimum (np.clip's own
+            # overhead was a tenth of a run); the flux (h − h0) ΔT
+            add(absolute(dT, out=h), 1e-12, out=h)
+            mul(c, power(h, n, out=h), out=h)
+            upper(lower(h, lo, out=h), hi, out=h)
+            mul(sub(h, h0, out=h), dT, out=h)
+            dot(W, h, out=S[b])
+            sub(mul(Pend, zn, out=Z[b + 1]), mul(Qend, S[b], out=tmp), out=Z[b + 1])
         blk, P = v["blk"], v["P"]
         gi, lg = self.grow, self.lam[self.grow]
-        Zn = P * zn0[blk][:, gi] - (1.0 - P) / lg * S[blk][:, gi]
+        Zn = P * Z[:-1, gi][blk] - (1.0 - P) / lg * S[:, gi][blk]
         return (v["growth"] + Zn @ self.g)[v["real"]]

@@ -196,6 +196,28 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
     return Whitener(K, F, A)
 
 
+#: :func:`_unit_filter`'s memo: {(λ, φ, rows): Whitener}, emptied when it holds
+#: ``_UNIT_FILTERS_MAX`` (at most ~60 MB on a record of 10 000 rows)
+_UNIT_FILTERS: dict = {}
+_UNIT_FILTERS_MAX = 256
+
+
+def _unit_filter(lam: float, phi: float, idx: np.ndarray) -> Whitener:
+    """:func:`whitener` of unit white noise with ratio λ and AR coefficient φ on rows
+    ``idx``, memoised: the grids of :func:`profile_noise` recur in every profile of a
+    record's residual on the same rows (a sensor kind's φ, the tests of a drift and of
+    the thermometers), and each filter is a loop over the rows. The same filter (a pure
+    function of its key), so the same bits."""
+    idx = np.asarray(idx)
+    key = (float(lam), float(phi), idx.dtype.str, idx.tobytes())
+    W = _UNIT_FILTERS.get(key)
+    if W is None:
+        if len(_UNIT_FILTERS) >= _UNIT_FILTERS_MAX:
+            _UNIT_FILTERS.clear()
+        W = _UNIT_FILTERS[key] = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+    return W
+
+
 #: the walk-to-white ratios λ = σ_w²/σ_e² searched for a random walk (φ = 1)
 WALK_RATIOS = np.concatenate([[0.0], 10.0 ** np.arange(-7.0, -0.49, 0.25)])
 #: the AR coefficients φ searched for a stationary slow state, and the stationary ratios
@@ -293,11 +315,12 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
 def _reml_terms(y, X, idx, lam, phi=1.0):
     """(−2 × restricted log-likelihood with σ_e² profiled out, σ_e²) at ratio λ and AR
     coefficient φ."""
-    W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
-    yw = W.apply(y)
+    W = _unit_filter(lam, phi, idx)
+    yw, Xw = _split(W.apply(np.column_stack([y, X])), (1, X.shape[1]))
+    yw = yw[:, 0]
     n = y.size
     if X.shape[1]:
-        U, sv, _ = np.linalg.svd(W.apply(X), full_matrices=False)
+        U, sv, _ = np.linalg.svd(Xw, full_matrices=False)
         r = yw - U @ (U.T @ yw)
         p, logdet = X.shape[1], float(2.0 * np.sum(np.log(np.maximum(sv, 1e-300))))
     else:
@@ -356,8 +379,9 @@ def _joint_terms(Y, Xs, idxs, sig, lams, phis):
     ys, xs, logF = [], [], 0.0
     for y, X, idx, sc, lam, phi in zip(Y, Xs, idxs, sig, lams, phis):
         W = whitener(LevelNoise(sc, sc * float(np.sqrt(lam)), phi), idx)
-        ys.append(W.apply(y))
-        xs.append(W.apply(X))
+        yw, Xw = _split(W.apply(np.column_stack([y, X])), (1, X.shape[1]))
+        ys.append(yw[:, 0])
+        xs.append(Xw)
         logF += float(np.sum(np.log(W.F)))
     y, X = np.concatenate(ys), np.concatenate(xs)
     n, p = y.size, X.shape[1]
@@ -442,25 +466,27 @@ def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2) -> list:
             for sc, g, fl in zip(sigma, groups, floors)]
 
 
-def _ml_terms(y: np.ndarray, X: np.ndarray, idx: np.ndarray, lam: float,
-              phi: float = 1.0, cache: dict | None = None) -> float:
-    """−2 × log-likelihood (up to a constant) of y = X β + white + slow state at ratio λ
-    and AR coefficient φ, β and σ_e² profiled out (maximum likelihood: comparable across
-    different X). ``cache``: {(λ, φ): Whitener} on these rows, shared by the two
-    hypotheses of one test (the same filter, computed once)."""
-    key = (float(lam), float(phi))
-    W = None if cache is None else cache.get(key)
-    if W is None:
-        W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
-        if cache is not None:
-            cache[key] = W
-    yw = W.apply(y)
-    if X.shape[1]:
-        Xw = W.apply(X)
+def _split(Zw: np.ndarray, widths) -> list:
+    """The blocks of consecutive columns of ``Zw`` of ``widths``, each a C-contiguous
+    copy: a whitener's solve treats every column alone (the same bits whitened together
+    or apart), and each block is laid out as if it had been whitened by itself."""
+    out, at = [], 0
+    for w in widths:
+        out.append(np.ascontiguousarray(Zw[:, at:at + w]))
+        at += w
+    return out
+
+
+def _ml_terms(yw: np.ndarray, Xw: np.ndarray, log_F: float) -> float:
+    """−2 × log-likelihood (up to a constant) of y = X β + white + slow state, β and σ_e²
+    profiled out (maximum likelihood: comparable across different X), from the whitened
+    ``yw`` (n,) and ``Xw`` (n, p) at some ratio λ and AR coefficient φ, and Σ log F of
+    that whitener."""
+    if Xw.shape[1]:
         b, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
         yw = yw - Xw @ b
-    n = y.size
-    return n * np.log(max(float(yw @ yw) / n, 1e-300)) + float(np.sum(np.log(W.F)))
+    n = yw.size
+    return n * np.log(max(float(yw @ yw) / n, 1e-300)) + log_F
 
 
 def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray) -> float:
@@ -531,9 +557,22 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     """
     from scipy.stats import chi2
     y = np.asarray(y, float)
+    # y, X0 and X1 whitened at once per (λ, φ), shared by the two hypotheses
+    Z, widths = np.column_stack([y, X0, X1]), (1, X0.shape[1], X1.shape[1])
     cache: dict = {}
-    l0 = profile_noise(lambda lam, phi: _ml_terms(y, X0, idx, lam, phi, cache))[0]
-    l1 = profile_noise(lambda lam, phi: _ml_terms(y, X1, idx, lam, phi, cache))[0]
+
+    def whitened(lam, phi):
+        key = (float(lam), float(phi))
+        if key not in cache:
+            W = _unit_filter(lam, phi, idx)
+            cache[key] = (_split(W.apply(Z), widths), float(np.sum(np.log(W.F))))
+        return cache[key]
+
+    def m2ll(lam, phi, k):
+        (yw, *Xw), log_F = whitened(lam, phi)
+        return _ml_terms(yw[:, 0], Xw[k], log_F)
+    l0 = profile_noise(lambda lam, phi: m2ll(lam, phi, 0))[0]
+    l1 = profile_noise(lambda lam, phi: m2ll(lam, phi, 1))[0]
     return float(chi2.sf(max(l0 - l1, 0.0), max(X1.shape[1] - X0.shape[1], 1)))
 
 
