@@ -214,7 +214,11 @@ def _unit_filter(lam: float, phi: float, idx: np.ndarray) -> Whitener:
     if W is None:
         if len(_UNIT_FILTERS) >= _UNIT_FILTERS_MAX:
             _UNIT_FILTERS.clear()
-        W = _UNIT_FILTERS[key] = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+        W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+        for a in (W.K, W.F, W.A):               # shared by every caller: read-only
+            if a is not None:
+                a.flags.writeable = False
+        _UNIT_FILTERS[key] = W
     return W
 
 
