@@ -102,7 +102,7 @@ def test_the_hold_out_part_follows_the_result_not_the_plant():
 
 @pytest.mark.parametrize("heat, how", [
     ("law", "follow the plant's law (n/n_max)^p"),
-    ("per_speed", "by eqs. 20-21 from the plant's per-speed gains")])
+    ("per_speed", "are mapped by eqs. 20-21 from the plant's per-speed gains")])
 def test_pipeline_line_says_how_the_plant_predicts_unseen_speeds(heat, how):
     """On the speed plant (``speed_engine="pipeline"``) a speed first met in the hold-out
     is predicted by the nominal the plant chose (``selection.speed_plant_heat``): the

@@ -60,10 +60,9 @@ def _holdout_text(d) -> str:
         if h.gain_whitened_pct is not None:
             text += f" (whitened {h.gain_whitened_pct:.1f} %, the one the verdict uses)"
     unseen = _speeds_not_seen_rpm(d)
-    sel = d.evidence.document.get("selection") or {}
-    pipeline = unseen and sel.get("speed_engine") == "pipeline"
-    if pipeline:        # the plant's law or its eqs. 20-21 predicts them
-        how = "by eqs. 20-21 from the plant's per-speed gains" \
+    sel = (d.evidence.document.get("selection") or {}) if unseen else {}
+    if sel.get("speed_engine") == "pipeline":   # the plant's law or eqs. 20-21 predicts them
+        how = "are mapped by eqs. 20-21 from the plant's per-speed gains" \
             if sel.get("speed_plant_heat") == "per_speed" else "follow the plant's law (n/n_max)^p"
         text += (f"; speeds not seen before the hold-out ({', '.join(f'{v:g}' for v in unseen)}"
                  f" rpm) {how}; its paper AR(1) reference maps them by eqs. 20-21")
