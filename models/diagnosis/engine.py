@@ -69,7 +69,10 @@ from arfem.io import json_text
 from arfem.models.diagnosis.blas import one_blas_thread
 from arfem.models.diagnosis.dataset import observations
 from arfem.models.diagnosis.rod_plant import CONTRACT_NAME, contract_entries, rod_plant
-from arfem.models.diagnosis.speed_plant import FRAME_COMPONENTS
+from arfem.models.diagnosis.speed_plant import (FRAME_COMPONENTS, contract_names,
+                                                speed_candidate_parameters,
+                                                speed_contract_entries,
+                                                speed_plant_from_dataset)
 from arfem.models.geodiagnosis.engine import DELTA_BIC, diagnose_plant, named_causes
 from arfem.models.diagnosis.holdout import default_holdout
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
@@ -455,8 +458,8 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
         screen_reasons=reasons)
 
 
-#: what the baseline of a speed_rpm record is on the one pipeline (PROTOTYPE, branch
-#: speedswitch; :func:`_diagnose_speed_plant`)
+#: what the baseline of a speed_rpm record is on the one pipeline
+#: (:func:`_diagnose_speed_plant`)
 SPEED_PLANT_LABEL = ("speed plant: one AR(1) driven by one steady gain per speed seen "
                      "before the hold-out (a speed first met after it by eqs. 20-21; one "
                      "law (n/n_max)^p where no speed is seen), its τ searched in every fit "
@@ -466,7 +469,8 @@ SPEED_PLANT_LABEL = ("speed plant: one AR(1) driven by one steady gain per speed
 
 
 def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
-    """speed_rpm records on the one pipeline (PROTOTYPE, ``speed_engine="pipeline"``):
+    """speed_rpm records on the one pipeline (``speed_engine="pipeline"``, not the default:
+    it failed its pre-registered comparison on FL_THERMAL, reports/fl_thermal/switch.md):
     :func:`arfem.models.geodiagnosis.engine.diagnose_plant` on the speed plant
     (:func:`arfem.models.diagnosis.speed_plant.speed_plant_from_dataset`), written as
     :func:`_diagnose_fem` writes the rod's: the named causes and their 95 % intervals in
@@ -475,9 +479,6 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
     verdict; the paper AR(1) of eq. 17 (the plant's reference model, a data baseline of
     the verdict) is scored as ``ar_form["paper_ar"]``. No rule 5 unit check (no nominal
     magnitude); the plant and its fit kept for export (:attr:`BranchResult.plant_fit`)."""
-    from arfem.models.diagnosis.speed_plant import (contract_names, speed_candidate_parameters,
-                                                    speed_contract_entries,
-                                                    speed_plant_from_dataset)
     rod = ds.rod
     rho_c_R = rod.density_kg_m3 * rod.specific_heat_J_kgK * rod.radius_m
     y, rows = r.y, r.rows

@@ -47,8 +47,8 @@ the default hold-out of :func:`arfem.models.diagnosis.holdout.default_holdout`, 
 :func:`~arfem.models.geodiagnosis.engine.diagnose_plant` takes when given none): the
 seen speeds and the fit rows of the choice are those before it.
 
-What this plant does not do (the rod engine's speed branch does): the choice of the frame's structure among numbers
-of components and lags by forward-chaining validation, and a frame without a thermometer (the
+What this plant does not do (the rod engine's speed branch does): the choice of the
+frame's structure among numbers of components and lags by forward-chaining validation, and a frame without a thermometer (the
 frame's own lag of the rod's steady growth: its gain is a product with the nominal
 model's unknown steady growth G, not a linear column).
 """
@@ -61,9 +61,13 @@ import numpy as np
 
 from arfem.models.diagnosis.forward import ar_columns_rates, first_order_lag, intervals
 from arfem.models.diagnosis.holdout import default_holdout
+from arfem.models.diagnosis.rod_plant import ContractCause
 from arfem.models.diagnosis.speed import level_inputs, paper_ar, speed_to_heat_map
 from arfem.models.diagnosis.speed_frame import (centred_mean, frame_components,
                                                 temperature_matrix)
+from arfem.models.diagnosis.stats import bic
+from arfem.models.geodiagnosis.engine import DELTA_BIC, _n_eff, named_causes
+from arfem.models.geodiagnosis.fit import Z95, fit_mesh_causes, make_context, with_noise
 from arfem.models.geodiagnosis.problem import Channel
 from arfem.models.plant import Design, Parameter, SelectionRules, cause, components_target
 
@@ -367,13 +371,18 @@ class SpeedPlant:
         first met later by the early-rise mapping of eqs. 20-21), run free from the
         first row -- what the rod engine's speed branch takes as its baseline
         (:func:`arfem.models.diagnosis.speed.paper_ar`, the same function). A cause the
-        pipeline names must beat it too (:data:`PAPER_AR_LABEL`)."""
+        pipeline names must beat it too (:data:`PAPER_AR_LABEL`). Kept per ``rows``: the
+        verdict and the diagnosis's document ask for the same one."""
         y = self.data[:, 0]
         ok = np.asarray(rows, bool) & np.isfinite(y)
-        _, seen, W, _ = speed_to_heat_map(self.time_s, self.speed_rpm, self.temperatures, ok)
-        pred, _ = paper_ar(self.time_s, np.where(np.isfinite(y), y, 0.0), self.speed_rpm,
-                           ok, W, seen)
-        return ((PAPER_AR_LABEL, {self.channels[0].column: pred}),)
+
+        def make():
+            _, seen, W, _ = speed_to_heat_map(self.time_s, self.speed_rpm,
+                                              self.temperatures, ok)
+            pred, _ = paper_ar(self.time_s, np.where(np.isfinite(y), y, 0.0),
+                               self.speed_rpm, ok, W, seen)
+            return ((PAPER_AR_LABEL, {self.channels[0].column: pred}),)
+        return self._cached(("reference", ok.tobytes()), make)
 
 
 def speed_plant(name: str, time_s, growth_um, speed_rpm, temperatures=None,
@@ -409,9 +418,6 @@ def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:
     unless the per-speed gains beat it by the screen's ``DELTA_BIC``), each fitted
     beside every linear candidate cause by GLS on the noise the pipeline fits on the
     per-speed plant; its ``heat.why`` says the BICs."""
-    from arfem.models.diagnosis.stats import bic
-    from arfem.models.geodiagnosis.engine import DELTA_BIC, _n_eff
-    from arfem.models.geodiagnosis.fit import fit_mesh_causes, make_context, with_noise
     ctx = with_noise(make_context(per_speed), rows)
     lin = tuple(c for c in per_speed.candidate_causes() if not c.nonlinear)
     out = {}
@@ -512,14 +518,12 @@ def convection_h_ci95(h_scale: float, time_constant_h: float, rho_c_R_J_m2K: flo
     >>> [round(v, 2) for v in ci["h_stopped_W_m2K"]]
     [100.31, 100.31]
     """
-    from scipy.stats import norm
-    z = float(norm.ppf(0.975))
     h = convection_h_W_m2K(h_scale, time_constant_h, rho_c_R_J_m2K)
     h0, s, tau = h["h_stopped_W_m2K"], float(h_scale), float(time_constant_h)
     var_stop = (h0 / tau) ** 2 * var_tau_h2
     var_run = h0 * h0 * var_scale + (s * h0 / tau) ** 2 * var_tau_h2 \
         - 2.0 * s * h0 * h0 / tau * cov_scale_tau_h
-    return {k: (float(h[k] - z * np.sqrt(max(v, 0.0))), float(h[k] + z * np.sqrt(max(v, 0.0))))
+    return {k: (float(h[k] - Z95 * np.sqrt(max(v, 0.0))), float(h[k] + Z95 * np.sqrt(max(v, 0.0))))
             for k, v in (("h_running_W_m2K", var_run), ("h_stopped_W_m2K", var_stop))}
 
 
@@ -555,8 +559,6 @@ def speed_contract_entries(fit, rho_c_R_J_m2K: float) -> tuple:
     ``frame_gain_pc<j>_um`` (per unit principal component) and, lagged,
     ``frame_time_constant_h``.
     """
-    from arfem.models.diagnosis.rod_plant import ContractCause
-    from arfem.models.geodiagnosis.engine import named_causes
     tau = float(fit.nominal.get(TIME_CONSTANT.name, TIME_CONSTANT.start))
     cov = fit.covariance
     out = []

@@ -64,7 +64,8 @@ from arfem.models.geodiagnosis.noise import reml_joint, whitener
 from arfem.models.geodiagnosis.plant import BOUNDS, PLAUSIBLE, Cause, mesh_plant
 from arfem.models.plant import Plant, linear_value
 
-__all__ = ["Cause", "Fit", "ParameterCovariance", "FitContext", "make_context", "with_noise", "whitened",
+__all__ = ["Cause", "Fit", "ParameterCovariance", "FitContext", "make_context", "with_noise",
+           "whitened",
            "candidate_causes", "channel_rows", "fit_mesh_causes",
            "BOUNDS", "NO_EFFECT", "PLAUSIBLE", "implausible"]
 
@@ -82,7 +83,7 @@ def implausible(fit) -> str | None:
     return None
 
 
-_Z95 = float(norm.ppf(0.975))
+Z95 = float(norm.ppf(0.975))
 
 
 @dataclass(frozen=True)
@@ -560,7 +561,7 @@ def _reported(causes, params, nominal: dict, at: list, cov):
     for row, i, nm in at:
         v = nominal[nm] if i is None else params[i][nm]
         e = float(np.sqrt(max(cov[row, row], 0.0)))
-        (nominal_ci if i is None else ci[i])[nm] = (v - _Z95 * e, v + _Z95 * e)
+        (nominal_ci if i is None else ci[i])[nm] = (v - Z95 * e, v + Z95 * e)
     rows = [row for row, _, _ in at]
     keys = tuple((None if i is None else causes[i].name, nm) for _, i, nm in at)
     return ci, nominal_ci, ParameterCovariance(keys, cov[np.ix_(rows, rows)])
