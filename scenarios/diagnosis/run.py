@@ -7,7 +7,7 @@ benchmarks and tests call this module.
 """
 from __future__ import annotations
 
-from arfem.models.diagnosis.engine import Diagnosis, diagnose
+from arfem.models.diagnosis.engine import BRANCH_ONLY, SPEED_ENGINES, Diagnosis, diagnose
 from arfem.params import InputError
 from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.dataset import RecordDoc, load_dataset, read_record_doc
@@ -144,7 +144,6 @@ def speed_options(input_kind: str, speed_engine: str | None = None,
     anything is written; ``source`` (the record's file) locates the one that is about
     the record.
     """
-    from arfem.models.diagnosis.engine import BRANCH_ONLY, SPEED_ENGINES
     if speed_engine is not None and speed_engine not in SPEED_ENGINES:
         raise InputError(f"{speed_engine!r} is not 'branch' or 'pipeline'", "--speed-engine")
     if speed_engine == "branch" and input_kind != "speed_rpm":
@@ -184,6 +183,14 @@ def diagnose_file(toml_path, holdout_start_s=None, frame_search: str | None = No
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(toml_path, limits)
+    return _diagnose_checked(ds, holdout_start_s, frame_search, progress, drift_last,
+                             stability, speed_engine)
+
+
+def _diagnose_checked(ds, holdout_start_s, frame_search, progress, drift_last, stability,
+                      speed_engine) -> Diagnosis:
+    """``ds`` diagnosed with the options as the user gave them (:func:`speed_options`
+    checks them first) and the verdict's stability added (:func:`add_stability`)."""
     engine, frame_search = speed_options(ds.input_kind, speed_engine, frame_search,
                                          drift_last, ds.source)
     diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
@@ -261,12 +268,8 @@ def diagnose_and_write(case, out, holdout_start_s=None, force=False, frame_searc
     if progress is not None:
         progress("reading the dataset")
     ds = _rod_dataset(doc, limits)
-    engine, frame_search = speed_options(ds.input_kind, speed_engine, frame_search,
-                                         drift_last, ds.source)
-    diag = diagnose(ds, holdout_start_s, frame_search, progress, drift_last=drift_last,
-                    speed_engine=engine)
-    diag = add_stability(diag, ds, stability, frame_search, drift_last, progress,
-                         speed_engine=engine)
+    diag = _diagnose_checked(ds, holdout_start_s, frame_search, progress, drift_last,
+                             stability, speed_engine)
     if progress is not None:
         progress("writing outputs")
     models = compensator_models(ds, diag.holdout.start_s, diag)
