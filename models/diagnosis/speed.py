@@ -39,7 +39,8 @@ from arfem.models.diagnosis.candidates import CandidateFit, project
 from arfem.models.diagnosis.forward import (ar_columns_rates, ar_first_order, first_order_lag,
                                             intervals)
 
-__all__ = ["speed_to_heat_map", "level_inputs", "paper_ar", "fit_speed_candidate", "mlr", "SPEED_CAUSES"]
+__all__ = ["speed_to_heat_map", "level_inputs", "paper_ar", "fit_speed_candidate", "mlr",
+           "SPEED_CAUSES"]
 
 #: causes identifiable for a calibrated AR(1) (h and heat scale are absorbed by C1, C2)
 SPEED_CAUSES = ("none", "ambient_drift", "speed_dependent_convection", "frame_expansion",

@@ -102,8 +102,8 @@ from arfem.models.plant import Plant
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
                                            NamedCause, frozen_mapping)
 
-__all__ = ["MeshEvidence", "Ranked", "NAMED_BY_SCREEN", "diagnose_geometry", "diagnose_plant", "named_causes",
-           "mlr_holdout", "establishment_failures"]
+__all__ = ["MeshEvidence", "Ranked", "NAMED_BY_SCREEN", "diagnose_geometry", "diagnose_plant",
+           "named_causes", "mlr_holdout", "establishment_failures"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself

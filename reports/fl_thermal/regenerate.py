@@ -259,9 +259,11 @@ def switch_outcome(split: dict, roll: dict, published_split: dict,
 def _commit() -> str:
     """The checkout's commit, ``+dirty`` where the tree differs from it."""
     import subprocess
-    run = lambda *a: subprocess.run(["git", *a], cwd=REPO, capture_output=True,  # noqa: E731
-                                    text=True).stdout.strip()
-    return run("rev-parse", "HEAD") + ("+dirty" if run("status", "--porcelain", "-uno") else "")
+
+    def git(*args) -> str:
+        return subprocess.run(["git", *args], cwd=REPO, capture_output=True,
+                              text=True).stdout.strip()
+    return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "-uno") else "")
 
 
 def _run_switch(data, jobs, name: str = "switch") -> int:
