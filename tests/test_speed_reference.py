@@ -78,3 +78,39 @@ def test_the_published_switch_outcome_follows_from_its_own_numbers():
     assert not again["passes"]
     assert inspect.signature(diagnose).parameters["speed_engine"].default == "branch"
     assert regen.SPEED_ENGINE == "branch"
+
+
+def test_a_reference_with_the_lower_hold_out_rmse_beats_the_extended_model(monkeypatch):
+    """Rule 1d on the residual a compensator leaves (paper Fig. 8): a plant's reference
+    model is compared on the hold-out RMSE as well as on the whitened hold-out
+    (:func:`arfem.models.geodiagnosis.engine._data_baselines`; README.posthoc.md 1.4.2).
+    Built so that the two measures disagree: the extended model is off by a constant
+    1 µm on the hold-out, which a walk-dominated noise model whitens into one
+    innovation, and the reference carries 0.5 µm of white error, which whitening
+    amplifies. The whitened comparison alone would let the extended model stand; the
+    RMSE (0.5 against 1 µm, below the 5 % cut) says the reference is better. The MLR
+    keeps its whitened-only comparison (its intercept holds the noise's level)."""
+    from dataclasses import replace as with_fields
+
+    from arfem.models.diagnosis.speed_plant import SpeedPlant, speed_plant
+    from arfem.models.geodiagnosis.engine import _data_baselines, _whitened_rms
+    from arfem.models.geodiagnosis.fit import Fit, make_context
+    from arfem.models.geodiagnosis.noise import LevelNoise
+
+    rng = np.random.default_rng(0)
+    t = np.arange(1, 401) * 60.0
+    y = rng.normal(0.0, 0.05, t.size)
+    hold = t >= t[300]
+    ref = y + rng.normal(0.0, 0.5, t.size)
+    monkeypatch.setattr(SpeedPlant, "reference_models",
+                        lambda self, rows: (("the reference", {"growth_um": ref}),))
+    plant = speed_plant("r", t, y, np.where((t // 7200) % 2 == 0, 1000.0, 0.0),
+                        holdout_start_s=float(t[300]), heat_model="law")
+    ctx = with_fields(make_context(plant), noise=(LevelNoise(0.01, 0.5),))
+    ext = Fit((), (), (), (y + np.where(hold, 1.0, 0.0))[:, None], 0.0, 0, None)
+    P = ref[:, None]
+    assert _whitened_rms(ctx, P, 0, hold) > _whitened_rms(ctx, ext.prediction, 0, hold)
+    _, _, beat = _data_baselines(ctx, plant, ext, ext, ~hold, hold)
+    assert beat is not None and beat[0] == "the reference (hold-out RMSE on growth_um)"
+    assert beat[1] == pytest.approx(0.5, rel=0.15) and beat[2] == pytest.approx(1.0)
+    assert beat[3] == "µm"

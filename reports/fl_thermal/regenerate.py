@@ -266,6 +266,16 @@ def _commit() -> str:
     return git("rev-parse", "HEAD") + ("+dirty" if git("status", "--porcelain", "-uno") else "")
 
 
+#: the post hoc reruns of the switch's comparison (README.posthoc.md 1.4.1, 1.4.2): file
+#: name -> what the pipeline had changed since the pre-registered run
+POSTHOC_SWITCH_RUNS = {
+    "switch_posthoc": "one gain per speed where BIC on N_eff prefers it (README.posthoc.md "
+                      "1.4.1)",
+    "switch_posthoc2": "as switch_posthoc, and the frame's number of principal components "
+                       "chosen by BIC on N_eff among 1-8, and the paper AR(1) compared on "
+                       "the hold-out RMSE as well as whitened (README.posthoc.md 1.4.2)"}
+
+
 def _run_switch(data, jobs, name: str = "switch") -> int:
     """The pre-registered comparison of the speed engines (PREREGISTRATION.md,
     2026-11-28): the one pipeline on the speed plant at the 28 h split and the rolling
@@ -299,7 +309,7 @@ def _run_switch(data, jobs, name: str = "switch") -> int:
                 json.loads((HERE / "rolling.json").read_text(encoding="utf-8"))[
                     "channels"].items()}
     out = {"commit": _commit(), "wall_time_s": time.time() - t0, "jobs": jobs,
-           "post_hoc": name != "switch",
+           "post_hoc": name != "switch", "changed": POSTHOC_SWITCH_RUNS.get(name),
            "factor": SWITCH_FACTOR, "channels_needed": SWITCH_CHANNELS,
            "split": split, "rolling": roll, "published_split_extended_rmse_um": pub_split,
            "published_rolling_median_extended_um": pub_roll,
@@ -324,7 +334,8 @@ def _switch_text(out) -> str:
     if out.get("post_hoc"):
         head = ("# The speed switch's comparison, rerun POST HOC on a later pipeline", "",
                 "**Post hoc**: the pipeline was changed after the pre-registered run "
-                "(switch.md) had been seen; this table decides nothing. At")
+                "(switch.md) had been seen; this table decides nothing. Changed: "
+                f"{out.get('changed') or 'one gain per speed where BIC prefers it'}. At")
         outcome = ("**Post hoc, the criterion would " + ("hold" if o["passes"] else "fail")
                    + "; the pre-registered outcome (switch.md) stands.**")
     else:
@@ -651,9 +662,11 @@ def main(argv=None) -> int:
                     help="published folders: the verdict's stability at up to N rolling "
                          "origins (arfem diagnose --stability; each origin costs one "
                          "diagnosis; default %(default)s = not computed)")
-    ap.add_argument("--switch-posthoc", action="store_true",
+    ap.add_argument("--switch-posthoc", choices=tuple(POSTHOC_SWITCH_RUNS), nargs="?",
+                    const="switch_posthoc", metavar="NAME",
                     help="the same comparison of the pipeline as it is now, labelled post "
-                         "hoc (switch_posthoc.json/md; decides nothing)")
+                         "hoc (NAME.json/md, default switch_posthoc; one of "
+                         f"{', '.join(POSTHOC_SWITCH_RUNS)}; decides nothing)")
     ap.add_argument("--switch", action="store_true",
                     help="the pre-registered comparison of the speed engines "
                          "(PREREGISTRATION.md, 2026-11-28): switch.json/md. Run once")
@@ -665,7 +678,7 @@ def main(argv=None) -> int:
     if a.switch:
         return _run_switch(a.data, a.jobs)
     if a.switch_posthoc:
-        return _run_switch(a.data, a.jobs, "switch_posthoc")
+        return _run_switch(a.data, a.jobs, a.switch_posthoc)
     if a.posthoc_split:
         return _run_posthoc_split(Path(a.data) / WHOLE_CSV, a.data, a.jobs)
     if a.rolling or a.rolling_only:
