@@ -1004,7 +1004,7 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0,
     white = vd.channels_white([p])
     within = {"ljung_box_p_neff": p, "n_eff": float(ev.within_n_eff.get(ch.column, 0.0)),
               "white": white, "thermometers_beyond_bound": list(ch.thermometers_beyond),
-              "better_baselines": (vd._better_baselines(summary) if ev.data_baseline_better
+              "better_baselines": (vd.better_baselines(summary) if ev.data_baseline_better
                                    else {}),
               "below_resolution": bool(d.below_resolution),
               "resolution": float(resolution_um or vd.DEFAULT_RESOLUTION), "whitened": True,
