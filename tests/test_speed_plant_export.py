@@ -81,7 +81,7 @@ def _round_trip(m, tmp_path):
 
 def _smoothed(ds, plant):
     """The record with its thermometers smoothed as the plant smooths them."""
-    return dataclasses.replace(ds, temperatures={k: plant._smoothed_C(k)
+    return dataclasses.replace(ds, temperatures={k: plant.smoothed_temperature_C(k)
                                                  for k in ds.temperatures})
 
 
@@ -108,7 +108,7 @@ def test_exported_model_replays_the_extended_prediction(cause, thermometers,
         # the raw thermometers: the frame's D times what the smoothing changed, exactly
         names = [i.name for i in m.inputs]
         raw = _replayed(m, ds)
-        dT = np.column_stack([ds.temperatures[n] - plant._smoothed_C(n) for n in names[1:]])
+        dT = np.column_stack([ds.temperatures[n] - plant.smoothed_temperature_C(n) for n in names[1:]])
         assert np.max(np.abs(raw - pred - dT @ m.D[0, 1:])[ok]) <= 1e-9 * np.max(np.abs(ref))
         assert np.max(np.abs(raw - pred)) > 1e-3         # the smoothing is not nothing
 
@@ -200,9 +200,32 @@ def test_a_lagged_frame_is_one_state_per_component_and_replays_its_fit(thermomet
                         np.ones(case.time_s.size, bool), intervals=False)
     m = speed_plant_state_space(f, pl, 120.0)
     assert m.n_states == 1 + (3 if target.startswith("pc") else 1)
-    cols = {k: pl._smoothed_C(k) for k in pl.temperatures} | {"speed_rpm": case.speed_rpm}
+    cols = ({k: pl.smoothed_temperature_C(k) for k in pl.temperatures}
+            | {"speed_rpm": case.speed_rpm})
     c = Compensator(m)
     pred = [c.step({i.name: float(cols[i.name][k]) for i in m.inputs}).predicted_growth_um
             for k in range(case.time_s.size)]
     ref = f.prediction[:, 0]
     assert np.max(np.abs(np.array(pred) - ref)) <= 1e-9 * np.max(np.abs(ref))
+
+
+def test_the_smoothed_thermometer_the_export_reads_is_public_and_read_only():
+    """SpeedPlant.smoothed_temperature_C, what the frame's export starts from: the
+    centred mean of the readings within ±THERMOMETER_SMOOTHING_S, NaN where the reading
+    is missing (compared exactly: the same function on the same readings), and
+    read-only, so that no caller can change what the plant's later fits read."""
+    from arfem.models.diagnosis.speed_frame import centred_mean
+    from arfem.models.diagnosis.speed_plant import THERMOMETER_SMOOTHING_S, speed_plant
+    case = generate_speed("frame_expansion", 1)
+    T = np.array(case.temperatures["T_frame_C"], float)
+    T[40] = np.nan
+    pl = speed_plant("r", case.time_s, case.growth_um, case.speed_rpm, {"T_frame_C": T})
+    got = pl.smoothed_temperature_C("T_frame_C")
+    ref = centred_mean(case.time_s, T, THERMOMETER_SMOOTHING_S)
+    ref[40] = np.nan
+    assert np.array_equal(got, ref, equal_nan=True)
+    assert np.isnan(got[40]) and np.isfinite(got[39]) and np.isfinite(got[41])
+    assert np.max(np.abs(got[1:-1] - T[1:-1])[np.isfinite(T[1:-1])]) > 0.0  # smoothed
+    with pytest.raises(ValueError, match="read-only"):
+        got[0] = 0.0
+    assert np.array_equal(pl.smoothed_temperature_C("T_frame_C"), ref, equal_nan=True)

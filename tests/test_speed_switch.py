@@ -124,6 +124,26 @@ def test_an_unknown_speed_engine_is_one_line_and_writes_nothing(tmp_path, capsys
                           "--speed-engine", bad], out, "--speed-engine", bad)
 
 
+def test_an_engine_name_has_one_range_check(monkeypatch):
+    """The engine's check is the one rule: the command's choices are its tuple,
+    speed_options refuses what the engine refuses (relocated at --speed-engine, the
+    engine's own wording) and accepts what it accepts -- a name the engine is made to
+    know passes speed_options too, which a second list in run.py would refuse."""
+    from arfem.models.diagnosis import engine
+    from arfem.scenarios.cli import build_parser
+    sub = build_parser("diagnose")._subparsers._group_actions[0].choices["diagnose"]
+    (action,) = [a for a in sub._actions if "--speed-engine" in a.option_strings]
+    assert action.choices is engine.SPEED_ENGINES
+    with pytest.raises(InputError) as refused:
+        speed_options("speed_rpm", "fast")
+    with pytest.raises(InputError) as own:
+        engine.check_speed_engine("fast")
+    assert refused.value.where == "--speed-engine" and own.value.where == "speed_engine"
+    assert refused.value.message == own.value.message == "'fast' is not 'branch' or 'pipeline'"
+    monkeypatch.setattr(engine, "SPEED_ENGINES", (*engine.SPEED_ENGINES, "fast"))
+    assert speed_options("speed_rpm", "fast") == ("fast", "narrow")
+
+
 @pytest.mark.parametrize("extra,flag", [(["--frame-search", "narrow"], "--frame-search"),
                                         (["--frame-search", "wide"], "--frame-search"),
                                         (["--drift-last"], "--drift-last")])

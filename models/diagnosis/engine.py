@@ -80,7 +80,7 @@ from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diag
 
 __all__ = ["Diagnosis", "RodEvidence", "typed_result", "diagnose", "ALPHA", "MIN_GAIN",
            "MISFIT_FACTOR", "CONTRACT_PARAMETERS", "SPEED_PLANT_CONTRACT_PARAMETERS",
-           "INFORMATIVE_NOISE_LEVELS", "SPEED_ENGINES", "BRANCH_ONLY"]
+           "INFORMATIVE_NOISE_LEVELS", "SPEED_ENGINES", "BRANCH_ONLY", "check_speed_engine"]
 
 #: a hold-out whose growth varies (std) by less than this many noise σ is not informative
 INFORMATIVE_NOISE_LEVELS = 3.0
@@ -1005,7 +1005,7 @@ def _pipeline_verdict(summary: dict, d: Diagnosis, resolution_um: float = 0.0,
     white = vd.channels_white([p])
     within = {"ljung_box_p_neff": p, "n_eff": float(ev.within_n_eff.get(ch.column, 0.0)),
               "white": white, "thermometers_beyond_bound": list(ch.thermometers_beyond),
-              "better_baselines": (vd._better_baselines(summary) if ev.data_baseline_better
+              "better_baselines": (vd.better_baselines(summary) if ev.data_baseline_better
                                    else {}),
               "below_resolution": bool(d.below_resolution),
               "resolution": float(resolution_um or vd.DEFAULT_RESOLUTION), "whitened": True,
@@ -1055,11 +1055,27 @@ BRANCH_ONLY = {
               "naming fit to report"}
 
 
-def _check_speed_engine(speed_engine, frame_search, intervals, drift_last, on_fit) -> None:
-    """ValueError for an unknown ``speed_engine``, or a speed-branch option
-    (:data:`BRANCH_ONLY`) given with the pipeline."""
+def check_speed_engine(speed_engine) -> None:
+    """The one range check of an engine's name: unless ``speed_engine`` is one of
+    :data:`SPEED_ENGINES`, an :class:`arfem.params.InputError` (a ValueError) located at
+    ``speed_engine``. A door that names the option otherwise relocates it
+    (``arfem diagnose``: ``--speed-engine``,
+    :func:`arfem.scenarios.diagnosis.run.speed_options`).
+
+    >>> check_speed_engine("fast")
+    Traceback (most recent call last):
+    ...
+    arfem.params.InputError: speed_engine: 'fast' is not 'branch' or 'pipeline'
+    """
     if speed_engine not in SPEED_ENGINES:
-        raise ValueError(f"speed_engine: {speed_engine!r} is not 'branch' or 'pipeline'")
+        raise InputError(f"{speed_engine!r} is not {' or '.join(map(repr, SPEED_ENGINES))}",
+                         "speed_engine")
+
+
+def _check_speed_engine(speed_engine, frame_search, intervals, drift_last, on_fit) -> None:
+    """ValueError for an unknown ``speed_engine`` (:func:`check_speed_engine`), or a
+    speed-branch option (:data:`BRANCH_ONLY`) given with the pipeline."""
+    check_speed_engine(speed_engine)
     given = {"frame_search": frame_search != "narrow", "intervals": not intervals,
              "drift_last": bool(drift_last), "on_fit": on_fit is not None}
     for key, on in given.items():

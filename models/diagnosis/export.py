@@ -379,13 +379,13 @@ def _plant_frame(c, beta, plant, s, dtau_s, inputs, offsets) -> tuple:
     gamma = np.asarray(beta, float)
     if c.target.startswith("pc1-"):
         names, _ = temperature_matrix(plant.temperatures)
-        T = np.column_stack([plant._smoothed_C(nm) for nm in names])
+        T = np.column_stack([plant.smoothed_temperature_C(nm) for nm in names])
         mu, W = _component_weights(T, np.ones(T.shape[0], bool), gamma.size)
         weights = {nm: W[i] for i, nm in enumerate(names)}
         refs = dict(zip(names, mu))
         x0 = (T[0] - mu) @ W
     else:
-        T = plant._smoothed_C(c.target)
+        T = plant.smoothed_temperature_C(c.target)
         first = float(T[np.flatnonzero(np.isfinite(T))[0]])
         weights, refs, x0 = {c.target: np.ones(1)}, {c.target: first}, np.zeros(1)
     for nm, ref in refs.items():

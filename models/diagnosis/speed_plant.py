@@ -327,6 +327,28 @@ class SpeedPlant:
             centred_mean(self.time_s, self.temperatures[column], THERMOMETER_SMOOTHING_S),
             np.nan))
 
+    def smoothed_temperature_C(self, column: str) -> np.ndarray:
+        """Thermometer ``column`` as every frame cause of this plant sees it: each
+        reading the centred mean of the readings within ±:data:`THERMOMETER_SMOOTHING_S`
+        of it (:func:`arfem.models.diagnosis.speed_frame.centred_mean`), NaN where the
+        reading is missing. The frame's state-space export reads it
+        (:func:`arfem.models.diagnosis.export.speed_plant_state_space`), so that the
+        compensator starts from the same input as the fit.
+
+        Parameters
+        ----------
+        column : str
+            A thermometer of the record (a key of :attr:`temperatures`, ``T_<name>_C``).
+
+        Returns
+        -------
+        ndarray (N,)
+            The smoothed temperature [°C], read-only (the plant's cached array).
+        """
+        T = self._smoothed_C(column).view()
+        T.flags.writeable = False
+        return T
+
     def _rise_K(self, column: str) -> np.ndarray:
         """A thermometer's smoothed rise above its first reading [K] (0 where missing)."""
         T = self._smoothed_C(column)

@@ -64,7 +64,8 @@ __all__ = ["VERDICTS", "Verdict", "decide", "apply", "text", "whiteness_p",
            "MIN_INDEPENDENT_SAMPLES", "DEFAULT_RESOLUTION", "ACTIONS", "named_cause",
            "naming_level", "channels_white", "correlation_bound", "signal_level", "better",
            "units_suspect", "two_h_failures", "below_resolution", "outcome", "reaches_edge",
-           "RESOLUTION_DEFAULTS", "EQUIVALENCE_P", "holdout_tells_apart_p", "beaten_text"]
+           "RESOLUTION_DEFAULTS", "EQUIVALENCE_P", "holdout_tells_apart_p", "beaten_text",
+           "better_baselines"]
 
 #: the four outcomes, as written to ``diagnosis.json``'s ``verdict``
 VERDICTS = ("explained", "established", "unconfirmed", "not_explained")
@@ -351,9 +352,20 @@ def _thermometers_beyond(summary, n_eff: float) -> list[str]:
     return [k for k, v in xc.items() if abs(v) > bound]
 
 
-def _better_baselines(summary) -> dict:
-    """Baseline models better than the simulation as configured on the hold-out
-    (:func:`better`): ``{label: hold-out RMSE [µm]}``."""
+def better_baselines(summary) -> dict:
+    """The baseline models better than the simulation as configured on the hold-out
+    (:func:`better`): the MLR of eq. 18, the paper AR(1) of eq. 17 and the other AR
+    forms the diagnosis scored.
+
+    Parameters
+    ----------
+    summary : mapping, a diagnosis's document (``diagnosis.json``'s keys: ``holdout``,
+        ``mlr``, ``ar_form``, ``baseline``)
+
+    Returns
+    -------
+    dict, ``{label: hold-out RMSE [µm]}`` of each better one (empty: none)
+    """
     ref = summary["holdout"]["baseline_rmse_um"]
     models = {}
     if summary.get("mlr"):
@@ -376,7 +388,7 @@ def within_noise(summary, baseline_residual, resolution_um: float = DEFAULT_RESO
     p = whiteness_p(r)
     n_eff = float(st.noise_n_eff(r)) if r.size else 0.0
     beyond = _thermometers_beyond(summary, n_eff)
-    better_ = _better_baselines(summary)
+    better_ = better_baselines(summary)
     white = channels_white([p])
     floor = below_resolution([float(np.max(np.abs(r))) if r.size else np.inf],
                              [resolution_um])

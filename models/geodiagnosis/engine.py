@@ -270,7 +270,7 @@ def walk_explains(ctx: FitContext, cause, ref, rows, level: float) -> bool:
     if idx.size <= 20:
         return True
     y = ctx.plant.data[idx, j] - ref[idx, j]
-    return drift_vs_walk_p(y, idx, ctx.plant.time_s[idx] / 3600.0) >= level
+    return drift_vs_walk_p(y, idx, ctx.plant.time_s[idx] / 3600.0, ctx.filters) >= level
 
 
 def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
@@ -289,7 +289,7 @@ def walk_profiled_p(ctx: FitContext, pred0, pred1, rows, df: int) -> float:
     return walk_profiled_lr_p([ctx.plant.data[idx, j] - pred0[idx, j] for j, idx in chans],
                               [ctx.plant.data[idx, j] - pred1[idx, j] for j, idx in chans],
                               [idx for _, idx in chans], np.asarray(ctx.sigma)[js],
-                              [ctx.plant.channels[j].kind for j in js], df)
+                              [ctx.plant.channels[j].kind for j in js], df, ctx.filters)
 
 
 def mlr_holdout(rec: GeoRecord | Plant, rows: np.ndarray, ref: np.ndarray | None = None) -> dict:
@@ -957,7 +957,8 @@ def _thermometers_beyond(ctx: FitContext, rec: Plant, base: Fit) -> tuple:
                 continue
             one = np.ones((idx.size, 1))
             p = columns_vs_walk_p(rec.data[idx, j] - base.prediction[idx, j], idx, one,
-                                  np.column_stack([one, x[idx] - np.mean(x[idx])]))
+                                  np.column_stack([one, x[idx] - np.mean(x[idx])]),
+                                  ctx.filters)
             if p < level:
                 out.append((rec.channels[j].column, k))
     return tuple(out)

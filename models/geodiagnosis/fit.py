@@ -60,7 +60,7 @@ from scipy.stats import norm
 
 from arfem.models.diagnosis.stats import slow_noise_sandwich
 from arfem.models.diagnosis.verdict import NO_EFFECT, reaches_edge
-from arfem.models.geodiagnosis.noise import reml_joint, whitener
+from arfem.models.geodiagnosis.noise import UnitFilters, reml_joint, whitener
 from arfem.models.geodiagnosis.plant import BOUNDS, PLAUSIBLE, Cause, mesh_plant
 from arfem.models.plant import Plant, linear_value
 
@@ -89,7 +89,12 @@ Z95 = float(norm.ppf(0.975))
 @dataclass(frozen=True)
 class FitContext:
     """A plant (a model bound to its record; it caches its own responses), with each
-    channel's weight, resolution and fitted noise."""
+    channel's weight, resolution and fitted noise, and the context's own memos: the
+    whiteners of its fitted noise (``wcache``) and the unit-noise filters its noise fits
+    and tests reuse (``filters``, :class:`arfem.models.geodiagnosis.noise.UnitFilters`).
+    Both start empty in :func:`make_context`; a context derived from this one
+    (``dataclasses.replace``) keeps ``filters`` (a filter does not depend on the plant or
+    the fitted noise), no two made contexts share one."""
 
     plant: Plant
     weights: np.ndarray           # (C,) 1/σ_c
@@ -99,6 +104,7 @@ class FitContext:
     noise: tuple | None = None          # per channel LevelNoise; None: white, σ_c
     wcache: dict = field(default_factory=dict, repr=False)
     n_eff_full: float | None = None     # Σ_c N_eff of the largest model's whitened residual
+    filters: UnitFilters = field(default_factory=UnitFilters, repr=False)
 
     @property
     def shape(self) -> np.ndarray:
@@ -241,7 +247,8 @@ def with_noise(ctx: FitContext, rows: np.ndarray) -> FitContext:
     out = [None] * len(ctx.plant.channels)
     if js:
         fitted = reml_joint(Y, Xs, idxs, ctx.sigma[js],
-                            [ctx.plant.channels[j].kind for j in js], floors)
+                            [ctx.plant.channels[j].kind for j in js], floors,
+                            filters=ctx.filters)
         for j, z in zip(js, fitted):
             out[j] = z
     ctx = with_fields(ctx, noise=tuple(out), wcache={})

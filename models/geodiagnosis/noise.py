@@ -33,14 +33,14 @@ Cressie N., "Statistics for spatial data", Wiley 1993, sec. 2.4 (variogram fit).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import solve_banded
 
 __all__ = ["LevelNoise", "fit_level_noise", "reml_level_noise", "reml_level_noise_pooled",
            "reml_joint", "Whitener", "whitener", "drift_vs_walk_p", "columns_vs_walk_p",
-           "walk_profiled_lr_p"]
+           "walk_profiled_lr_p", "UnitFilters"]
 
 
 @dataclass(frozen=True)
@@ -196,30 +196,51 @@ def whitener(noise: LevelNoise, idx: np.ndarray) -> Whitener:
     return Whitener(K, F, A)
 
 
-#: :func:`_unit_filter`'s memo: {(λ, φ, rows): Whitener}, emptied when it holds
-#: ``_UNIT_FILTERS_MAX`` (at most ~60 MB on a record of 10 000 rows)
-_UNIT_FILTERS: dict = {}
-_UNIT_FILTERS_MAX = 256
+@dataclass(frozen=True, eq=False)
+class UnitFilters:
+    """A caller's memo of unit-noise filters: the :func:`whitener` of unit white noise
+    with walk-to-white ratio λ and AR coefficient φ on a set of rows, by (λ, φ, rows).
+    The grids of :func:`profile_noise` recur in every profile of a record's residual on
+    the same rows (a sensor kind's φ, the tests of a drift and of the thermometers), and
+    each filter is a loop over the rows; a filter is a pure function of its key, so a
+    cold and a warm memo give the same bits.
 
+    Owned by whoever calls: a diagnosis's fit context holds one
+    (:attr:`arfem.models.geodiagnosis.fit.FitContext.filters`, empty when the context
+    is made); a function of this module given none makes its own for that call. No
+    memo is shared between two owners. It is emptied when it holds ``max_entries``
+    filters (at most ~60 MB at 256 on a record of 10 000 rows).
 
-def _unit_filter(lam: float, phi: float, idx: np.ndarray) -> Whitener:
-    """:func:`whitener` of unit white noise with ratio λ and AR coefficient φ on rows
-    ``idx``, memoised: the grids of :func:`profile_noise` recur in every profile of a
-    record's residual on the same rows (a sensor kind's φ, the tests of a drift and of
-    the thermometers), and each filter is a loop over the rows. The same filter (a pure
-    function of its key), so the same bits."""
-    idx = np.asarray(idx)
-    key = (float(lam), float(phi), idx.dtype.str, idx.tobytes())
-    W = _UNIT_FILTERS.get(key)
-    if W is None:
-        if len(_UNIT_FILTERS) >= _UNIT_FILTERS_MAX:
-            _UNIT_FILTERS.clear()
-        W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
-        for a in (W.K, W.F, W.A):               # shared by every caller: read-only
-            if a is not None:
-                a.flags.writeable = False
-        _UNIT_FILTERS[key] = W
-    return W
+    Examples
+    --------
+    >>> filters = UnitFilters()
+    >>> W = filters.get(1e-3, 1.0, np.arange(5))
+    >>> filters.get(1e-3, 1.0, np.arange(5)) is W, len(filters)
+    (True, 1)
+    """
+
+    max_entries: int = 256
+    _memo: dict = field(default_factory=dict, init=False, repr=False)
+
+    def __len__(self) -> int:
+        return len(self._memo)
+
+    def get(self, lam: float, phi: float, idx: np.ndarray) -> Whitener:
+        """The :func:`whitener` of :class:`LevelNoise` (1, √λ, φ) on rows ``idx``,
+        made once per (λ, φ, rows); its arrays are read-only (shared by every caller).
+        """
+        idx = np.asarray(idx)
+        key = (float(lam), float(phi), idx.dtype.str, idx.tobytes())
+        W = self._memo.get(key)
+        if W is None:
+            if len(self._memo) >= self.max_entries:
+                self._memo.clear()
+            W = whitener(LevelNoise(1.0, float(np.sqrt(lam)), phi), idx)
+            for a in (W.K, W.F, W.A):
+                if a is not None:
+                    a.flags.writeable = False
+            self._memo[key] = W
+        return W
 
 
 #: the walk-to-white ratios λ = σ_w²/σ_e² searched for a random walk (φ = 1)
@@ -285,7 +306,7 @@ def profile_noise(m2ll) -> tuple:
 
 
 def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
-                     floor: float) -> LevelNoise:
+                     floor: float, filters: UnitFilters | None = None) -> LevelNoise:
     """σ_e and σ_w of ``y`` = X β + noise by restricted maximum likelihood (REML):
     the ratio λ = σ_w²/σ_e² on a log grid (and 0), σ_e² profiled out, the regression's
     own degrees of freedom accounted for (a walk partly absorbed by X's columns, e.g. a
@@ -299,6 +320,8 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
     X : ndarray (n, p), the largest model's columns on those rows
     idx : ndarray (n,) of int
     floor : float, smallest σ_e [record unit]
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Reference: Harville D. A., J. Amer. Statist. Assoc. 72 (1977) 320-338 (REML);
     Harvey (1989) sec. 3.4 (its prediction-error decomposition).
@@ -313,13 +336,13 @@ def reml_level_noise(y: np.ndarray, X: np.ndarray, idx: np.ndarray,
     >>> round(z.sigma_white, 1), 0.02 < z.sigma_walk < 0.1
     (1.0, True)
     """
-    return reml_level_noise_pooled([(y, X, idx, floor)])[0]
+    return reml_level_noise_pooled([(y, X, idx, floor)], filters)[0]
 
 
-def _reml_terms(y, X, idx, lam, phi=1.0):
+def _reml_terms(y, X, idx, lam, phi, filters: UnitFilters):
     """(−2 × restricted log-likelihood with σ_e² profiled out, σ_e²) at ratio λ and AR
-    coefficient φ."""
-    W = _unit_filter(lam, phi, idx)
+    coefficient φ (the filter from ``filters``)."""
+    W = filters.get(lam, phi, idx)
     yw, Xw = _split(W.apply(np.column_stack([y, X])), (1, X.shape[1]))
     yw = yw[:, 0]
     n = y.size
@@ -348,14 +371,14 @@ def _prepared(channels) -> list:
     return prep
 
 
-def _pooled_profile(prep) -> tuple:
+def _pooled_profile(prep, filters: UnitFilters) -> tuple:
     """:func:`profile_noise` of the summed restricted log-likelihood of channels
     ``prep`` (:func:`_prepared`), each with its own σ_e and regression: (−2ℓ, λ, φ)."""
     return profile_noise(lambda lam, phi: sum(
-        _reml_terms(y, X, idx, lam, phi)[0] for y, X, idx, _ in prep))
+        _reml_terms(y, X, idx, lam, phi, filters)[0] for y, X, idx, _ in prep))
 
 
-def reml_level_noise_pooled(channels) -> list:
+def reml_level_noise_pooled(channels, filters: UnitFilters | None = None) -> list:
     """REML of one ratio λ = σ_w²/σ_e² shared by several channels (sensors of one kind,
     e.g. the probes of one five-probe test), each with its own σ_e and its own
     regression: the summed restricted log-likelihood is maximised over λ. A weak walk
@@ -365,14 +388,17 @@ def reml_level_noise_pooled(channels) -> list:
     Parameters
     ----------
     channels : sequence of (y, X, idx, floor) as :func:`reml_level_noise`
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Returns
     -------
     list of LevelNoise, one per channel
     """
+    filters = UnitFilters() if filters is None else filters
     prep = _prepared(channels)
-    _, lam, phi = _pooled_profile(prep)
-    s2s = [_reml_terms(y, X, idx, lam, phi)[1] for y, X, idx, _ in prep]
+    _, lam, phi = _pooled_profile(prep, filters)
+    s2s = [_reml_terms(y, X, idx, lam, phi, filters)[1] for y, X, idx, _ in prep]
     return [LevelNoise(max(float(np.sqrt(s2)), floor), float(np.sqrt(lam * s2)), phi)
             for s2, (_, _, _, floor) in zip(s2s, prep)]
 
@@ -399,7 +425,7 @@ def _joint_terms(Y, Xs, idxs, sig, lams, phis):
     return (n - p) * np.log(s2) + logF + logdet, s2
 
 
-def _kind_phi(Y, Xs, idxs, members) -> float:
+def _kind_phi(Y, Xs, idxs, members, filters: UnitFilters) -> float:
     """φ of one sensor kind's slow state (1: a random walk): the pooled REML of its
     channels ``members``, each with its own regression and its own white σ profiled
     (:func:`profile_noise`). In the joint fit the kinds' white σ keep the ratio of their
@@ -407,16 +433,18 @@ def _kind_phi(Y, Xs, idxs, members) -> float:
     its own: on a clean white record of the coarse unit the probes took φ 0.8 and the
     nominal model was "not explained" (tests/test_geodiagnosis.py, seed 1004). Decided
     here, the AR(1) is adopted on its correlation alone."""
-    return _pooled_profile(_prepared([(Y[i], Xs[i], idxs[i], 0.0) for i in members]))[2]
+    return _pooled_profile(_prepared([(Y[i], Xs[i], idxs[i], 0.0) for i in members]),
+                           filters)[2]
 
 
-def _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps: int = 2) -> dict:
+def _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps: int,
+                  filters: UnitFilters) -> dict:
     """{group: (λ, φ)} minimising :func:`_joint_terms` by coordinate sweeps on the grid:
     each group's φ decided first (:func:`_kind_phi`), then its λ on
     :data:`WALK_RATIOS` for a walk, on κ (1 − φ²), κ on a quarter-decade grid over
     :data:`AR_RATIOS`' range, for an AR(1)."""
     names = list(dict.fromkeys(groups))
-    phi = {g: _kind_phi(Y, Xs, idxs, [i for i, k in enumerate(groups) if k == g])
+    phi = {g: _kind_phi(Y, Xs, idxs, [i for i, k in enumerate(groups) if k == g], filters)
            for g in names}
     kappas = 10.0 ** np.arange(np.log10(AR_RATIOS[0]), np.log10(AR_RATIOS[-1]) + 0.01, 0.25)
     lam = {g: 0.0 for g in names}
@@ -434,7 +462,8 @@ def _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps: int = 2) -> dict:
     return {g: (lam[g], phi[g]) for g in names}
 
 
-def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2) -> list:
+def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2,
+               filters: UnitFilters | None = None) -> list:
     """REML of one walk-to-white ratio λ_g per group of channels (sensors of one kind)
     in a JOINT regression whose columns are shared across channels (a cause moves every
     channel by one parameter): far fewer free columns than one regression per channel,
@@ -452,6 +481,8 @@ def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2) -> list:
     floors : array_like (C,), smallest σ_e per channel
     sweeps : int, coordinate sweeps over the groups (each group's slow state a walk or
         an AR(1), :func:`profile_noise`)
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Returns
     -------
@@ -462,7 +493,8 @@ def reml_joint(Y, Xs, idxs, sigma, groups, floors, sweeps: int = 2) -> list:
         _, sv, Vt = np.linalg.svd(Xcat, full_matrices=False)
         T = Vt[sv > sv[0] * 1e-7].T
         Xs = [X @ T for X in Xs]
-    state = _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps)
+    state = _joint_ratios(Y, Xs, idxs, sigma, groups, sweeps,
+                          UnitFilters() if filters is None else filters)
     _, s2 = _joint_terms(Y, Xs, idxs, sigma, [state[k][0] for k in groups],
                          [state[k][1] for k in groups])
     s = float(np.sqrt(s2))
@@ -493,7 +525,8 @@ def _ml_terms(yw: np.ndarray, Xw: np.ndarray, log_F: float) -> float:
     return n * np.log(max(float(yw @ yw) / n, 1e-300)) + log_F
 
 
-def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray) -> float:
+def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray,
+                    filters: UnitFilters | None = None) -> float:
     """p of a sensor's offset and linear drift against that sensor's own random walk:
     the likelihood-ratio test of y = a + b t + white + walk against y = white + walk,
     the walk-to-white ratio λ and σ_e profiled out under EACH hypothesis (χ² on 2
@@ -511,6 +544,8 @@ def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray) -> float
         [record unit] on rows ``idx``
     idx : ndarray (n,) of int, their row indices
     time_h : ndarray (n,), their times [h]
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Reference: Harvey (1989) sec. 5.1 (testing a deterministic trend against a
     stochastic level); Wilks S. S., Ann. Math. Statist. 9 (1938) 60-62 (LR test).
@@ -527,11 +562,11 @@ def drift_vs_walk_p(y: np.ndarray, idx: np.ndarray, time_h: np.ndarray) -> float
     """
     y = np.asarray(y, float)
     X = np.column_stack([np.ones(y.size), np.asarray(time_h, float)])
-    return columns_vs_walk_p(y, idx, np.zeros((y.size, 0)), X)
+    return columns_vs_walk_p(y, idx, np.zeros((y.size, 0)), X, filters)
 
 
 def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
-                      X1: np.ndarray) -> float:
+                      X1: np.ndarray, filters: UnitFilters | None = None) -> float:
     """p of the likelihood-ratio test of y = X1 β + white + walk against
     y = X0 β + white + walk (X0's columns among X1's), the walk-to-white ratio λ, β and
     σ_e profiled out under EACH hypothesis (χ² on the number of extra columns).
@@ -547,6 +582,8 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     y : ndarray (n,), a residual [record unit] on rows ``idx``
     idx : ndarray (n,) of int, their row indices
     X0, X1 : ndarray (n, p0), (n, p1), the smaller and the larger model's columns
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Examples
     --------
@@ -561,6 +598,7 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     """
     from scipy.stats import chi2
     y = np.asarray(y, float)
+    filters = UnitFilters() if filters is None else filters
     # y, X0 and X1 whitened at once per (λ, φ), shared by the two hypotheses
     Z, widths = np.column_stack([y, X0, X1]), (1, X0.shape[1], X1.shape[1])
     cache: dict = {}
@@ -568,7 +606,7 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     def whitened(lam, phi):
         key = (float(lam), float(phi))
         if key not in cache:
-            W = _unit_filter(lam, phi, idx)
+            W = filters.get(lam, phi, idx)
             cache[key] = (_split(W.apply(Z), widths), float(np.sum(np.log(W.F))))
         return cache[key]
 
@@ -580,7 +618,8 @@ def columns_vs_walk_p(y: np.ndarray, idx: np.ndarray, X0: np.ndarray,
     return float(chi2.sf(max(l0 - l1, 0.0), max(X1.shape[1] - X0.shape[1], 1)))
 
 
-def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int) -> float:
+def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int,
+                       filters: UnitFilters | None = None) -> float:
     """p of the likelihood-ratio test of a larger fitted model (residuals ``R1``)
     against a smaller one (``R0``), each channel's noise white plus a random walk whose
     walk-to-white ratio λ per group (sensor kind) and common scale are profiled out
@@ -598,6 +637,8 @@ def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int) -> float:
     sigma : array_like (C,), each channel's white σ_c (second differences)
     groups : sequence (C,), the channel's sensor kind
     df : int, the larger model's extra parameters
+    filters : UnitFilters, optional, the caller's memo of filters (None: one for this
+        call)
 
     Examples
     --------
@@ -614,9 +655,10 @@ def walk_profiled_lr_p(R0, R1, idxs, sigma, groups, df: int) -> float:
     """
     from scipy.stats import chi2
     empty = [np.zeros((np.asarray(r).size, 0)) for r in R0]
+    filters = UnitFilters() if filters is None else filters
 
     def m2ll(R):
-        state = _joint_ratios(R, empty, idxs, sigma, groups)
+        state = _joint_ratios(R, empty, idxs, sigma, groups, 2, filters)
         return _joint_terms(R, empty, idxs, sigma, [state[g][0] for g in groups],
                             [state[g][1] for g in groups])[0]
     lr = max(m2ll(list(R0)) - m2ll(list(R1)), 0.0)

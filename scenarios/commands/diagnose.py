@@ -8,6 +8,7 @@ temperatures; see ``arfem compensate``), atomically. Bad input: one line, exit 2
 """
 from __future__ import annotations
 
+from arfem.models.diagnosis.engine import SPEED_ENGINES
 from arfem.scenarios.diagnosis import run as diagnosis_run
 from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.diagnosis.terminal import diagnosis_terminal_line
@@ -32,7 +33,7 @@ def add_parser(subparsers):
     p.add_argument("--holdout-start", type=float, default=None, metavar="SECONDS",
                    help="start of the hold-out [s]; default: the last third of the record "
                         "if it holds a change of the input, else from the last such change")
-    p.add_argument("--speed-engine", choices=("branch", "pipeline"), default=None,
+    p.add_argument("--speed-engine", choices=SPEED_ENGINES, default=None,
                    help="speed_rpm records: which engine diagnoses them -- the rod "
                         "engine's speed branch, candidates chosen by forward-chaining "
                         "validation, the published procedure (branch, default), or the one "

@@ -7,7 +7,7 @@ benchmarks and tests call this module.
 """
 from __future__ import annotations
 
-from arfem.models.diagnosis.engine import BRANCH_ONLY, SPEED_ENGINES, Diagnosis, diagnose
+from arfem.models.diagnosis.engine import BRANCH_ONLY, Diagnosis, check_speed_engine, diagnose
 from arfem.params import InputError
 from arfem.scenarios.diagnosis.document import document
 from arfem.scenarios.records.dataset import RecordDoc, load_dataset, read_record_doc
@@ -142,10 +142,14 @@ def speed_options(input_kind: str, speed_engine: str | None = None,
     (:data:`arfem.models.diagnosis.engine.BRANCH_ONLY`) and are refused with
     ``pipeline``. Each refusal is an InputError (one line, exit 2), raised before
     anything is written; ``source`` (the record's file) locates the one that is about
-    the record.
+    the record. An unknown engine is the engine's own check
+    (:func:`arfem.models.diagnosis.engine.check_speed_engine`), located at the option.
     """
-    if speed_engine is not None and speed_engine not in SPEED_ENGINES:
-        raise InputError(f"{speed_engine!r} is not 'branch' or 'pipeline'", "--speed-engine")
+    if speed_engine is not None:
+        try:
+            check_speed_engine(speed_engine)
+        except InputError as exc:
+            raise InputError(exc.message, "--speed-engine") from None
     if speed_engine == "branch" and input_kind != "speed_rpm":
         what = "mesh record (contract v3)" if input_kind == "mesh" else f"{input_kind} record"
         raise InputError(f"applies to speed_rpm records on the rod only; this {what} is "

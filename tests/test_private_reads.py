@@ -1,0 +1,77 @@
+"""No module reads another module's private member: a name with a leading underscore
+(``plant._smoothed_C``, ``verdict._better_baselines``) is read only in the module that
+defines it, and what another module needs is public and documented
+(:meth:`arfem.models.diagnosis.speed_plant.SpeedPlant.smoothed_temperature_C`,
+:func:`arfem.models.diagnosis.verdict.better_baselines`).
+
+Checked statically on the package's sources (ground, fem, models, scenarios): every
+attribute ``x._name`` read on anything but ``self``/``cls`` must name something its own
+module defines (a function, class, assignment, attribute set, argument or string: an
+attribute it sets on an object by name). Allowed beside them: the named tuple's public
+API (``_asdict``, ...) and the two standard-library names listed in :data:`STDLIB`.
+Private names imported by ``from x import _y`` are another matter, not checked here.
+"""
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the named tuple's API: public, with an underscore against field-name clashes
+NAMED_TUPLE = {"_asdict", "_replace", "_fields", "_make", "_field_defaults"}
+#: standard-library members read where no public way exists: (file, expression)
+STDLIB = {("scenarios/cli.py", "sp._actions"),             # argparse's sub-parsers
+          ("scenarios/sweep/executors.py", "os._exit")}    # a documented os function
+
+
+def _defined(tree) -> set:
+    """Every name the module defines or sets itself (and every string it holds)."""
+    out = set()
+    for n in ast.walk(tree):
+        if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(n.name)
+        elif isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store):
+            out.add(n.id)
+        elif isinstance(n, ast.Attribute) and isinstance(n.ctx, ast.Store):
+            out.add(n.attr)
+        elif isinstance(n, ast.Constant) and isinstance(n.value, str):
+            out.add(n.value)
+        elif isinstance(n, ast.arg):
+            out.add(n.arg)
+    return out
+
+
+def foreign_private_reads(source: str, rel: str) -> list:
+    """``["<rel>:<line>: <expression>", ...]``: reads of a private attribute that the
+    module ``rel`` (its ``source``) does not define."""
+    tree = ast.parse(source)
+    mine = _defined(tree)
+    out = []
+    for n in ast.walk(tree):
+        if not (isinstance(n, ast.Attribute) and n.attr.startswith("_")
+                and not n.attr.startswith("__")):
+            continue
+        if isinstance(n.value, ast.Name) and n.value.id in ("self", "cls"):
+            continue
+        if n.attr in NAMED_TUPLE or n.attr in mine or (rel, ast.unparse(n)) in STDLIB:
+            continue
+        out.append(f"{rel}:{n.lineno}: {ast.unparse(n)}")
+    return out
+
+
+def test_the_check_sees_a_foreign_private_read():
+    """The check itself: a plant's private method read from outside is caught, the
+    module's own private names, ``self``'s and a named tuple's ``_asdict`` are not."""
+    src = ("def f(plant, row):\n    return plant._smoothed_C('T_C'), row._asdict()\n"
+           "def _own():\n    pass\nclass A:\n    def g(self, m):\n"
+           "        return self._x, m._own\n")
+    assert foreign_private_reads(src, "m.py") == ["m.py:2: plant._smoothed_C"]
+
+
+@pytest.mark.parametrize("room", ["arfem", "fem", "models", "scenarios"])
+def test_no_module_reads_another_modules_private_member(room):
+    found = []
+    for path in sorted((ROOT / room).rglob("*.py")):
+        rel = path.relative_to(ROOT).as_posix()
+        found += foreign_private_reads(path.read_text(encoding="utf-8"), rel)
+    assert found == []
