@@ -518,7 +518,6 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
                                 "n_eff": float(st.noise_n_eff(ext.residual_um)),
                                 "noise_sigma_um": noise, "speed_plant_heat": plant.heat.kind,
                                 "speed_plant_heat_why": plant.heat.why,
-                                "speed_plant_frame_why": plant.frame_why,
                                 "pipeline_noise_sigma_um": float(ev.sigma.get("growth_um",
                                                                               np.nan))},
         extended=ext, baseline=base, time_constant_s=tau_of(ev.baseline) * 3600.0,

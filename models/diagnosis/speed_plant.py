@@ -47,12 +47,11 @@ the default hold-out of :func:`arfem.models.diagnosis.holdout.default_holdout`, 
 :func:`~arfem.models.geodiagnosis.engine.diagnose_plant` takes when given none): the
 seen speeds and the fit rows of the choice are those before it.
 
-On more than :data:`PER_THERMOMETER_FRAMES` thermometers the frame follows their
-leading principal components, as many as the fit rows choose by BIC on N_eff
-(:func:`choose_frame_components`; the branch chooses among the same numbers by
-forward-chaining validation). What this plant does not do (the rod engine's speed branch
-does): a frame without a thermometer (the frame's own lag of the rod's steady growth: its
-gain is a product with the nominal model's unknown steady growth G, not a linear column).
+What this plant does not do (the rod engine's speed branch does): the choice of the
+frame's structure among numbers of components and lags by forward-chaining validation
+(README.posthoc.md 1.4.2: on FL_THERMAL a fixed three components lose to it), and a
+frame without a thermometer (the frame's own lag of the rod's steady growth: its gain is
+a product with the nominal model's unknown steady growth G, not a linear column).
 """
 from __future__ import annotations
 
@@ -77,8 +76,7 @@ __all__ = ["SpeedPlant", "SpeedSetting", "speed_plant", "speed_plant_from_datase
            "contract_causes", "TIME_CONSTANT", "HEAT_EXPONENT", "THERMOMETER_SMOOTHING_S",
            "PER_THERMOMETER_FRAMES", "FRAME_COMPONENTS", "PAPER_AR_LABEL", "contract_names",
            "speed_contract_entries", "speed_candidate_parameters", "convection_h_W_m2K",
-           "convection_h_ci95", "HEAT_MODELS", "choose_heat_model", "HeatModel",
-           "choose_frame_components"]
+           "convection_h_ci95", "HEAT_MODELS", "choose_heat_model", "HeatModel"]
 
 #: how the verdict names the paper's AR(1), the speed plant's reference model
 PAPER_AR_LABEL = "the paper AR(1) of eq. 17 (one C2 per speed, eqs. 20-21 for new speeds)"
@@ -108,18 +106,19 @@ THERMOMETER_SMOOTHING_S = 360.0
 #: above, the frame follows the leading principal components of them all
 #: (:data:`FRAME_COMPONENTS`), as the rod engine's speed branch does.
 PER_THERMOMETER_FRAMES = 3
-#: The numbers of leading principal components a frame on many thermometers may follow
-#: (the rod engine's speed branch's, but none). One of them is the plant's, chosen on the
-#: fit rows by BIC on N_eff (:func:`choose_frame_components`), and only it is a
-#: candidate (with and without a lag): offered all at once as causes, the nested frames
-#: fitted as well as each other, and on synth_speed's records of 8 and 16 thermometers
-#: (a frame on a mix of a fast and a slow one, room thermometers beside, AR noise,
-#: seeds 1-6) the frame was established on 1 of 6 ("explained" or "unconfirmed": the
-#: alternatives not excluded). A fixed three (the plant's until 2026-11-28) named and
-#: established all 6 there, but on the real FL_THERMAL record the branch's choice among
-#: 1-8 by validation took 6 or 8 on most rolling origins, and the fixed three lost to it
-#: (README.posthoc.md 1.4.2, post hoc).
-FRAME_COMPONENTS = (1, 2, 3, 4, 6, 8)
+#: The numbers of leading principal components a frame on many thermometers follows
+#: (one cause each, with and without a lag). Three alone: on synth_speed's records of 8
+#: thermometers (a frame on a mix of a fast and a slow one, room thermometers beside,
+#: AR noise, seeds 1-6) the frame on 1, 2 or 3 components named three components on 5
+#: of 6 and a pair of frames on 2 on the sixth ("explained"); three alone named and
+#: established all 6, also with 16 thermometers, and halved the Bonferroni count. Two
+#: alternatives were tried post hoc on FL_THERMAL (README.posthoc.md 1.4.2), where the
+#: rod engine's speed branch chooses among 1-8 by validation and takes 6 or 8 on most
+#: rolling origins: the branch's 1-8 all as candidates (synthetic frames at 8 and 16
+#: thermometers established 1 of 6: the nested frames fit as well as each other), and
+#: one number chosen on the fit rows by BIC on N_eff (FL_THERMAL: worse than three on
+#: every channel's rolling median). Neither was kept.
+FRAME_COMPONENTS = (3,)
 
 
 #: the nominal models of the speed-to-heat relation: one law (n/n_max)^p, one gain per
@@ -234,9 +233,6 @@ class SpeedPlant:
     ambient_C : ndarray (N,) or None, the recorded ambient [°C]
     reference_C : float, the rod's nominal ambient (= initial = reference) [°C]
     heat : HeatModel, the nominal model's heat (:func:`choose_heat_model`)
-    frame_components : int, the leading principal components a frame on more than
-        :data:`PER_THERMOMETER_FRAMES` thermometers follows (:func:`choose_frame_components`)
-    frame_why : str, that choice in words ("" where it was not made)
     """
 
     name: str
@@ -255,8 +251,6 @@ class SpeedPlant:
     regrows: bool = False
     rules: SelectionRules = SelectionRules()
     heat: HeatModel = HeatModel("law")
-    frame_components: int = 3
-    frame_why: str = ""
 
     def candidate_causes(self) -> tuple:
         """A sensor drift; an ambient drift where the ambient is recorded and varies; a
@@ -271,7 +265,7 @@ class SpeedPlant:
             out.append(cause("convection_scale", "running"))
         names, _ = temperature_matrix(self.temperatures)
         targets = list(self.temperatures) if len(self.temperatures) <= PER_THERMOMETER_FRAMES \
-            else [components_target(k) for k in (self.frame_components,) if k <= len(names)]
+            else [components_target(k) for k in FRAME_COMPONENTS if k <= len(names)]
         for k in targets:
             out += [cause("frame_expansion", k), cause("frame_lag", k)]
         return tuple(out)
@@ -446,38 +440,7 @@ def speed_plant(name: str, time_s, growth_um, speed_rpm, temperatures=None,
         law = with_fields(plant, nominal_parameters=(TIME_CONSTANT, HEAT_EXPONENT), cache={},
                           heat=HeatModel("law"))
         plant = _lower_bic(law, plant, rows)
-    return choose_frame_components(plant, rows)
-
-
-def choose_frame_components(plant: SpeedPlant, rows) -> SpeedPlant:
-    """``plant`` with the number of principal components its frame follows chosen on the
-    fit rows ``rows``: of :data:`FRAME_COMPONENTS` (those not above the number of
-    complete thermometers), the one whose frame, fitted beside every other linear
-    candidate cause by GLS on one noise (:func:`~arfem.models.geodiagnosis.fit.with_noise`
-    on the plant with the widest frame), has the lowest BIC on N_eff (the screen's
-    criterion, :func:`arfem.models.diagnosis.stats.bic`; as the nominal heat,
-    :func:`speed_plant`). ``plant`` itself where the thermometers get a frame each
-    (:data:`PER_THERMOMETER_FRAMES` or fewer) or only one number is possible. Only the
-    chosen frame is a candidate cause: the choice is the plant's structure, made once,
-    as the rod engine's speed branch chooses its frame's among 1-8 by validation."""
-    names, _ = temperature_matrix(plant.temperatures)
-    ks = [k for k in FRAME_COMPONENTS if k <= len(names)]
-    if len(plant.temperatures) <= PER_THERMOMETER_FRAMES or len(ks) < 2:
-        return plant
-    rows = np.asarray(rows, bool)
-    ctx = with_noise(make_context(with_fields(plant, frame_components=max(ks))), rows)
-    scores = {}
-    for k in ks:
-        p = with_fields(plant, frame_components=k)
-        lin = tuple(c for c in p.candidate_causes() if not c.nonlinear)
-        c = with_fields(ctx, plant=p, wcache={}, n_eff_full=None)
-        f = fit_mesh_causes(c, lin, rows, intervals=False)
-        N = int((c.valid & rows[:, None]).sum())
-        scores[k] = float(bic(f.sse_w, N, _n_eff(c, f.prediction, rows), f.n_params))
-    k = min(scores, key=scores.get)
-    return with_fields(plant, frame_components=k, frame_why=(
-        f"{k} principal components of {len(names)} thermometers: the lowest BIC on N_eff "
-        "on the fit rows (" + ", ".join(f"{j}: {v:.1f}" for j, v in scores.items()) + ")"))
+    return plant
 
 
 def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:

@@ -273,7 +273,10 @@ POSTHOC_SWITCH_RUNS = {
                       "1.4.1)",
     "switch_posthoc2": "as switch_posthoc, and the frame's number of principal components "
                        "chosen by BIC on N_eff among 1-8, and the paper AR(1) compared on "
-                       "the hold-out RMSE as well as whitened (README.posthoc.md 1.4.2)"}
+                       "the hold-out RMSE as well as whitened (README.posthoc.md 1.4.2)",
+    "switch_posthoc3": "as switch_posthoc (the frame on three components), and the paper "
+                       "AR(1) compared on the hold-out RMSE as well as whitened "
+                       "(README.posthoc.md 1.4.2)"}
 
 
 def _run_switch(data, jobs, name: str = "switch") -> int:
