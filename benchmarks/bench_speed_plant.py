@@ -103,6 +103,17 @@ margin) where the gains were 4-18 times better on the hold-out. M = 16 (no rod):
 sensor_drift 3/3/2, 2/2/2, 2/2/2 (law, per_speed, auto), ambient 6/6/4, 6/6/6, 6/6/6,
 frame 6/4/--, 6/6/--, 6/5/--, convection 4/4/3, 6/6/6, 6/6/6, clean 5, 6, 6; RMSE
 median/mean 0.666/0.784, 0.144/0.215, 0.152/0.279 µm.
+
+The frame's number of components, 2026-11-28 (lead, post hoc after FL_THERMAL,
+README.posthoc.md 1.4.2; ``--seeds 6 --no-rod --thermometers M --causes
+sensor_drift,frame_expansion,clean``, right / established / covered, clean: verdicts):
+three components (the plant's), M = 8 and 16 alike: drift 4 / 4 / 4, frame 6 / 6 / --,
+clean no cause on 6, 4 "explained" and 2 "not explained". The branch's 1-8 all offered
+as candidates: frame 6 / 1 / -- at both M (drift 4 / 4 / 4). One number chosen by BIC on
+N_eff: M = 8 drift 4 / 4 / 4, M = 16 drift 5 / 5 / 5, frame 6 / 6 / -- at both, clean
+3 "explained" and 3 "not explained" (it chose 1 component on the drift records, 3 on the
+frame records; not kept: worse on FL_THERMAL). The reference model compared on the
+hold-out RMSE as well (kept): every row above and the default table (M = 1) unchanged.
 """
 from __future__ import annotations
 

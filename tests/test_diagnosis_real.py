@@ -196,3 +196,17 @@ def test_subset_of_origins_keeps_the_full_run_blocks():
     for s in sub:
         f = next(x for x in full if x.origin_s == s.origin_s)
         assert (s.block_end_s, s.n, s.rmse_um) == (f.block_end_s, f.n, f.rmse_um)
+
+
+def test_the_committed_readme_is_what_its_parts_and_stored_results_build():
+    """reports/fl_thermal/README.md is assembled from README.top/head/posthoc/tail.md
+    and the stored results (``regenerate.py --readme``, no diagnosis run). A part edited
+    without the rebuild leaves the README stale: sections 1.4-1.4.1 (the speed switch)
+    were in README.posthoc.md but not in README.md for a session. Exact text equality."""
+    import json
+    regen = _regenerate()
+    here = REPO / "reports" / "fl_thermal"
+    published = {ch: json.loads((here / f"ch{ch}" / "diagnosis.json").read_text(encoding="utf-8"))
+                 for ch in range(1, 6)}
+    exp = json.loads((here / "experiments.json").read_text(encoding="utf-8"))
+    assert regen._readme_text(published, exp) == (here / "README.md").read_text(encoding="utf-8")
