@@ -47,7 +47,8 @@ __all__ = ["Material", "SourceSpec", "ConvectionSpec", "Support", "SensorSpec", 
            "ThermalBody", "ElasticBody", "element_for", "conduction", "capacity",
            "surface_mass", "unit_load", "elastic_stiffness", "thermal_coupling",
            "LumpedGeometry", "group_volumes_m3", "lumped_geometry", "assemble_elastic_stiffness",
-           "assemble_thermal_coupling", "power_column", "is_volume_source"]
+           "assemble_thermal_coupling", "power_column", "is_volume_source",
+           "per_element", "material_arrays"]
 
 
 # -- weak forms -------------------------------------------------------------------------------
@@ -340,13 +341,47 @@ def element_for(gmesh: GroupedMesh, order: int):
     return ElementTetP1() if order == 1 else ElementTetP2()
 
 
-def _per_element(basis: Basis, values_el: np.ndarray) -> np.ndarray:
-    """An element-wise constant as skfem expects it: shape (nelems, nqp)."""
+def per_element(basis: Basis, values_el: np.ndarray) -> np.ndarray:
+    """An element-wise constant as skfem expects it: shape (nelems, nqp).
+
+    Parameters
+    ----------
+    basis : skfem.Basis
+        Gives the quadrature points per element (nqp).
+    values_el : array_like
+        (nelems,) one value per element, in its own unit (kept).
+
+    Returns
+    -------
+    numpy.ndarray
+        (nelems, nqp), each element's value repeated at its quadrature points.
+    """
     return np.repeat(np.asarray(values_el, float)[:, None], basis.X.shape[1], axis=1)
 
 
-def _material_arrays(gmesh: GroupedMesh, materials: dict) -> dict:
-    """Per-element property arrays from {group: Material}; every element needs one."""
+def material_arrays(gmesh: GroupedMesh, materials: dict) -> dict:
+    """Per-element property arrays from {group: Material}; every element needs one.
+
+    Parameters
+    ----------
+    gmesh : GroupedMesh
+        The mesh and its volume groups.
+    materials : dict
+        {group: :class:`Material`}.
+
+    Returns
+    -------
+    dict
+        (nelems,) arrays: ``"k"`` conductivity [W/(m·K)], ``"rhoc"`` ρc [J/(m³·K)],
+        ``"alpha"`` expansion [1/K], ``"lam"`` and ``"mu"`` Lamé parameters [Pa],
+        ``"beta"`` = (3λ + 2μ)α [Pa/K], ``"which"`` the index of each element's
+        material in ``materials``.
+
+    Raises
+    ------
+    InputError
+        A volume group has no material, or an element belongs to none.
+    """
     ne = gmesh.mesh.nelements
     which = -np.ones(ne, int)
     mats = list(materials.values())
@@ -449,9 +484,9 @@ class ThermalBody:
         io = intorder if intorder is not None else 2 * order + (1 if mesh.__class__.__name__
                                                                  .endswith("2") else 0)
         basis = Basis(mesh, elem, intorder=io)
-        props = _material_arrays(gmesh, materials)
-        M = capacity.assemble(basis, rhoc=_per_element(basis, props["rhoc"])).tocsr()
-        K = conduction.assemble(basis, k=_per_element(basis, props["k"])).tocsr()
+        props = material_arrays(gmesh, materials)
+        M = capacity.assemble(basis, rhoc=per_element(basis, props["rhoc"])).tocsr()
+        K = conduction.assemble(basis, k=per_element(basis, props["k"])).tocsr()
         volume = unit_load.assemble(basis)
         areas, cols, Bs, vols = {}, [], [], {}
         for i, s in enumerate(sources):

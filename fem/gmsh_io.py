@@ -35,7 +35,7 @@ from arfem.params import InputError
 __all__ = ["GroupedMesh", "read_grouped_mesh", "grouped_mesh_from_meshio", "UNITS",
            "VOLUME_CELLS", "estimate_memory_bytes", "available_memory_bytes",
            "check_memory", "BBOX_MAX_M", "BBOX_MIN_M", "ELASTIC_DIRECT_MAX_DOFS",
-           "ELASTIC_FACTOR_MAX_DOFS"]
+           "ELASTIC_FACTOR_MAX_DOFS", "VTK_TO_SKFEM_HEX"]
 
 #: Declared length units and their factor to metres.
 UNITS = {"m": 1.0, "mm": 1e-3}
@@ -223,7 +223,7 @@ def grouped_mesh_from_meshio(m, unit: str, where: str = "<mesh>") -> GroupedMesh
     _check_orientation(p, t, ctype, where)
     if ctype == "hexahedron":
         # meshio/VTK hexahedron node order is skfem's MeshHex1 order up to a permutation
-        mesh = MeshHex1(p, t[_VTK_TO_SKFEM_HEX])
+        mesh = MeshHex1(p, t[VTK_TO_SKFEM_HEX])
     else:
         mesh = MeshTet1(p, t)
         if ctype == "tetra10":
@@ -324,7 +324,7 @@ def _groups(m, sets: dict, blocks: list, mesh, renum, pts, where: str):
 
 #: VTK hexahedron corner i -> skfem MeshHex1 corner (skfem's order is x-fastest binary,
 #: checked by test_geometry_mesh against skfem's own reference cube).
-_VTK_TO_SKFEM_HEX = np.array([0, 4, 3, 1, 7, 5, 2, 6])
+VTK_TO_SKFEM_HEX = np.array([0, 4, 3, 1, 7, 5, 2, 6])
 
 
 class _FacetIndex:

@@ -35,7 +35,7 @@ from typing import Callable
 import numpy as np
 import scipy.linalg
 
-from arfem.fem.heat_problem import (ELEMENTS, HeatFEM, HeatResult, _initial, _inputs,
+from arfem.fem.heat_problem import (ELEMENTS, HeatFEM, HeatResult, initial_state_K, schedule_inputs,
                                     breakpoints)
 from arfem.fem.linsolve import factorize_spd
 from arfem.fem.reduced import solve_reduced
@@ -157,8 +157,8 @@ def solve_theta(model: HeatFEM, schedule: Schedule, dt_s: float, theta: float = 
         raise InputError(f"must lie in [0.5, 1], got {theta!r}", "theta")
     if not (np.isfinite(dt_s) and dt_s > 0):
         raise InputError(f"must be > 0, got {dt_s!r}", "dt_s")
-    q, h, amb = _inputs(model, schedule)
-    x = _initial(model, theta0)
+    q, h, amb = schedule_inputs(model, schedule)
+    x = initial_state_K(model, theta0)
     M = model.M
     cache: dict = {}
     times = [0.0]
@@ -305,12 +305,12 @@ def solve_modal(model: HeatFEM, schedule: Schedule, output_times_s=None, store_f
     if not model.axisymmetric:
         return solve_reduced(model, schedule, output_times_s, store_fields=store_fields,
                              theta0=theta0, mode_cache=mode_cache)
-    q, h, amb = _inputs(model, schedule)
+    q, h, amb = schedule_inputs(model, schedule)
     b = breakpoints(schedule, output_times_s)       # segment edges and output times
     bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
 
     cache = {} if mode_cache is None else mode_cache
-    x = _initial(model, theta0)
+    x = initial_state_K(model, theta0)
     hs = h[seg]
     states = np.empty((bps.size, model.ndofs)) if store_fields else None
     growth = np.empty(bps.size)

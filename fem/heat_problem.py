@@ -19,7 +19,8 @@ from skfem.helpers import dot, grad
 
 from arfem.params import InputError, Rod, Schedule
 
-__all__ = ["HeatFEM", "HeatResult", "Breakpoints", "breakpoints", "ELEMENTS", "heat_forms"]
+__all__ = ["HeatFEM", "HeatResult", "Breakpoints", "breakpoints", "ELEMENTS", "heat_forms",
+           "schedule_inputs", "initial_state_K"]
 
 ELEMENTS = {
     ("axisymmetric", 1): ElementQuad1,
@@ -233,7 +234,23 @@ class HeatResult:
         return self.growth_m * 1e6
 
 
-def _inputs(model: HeatFEM, schedule: Schedule):
+def schedule_inputs(model: HeatFEM, schedule: Schedule):
+    """The per-segment inputs of ``schedule`` on ``model``'s rod, as every time solver
+    of the rod (:mod:`arfem.fem.heat`, :mod:`arfem.fem.reduced`) takes them.
+
+    Parameters
+    ----------
+    model : HeatFEM
+        Supplies the rod's nominal h [W/(m²·K)] and ambient [°C].
+    schedule : Schedule
+        The load history; h and ambient default to the rod's where not given.
+
+    Returns
+    -------
+    q_W_m2, h_W_m2K, ambient_rise_K : numpy.ndarray
+        Per segment: the end-face flux [W/m²], the lateral convection coefficient
+        [W/(m²·K)] and the ambient's rise above the rod's nominal ambient [K].
+    """
     q = np.asarray(schedule.q_W_m2, float)
     h = schedule.h_for(model.rod)
     amb = schedule.ambient_for(model.rod) - model.rod.ambient_C
@@ -288,7 +305,27 @@ def breakpoints(schedule: Schedule, output_times_s=None) -> Breakpoints:
     return Breakpoints(bps, seg, np.diff(bps), out_t, pick)
 
 
-def _initial(model: HeatFEM, theta0) -> np.ndarray:
+def initial_state_K(model: HeatFEM, theta0) -> np.ndarray:
+    """The initial temperature rise θ₀ [K] at every degree of freedom of ``model``.
+
+    Parameters
+    ----------
+    model : HeatFEM
+        The discretised rod (its ``ndofs``).
+    theta0 : array_like or float or None
+        Initial temperature rise [K]: None for 0 (equilibrium with ambient), a scalar
+        for a uniform rise, or one finite value per degree of freedom.
+
+    Returns
+    -------
+    numpy.ndarray
+        (ndofs,) [K], a copy.
+
+    Raises
+    ------
+    InputError
+        ``theta0`` has the wrong length or a non-finite value.
+    """
     if theta0 is None:
         return np.zeros(model.ndofs)
     th = np.asarray(theta0, float)

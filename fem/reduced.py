@@ -69,12 +69,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, eigsh
 
-from arfem.fem.heat_problem import HeatFEM, HeatResult, _initial, _inputs, breakpoints
+from arfem.fem.heat_problem import HeatFEM, HeatResult, initial_state_K, schedule_inputs, breakpoints
 from arfem.fem.linsolve import default_method, factorize_spd
 from arfem.params import InputError, Schedule
 
 __all__ = ["ReducedModes", "ReducedResult", "reduced_modes", "solve_reduced",
-           "DEFAULT_N_MODES"]
+           "DEFAULT_N_MODES", "m_orthonormal"]
 
 #: Modes kept by default. On the paper's rod 6 already match Crank–Nicolson (Δt → 0)
 #: to 2e-6 of the peak; 8 leaves a margin for other rods and meshes.
@@ -261,10 +261,25 @@ def _slowest_modes(model: HeatFEM, A, fac, k: int):
     return mu[:-1], phi[:, :-1], float(mu[-1])
 
 
-def _m_orthonormal(M, V, W):
+def m_orthonormal(M, V, W):
     """Columns spanning W − V Vᵀ M W, M-orthonormal (two passes of block Gram–Schmidt);
     directions that lost 6 digits of their M-norm to the projection are dropped as
-    already in span V."""
+    already in span V.
+
+    Parameters
+    ----------
+    M : scipy.sparse matrix
+        (n, n) symmetric positive definite (a capacity matrix).
+    V : numpy.ndarray or None
+        (n, k) M-orthonormal basis to project out, or None for none.
+    W : numpy.ndarray
+        (n, m) new directions.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, m') with m' ≤ m columns, M-orthonormal and M-orthogonal to ``V``.
+    """
     scale = float(np.max(np.einsum("ij,ij->j", W, M @ W)))
     for _ in range(2):
         if V is not None:
@@ -284,7 +299,7 @@ def _krylov_ritz(model, A, fac, AFg, F, tol, cap):
     """
     M = model.M
     gain = model.growth @ AFg[:, :2]
-    V = _m_orthonormal(M, None, AFg)
+    V = m_orthonormal(M, None, AFg)
     W = V
     t = change = prev = None
     blocks = 1
@@ -303,7 +318,7 @@ def _krylov_ritz(model, A, fac, AFg, F, tol, cap):
         prev = step
         if V.shape[1] + W.shape[1] > cap:
             break
-        W = _m_orthonormal(M, V, fac.solve(M @ W))
+        W = m_orthonormal(M, V, fac.solve(M @ W))
         if W.shape[1] == 0:              # an invariant subspace: the Ritz pairs are exact
             change = np.zeros(2)
             break
@@ -474,11 +489,11 @@ def solve_reduced(model: HeatFEM, schedule: Schedule, output_times_s=None,
     >>> bool(r.error_estimate_m.max() < 1e-4 * r.growth_m.max())
     True
     """
-    q, h, amb = _inputs(model, schedule)
+    q, h, amb = schedule_inputs(model, schedule)
     b = breakpoints(schedule, output_times_s)       # segment edges and output times
     bps, seg, d, out_t = b.times_s, b.segment, b.dt_s, b.output_times_s
     cache = {} if mode_cache is None else mode_cache
-    x = _initial(model, theta0)
+    x = initial_state_K(model, theta0)
     growth, heat, states = _trajectory(model, x, bps.size, store_fields)
     rigorous = not np.any(x)             # the bound needs a known (zero) omitted start
     events = []                          # (time, estimate size, bound size, decay rate)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from arfem.fem.linsolve import default_method, factorize_spd
-from arfem.fem.reduced import _m_orthonormal
+from arfem.fem.reduced import m_orthonormal
 from arfem.params import InputError
 
 __all__ = ["InputHistory", "BodyResult", "BodyModes", "body_modes", "projected_modes",
@@ -261,7 +261,7 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
     AF = start[:, :F.shape[1]]
     gain = G.T @ AF                                         # (r, p) static gains
     scale = _output_scale(gain, kinds)
-    V = _m_orthonormal(M, None, start)
+    V = m_orthonormal(M, None, start)
     W = V
     Ar = V.T @ (A @ V)
     VF, VG = V.T @ F, V.T @ G       # grown with V: the Ritz vectors V Y (n × k each
@@ -284,7 +284,7 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
         prev = step
         if V.shape[1] + W.shape[1] > cap:
             break
-        W = _m_orthonormal(M, V, fac.solve(M @ W))
+        W = m_orthonormal(M, V, fac.solve(M @ W))
         if W.shape[1] == 0:
             change = np.zeros(G.shape[1])
             break
@@ -296,7 +296,7 @@ def _body_modes(body, h_W_m2K, G, tol, cap, factor_method, kinds, t_min_s,
     if change is None:
         change = scale
     if len(other_h):
-        W = _m_orthonormal(M, V, np.hstack([_static_fields(body, h, fac) for h in other_h]))
+        W = m_orthonormal(M, V, np.hstack([_static_fields(body, h, fac) for h in other_h]))
         if W.shape[1]:
             AW = A @ W
             Ar = np.block([[Ar, V.T @ AW], [AW.T @ V, W.T @ AW]])

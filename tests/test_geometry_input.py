@@ -127,10 +127,10 @@ def test_hexahedral_mesh_is_read_with_its_volume_and_groups(tmp_path):
     import meshio
     from skfem import Basis, ElementHex1, MeshHex1
 
-    from arfem.fem.gmsh_io import _VTK_TO_SKFEM_HEX, read_grouped_mesh
+    from arfem.fem.gmsh_io import VTK_TO_SKFEM_HEX, read_grouped_mesh
     m = MeshHex1.init_tensor(np.linspace(0, 0.3, 4), np.linspace(0, 0.2, 3),
                              np.linspace(0, 0.1, 2))
-    t_vtk = m.t[np.argsort(_VTK_TO_SKFEM_HEX)].T.copy()
+    t_vtk = m.t[np.argsort(VTK_TO_SKFEM_HEX)].T.copy()
     left = m.facets[:, m.boundary_facets()[np.isclose(
         m.p[0, m.facets[:, m.boundary_facets()]].mean(axis=0), 0.0)]]
     quads = []

@@ -32,9 +32,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from arfem.fem.body import _per_element, conduction
+from arfem.fem.body import per_element, conduction
 from arfem.fem.linsolve import default_method, factorize_spd
-from arfem.fem.reduced import _m_orthonormal
+from arfem.fem.reduced import m_orthonormal
 
 __all__ = ["ReducedBody", "group_conduction", "surface_power_column", "build_reduced",
            "Trial", "simulate", "ScaledBody", "rom_error", "interface_layers",
@@ -59,7 +59,7 @@ def group_conduction(body, group: str) -> sp.csr_matrix:
     el = body.gmesh.volume_group(group, "diagnosis.interface_groups")
     k = np.zeros(body.gmesh.mesh.nelements)
     k[el] = body.props["k"][el]
-    return conduction.assemble(body.basis, k=_per_element(body.basis, k)).tocsr()
+    return conduction.assemble(body.basis, k=per_element(body.basis, k)).tocsr()
 
 
 def _facet_areas(mesh, facets: np.ndarray) -> np.ndarray:
@@ -211,13 +211,13 @@ def _build(body, G, loads, h0, vgroups, blocks, cap, keep_basis, kappa0) -> Redu
     sens = [B @ X for B in body.B] + [Kv @ X for Kv in Kvs]
     S = fac.solve(np.ascontiguousarray(np.column_stack(sens))) if sens else np.zeros((n, 0))
     start = np.column_stack([X, fac.solve(np.ascontiguousarray(G)), np.ones(n), S])
-    V = _m_orthonormal(M, None, start)
+    V = m_orthonormal(M, None, start)
     W = V
     nb = 0
     for _ in range(blocks):
         if V.shape[1] >= cap or W.shape[1] == 0:
             break
-        W = _m_orthonormal(M, V, fac.solve(np.ascontiguousarray(M @ W)))
+        W = m_orthonormal(M, V, fac.solve(np.ascontiguousarray(M @ W)))
         W = W[:, :max(cap - V.shape[1], 0)]
         V = np.hstack([V, W])
         nb += 1

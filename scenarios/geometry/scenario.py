@@ -1011,8 +1011,8 @@ def write_fields_xdmf(run: GeometryRun, path: Path) -> None:
     ctype = "hexahedron" if m.gmesh.cell_type == "hexahedron" else "tetra"
     t = mesh.t
     if ctype == "hexahedron":
-        from arfem.fem.gmsh_io import _VTK_TO_SKFEM_HEX
-        inv = np.argsort(_VTK_TO_SKFEM_HEX)
+        from arfem.fem.gmsh_io import VTK_TO_SKFEM_HEX
+        inv = np.argsort(VTK_TO_SKFEM_HEX)
         t = t[inv]
     path.parent.mkdir(parents=True, exist_ok=True)
     res = run.result

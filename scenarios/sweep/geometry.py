@@ -387,11 +387,11 @@ def _adjoint(entry: _Entry) -> np.ndarray:
 def _variant(entry: _Entry, sc) -> tuple:
     """The model of ``entry``'s structure with ``sc``'s materials: (model, what was
     assembled again), or (None, why) when the stiffness changes (built anew)."""
-    from arfem.fem.body import (_material_arrays, _per_element, capacity, conduction,
+    from arfem.fem.body import (material_arrays, per_element, capacity, conduction,
                                 thermal_coupling)
     base = entry.base
     th, el = base.thermal, base.elastic
-    props = _material_arrays(base.gmesh, sc.materials)
+    props = material_arrays(base.gmesh, sc.materials)
     same = {k: np.array_equal(props[k], th.props[k]) for k in ("k", "rhoc", "beta", "lam",
                                                                "mu")}
     if el is not None and not (same["lam"] and same["mu"]):
@@ -399,17 +399,17 @@ def _variant(entry: _Entry, sc) -> tuple:
     redone = []
     K, M = th.K, th.M
     if not same["k"]:
-        K = conduction.assemble(th.basis, k=_per_element(th.basis, props["k"])).tocsr()
+        K = conduction.assemble(th.basis, k=per_element(th.basis, props["k"])).tocsr()
         redone.append("K")
     if not same["rhoc"]:
-        M = capacity.assemble(th.basis, rhoc=_per_element(th.basis, props["rhoc"])).tocsr()
+        M = capacity.assemble(th.basis, rhoc=per_element(th.basis, props["rhoc"])).tocsr()
         redone.append("M")
     th2 = replace(th, K=K, M=M, props=props)
     G = base.G
     el2 = None if el is None else replace(el, thermal=th2)
     if el is not None and not same["beta"]:
         T = thermal_coupling.assemble(th.basis, el.basis,
-                                      beta=_per_element(th.basis, props["beta"])).tocsr()
+                                      beta=per_element(th.basis, props["beta"])).tocsr()
         el2 = replace(el, thermal=th2, T=T)
         cols = [j for j, s in enumerate(base.scenario.sensors) if s.elastic]
         G = G.copy()
