@@ -280,8 +280,9 @@ def extended_model(cols, y, plant, sc, geo):
 
 def peer_models(cols, axis_cols):
     """TF and ARX per axis fitted before the hold-out: {method: [model per axis]}."""
+    from arfem.models.compensator import noise_var_um2
     from arfem.models.peers import (arx_state_space, fit_arx, fit_transfer_functions,
-                                    noise_var_um2, tf_state_space)
+                                    tf_state_space)
     from arfem.params import InputError
     t = cols["time_s"]
     n = int(np.searchsorted(t, HOLDOUT_S))

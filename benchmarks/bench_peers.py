@@ -48,8 +48,9 @@ MODELS = ("uncompensated", "ar1", "mlr", "extended", "tf", "arx")
 def peers_for(ds, hs):
     """The two peers fitted on the rows before ``hs`` [s]; ({key: model}, {key: why not})."""
     from arfem import __version__
+    from arfem.models.compensator import noise_var_um2
     from arfem.models.peers import (arx_state_space, fit_arx, fit_transfer_functions,
-                                    noise_var_um2, tf_state_space)
+                                    tf_state_space)
     from arfem.params import InputError
     t = np.asarray(ds.time_s, float)
     g = np.asarray(ds.growth_um, float)

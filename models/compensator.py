@@ -54,7 +54,7 @@ from arfem.ranges import RANGES, reading_quantity, reading_range
 
 __all__ = ["InputSpec", "OutputSpec", "GROWTH_AXIS",
            "StateSpaceModel", "SpeedSchedule", "AxisCycle", "Cycle", "Compensator", "ar1_model",
-           "fit_speed_ar1_model", "fit_mlr_model",
+           "fit_speed_ar1_model", "fit_mlr_model", "noise_var_um2",
            "plausible_ranges", "propagate", "INFORMATIVE", "alarm_kind", "check_reading"]
 
 @dataclass(frozen=True)
@@ -925,8 +925,28 @@ class Compensator:
         return float(K @ mdl.C[0])
 
 
-def _noise_var(y) -> float:
-    d2 = np.diff(np.asarray(y, float), 2)
+def noise_var_um2(growth_um) -> float:
+    """Measurement noise variance [µm²] of a growth record from its second differences
+    (the R of every model's probe update).
+
+    For white noise of variance σ² on a smooth signal, the second difference has
+    variance 6σ²; the estimate assumes the signal's own curvature is small against the
+    noise at the sampling interval.
+
+    Parameters
+    ----------
+    growth_um : array_like
+        Growth samples [µm] at equal intervals; non-finite differences are skipped.
+
+    Returns
+    -------
+    float
+        σ² [µm²]; 0.0 when fewer than 10 finite second differences remain.
+
+    >>> round(noise_var_um2([0.0, 1.0] * 10), 6)
+    0.666667
+    """
+    d2 = np.diff(np.asarray(growth_um, float), 2)
     d2 = d2[np.isfinite(d2)]
     return float(np.mean(d2 ** 2) / 6.0) if d2.size >= 10 else 0.0
 
@@ -982,7 +1002,7 @@ def fit_speed_ar1_model(growth_um, speed_rpm, *, dtau_s: float,
         kind="paper_ar1_speed", dtau_s=float(dtau_s), A=np.array([[fit.c1]]),
         B=np.array([[1.0]]), C=np.array([[1.0]]), D=np.zeros((1, 1)),
         inputs=(InputSpec("speed_rpm", "1/min"),), x0=np.zeros(1),
-        Q=fit.residual_rms ** 2, R=_noise_var(g), description=description,
+        Q=fit.residual_rms ** 2, R=noise_var_um2(g), description=description,
         arfem_version=arfem_version,
         input_maps={"speed_rpm": (levels, np.array([fit.c2[v] for v in levels]))})
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from arfem.models.compensator import InputSpec, StateSpaceModel, _noise_var
+from arfem.models.compensator import InputSpec, StateSpaceModel
 from arfem.params import InputError
 
 __all__ = ["TAU_GRID_H", "TFTerm", "TransferFunctionFit", "fit_transfer_functions",
@@ -672,8 +672,3 @@ def arx_state_space(fit: ARXFit, *, y_start_um: float, Q_um2: float = 0.0,
         description=description or f"ARX (SysIdentPy FROLS, BIC): {terms}",
         arfem_version=arfem_version,
         input_offsets={k: fit.reference[k] for k in fit.names if fit.reference[k] != 0.0})
-
-
-def noise_var_um2(growth_um) -> float:
-    """Measurement noise variance [µm²] from second differences (as the AR(1)'s R)."""
-    return _noise_var(growth_um)

@@ -55,8 +55,9 @@ def peer_models(ds_o, n_train):
     the compensator starts from and their inputs' reference); StateSpaceModels and what
     the procedures chose."""
     from arfem import __version__
+    from arfem.models.compensator import noise_var_um2
     from arfem.models.peers import (arx_state_space, fit_arx, fit_transfer_functions,
-                                    noise_var_um2, tf_state_space)
+                                    tf_state_space)
     from arfem.params import InputError
     t = np.asarray(ds_o.time_s, float)
     dt = float(np.median(np.diff(t)))
