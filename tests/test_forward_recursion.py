@@ -1,4 +1,4 @@
-"""The exact modal recursion of the reduced rod (:func:`arfem.models.diagnosis.forward._linear_recursion`).
+"""The exact modal recursion of the reduced rod (:func:`arfem.models.diagnosis.forward.linear_recursion`).
 
 Properties verified: it is the recursion x_n = a_n x_{n-1} + b_n (against the plain
 sequential loop, to 1e-12 of max|b|: its chunked closed form is exact up to rounding),
@@ -7,7 +7,7 @@ and running the columns together changes no bit of any column (the all-mode rod 
 """
 import numpy as np
 
-from arfem.models.diagnosis.forward import _linear_recursion
+from arfem.models.diagnosis.forward import linear_recursion
 
 
 def _sequential(a, b, x0):
@@ -33,16 +33,16 @@ def _record(seed):
 def test_recursion_matches_the_sequential_loop():
     for seed in (1, 2):
         a, b, x0 = _record(seed)
-        got = _linear_recursion(a, b, x0)
+        got = linear_recursion(a, b, x0)
         ref = _sequential(a, b, x0)
         assert np.max(np.abs(got - ref)) <= 1e-12 * np.max(np.abs(b)) * 10
 
 
 def test_each_column_alone_gives_the_same_bits():
     a, b, x0 = _record(3)
-    together = _linear_recursion(a, b, x0)
+    together = linear_recursion(a, b, x0)
     for k in range(b.shape[1]):
-        alone = _linear_recursion(a[:, k:k + 1], b[:, k:k + 1], x0[k:k + 1])
+        alone = linear_recursion(a[:, k:k + 1], b[:, k:k + 1], x0[k:k + 1])
         assert np.array_equal(alone[:, 0], together[:, k])
 
 
@@ -62,7 +62,7 @@ def test_fast_columns_after_a_zero_first_interval_are_the_loop_bit_for_bit():
     f[rng.random(d.size) < 0.3] = 0.0
     b = (1.0 - a) * f
     x0 = rng.normal(size=lam.size)
-    got, ref = _linear_recursion(a, b, x0), _sequential(a, b, x0)
+    got, ref = linear_recursion(a, b, x0), _sequential(a, b, x0)
     assert np.array_equal(got[:, 1:], ref[:, 1:])
     assert np.max(np.abs(got[:, 0] - ref[:, 0])) <= 1e-12 * np.max(np.abs(b))
 

@@ -33,7 +33,7 @@ from arfem.fem.heat import build_axisymmetric, modes
 from arfem.params import Rod
 
 __all__ = ["RodModel", "intervals", "first_order_lag", "ar_first_order", "ar_columns",
-           "ar_columns_rates"]
+           "ar_columns_rates", "linear_recursion"]
 
 
 def intervals(time_s) -> np.ndarray:
@@ -58,7 +58,7 @@ def intervals(time_s) -> np.ndarray:
     return np.diff(np.concatenate([[0.0], t]))
 
 
-def _linear_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
+def linear_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
     """x_n = a_n x_{n-1} + b_n for every column (mode); returns x after each step.
 
     Vectorised and exact for varying a_n in (0, 1]: within a chunk where the
@@ -74,6 +74,20 @@ def _linear_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarra
     element as a loop over columns and chunks, so the same bits, at a fraction of the
     interpreter's overhead (the all-mode rod of :mod:`.local_convection` has ~440
     columns: 0.75 s per record as a loop over columns, issue 41's speed target).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        (n, m) decay per step and column, in (0, 1] (dimensionless).
+    b : numpy.ndarray
+        (n, m) increment per step and column, in the unit of x.
+    x0 : numpy.ndarray
+        (m,) state before the first step, in the unit of x.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, m): x_1 … x_n, in the unit of x.
     """
     n, m = b.shape
     out = np.empty((n, m))
@@ -145,7 +159,7 @@ def _plain_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray
 
 
 def _chunks(step: np.ndarray) -> tuple:
-    """The chunks of :func:`_linear_recursion`, per row of ``step`` = −ln a (m, n)
+    """The chunks of :func:`linear_recursion`, per row of ``step`` = −ln a (m, n)
     (a column's steps): (column, first row, end row) of every chunk, each column's in
     order. A chunk ends where the column's accumulated decay c (each step counted at
     most 36) first passes a multiple of 400 (the first row with c > 400 k, k >= 1,
@@ -195,7 +209,7 @@ def _chunk_sums(step: np.ndarray, b: np.ndarray, first: np.ndarray, rest: np.nda
 def _chunk_carry(a_first, b_first, last, col, x0) -> np.ndarray:
     """Each chunk's first value x_s = a_s x_prev + b_s, x_prev the previous chunk's
     last value (P (x_s + S) at its last row; x0 before a column's first chunk): the
-    one sequential part of :func:`_linear_recursion` (chunks in column order, each
+    one sequential part of :func:`linear_recursion` (chunks in column order, each
     column's in row order). With few chunks per column, a loop over the chunks on
     Python floats (IEEE doubles, the loop's operations; the growth modes of
     :class:`RodModel`: ~6000 chunks, 190 in the fastest column); with many, the loop
@@ -254,9 +268,9 @@ def _chunk_carry_loop(a_first, b_first, last, col, x0) -> np.ndarray:
 
 
 def _shared_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    """:func:`_linear_recursion` for columns that share one decay a_n (shape (n,)):
+    """:func:`linear_recursion` for columns that share one decay a_n (shape (n,)):
     every column in one pass, with the same chunks and the same floating-point
-    operations per element, so each column equals its own :func:`_linear_recursion`
+    operations per element, so each column equals its own :func:`linear_recursion`
     bit for bit (the steady-gain columns of a speed-only fit all decay at one rate;
     issue 30: one recursion per column was a third of a real record's diagnosis)."""
     n, m = b.shape
@@ -350,7 +364,7 @@ def first_order_lag(time_s, u, tau_s: float, y0: float = 0.0) -> np.ndarray:
     d = intervals(time_s)
     a = np.exp(-d / float(tau_s))[:, None]
     b = ((1.0 - a[:, 0]) * np.asarray(u, float))[:, None]
-    return _linear_recursion(a, b, np.array([y0]))[:, 0]
+    return linear_recursion(a, b, np.array([y0]))[:, 0]
 
 
 def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
@@ -389,14 +403,14 @@ def ar_first_order(time_s, u, b_1_s, gain, x0: float = 0.0) -> np.ndarray:
     d = intervals(time_s)
     a = np.exp(-np.asarray(b_1_s, float) * d)[:, None]
     c2 = (float(gain) * np.asarray(u, float) * (1.0 - a[:, 0]))[:, None]
-    return _linear_recursion(a, c2, np.array([x0]))[:, 0]
+    return linear_recursion(a, c2, np.array([x0]))[:, 0]
 
 
 def ar_columns(time_s, U, b_1_s: float, x0=None) -> np.ndarray:
     """Unit-gain AR(1) responses (:func:`ar_first_order`) of several inputs at one rate, in
     one call -- the columns a least-squares fit of the steady gains needs. With even steps
     (after the first) the recursion runs as one IIR filter; otherwise exactly as
-    :func:`_linear_recursion`.
+    :func:`linear_recursion`.
 
     Parameters
     ----------
@@ -431,7 +445,7 @@ def ar_columns(time_s, U, b_1_s: float, x0=None) -> np.ndarray:
         X[0] = a[0] * x0 + C[0]
         X[1:], _ = lfilter([1.0], [1.0, -a[1]], C[1:], axis=0, zi=a[1] * X[:1])
         return X
-    return _linear_recursion(np.repeat(a[:, None], U.shape[1], axis=1), C, x0)
+    return linear_recursion(np.repeat(a[:, None], U.shape[1], axis=1), C, x0)
 
 
 @dataclass(frozen=True)
@@ -583,7 +597,7 @@ class RodModel:
             z = E.V.T @ c
             a = np.exp(-np.outer(d[s:e_], E.lam))
             forcing = (np.outer(q[s:e_], E.fq) + np.outer(hk * amb[s:e_], E.fb)) / E.lam
-            Z = _linear_recursion(a, (1.0 - a) * forcing, z)
+            Z = linear_recursion(a, (1.0 - a) * forcing, z)
             growth[s:e_] = Z @ E.g
             if return_surface:
                 surf[s:e_] = Z @ E.s

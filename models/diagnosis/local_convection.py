@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from arfem.fem.heat import HeatFEM, modes
-from arfem.models.diagnosis.forward import _linear_recursion, intervals
+from arfem.models.diagnosis.forward import linear_recursion, intervals
 
 __all__ = ["LocalConvectionRod", "BLOCK_S", "H_FLOOR", "H_CAP"]
 
@@ -115,7 +115,7 @@ class LocalConvectionRod:
         d = intervals(t)
         a = np.exp(-np.outer(d, lam))
         forcing = (np.outer(q, self.fq) + np.outer(self.h0 * amb, self.fb)) / lam
-        Z = _linear_recursion(a, (1.0 - a) * forcing, np.zeros(lam.size))
+        Z = linear_recursion(a, (1.0 - a) * forcing, np.zeros(lam.size))
         starts, t0 = [0], 0.0
         for i in range(1, t.size):
             if t[i] - t0 > block_s or q[i] != q[i - 1]:
