@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from arfem.models.diagnosis.candidates import CandidateFit
-from arfem.models.diagnosis.engine import _select_cv
+from arfem.models.diagnosis.rules import select_by_validation
 from arfem.scenarios.cli import main as cli
 
 
@@ -33,14 +33,14 @@ def test_drift_is_named_only_if_no_input_driven_cause_passes(robust):
     the frame fails its test (worse than the baseline on every block) the drift is still
     named -- the rule reorders, it never removes a cause."""
     fits, cvs, folds, t = _case([1.4, 1.4, 1.4])
-    assert _select_cv(fits, cvs, folds, t, robust=robust)[0] == "sensor_drift"
-    cause, runner, _, tests, info = _select_cv(fits, cvs, folds, t, robust=robust,
+    assert select_by_validation(fits, cvs, folds, t, robust=robust)[0] == "sensor_drift"
+    cause, runner, _, tests, info = select_by_validation(fits, cvs, folds, t, robust=robust,
                                                drift_last=True)
     assert cause == "frame_expansion"
     assert tests["sensor_drift"]["significant"] and tests["frame_expansion"]["significant"]
     assert "drift_rule" in info
     fits, cvs, folds, t = _case([2.5, 2.5, 2.5])
-    assert _select_cv(fits, cvs, folds, t, robust=robust, drift_last=True)[0] == "sensor_drift"
+    assert select_by_validation(fits, cvs, folds, t, robust=robust, drift_last=True)[0] == "sensor_drift"
 
 
 def test_drift_last_flag_reaches_the_engine(tmp_path, monkeypatch):

@@ -21,14 +21,14 @@ Selection (documented in every report):
   is fitted as an output-error AR(1) (:mod:`arfem.models.diagnosis.speed`) and scored
   by forward-chaining validation; the best is named only if it cuts the baseline's
   validation RMSE by at least ``MIN_GAIN`` and wins on a majority of the validation
-  blocks (:func:`arfem.models.diagnosis.rules._select_cv`); its parameters' 95 %
-  intervals come from refits without each of several contiguous blocks
+  blocks (:func:`arfem.models.diagnosis.rules.select_by_validation`); its parameters'
+  95 % intervals come from refits without each of several contiguous blocks
   (:func:`arfem.models.diagnosis.speed_intervals.jackknife_ci95`).
 
 On both, rule 5: if the record's own magnitude is implausible against the nominal
 model (wrong units: the heat scale that maps the nominal growth onto the record lies
 outside ``arfem.params.PLAUSIBLE_RANGES`` and the spreads disagree), no cause is named
-and a warning says what to check (:func:`arfem.models.diagnosis.rules._units_warning`).
+and a warning says what to check (:func:`arfem.models.diagnosis.rules.units_warning`).
 
 The verdict (:mod:`arfem.models.diagnosis.verdict`, :func:`add_verdict`): the cause
 named is *established* only if its 95 % intervals exclude no effect and stay inside the
@@ -56,8 +56,8 @@ from arfem.models.diagnosis.candidates import (CAUSES, ArPhysics, CandidateFit,
                                                fit_rod_causes,
                                                parameter_ci95)
 from arfem.models.diagnosis.rules import (
-    ALPHA, MIN_GAIN, MISFIT_FACTOR, _FEM_RULE, _SPEED_RULE, _select_cv, naming_test_text,
-    _units_warning)
+    ALPHA, FEM_RULE, MIN_GAIN, MISFIT_FACTOR, SPEED_RULE, naming_test_text,
+    select_by_validation, units_warning)
 from arfem.models.diagnosis.verdict import naming_level
 from arfem.models.diagnosis.speed_intervals import jackknife_ci95
 from arfem.models.diagnosis.speed import (SPEED_CAUSES, fit_speed_candidate, mlr, paper_ar,
@@ -409,7 +409,7 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
                      key=lambda e: scores.get(e.cause, np.inf))
     # rule 5's unit check: the heat scale that maps the nominal growth onto the record
     heat = fit_rod_causes(("heat_input_scale",), fem, *args)
-    unit_warning = _units_warning({"heat_input_scale": heat, "none": base}, rod)
+    unit_warning = units_warning({"heat_input_scale": heat, "none": base}, rod)
     refused = {}
     if unit_warning:
         warnings.append(unit_warning)
@@ -449,7 +449,7 @@ def _diagnose_fem(ds, r, warnings, progress) -> BranchResult:
                                                                               np.nan))},
         extended=ext, baseline=base, time_constant_s=1.0 / fem.slowest_rate(),
         ar_forms={"ar": ArForm(ar_base, ar_ext)}, baseline_model="fem",
-        score_kind="bic_on_n_eff", rule=_FEM_RULE,
+        score_kind="bic_on_n_eff", rule=FEM_RULE,
         ar_label="paper AR(1), coefficients from the [rod] values (eqs. 13-14)",
         refused=refused, equivalent=equivalent, physics=fem,
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
@@ -523,7 +523,7 @@ def _diagnose_speed_plant(ds, r, warnings, progress) -> BranchResult:
         extended=ext, baseline=base, time_constant_s=tau_of(ev.baseline) * 3600.0,
         ar_forms={"paper_ar": ArForm(paper, ext)}, baseline_model="ar_speed_plant",
         score_kind="bic_on_n_eff",
-        rule=_FEM_RULE, ar_label=SPEED_PLANT_LABEL, equivalent=equivalent,
+        rule=FEM_RULE, ar_label=SPEED_PLANT_LABEL, equivalent=equivalent,
         ci95={k: list(v) for e in entries for k, v in e.ci95.items()},
         not_applicable=tuple(c for c in CAUSES if c not in scores),
         candidate_parameters=params, pipeline=d, screen_reasons=reasons,
@@ -637,9 +637,8 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         return f
 
     fits, cvs = _fit_and_validate(fit_c, rows, seen, W, y, folds, fold_maps, progress)
-    cause, runner, scores, tests, neff = _select_cv(fits, cvs, folds, t,
-                                                    robust=frame_search == "average",
-                                                    drift_last=drift_last)
+    cause, runner, scores, tests, neff = select_by_validation(
+        fits, cvs, folds, t, robust=frame_search == "average", drift_last=drift_last)
     if frame_struct is not None:
         neff["frame_structure"] = _frame_structure_record(frame_struct, frame_search,
                                                           frame_table)
@@ -662,7 +661,7 @@ def _diagnose_speed(ds, t, sp, y, rows, amb_K, temps, frame_search, text, warnin
         time_constant_s=_time_constant_h(fits["none"]) * 3600.0,
         # output-error AR: the reference the candidates are tested against
         ar_forms={"ar_output_error": ArForm(fits["none"], ext)},
-        baseline_model="ar", score_kind="validation_rmse_um", rule=_SPEED_RULE,
+        baseline_model="ar", score_kind="validation_rmse_um", rule=SPEED_RULE,
         ar_label=SPEED_AR_LABEL,
         ci95=ci, speed_inputs=speed_inputs)
 

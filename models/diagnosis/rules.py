@@ -1,10 +1,11 @@
 """The rules of the diagnosis that are the rod engine's own, one home each (the
 orchestration that runs them is :mod:`arfem.models.diagnosis.engine`):
 
-* speed-only records, selection by forward-chaining validation: :func:`_select_cv`,
-  :func:`blocks_needed`, and a failed naming test in words, :func:`naming_test_text`;
-* rule 5, a record in wrong units (every record): :func:`_units_warning`;
-* what ``selection.rule`` of diagnosis.json says: :data:`_SPEED_RULE`, :data:`_FEM_RULE`
+* speed-only records, selection by forward-chaining validation:
+  :func:`select_by_validation`, :func:`blocks_needed`, and a failed naming test in
+  words, :func:`naming_test_text`;
+* rule 5, a record in wrong units (every record): :func:`units_warning`;
+* what ``selection.rule`` of diagnosis.json says: :data:`SPEED_RULE`, :data:`FEM_RULE`
   (``q_W_m2`` records are named by the one pipeline,
   :mod:`arfem.models.geodiagnosis.engine`, whose rules live there).
 """
@@ -28,15 +29,39 @@ MIN_GAIN = 0.05
 MISFIT_FACTOR = 10.0
 
 
-def _select_cv(fits: dict, cvs: dict, folds, t, robust: bool = False,
-               drift_last: bool = False):
+def select_by_validation(fits: dict, cvs: dict, folds, t, robust: bool = False,
+                         drift_last: bool = False):
     """Speed-only records: the cause with the least forward-chaining validation RMSE on
     the fit window is named only if it cuts the baseline's by >= ``MIN_GAIN`` *and* wins
     on a majority of the validation blocks (see :func:`arfem.models.diagnosis.speed_select.forward_folds`);
     otherwise ``none``. Residuals of thermal models are so autocorrelated that the
     effective sample size of the fit window is a few dozen, so out-of-sample error on
     later blocks -- each opening, like the hold-out, with a speed the training part has
-    not seen -- is the comparison used instead of an F test."""
+    not seen -- is the comparison used instead of an F test.
+
+    Parameters
+    ----------
+    fits : dict
+        {cause: fit} with ``"none"`` the baseline (its ``n`` and ``residual_um`` [µm]).
+    cvs : dict
+        {cause: (validation RMSE [µm], per-block RMSEs [µm])}.
+    folds : sequence
+        The forward-chaining folds (train rows, validation rows).
+    t : numpy.ndarray
+        Time of each row [s].
+    robust : bool
+        The post hoc ``--frame-search average`` rule (median per-block ratio).
+    drift_last : bool
+        The post hoc ``--drift-last`` rule (``sensor_drift`` only if no input-driven
+        cause passes).
+
+    Returns
+    -------
+    tuple
+        (cause named or ``"none"``, the runner-up, {cause: validation RMSE [µm]},
+        {cause: its naming test}, the selection's record: n, lag-1 ρ, N_eff, the
+        validation blocks [s] and the baseline's RMSEs [µm]).
+    """
     base_cv, base_per = cvs["none"]
     scores = {c: v[0] for c, v in cvs.items() if np.isfinite(v[0])}
     order = sorted(scores, key=scores.get)
@@ -89,7 +114,7 @@ def naming_test_text(test: dict, n_blocks: int | None = None) -> str:
     """The naming test a candidate failed, as the rule and its outcome (issue: "2/4
     blocks won" did not say that 3 were needed).
 
-    ``test`` is the candidate's entry of the selection's tests: of :func:`_select_cv`
+    ``test`` is the candidate's entry of the selection's tests: of :func:`select_by_validation`
     (speed-only records: ``rmse_cut_pct``, ``blocks_won``, ``cv_per_block_um``, and
     ``median_block_ratio`` under the post hoc ``--frame-search average``) or of
     :func:`_select` (``p_value``, ``p_threshold``, ``rmse_cut_pct``).
@@ -122,10 +147,24 @@ def naming_test_text(test: dict, n_blocks: int | None = None) -> str:
             f"{test['rmse_cut_pct']:.1f} %")
 
 
-def _units_warning(fits, rod):
+def units_warning(fits, rod):
     """A warning if the data's overall magnitude is implausible against the nominal
     simulation: the heat-input scale that best maps the nominal growth onto the record
-    lies outside the plausible range -- wrong units, not a cause."""
+    lies outside the plausible range -- wrong units, not a cause.
+
+    Parameters
+    ----------
+    fits : dict
+        {cause: fit}: ``"heat_input_scale"`` (its ``parameters["scale"]``) and the
+        baseline ``"none"`` (its ``prediction`` and ``residual_um`` [µm]).
+    rod : Rod
+        The record's rod, named in the hint.
+
+    Returns
+    -------
+    str or None
+        The warning, or None when the magnitude is plausible.
+    """
     f = fits.get("heat_input_scale")
     if f is None:
         return None
@@ -150,12 +189,15 @@ def _units_warning(fits, rod):
             f"(plausible {lo:g}-{hi:g}): check the units -- {hint} No cause is named")
 
 
-_SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit window; the best "
+#: ``selection.rule`` of a speed-only record's diagnosis.json (:func:`select_by_validation`)
+SPEED_RULE = (f"score = forward-chaining validation RMSE [µm] on the fit window; the best "
                f"cause is named only if it cuts the baseline's by >= {100 * MIN_GAIN:g} % and "
                f"wins on a majority of the validation blocks")
 
 
-_FEM_RULE = (f"the one pipeline of every plant (arfem.models.geodiagnosis.engine): BIC on "
+#: ``selection.rule`` of a diagnosis named by the one pipeline
+#: (:mod:`arfem.models.geodiagnosis.engine`): ``q_W_m2`` records and speed plants
+FEM_RULE = (f"the one pipeline of every plant (arfem.models.geodiagnosis.engine): BIC on "
              f"N_eff samples; a cause passes only if its nested F test against the nominal "
              f"model gives p < {ALPHA:g}/candidates, its fit is plausible and the sensor's "
              f"slow noise (a random walk or an AR(1)) does not fit as well; of the passing "
