@@ -67,7 +67,7 @@ from arfem.models.diagnosis.speed import level_inputs, paper_ar, speed_to_heat_m
 from arfem.models.diagnosis.speed_frame import (centred_mean, frame_components,
                                                 temperature_matrix)
 from arfem.models.diagnosis.stats import bic
-from arfem.models.geodiagnosis.engine import DELTA_BIC, _n_eff, named_causes
+from arfem.models.geodiagnosis.engine import DELTA_BIC, named_causes, residual_n_eff
 from arfem.models.geodiagnosis.fit import Z95, fit_mesh_causes, make_context, with_noise
 from arfem.models.geodiagnosis.problem import Channel
 from arfem.models.plant import Design, Parameter, SelectionRules, cause, components_target
@@ -455,7 +455,8 @@ def _lower_bic(law: SpeedPlant, per_speed: SpeedPlant, rows) -> SpeedPlant:
         c = with_fields(ctx, plant=p, wcache={}, n_eff_full=None)
         f = fit_mesh_causes(c, lin, rows, intervals=False)
         N = int((c.valid & rows[:, None]).sum())
-        out[p.heat.kind] = float(bic(f.sse_w, N, _n_eff(c, f.prediction, rows), f.n_params))
+        ne = residual_n_eff(c, f.prediction, rows)
+        out[p.heat.kind] = float(bic(f.sse_w, N, ne, f.n_params))
     pick = per_speed if out["per_speed"] < out["law"] - DELTA_BIC else law
     why = (f"BIC on N_eff {out['per_speed']:.1f} per speed against {out['law']:.1f} for "
            f"one law, the lower by more than {DELTA_BIC:g} chosen, else the law")

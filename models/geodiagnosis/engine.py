@@ -103,7 +103,7 @@ from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diag
                                            NamedCause, frozen_mapping)
 
 __all__ = ["MeshEvidence", "Ranked", "NAMED_BY_SCREEN", "diagnose_geometry", "diagnose_plant",
-           "named_causes", "mlr_holdout", "establishment_failures"]
+           "named_causes", "mlr_holdout", "establishment_failures", "residual_n_eff"]
 
 #: Causes whose BIC on the fit window lie within this of the best are "near-equivalent"
 #: and told apart on the hold-out; a larger gap is very strong evidence by itself
@@ -192,10 +192,26 @@ def _holdout_score(ctx: FitContext, pred, hold) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
-def _n_eff(ctx: FitContext, pred, rows) -> float:
+def residual_n_eff(ctx: FitContext, pred, rows) -> float:
     """Σ_c N_eff,c of the residual whitened by each channel's fitted noise; the largest
     model's for every fit where the plant shares one N_eff
-    (:attr:`arfem.models.plant.SelectionRules.shared_n_eff`)."""
+    (:attr:`arfem.models.plant.SelectionRules.shared_n_eff`).
+
+    Parameters
+    ----------
+    ctx : FitContext
+        The plant, its data and valid mask, the channels' noise models.
+    pred : numpy.ndarray
+        (n, channels) the model's prediction, in the record's unit.
+    rows : numpy.ndarray
+        (n,) bool, the rows counted (the fit window).
+
+    Returns
+    -------
+    float
+        The effective number of independent samples (dimensionless), at least 3: the
+        sample size of the BIC and the nested F test.
+    """
     if ctx.plant.rules.shared_n_eff and ctx.n_eff_full is not None:
         return ctx.n_eff_full
     tot = 0.0
@@ -329,7 +345,7 @@ def _screen(ctx, singles, train, hold, base, n_tests):
     N = int((ctx.valid & train[:, None]).sum())
     for c in singles:
         f = fit_mesh_causes(ctx, (c,), train, intervals=False)
-        ne = _n_eff(ctx, f.prediction, train)
+        ne = residual_n_eff(ctx, f.prediction, train)
         p = f_test_p(base.sse_w, f.sse_w, f.n_params, ne)
         rows.append((c, f, bic(f.sse_w, N, ne, f.n_params), p,
                      _holdout_score(ctx, f.prediction, hold)))
@@ -407,7 +423,7 @@ def _parsimonious(passing, n_tests, ctx, train) -> tuple[list, dict]:
         inner = [q for q in passing if _nests(r[0], q[0])]
         fails = next(((q, p) for q in inner
                       for p in [f_test_p(q[1].sse_w, r[1].sse_w, r[1].n_params - q[1].n_params,
-                                         _n_eff(ctx, r[1].prediction, train))]
+                                         residual_n_eff(ctx, r[1].prediction, train))]
                       if p >= level), None)
         if fails is not None:
             dropped[r[0].name] = (f"it nests {fails[0][0].name}, which passes too, and its "
@@ -430,7 +446,7 @@ def _second(ctx, first: Fit, singles, train, hold, n_tests, hold_first: bool = T
         if c == lead or _same_part(c, lead):
             continue
         f = fit_mesh_causes(ctx, (lead, c), train, intervals=False, fixed=held)
-        ne = _n_eff(ctx, f.prediction, train)
+        ne = residual_n_eff(ctx, f.prediction, train)
         p = f_test_p(first.sse_w, f.sse_w, f.n_params - first.n_params, ne)
         b = bic(f.sse_w, N, ne, f.n_params)
         if p < naming_level(n_tests) and implausible(f) is None \
@@ -484,14 +500,16 @@ def _best_pair(ctx, first: Fit, leads, singles, train, hold, n_tests):
         # no second cause beside the named one: the record shows one cause, and a pair
         # built on a weaker lead is no evidence against it
         return None, ()
-    pairs = [(bic(own.sse_w, N, _n_eff(ctx, own.prediction, train), own.n_params), own)]
+    own_ne = residual_n_eff(ctx, own.prediction, train)
+    pairs = [(bic(own.sse_w, N, own_ne, own.n_params), own)]
     for lead in leads:
         if lead.causes == first.causes:
             continue
         p = _second(ctx, fit_mesh_causes(ctx, lead.causes, train, intervals=False), singles,
                     train, hold, n_tests)
         if p is not None:
-            pairs.append((bic(p.sse_w, N, _n_eff(ctx, p.prediction, train), p.n_params), p))
+            ne = residual_n_eff(ctx, p.prediction, train)
+            pairs.append((bic(p.sse_w, N, ne, p.n_params), p))
     pairs.sort(key=lambda r: r[0])
     near = [r[1] for r in pairs if r[0] - pairs[0][0] <= DELTA_BIC]
     return min(near, key=lambda f: _holdout_score(ctx, f.prediction, hold)), \
@@ -511,7 +529,7 @@ def _swap_one(ctx, pair: Fit, keep: int, singles, train, hold, n_tests) -> Fit:
         return pair
 
     def score(f):
-        return bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params)
+        return bic(f.sse_w, N, residual_n_eff(ctx, f.prediction, train), f.n_params)
     b_old, b_new = score(pair), score(other)
     if b_new >= b_old:
         return pair
@@ -562,7 +580,7 @@ def _prune(ctx, pair: Fit, train, n_tests, singles=()) -> Fit:
     the best single (it stood in for the drift on the thermometers' wander) and stayed
     beside the drift found second (added before the sixth pre-registration)."""
     worst = None
-    ne = _n_eff(ctx, pair.prediction, train)
+    ne = residual_n_eff(ctx, pair.prediction, train)
     for k in range(len(pair.causes)):
         rest = tuple(c for i, c in enumerate(pair.causes) if i != k)
         sub = fit_mesh_causes(ctx, rest, train, intervals=False)
@@ -581,7 +599,7 @@ def _simpler_in_pair(ctx, named: Fit, singles, train, n_tests) -> Fit:
     a cause of ``named`` that nests a simpler single cause (:func:`_nests`) is replaced
     by it where its extra parameters fail the nested F test on N_eff beside the other
     cause at the naming level."""
-    ne = _n_eff(ctx, named.prediction, train)
+    ne = residual_n_eff(ctx, named.prediction, train)
     for k, c in enumerate(named.causes):
         for s in singles:
             if not _nests(c, s) or any(s.name == o.name for o in named.causes):
@@ -805,7 +823,8 @@ def _diagnose(plant, holdout_start_s, progress) -> Diagnosis:
     alts = _alternatives(ctx, named, near, train, hold, n_tests) if named is not None else ()
     v = _judge(ctx, plant, base, named, train, hold, gain_w, alts)
     N = int((ctx.valid & train[:, None]).sum())
-    base_bic = float(bic(base.sse_w, N, _n_eff(ctx, base.prediction, train), base.n_params))
+    base_bic = float(bic(base.sse_w, N, residual_n_eff(ctx, base.prediction, train),
+                         base.n_params))
     return _result(ctx, base, named, v, ranking, alts,
                    _text(v, named, gain, plant.not_searched), float(h0), how, hold,
                    float(gain), float(gain_w), base_bic)
@@ -885,7 +904,7 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold, n_tests: int =
     Returns ((cause names, ΔBIC, p), ...)."""
     key = frozenset(c.name for c in named.causes)
     N = int((ctx.valid & train[:, None]).sum())
-    b0 = bic(named.sse_w, N, _n_eff(ctx, named.prediction, train), named.n_params)
+    b0 = bic(named.sse_w, N, residual_n_eff(ctx, named.prediction, train), named.n_params)
     e0 = _holdout_errors(ctx, named.prediction, hold)
     out = []
     for causes in near:
@@ -897,11 +916,11 @@ def _alternatives(ctx: FitContext, named: Fit, near, train, hold, n_tests: int =
         f = fit_mesh_causes(ctx, causes, train, intervals=False)
         if _nests_all(causes, named.causes) and f_test_p(
                 named.sse_w, f.sse_w, f.n_params - named.n_params,
-                _n_eff(ctx, f.prediction, train)) >= naming_level(n_tests):
+                residual_n_eff(ctx, f.prediction, train)) >= naming_level(n_tests):
             # the named causes with a parameter more (a natural convection in place of
             # its plain h) that the data do not need: the same explanation, parsimony's
             continue
-        db = bic(f.sse_w, N, _n_eff(ctx, f.prediction, train), f.n_params) - b0
+        db = bic(f.sse_w, N, residual_n_eff(ctx, f.prediction, train), f.n_params) - b0
         p = holdout_tells_apart_p(e0, _holdout_errors(ctx, f.prediction, hold))
         if abs(db) <= DELTA_BIC and p >= EQUIVALENCE_P:
             out.append((" + ".join(c.name for c in causes), float(db), float(p)))
