@@ -42,6 +42,7 @@ from markdown_it import MarkdownIt
 
 from arfem.io import atomic_write_text
 from arfem.params import InputError
+from arfem.scenarios.outdir import final_out_dir
 
 __all__ = ["write_html_report", "REPORT_NAME"]
 
@@ -263,32 +264,12 @@ def _find_inputs(obj, base: Path, root: Path, inputs: dict, depth: int = 0) -> N
                 continue
 
 
-def _final_dir(root: Path) -> Path:
-    """Where the folder ``root`` will be read: ``root`` itself, or, when it is a staging
-    directory of :func:`arfem.scenarios.outdir.staged_out_dir` (``<out>/.arfem-staging-
-    .../new`` inside an existing ``--out``, ``<parent>/.arfem-staging-<hash>-.../new``
-    beside a new one), a folder at the depth of ``--out``, for links to files outside it.
-
-    >>> _final_dir(Path("/a/out/.arfem-staging-k2j4_x9q/new")).as_posix()
-    '/a/out'
-    >>> _final_dir(Path("/a/.arfem-staging-0123456789ab-k2j4_x9q/new")).parent.as_posix()
-    '/a'
-    """
-    from arfem.scenarios.outdir import _NEW, _STAGE
-    root = Path(root).resolve()
-    txn = root.parent
-    if root.name != _NEW or not txn.name.startswith(_STAGE):
-        return root
-    if re.match(re.escape(_STAGE) + r"[0-9a-f]{12}-", txn.name):   # beside a new --out
-        return txn.parent / "out"
-    return txn.parent
-
-
 def _rel(dest: Path, root: Path) -> Path:
     """``dest`` relative to the report in ``root``: a file outside the folder relative
-    to where the folder ends up (:func:`_final_dir`), not to its staging directory."""
+    to where the folder ends up (:func:`arfem.scenarios.outdir.final_out_dir`), not to
+    its staging directory."""
     dest, root = Path(dest).resolve(), Path(root).resolve()
-    base = root if dest.is_relative_to(root) else _final_dir(root)
+    base = root if dest.is_relative_to(root) else final_out_dir(root)
     return Path(os.path.relpath(dest, base))
 
 

@@ -34,6 +34,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -46,7 +47,7 @@ from arfem.params import InputError
 __all__ = ["check_out_path", "prepare_out_dir", "staged_out_dir", "check_replaceable",
            "recover_out_dir", "owned_files", "adopt_outputs", "lock_out_dir",
            "arfem_wrote", "replace_owned_file",
-           "OWNERSHIP_MANIFEST"]
+           "OWNERSHIP_MANIFEST", "final_out_dir"]
 
 #: The ownership manifest arfem keeps in every ``--out`` it writes: {file: sha256}.
 OWNERSHIP_MANIFEST = ".arfem-outputs.json"
@@ -543,3 +544,24 @@ def _switch_into(txn, stage, out, force, inputs, entries, files) -> None:
         _rollback(txn, out)           # if this fails too, the next run finishes it
         (txn / _JOURNAL).unlink()
         raise
+
+
+def final_out_dir(root: Path) -> Path:
+    """Where the folder ``root`` will be read: ``root`` itself, or, when it is a staging
+    directory of :func:`staged_out_dir` (``<out>/.arfem-staging-.../new`` inside an
+    existing ``--out``, ``<parent>/.arfem-staging-<hash>-.../new`` beside a new one), a
+    folder at the depth of ``--out``, for links to files outside it (the HTML report's
+    relative links, :mod:`arfem.scenarios.html_report`).
+
+    >>> final_out_dir(Path("/a/out/.arfem-staging-k2j4_x9q/new")).as_posix()
+    '/a/out'
+    >>> final_out_dir(Path("/a/.arfem-staging-0123456789ab-k2j4_x9q/new")).parent.as_posix()
+    '/a'
+    """
+    root = Path(root).resolve()
+    txn = root.parent
+    if root.name != _NEW or not txn.name.startswith(_STAGE):
+        return root
+    if re.match(re.escape(_STAGE) + r"[0-9a-f]{12}-", txn.name):   # beside a new --out
+        return txn.parent / "out"
+    return txn.parent
