@@ -50,7 +50,8 @@ from arfem.params import InputError, Rod
 
 __all__ = ["load_dataset", "ROD_KEYS", "MAX_MISSING_FRACTION", "MAX_ROWS", "MAX_CSV_BYTES",
            "RecordDoc", "read_record_doc", "RecordColumns", "read_record_columns",
-           "record_toml_of", "check_columns"]
+           "record_toml_of", "check_columns", "drop_missing_rows", "check_time_steps_s",
+           "ambient_filled_C", "input_complete"]
 
 #: ``[rod]`` keys of the contract (a subset of :class:`arfem.params.Rod`'s fields).
 ROD_KEYS = ("radius_m", "length_m", "conductivity_W_mK", "density_kg_m3",
@@ -403,13 +404,37 @@ def _required_columns(col: dict, toml_path: Path, csv_path: Path, mapped: bool) 
         _fail("needs a q_W_m2 or a speed_rpm column; it has neither", str(csv_path))
 
 
-def _drop_missing_rows(values: dict, lines, csv_path: Path, notes: list,
-                       keys: tuple = ("time_s", "growth_um")):
+def drop_missing_rows(values: dict, lines, csv_path: Path, notes: list,
+                      keys: tuple = ("time_s", "growth_um")):
     """Drop the rows with an empty cell in ``keys`` (time and growth; a mesh record's
-    time) up to 5 %, else refuse. Where only the growth is empty, the row's input is
-    kept aside as unobserved.
+    time) up to 5 % (:data:`MAX_MISSING_FRACTION`), else refuse. Where only the growth
+    is empty, the row's input is kept aside as unobserved.
 
-    Returns (values, lines, keep, unobserved) over the kept rows."""
+    Parameters
+    ----------
+    values : dict
+        {column: (n,) float array, NaN where the cell is empty}, in the contract's units.
+    lines : numpy.ndarray
+        (n,) the CSV line of each row, for messages.
+    csv_path : Path
+        The record's CSV, named in messages.
+    notes : list
+        Appended: one note saying which rows were dropped.
+    keys : tuple
+        The columns a row needs.
+
+    Returns
+    -------
+    tuple
+        (values, lines, keep, unobserved): the kept rows' columns and lines, the (n,)
+        bool mask of kept rows, and {column: array} of the rows with an input but no
+        growth.
+
+    Raises
+    ------
+    InputError
+        More than 5 % of the rows lack a key, or none is left.
+    """
     n_all = len(lines)
     missing = np.zeros(n_all, bool)
     for k in keys:
@@ -442,8 +467,30 @@ def _drop_missing_rows(values: dict, lines, csv_path: Path, notes: list,
     return values, lines, keep, unobserved
 
 
-def _check_time(t, lines, csv_path: Path, label) -> np.ndarray:
-    """time_s >= 0 and strictly increasing; returns its steps."""
+def check_time_steps_s(t, lines, csv_path: Path, label) -> np.ndarray:
+    """time_s >= 0 and strictly increasing; returns its steps [s].
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        (n,) time_s [s].
+    lines : numpy.ndarray
+        (n,) the CSV line of each row, for messages.
+    csv_path : Path
+        The record's CSV, named in messages.
+    label : callable
+        ``label(key)``: the column's name in the file, for messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n − 1,) the steps t[i] − t[i − 1] [s], all > 0.
+
+    Raises
+    ------
+    InputError
+        The first time is negative, or a time does not increase.
+    """
     if t[0] < 0:
         _fail(f"time_s = {t[0]:g} is negative; time counts from the start of the record",
               f"{csv_path}: line {lines[0]}, column {label('time_s')}")
@@ -479,8 +526,35 @@ def _check_input(values: dict, lines, csv_path: Path, label, notes: list) -> Non
                      "speed_rpm is carried along")
 
 
-def _ambient(values: dict, t, lines, csv_path: Path, label, notes: list):
-    """ambient_C with short gaps filled (None where absent or empty throughout)."""
+def ambient_filled_C(values: dict, t, lines, csv_path: Path, label, notes: list):
+    """ambient_C [°C] with short gaps filled by linear interpolation in time (None where
+    absent or empty throughout).
+
+    Parameters
+    ----------
+    values : dict
+        The record's columns; ``"ambient_C"`` [°C] is used when present.
+    t : numpy.ndarray
+        (n,) time_s [s].
+    lines : numpy.ndarray
+        (n,) the CSV line of each row, for messages.
+    csv_path : Path
+        The record's CSV, named in messages.
+    label : callable
+        ``label(key)``: the column's name in the file, for messages.
+    notes : list
+        Appended: a note when the column is empty or cells were filled.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        (n,) ambient [°C], or None.
+
+    Raises
+    ------
+    InputError
+        More than 5 % of its cells are empty.
+    """
     amb = values.get("ambient_C")
     if amb is not None and np.isnan(amb).all():
         notes.append("ambient_C: the column has no value; treated as absent")
@@ -608,11 +682,11 @@ def _checked_dataset(values, lines, extra_raw, sensors, col, label, notes, *, na
     both refuse and note the same things. ``where`` names the data in messages;
     ``extra_raw`` holds the carried (non-contract) columns, one cell per row of
     ``lines``."""
-    values, lines, keep, unobserved = _drop_missing_rows(values, lines, where, notes)
+    values, lines, keep, unobserved = drop_missing_rows(values, lines, where, notes)
     t = values["time_s"]
-    dt = _check_time(t, lines, where, label)
+    dt = check_time_steps_s(t, lines, where, label)
     _check_input(values, lines, where, label, notes)
-    amb = _ambient(values, t, lines, where, label, notes)
+    amb = ambient_filled_C(values, t, lines, where, label, notes)
     temps = {k: v for k, v in values.items() if _TEMP_RE.match(k)}
     for k, v in temps.items():
         if np.isnan(v).any():

@@ -137,20 +137,21 @@ def read_table(files: RecordFiles, limits: Limits | None = None) -> RecordTable:
     version: rows with an empty ``time_s`` dropped (at most 5 %), ``time_s`` from >= 0
     strictly increasing, each input (``speed_rpm``, ``P_<source>_W``) on every row and
     >= 0, ``ambient_C``'s short gaps filled."""
-    from arfem.scenarios.records.dataset import _ambient, _check_time, _drop_missing_rows, input_complete
+    from arfem.scenarios.records.dataset import (ambient_filled_C, check_time_steps_s,
+                                                 drop_missing_rows, input_complete)
     doc = files.doc if files.doc is not None else read_record_doc(files.toml, limits)
     rc: RecordColumns = read_record_columns(doc, limits)
     where = files.csv
     if "time_s" not in rc.values:
         raise InputError("missing column time_s", str(where))
     notes: list[str] = []
-    values, lines, _, _ = _drop_missing_rows(dict(rc.values), rc.lines, where, notes,
-                                             keys=("time_s",))
-    _check_time(values["time_s"], lines, where, rc.label)
+    values, lines, _, _ = drop_missing_rows(dict(rc.values), rc.lines, where, notes,
+                                            keys=("time_s",))
+    check_time_steps_s(values["time_s"], lines, where, rc.label)
     for k, v in values.items():
         if k == "speed_rpm" or (k.startswith("P_") and k.endswith("_W")):
             input_complete(v, k, lines, where, rc.label)
-    amb = _ambient(values, values["time_s"], lines, where, rc.label, notes)
+    amb = ambient_filled_C(values, values["time_s"], lines, where, rc.label, notes)
     if amb is None:
         values.pop("ambient_C", None)
     else:
