@@ -138,7 +138,7 @@ def _netgen_mesh(path: Path):
 def case_ngsolve(mesh_path: Path, dt_s: float) -> dict:
     import numpy as np
     import ngsolve as ng
-    from arfem.scenarios.geometry.scenario import _history, load_geometry_scenario
+    from arfem.scenarios.geometry.scenario import input_history, load_geometry_scenario
     ng.SetNumThreads(1)
     clock = _Clock()
     sc = load_geometry_scenario(_scenario(mesh_path))
@@ -204,7 +204,7 @@ def case_ngsolve(mesh_path: Path, dt_s: float) -> dict:
         gv.data = T.mat.T * zvec
         G.append(gv.FV().NumPy().copy())
     G = np.column_stack(G)
-    hist = _history(sc).subdivided(dt_s)
+    hist = input_history(sc).subdivided(dt_s)
     clock.mark("solve (CN time loop)")
     cache = {}
     x = ng.GridFunction(V).vec

@@ -10,7 +10,7 @@ import pytest
 
 from arfem.fem.body import locate
 from arfem.fem.gmsh_io import read_grouped_mesh
-from arfem.scenarios.geometry.scenario import _history, load_geometry_scenario
+from arfem.scenarios.geometry.scenario import input_history, load_geometry_scenario
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "data" / "spindle_unit.toml"
 
@@ -49,7 +49,7 @@ def test_history_puts_each_source_on_its_own_schedule(unit):
     """The motor's own phases (3 h, 1 h, 5 h, 15 h) and the cycle's five phases merge
     into one piecewise-constant history; powers and h = a + b·n^m follow the speed."""
     sc, _ = unit
-    h = _history(sc)
+    h = input_history(sc)
     assert h.total_s == pytest.approx(24 * 3600)
     names = [s.spec.name for s in sc.sources]
 

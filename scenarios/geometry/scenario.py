@@ -100,15 +100,18 @@ from arfem.strict import table as _table
 __all__ = ["GeometryScenario", "is_geometry_scenario", "load_geometry_scenario",
            "geometry_scenario_from_dict", "GeometryModel", "build_geometry_model",
            "GeometryRun", "solve_geometry", "run_geometry", "main_run_geometry", "WRITES",
-           "check_geometry_scenario", "source_power_at_speed"]
+           "check_geometry_scenario", "source_power_at_speed", "MATERIAL_KEYS",
+           "input_history"]
 
 _TOP = {"scenario", "geometry", "material", "cycle", "heat_source", "convection", "support",
         "diagnosis",            # read by the mesh diagnosis (issue 33), ignored by arfem run
         "observer",             # the exported observer's noise levels (issue 43)
         "sensor", "fem", "outputs", "check"}   # [check]: arfem check's (scenarios/geometry/check.py)
 _GEOM = {"mesh", "unit", "order", "reference_C"}
-_MAT = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK", "expansion_1_K",
-        "youngs_modulus_Pa", "poisson_ratio"}
+#: The keys of a ``[[material]]`` table (its volume ``group`` and its properties, each
+#: unit in its name); a geometry sweep varies the properties by these names.
+MATERIAL_KEYS = {"group", "conductivity_W_mK", "density_kg_m3", "specific_heat_J_kgK",
+                 "expansion_1_K", "youngs_modulus_Pa", "poisson_ratio"}
 _CYCLE = {"phases", "csv", "total_h", "total_s"}
 _PHASE = {"duration_s", "duration_min", "duration_h", "speed_rpm", "ambient_C", "label"}
 _SRC = {"name", "group", "power_W", "flux_W_m2", "phases", "scale", "bearing"}
@@ -381,12 +384,12 @@ def _material(m, w: str) -> Material:
     """One ``[[material]]`` table (``w`` names it): every property given, each plausible."""
     if not isinstance(m, dict):
         raise InputError("must be a table", w)
-    _unknown(m, _MAT, w)
-    missing = sorted(_MAT - set(m))
+    _unknown(m, MATERIAL_KEYS, w)
+    missing = sorted(MATERIAL_KEYS - set(m))
     if missing:
         raise InputError(f"missing {', '.join(missing)}", w)
     kw = {k: _number(m[k], f"{w}.{k}", positive=k != "poisson_ratio")
-          for k in _MAT - {"group"}}
+          for k in MATERIAL_KEYS - {"group"}}
     if not 0.0 <= kw["poisson_ratio"] < 0.5:
         raise InputError(f"must lie in [0, 0.5), got {kw['poisson_ratio']}",
                          f"{w}.poisson_ratio")
@@ -818,7 +821,22 @@ class GeometryModel:
     memory_estimate_bytes: int
 
 
-def _history(sc: GeometryScenario) -> InputHistory:
+def input_history(sc: GeometryScenario) -> InputHistory:
+    """The scenario's inputs per interval between any two changes of its cycle or its
+    sources, as the body's time solvers take them.
+
+    Parameters
+    ----------
+    sc : GeometryScenario
+        Its cycle (speed [rpm], ambient [°C]), sources and convections.
+
+    Returns
+    -------
+    InputHistory
+        ``edges_s`` [s]; per interval, the sources' inputs (power [W] or flux [W/m²],
+        each source's own unit) followed by h·(ambient − reference) [W/m²] per
+        convection, and each convection's h [W/(m²·K)] at the interval's speed.
+    """
     edges = sc.cycle.edges_s
     for s in sc.sources:
         edges = np.union1d(edges, s.edges_s)
@@ -943,7 +961,7 @@ def build_geometry_model(sc: GeometryScenario, progress=None) -> GeometryModel:
         if exc.where and exc.where.startswith(sc.source):
             raise
         raise exc.at(sc.source) from None
-    return GeometryModel(sc, gm, th, el, np.column_stack(cols), _history(sc), tm, need)
+    return GeometryModel(sc, gm, th, el, np.column_stack(cols), input_history(sc), tm, need)
 
 
 @dataclass(frozen=True)

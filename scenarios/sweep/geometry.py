@@ -54,8 +54,9 @@ from pathlib import Path
 import numpy as np
 
 from arfem.params import InputError
-from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep, _flatten,
-                                          _normalise, _sha256, distinct_values)
+from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep,
+                                          distinct_values, flatten_keys, normalise,
+                                          sha256_key)
 
 __all__ = ["GeometrySweep", "geometry_sweep_from_dict", "geometry_override", "geometry_keys",
            "evaluate_geometry_point", "sensor_metrics", "clear_geometry_cache",
@@ -102,9 +103,9 @@ def geometry_keys(data: dict) -> list:
             for f in _CONV_FIELDS]
     keys += [f"heat_source.{_label('heat_source', t)}.{f}"
              for t in _tables(data, "heat_source") for f in _SRC_FIELDS]
-    from arfem.scenarios.geometry.scenario import _MAT
+    from arfem.scenarios.geometry.scenario import MATERIAL_KEYS
     keys += [f"material.{_label('material', t)}.{f}" for t in _tables(data, "material")
-             for f in sorted(_MAT - {"group"})]
+             for f in sorted(MATERIAL_KEYS - {"group"})]
     return keys + [f"fem.{f}" for f in _FEM_FIELDS]
 
 
@@ -150,10 +151,10 @@ def geometry_override(data: dict, key: str, value) -> dict:
         return _set_convection(out, t, fld, value, key)
     if fam == "heat_source":
         return _set_source(out, t, fld, value, key)
-    from arfem.scenarios.geometry.scenario import _MAT
-    if fld not in _MAT - {"group"}:
+    from arfem.scenarios.geometry.scenario import MATERIAL_KEYS
+    if fld not in MATERIAL_KEYS - {"group"}:
         raise InputError(f"unknown material property {fld!r} (properties: "
-                         f"{', '.join(sorted(_MAT - {'group'}))})", key)
+                         f"{', '.join(sorted(MATERIAL_KEYS - {'group'}))})", key)
     t[fld] = value
     return out
 
@@ -215,8 +216,8 @@ def _key_of(data: dict, mesh_sha: str) -> str:
     """A point's key: its scenario dict without name and outputs, the mesh by digest."""
     d = {k: v for k, v in data.items() if k not in ("scenario", "outputs")}
     d["geometry"] = {**d["geometry"], "mesh": mesh_sha}
-    return _sha256({"store_version": STORE_VERSION, "kind": GEOMETRY_KIND,
-                    "scenario": _normalise(d)})
+    return sha256_key({"store_version": STORE_VERSION, "kind": GEOMETRY_KIND,
+                       "scenario": normalise(d)})
 
 
 def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
@@ -230,7 +231,7 @@ def geometry_sweep_from_dict(sw: dict, name: str, description: str, source: str,
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")
-    grid_flat = _flatten(grid_d)
+    grid_flat = flatten_keys(grid_d)
     base_dir = Path(".") if base_path is None else base_path.parent
     base_source = str(base_path) if base_path is not None else "<base>"
     data0 = _absolute_paths(base_data, base_dir)
@@ -387,7 +388,7 @@ def _adjoint(entry: _Entry) -> np.ndarray:
 def _variant(entry: _Entry, sc) -> tuple:
     """The model of ``entry``'s structure with ``sc``'s materials: (model, what was
     assembled again), or (None, why) when the stiffness changes (built anew)."""
-    from arfem.fem.body import (material_arrays, per_element, capacity, conduction,
+    from arfem.fem.body import (capacity, conduction, material_arrays, per_element,
                                 thermal_coupling)
     base = entry.base
     th, el = base.thermal, base.elastic
@@ -420,7 +421,7 @@ def _variant(entry: _Entry, sc) -> tuple:
 
 def _model_for(sc) -> tuple:
     """(GeometryModel for ``sc``, what was reused): from the caches where possible."""
-    from arfem.scenarios.geometry.scenario import _history, build_geometry_model
+    from arfem.scenarios.geometry.scenario import build_geometry_model, input_history
     skey = _structure_key(sc)
     mkey = (skey, tuple(sorted(sc.materials.items())))
     if mkey in _VARIANTS:
@@ -438,7 +439,7 @@ def _model_for(sc) -> tuple:
         _remember(_STRUCTURES, skey, _Entry(model))
         _remember(_VARIANTS, mkey, model)
         reused = "nothing (first point of this mesh and model)"
-    return replace(model, scenario=sc, history=_history(sc)), mkey, reused
+    return replace(model, scenario=sc, history=input_history(sc)), mkey, reused
 
 
 def evaluate_geometry_point(data: dict, source: str = "<sweep point>", limits=None) -> dict:

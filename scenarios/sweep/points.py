@@ -13,7 +13,7 @@ import numpy as np
 from arfem.params import InputError, check_finite
 
 __all__ = ["Point", "Sweep", "canonical", "point_key", "distinct_values", "STORE_VERSION",
-           "MAX_POINTS"]
+           "MAX_POINTS", "flatten_keys", "normalise", "sha256_key"]
 
 #: Bumped when the stored record or the meaning of a metric changes; part of every key.
 STORE_VERSION = 2   # 2: per-level metrics named *_by_q_W_m2
@@ -51,7 +51,7 @@ class Sweep:
     @property
     def sweep_id(self) -> str:
         """SHA-256 of the name and the ordered point keys: equal iff the same sweep."""
-        return _sha256({"name": self.name, "points": [p.key for p in self.points]})
+        return sha256_key({"name": self.name, "points": [p.key for p in self.points]})
 
     def manifest(self) -> dict:
         return {"store_version": STORE_VERSION, "sweep_id": self.sweep_id, "name": self.name,
@@ -66,7 +66,23 @@ def canonical(obj) -> str:
                       allow_nan=False)
 
 
-def _sha256(obj) -> str:
+def sha256_key(obj) -> str:
+    """SHA-256 of ``obj``'s :func:`canonical` JSON: the store's key of anything keyed
+    (a point, a sweep, a geometry point).
+
+    Parameters
+    ----------
+    obj : JSON-like
+        Already :func:`normalise`-d where numbers must compare by value.
+
+    Returns
+    -------
+    str
+        64 hex digits.
+
+    >>> sha256_key({"b": 1, "a": 2}) == sha256_key({"a": 2, "b": 1})
+    True
+    """
     return hashlib.sha256(canonical(obj).encode("ascii")).hexdigest()
 
 
@@ -93,14 +109,36 @@ def point_key(data: dict) -> str:
     >>> point_key({"ar": {"dtau_s": 30}}) == point_key({"ar": {"dtau_s": 60}})
     False
     """
-    return _sha256({"store_version": STORE_VERSION, "scenario": _normalise(data)})
+    return sha256_key({"store_version": STORE_VERSION, "scenario": normalise(data)})
 
 
-def _normalise(o):
+def normalise(o):
+    """``o`` with every number a float (``30`` and ``30.0`` alike; non-finite refused),
+    keys strings, tuples lists, dates ISO text and anything else its ``str``: the form
+    a key is hashed in.
+
+    Parameters
+    ----------
+    o : JSON-like or TOML value
+        Any nesting of dicts, lists, tuples, numbers, strings, booleans and dates.
+
+    Returns
+    -------
+    JSON-like
+        The normalised copy (units unchanged).
+
+    Raises
+    ------
+    InputError
+        A number is not finite.
+
+    >>> normalise({"ar": {"dtau_s": 30}, "q": (1, 2.5)})
+    {'ar': {'dtau_s': 30.0}, 'q': [1.0, 2.5]}
+    """
     if isinstance(o, dict):
-        return {str(k): _normalise(v) for k, v in o.items()}
+        return {str(k): normalise(v) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
-        return [_normalise(v) for v in o]
+        return [normalise(v) for v in o]
     if isinstance(o, bool) or o is None or isinstance(o, str):
         return o
     if isinstance(o, (int, float, np.integer, np.floating)):
@@ -112,10 +150,10 @@ def _normalise(o):
 
 
 def distinct_values(values: list, where: str) -> list:
-    """The grid values of one key, normalised (:func:`_normalise`); one line naming
+    """The grid values of one key, normalised (:func:`normalise`); one line naming
     ``where`` for a value that is not a number or string, or one given twice."""
     try:
-        norm = [_normalise(v) for v in values]
+        norm = [normalise(v) for v in values]
     except InputError as e:
         raise e.at(where) from None
     dup = [v for i, v in enumerate(norm) if v in norm[:i]]
@@ -124,13 +162,30 @@ def distinct_values(values: list, where: str) -> list:
     return norm
 
 
-def _flatten(d: dict, prefix: str = "") -> dict:
-    """``{"fem": {"mesh": {"nz": [..]}}}`` → ``{"fem.mesh.nz": [..]}`` (unquoted dotted TOML keys)."""
+def flatten_keys(d: dict, prefix: str = "") -> dict:
+    """``{"fem": {"mesh": {"nz": [..]}}}`` → ``{"fem.mesh.nz": [..]}`` (unquoted dotted
+    TOML keys): a sweep's ``[grid]`` table as one value list per dotted key.
+
+    Parameters
+    ----------
+    d : dict
+        Nested tables.
+    prefix : str
+        Prepended to every key (used by the recursion).
+
+    Returns
+    -------
+    dict
+        {dotted key: leaf value}.
+
+    >>> flatten_keys({"fem": {"mesh": {"nz": [40, 80]}}, "ar": {"dtau_s": [30]}})
+    {'fem.mesh.nz': [40, 80], 'ar.dtau_s': [30]}
+    """
     out = {}
     for k, v in d.items():
         key = f"{prefix}{k}"
         if isinstance(v, dict):
-            out.update(_flatten(v, key + "."))
+            out.update(flatten_keys(v, key + "."))
         else:
             out[key] = v
     return out

@@ -13,8 +13,8 @@ from arfem.params import InputError
 from arfem.scenarios.rod.scenario import ALIASES, apply_override, scenario_from_dict
 from arfem.scenarios.shipped import builtin_scenario_path
 from arfem.scenarios.sweep.geometry import geometry_sweep_from_dict
-from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep, _flatten,
-                                          distinct_values, point_key)
+from arfem.scenarios.sweep.points import (MAX_POINTS, STORE_VERSION, Point, Sweep,
+                                          distinct_values, flatten_keys, point_key)
 from arfem.strict import check_keys
 
 __all__ = ["Sweep", "Point", "load_sweep", "sweep_from_dict", "point_key", "resolved_inputs",
@@ -149,9 +149,9 @@ def _sweep_from_dict(data: dict, source: str, base_data: dict | None,
     grid_d = sw.get("grid")
     if not isinstance(grid_d, dict) or not grid_d:
         raise InputError("must be a non-empty table of key = [values, ...]", "sweep.grid")
-    check_size(_flatten(grid_d), base_sc, max_points)
+    check_size(flatten_keys(grid_d), base_sc, max_points)
     grid, paths = {}, {}
-    for key, values in _flatten(grid_d).items():
+    for key, values in flatten_keys(grid_d).items():
         where = f"sweep.grid.{key}"
         if not isinstance(values, list):
             raise InputError(f"must be a list of values, got {type(values).__name__} "
