@@ -37,9 +37,10 @@ COMMANDS = {
 }
 
 
-class _Parser(argparse.ArgumentParser):
+class ArfemParser(argparse.ArgumentParser):
     """argparse with the house error format: one line, status 2 (argparse's own is a
-    usage block and then the error)."""
+    usage block and then the error). The parser of ``arfem`` and of every standalone
+    ``python -m arfem...`` command, so that all refuse bad options alike."""
 
     def error(self, message):
         self.exit(2, f"arfem: error: {one_line(message)} (see '{self.prog} --help')\n")
@@ -57,7 +58,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The ``arfem`` parser. With ``command``, only that subcommand's module is imported
     (start-up stays short: the diagnosis engine alone takes ~0.4 s to import); without,
     every subcommand is registered (``arfem --help``, an unknown command)."""
-    p = _Parser(
+    p = ArfemParser(
         prog="arfem",
         description="FEM thermo-elastic simulation of a spindle (the paper's rod, or your "
                     "own unit from a Gmsh mesh) against the AR(1) thermal-growth model (Du "

@@ -240,9 +240,9 @@ def main(argv=None) -> int:
     import sys
     from arfem.io import atomic_path
     from arfem.params import InputError, one_line
-    from arfem.scenarios.cli import _Parser
+    from arfem.scenarios.cli import ArfemParser
     d = SpindleUnit()
-    p = _Parser(prog="python -m arfem.scenarios.geometry.gmsh_models", description=(
+    p = ArfemParser(prog="python -m arfem.scenarios.geometry.gmsh_models", description=(
         "Generate the shipped spindle unit's mesh (docs/geometry.md) with Gmsh, as a binary "
         "Gmsh 4.1 file of 4-node tetrahedra in mm, into OUT. Needs pip install "
         "'arfem[mesh]'. The shipped scenarios/data/spindle_unit.msh is --size 24 --size-min 8."),
