@@ -46,8 +46,8 @@ class DiagnosisModels:
 def _outputs(rec, sc) -> list:
     """(sensor output index, column, axis) of each displacement channel, in the
     scenario's sensor order; axes as ``arfem run``'s model.json (X/Y/Z by direction)."""
-    from arfem.scenarios.geometry.export import _axes
-    axis = {s.name: ax for s, ax in _axes(sc.sensors)}
+    from arfem.scenarios.geometry.export import sensor_axes
+    axis = {s.name: ax for s, ax in sensor_axes(sc.sensors)}
     chans = sorted((c for c in rec.channels if c.kind == "displacement"),
                    key=lambda c: c.output)
     return [(c.output, c.column, axis[c.sensor]) for c in chans]

@@ -42,7 +42,7 @@ from arfem.models.modal_export import (galerkin_modes, modal_state_space,
 from arfem.scenarios.compensation.model_file import write_model
 
 __all__ = ["ExportedModel", "export_state_space", "record_columns", "write_exports",
-           "WRITES"]
+           "WRITES", "sensor_axes"]
 
 #: files :func:`write_exports` adds to a geometry run's output
 WRITES = ("model.json", "record.toml", "record.csv")
@@ -72,9 +72,21 @@ class ExportedModel:
     note: str = ""
 
 
-def _axes(sensors) -> list:
+def sensor_axes(sensors) -> list:
     """(sensor, axis) of each displacement sensor: X/Y/Z by its direction, else (or
-    when an axis is taken) the sensor's name."""
+    when an axis is taken) the sensor's name. The axis names of model.json, the twin
+    and the mesh diagnosis's exported model alike.
+
+    Parameters
+    ----------
+    sensors : sequence of SensorSpec
+        The scenario's sensors; only ``quantity == "displacement"`` ones count.
+
+    Returns
+    -------
+    list of (SensorSpec, str)
+        In the sensors' order.
+    """
     out, used = [], set()
     for s in sensors:
         if s.quantity != "displacement":
@@ -212,7 +224,7 @@ def export_state_space(gmodel, arfem_version: str = "",
     """
     from arfem.fem.thermal3d import body_modes
     sc = gmodel.scenario
-    axes = _axes(sc.sensors)
+    axes = sensor_axes(sc.sensors)
     if not axes:
         return ExportedModel(None, note="no displacement sensor to compensate")
     hist = gmodel.history

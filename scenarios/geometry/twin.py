@@ -11,7 +11,7 @@ import numpy as np
 
 from arfem.models.twin import AxesTwin
 from arfem.params import InputError
-from arfem.scenarios.geometry.export import _axes
+from arfem.scenarios.geometry.export import sensor_axes
 from arfem.scenarios.geometry.scenario import (build_geometry_model, load_geometry_scenario,
                                                solve_geometry)
 
@@ -29,7 +29,7 @@ def axes_twin(path, noise_um: float = 0.0, seed: int = 0, progress=None):
         The twin and its interval Δτ [s] (the scenario's ``output_interval_s``).
     """
     sc = load_geometry_scenario(path)
-    axes = _axes(sc.sensors)
+    axes = sensor_axes(sc.sensors)
     if not axes:
         raise InputError("has no displacement sensor: a twin needs an axis to compensate",
                          str(path))
