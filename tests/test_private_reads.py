@@ -9,7 +9,11 @@ attribute ``x._name`` read on anything but ``self``/``cls`` must name something 
 module defines (a function, class, assignment, attribute set, argument or string: an
 attribute it sets on an object by name). Allowed beside them: the named tuple's public
 API (``_asdict``, ...) and the two standard-library names listed in :data:`STDLIB`.
-Private names imported by ``from x import _y`` are another matter, not checked here.
+Private names are not imported either: no ``from arfem.x import _y`` (nor from a private
+module, ``from x._y import z``), wherever the import stands (module level, inside a
+function, in a parenthesised multi-line import). A name another module needs is part
+of its defining module's interface: public, documented and in its ``__all__``. The
+standard-library exceptions, if ever needed, go in :data:`STDLIB_IMPORTS` with a reason.
 """
 import ast
 from pathlib import Path
@@ -22,6 +26,9 @@ NAMED_TUPLE = {"_asdict", "_replace", "_fields", "_make", "_field_defaults"}
 #: standard-library members read where no public way exists: (file, expression)
 STDLIB = {("scenarios/cli.py", "sp._actions"),             # argparse's sub-parsers
           ("scenarios/sweep/executors.py", "os._exit")}    # a documented os function
+#: standard-library private names imported where no public way exists:
+#: {(file, "module._name"): reason}; empty, none is needed today
+STDLIB_IMPORTS: dict = {}
 
 
 def _defined(tree) -> set:
@@ -74,4 +81,60 @@ def test_no_module_reads_another_modules_private_member(room):
     for path in sorted((ROOT / room).rglob("*.py")):
         rel = path.relative_to(ROOT).as_posix()
         found += foreign_private_reads(path.read_text(encoding="utf-8"), rel)
+    assert found == []
+
+
+def _private(name: str) -> bool:
+    """A single leading underscore: private by Python's convention (dunders are not)."""
+    return name.startswith("_") and not name.startswith("__")
+
+
+def foreign_private_imports(source: str, rel: str) -> list:
+    """``["<rel>:<line>: from <module> import <name>", ...]``: every import in module
+    ``rel`` (its ``source``) of a private name, or of anything from a private module,
+    at any depth of the tree (function-level imports included), less
+    :data:`STDLIB_IMPORTS`."""
+    out = []
+    for n in ast.walk(ast.parse(source)):
+        if isinstance(n, ast.ImportFrom):
+            mod = "." * n.level + (n.module or "")
+            in_private = any(_private(part) for part in (n.module or "").split("."))
+            for a in n.names:
+                if (in_private or _private(a.name)) and \
+                        (rel, f"{mod}.{a.name}") not in STDLIB_IMPORTS:
+                    out.append(f"{rel}:{n.lineno}: from {mod} import {a.name}")
+        elif isinstance(n, ast.Import):
+            for a in n.names:
+                if any(_private(part) for part in a.name.split(".")) and \
+                        (rel, a.name) not in STDLIB_IMPORTS:
+                    out.append(f"{rel}:{n.lineno}: import {a.name}")
+    return sorted(out, key=lambda s: int(s.split(":")[1]))
+
+
+def test_the_check_sees_a_private_import():
+    """The check itself: a private name in a one-line import, in a parenthesised
+    multi-line import, under ``as``, in a function-level import and from a private
+    module is caught; public names, ``__future__`` and dunders are not."""
+    src = ("from __future__ import annotations\n"
+           "from arfem.a import _one, public\n"
+           "from arfem.b import (Public,\n"
+           "                     _two as two)\n"
+           "from . import __version__\n"
+           "def f():\n"
+           "    from .c import _three\n"
+           "    import arfem._hidden\n"
+           "    from arfem._d import four\n"
+           "    return _three\n")
+    assert foreign_private_imports(src, "m.py") == [
+        "m.py:2: from arfem.a import _one", "m.py:3: from arfem.b import _two",
+        "m.py:7: from .c import _three", "m.py:8: import arfem._hidden",
+        "m.py:9: from arfem._d import four"]
+
+
+@pytest.mark.parametrize("room", ["arfem", "fem", "models", "scenarios"])
+def test_no_module_imports_another_modules_private_name(room):
+    found = []
+    for path in sorted((ROOT / room).rglob("*.py")):
+        rel = path.relative_to(ROOT).as_posix()
+        found += foreign_private_imports(path.read_text(encoding="utf-8"), rel)
     assert found == []
