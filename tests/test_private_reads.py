@@ -21,6 +21,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the package's rooms: ground, fem, models, scenarios
+ROOMS = ["arfem", "fem", "models", "scenarios"]
 #: the named tuple's API: public, with an underscore against field-name clashes
 NAMED_TUPLE = {"_asdict", "_replace", "_fields", "_make", "_field_defaults"}
 #: standard-library members read where no public way exists: (file, expression)
@@ -75,13 +77,17 @@ def test_the_check_sees_a_foreign_private_read():
     assert foreign_private_reads(src, "m.py") == ["m.py:2: plant._smoothed_C"]
 
 
-@pytest.mark.parametrize("room", ["arfem", "fem", "models", "scenarios"])
-def test_no_module_reads_another_modules_private_member(room):
+def _scan(room: str, check) -> list:
+    """``check(source, rel)``'s findings over every module of the package room ``room``."""
     found = []
     for path in sorted((ROOT / room).rglob("*.py")):
-        rel = path.relative_to(ROOT).as_posix()
-        found += foreign_private_reads(path.read_text(encoding="utf-8"), rel)
-    assert found == []
+        found += check(path.read_text(encoding="utf-8"), path.relative_to(ROOT).as_posix())
+    return found
+
+
+@pytest.mark.parametrize("room", ROOMS)
+def test_no_module_reads_another_modules_private_member(room):
+    assert _scan(room, foreign_private_reads) == []
 
 
 def _private(name: str) -> bool:
@@ -131,10 +137,6 @@ def test_the_check_sees_a_private_import():
         "m.py:9: from arfem._d import four"]
 
 
-@pytest.mark.parametrize("room", ["arfem", "fem", "models", "scenarios"])
+@pytest.mark.parametrize("room", ROOMS)
 def test_no_module_imports_another_modules_private_name(room):
-    found = []
-    for path in sorted((ROOT / room).rglob("*.py")):
-        rel = path.relative_to(ROOT).as_posix()
-        found += foreign_private_imports(path.read_text(encoding="utf-8"), rel)
-    assert found == []
+    assert _scan(room, foreign_private_imports) == []
