@@ -44,6 +44,21 @@ A ``frame_expansion`` then grows as a mix of the first two thermometers' rises (
 fast-dominated and the slow-dominated one), |frame_gain| 0.3-0.8 of the rod's steady
 growth at their peak, in place of the one thermometer's lag.
 
+With ``frame_modes`` K > 2 (off by default: every record above is unchanged; needs m >= K
+thermometers) the machine has K independent thermal modes in place of the fast and slow
+one (:func:`_mode_thermometers`, every draw from ``default_rng([seed, 70])``): mode k is
+the first-order response, time constant τ_k [h] (log-evenly spread over 0.3-12 h, each
+jittered by a factor 0.8-1.25), to a heat of its own speed law (n/n_max)^p_k, p_k
+1-3 (load-independent losses to windage), applied as heat^(p_k/(5/3)) so that the
+``per_speed`` heat keeps its per-level factors. Thermometer j < K sits on mode j (0.8 of
+it, the rest a random mix of the others), the others of the max(K, m // 2) on the
+machine read a random mix, 2-6 K per unit, each with 0-0.3 of the room; the rest read
+the room only, as above. The frame of a ``frame_expansion`` grows as a mix of all K
+modes with weights of either sign, |w_k| 0.3-1 (a structural loop whose members expand
+against each other), scaled to |frame_gain| × the rod's steady growth at its peak, so
+its growth needs about K + 1 principal components of the standardised thermometers
+(the room's one and the K modes').
+
 Reproducible: ``default_rng(seed)`` draws the schedule, rod and noise, ``default_rng([seed,
 k])`` the cause's magnitudes (k its index in :data:`SPEED_SYNTH_CAUSES`).
 """
@@ -187,10 +202,7 @@ def _thermometers(seed: int, t, heat, m: int, room_K=None):
     fast = first_order_lag(t, heat, float(rng.uniform(0.3, 1.5)) * 3600.0)
     slow = first_order_lag(t, heat, float(rng.uniform(3.0, 10.0)) * 3600.0)
     if room_K is None:
-        a1, a2 = rng.uniform(0.5, 2.0, 2)
-        ph = rng.uniform(0, 2 * np.pi, 2)
-        room_K = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
-                  + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+        room_K = _room(rng, t)
     n_heat = max(2, m // 2)
     out, clean = {}, []
     for j in range(m):
@@ -206,11 +218,81 @@ def _thermometers(seed: int, t, heat, m: int, room_K=None):
     return out, (clean[0] - clean[0][0], clean[1] - clean[1][0])
 
 
-def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: int):
+#: range of the time constants of the thermal modes of ``frame_modes`` > 2 [h]
+MODE_TAU_H = (0.3, 12.0)
+#: range of the speed exponents p of the thermal modes' heat (n/n_max)^p [-]
+MODE_EXPONENTS = (1.0, 3.0)
+
+
+def _room(rng, t):
+    """A room's temperature change [K]: a daily and a 7 h wave of 0.5-2 K."""
+    a1, a2 = rng.uniform(0.5, 2.0, 2)
+    ph = rng.uniform(0, 2 * np.pi, 2)
+    return (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
+            + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+
+
+def _mode_thermometers(seed: int, t, heat, m: int, modes: int, room_K=None):
+    """m thermometers [°C] over ``modes`` independent thermal modes (module docstring,
+    ``frame_modes``) and the modes' noise-free responses [-] (modes, N), each starting at 0.
+
+    Parameters
+    ----------
+    seed : int
+        The record's seed; the draws are ``default_rng([seed, 70])``.
+    t : ndarray (N,)
+        Sample times [s].
+    heat : ndarray (N,)
+        Heat of each row [-], 1 at the top speed, (n/n_max)^(5/3) under the power law.
+    m, modes : int
+        Thermometers and thermal modes [-], m >= modes > 2.
+    room_K : ndarray (N,), optional
+        The room's change [K] (the recorded ambient); default a drawn one.
+    """
+    rng = np.random.default_rng([seed, 70])
+    edges = np.geomspace(*MODE_TAU_H, modes)
+    tau_h = edges * rng.uniform(0.8, 1.25, modes)
+    p = rng.uniform(*MODE_EXPONENTS, modes)
+    resp = np.array([first_order_lag(t, heat ** (pk / HEAT_EXPONENT), tk * 3600.0)
+                     for pk, tk in zip(p, tau_h)])
+    resp = resp - resp[:, :1]
+    room_K = _room(rng, t) if room_K is None else room_K
+    out = {}
+    for j in range(m):
+        if j < max(modes, m // 2):
+            w = rng.dirichlet(np.ones(modes))
+            if j < modes:
+                w = 0.2 * np.where(np.arange(modes) == j, 0.0, w) / (1.0 - w[j]) \
+                    + 0.8 * (np.arange(modes) == j)
+            T = float(rng.uniform(2.0, 6.0)) * (w @ resp) \
+                + float(rng.uniform(0.0, 0.3)) * room_K
+        else:
+            T = float(rng.uniform(0.7, 1.0)) * room_K
+        out[f"T_t{j + 1}_C"] = 20.0 + T + rng.normal(0.0, 0.01, t.size)
+    return out, resp
+
+
+def _mode_frame(seed: int, t, heat, thermometers: int, modes: int):
+    """The frame's response [-] (peak |.| = 1) over ``modes`` thermal modes with weights
+    of either sign (module docstring), the thermometers [°C] and the weights [-]."""
+    temps, resp = _mode_thermometers(seed, t, heat, thermometers, modes)
+    rng = np.random.default_rng([seed, 71])
+    w = rng.choice([-1.0, 1.0], modes) * rng.uniform(0.3, 1.0, modes)
+    mix = w @ (resp / np.max(np.abs(resp), axis=1, keepdims=True))
+    return mix / np.max(np.abs(mix)), temps, w
+
+
+def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: int,
+           modes: int = 2):
     """A ``frame_expansion`` record's growth [µm] (``y``, the rod's, plus the frame's),
     thermometers [°C] and truth: on one thermometer, the frame's lag of the heat; on
-    several, a mix of the first two (module docstring). ``cr`` draws the cause."""
+    several, a mix of the first two, or of ``modes`` > 2 thermal modes (module
+    docstring). ``cr`` draws the cause."""
     g = sign * float(cr.uniform(0.3, 0.8))
+    if modes > 2:
+        mix, temps, w = _mode_frame(seed, t, heat, thermometers, modes)
+        return y + g * k_um * mix, temps, {"frame_gain": g, "frame_modes": modes,
+                                           "frame_mode_weights": tuple(map(float, w))}
     if thermometers > 1:
         w = float(cr.uniform(0.2, 0.8))
         temps, (r1, r2) = _thermometers(seed, t, heat, thermometers)
@@ -226,7 +308,8 @@ def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: in
 
 def generate_speed(cause: str, seed: int, noise_um: float | None = None,
                    duration_h: float = 30.0, step_s: float = 120.0,
-                   thermometers: int = 1, heat_law: str = "power") -> SpeedCase:
+                   thermometers: int = 1, heat_law: str = "power",
+                   frame_modes: int = 2) -> SpeedCase:
     """A speed-only record with ``cause`` injected at known parameters.
 
     Parameters
@@ -247,6 +330,12 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
         docstring).
     heat_law : str
         ``"power"``: heat (n/n_max)^(5/3); ``"per_speed"``: :func:`per_speed_heat`.
+    frame_modes : int
+        Independent thermal modes [-] the thermometers observe and a
+        ``frame_expansion`` grows with: 2 (default) the fast and slow response of the
+        records above; K > 2 (needs ``thermometers`` >= K) K modes of their own time
+        constants [h] and speed laws (module docstring), drawn from
+        ``default_rng([seed, 70])`` and ``[seed, 71]`` so that no other draw moves.
 
     Returns
     -------
@@ -260,6 +349,10 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
     """
     if cause not in SPEED_SYNTH_CAUSES:
         raise ValueError(f"cause must be one of {SPEED_SYNTH_CAUSES}, not {cause!r}")
+    if int(frame_modes) != frame_modes or frame_modes < 2 or \
+            (frame_modes > 2 and thermometers < frame_modes):
+        raise ValueError(f"frame_modes must be an integer >= 2 and, above 2, at most "
+                         f"thermometers ({thermometers}), not {frame_modes!r}")
     rng = np.random.default_rng(seed)
     t, speed, n_max = _schedule(rng, duration_h, step_s)
     heat = _heat(heat_law, seed, speed, n_max)
@@ -297,8 +390,11 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
             amb = true_amb + cr.normal(0.0, 0.02, t.size)
             truth = {"ambient_gain_um_per_K": g}
         else:
-            y, temps, truth = _frame(cr, sign, seed, t, heat, k_um, y, thermometers)
-    if thermometers > 1 and not temps:
+            y, temps, truth = _frame(cr, sign, seed, t, heat, k_um, y, thermometers,
+                                     int(frame_modes))
+    if thermometers > 1 and not temps and frame_modes > 2:
+        temps = _mode_thermometers(seed, t, heat, thermometers, int(frame_modes), amb)[0]
+    elif thermometers > 1 and not temps:
         temps = _thermometers(seed, t, heat, thermometers, amb)[0]
     return SpeedCase(t, speed, y + noise, amb, cause, truth,
                      {"rod_time_constant_h": tau_rod_h, "steady_growth_um": k_um,
