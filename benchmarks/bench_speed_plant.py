@@ -150,15 +150,16 @@ def frame_truth_um_per_K(seed: int, case) -> float:
 
 
 def record(cause: str, seed: int, white: bool, thermometers: int = 1,
-           heat_law: str = "power"):
+           heat_law: str = "power", frame_modes: int = 2):
     """(case, growth [µm], truth {contract or plant parameter: value}); a frame on
     several thermometers has no one gain to score (truth {})."""
     src = "sensor_drift" if cause == "clean" else cause
-    case = generate_speed(src, seed, thermometers=thermometers, heat_law=heat_law)
+    case = generate_speed(src, seed, thermometers=thermometers, heat_law=heat_law,
+                          frame_modes=frame_modes)
     y = case.growth_um.copy()
     if white:
         clean = generate_speed(src, seed, noise_um=0.0, thermometers=thermometers,
-                               heat_law=heat_law).growth_um
+                               heat_law=heat_law, frame_modes=frame_modes).growth_um
         y = clean + np.random.default_rng([seed, 99]).normal(
             0.0, case.settings["noise_sigma_um"], y.size)
     truth = dict(case.truth)
@@ -213,8 +214,25 @@ def _rmse(d) -> float:
     return float(d.holdout.channels[0].extended_rmse)
 
 
+def _find(doc, key: str):
+    """The first value under ``key`` anywhere in a nested dict/list document."""
+    if isinstance(doc, dict):
+        if key in doc:
+            return doc[key]
+        doc = list(doc.values())
+    if isinstance(doc, (list, tuple)):
+        for v in doc:
+            found = _find(v, key)
+            if found is not None:
+                return found
+    return None
+
+
 def run_rod(ds, h0):
     d = diagnose(ds, h0)
+    fs = _find(getattr(d.evidence, "document", None), "frame_structure")
+    if isinstance(fs, dict):
+        print(f"  rod branch frame structure: {fs.get('label')}", flush=True)
     return d.verdict, tuple((c.cause, dict(c.parameters), dict(c.ci95))
                             for c in d.causes), _rmse(d)
 
@@ -249,6 +267,9 @@ def main(argv=None) -> int:
                     help="thermometers per record (synth_speed's thermometers)")
     ap.add_argument("--heat-law", default="power", choices=HEAT_LAWS,
                     help="the synth's speed-to-heat law (synth_speed's heat_law)")
+    ap.add_argument("--frame-modes", type=int, default=2,
+                    help="independent thermal modes of the thermometers and the frame "
+                         "(synth_speed's frame_modes; > 2 needs --thermometers >= it)")
     ap.add_argument("--heat-models", default="auto",
                     help="the plant's nominal heat, comma-separated: one plant engine each "
                          "(speed_plant's heat_model: law, per_speed, auto)")
@@ -261,7 +282,8 @@ def main(argv=None) -> int:
     tally, rmse = {}, {}
     for cause in a.causes.split(","):
         for seed in range(a.seed0, a.seed0 + a.seeds):
-            case, y, truth = record(cause, seed, a.white, a.thermometers, a.heat_law)
+            case, y, truth = record(cause, seed, a.white, a.thermometers, a.heat_law,
+                                   a.frame_modes)
             with tempfile.TemporaryDirectory() as tmp:
                 ds = load_dataset(write(Path(tmp), case, y))
             for eng, run in engines.items():
