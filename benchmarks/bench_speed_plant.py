@@ -4,6 +4,7 @@ generated speed-only records with known causes.
     python benchmarks/bench_speed_plant.py [--seeds N] [--seed0 S] [--causes a,b] [--white]
                                            [--no-rod] [--heat-law power|per_speed]
                                            [--heat-models law,per_speed,auto]
+                                           [--thermometers M] [--frame-modes K]
 
 Each record is :func:`arfem.models.diagnosis.synth_speed.generate_speed` of one cause
 (``sensor_drift``, ``ambient_drift``, ``frame_expansion``, ``speed_dependent_convection``)
@@ -114,6 +115,37 @@ N_eff: M = 8 drift 4 / 4 / 4, M = 16 drift 5 / 5 / 5, frame 6 / 6 / -- at both, 
 3 "explained" and 3 "not explained" (it chose 1 component on the drift records, 3 on the
 frame records; not kept: worse on FL_THERMAL). The reference model compared on the
 hold-out RMSE as well (kept): every row above and the default table (M = 1) unchanged.
+
+Frames of more thermal modes, 2026-11-28 (branch synthmix; SYNTHETIC development
+evidence, not a test of the real record: FL_THERMAL was not run). ``--frame-modes K``
+is synth_speed's ``frame_modes``: the 16 thermometers observe K independent thermal
+modes and the frame grows as a signed mix of all K (K = 2: the records above,
+unchanged), so on K = 6 its growth needs about 7 components, more than the plant's
+fixed 3. ``python benchmarks/bench_speed_plant.py --seeds 6 --thermometers 16 --causes
+frame_expansion --frame-modes K`` (rod branch beside the plant, AR noise; right /
+established of 6; extended model's hold-out RMSE median / mean [µm]; the branch's
+chosen number of components per seed):
+
+=============== ============= ============= =============== ===============
+K, seeds        rod branch    plant         rod RMSE        plant RMSE
+=============== ============= ============= =============== ===============
+2, 1-6          5 / 4         6 / 6         0.137 / 0.376   0.171 / 0.200
+4, 1-6          6 / 2         5 / 4         0.189 / 0.274   0.714 / 1.001
+6, 1-6          6 / 3         5 / 3         0.253 / 0.522   1.440 / 1.686
+6, 101-106      4 / 0         6 / 6         0.469 / 5.468   0.777 / 0.942
+=============== ============= ============= =============== ===============
+
+Median record ratio plant / branch RMSE: 1.12 (K = 2), 2.58 (K = 4), 2.35 (K = 6),
+3.16 (K = 6, seeds 101-106). Branch's components (lag) by seed: K = 2: 2, 8, 3,
+3 (0.5 h), 2, 3; K = 4: 8 (0.5 h), 6 (0.5 h), 3, 3 (2 h), 8 (0.5 h), 2; K = 6: 6 (0.5 h),
+6 (0.5 h), 4, 8, 3, 8; K = 6 seeds 101-106: 8 (0.5 h), 6, 6 (0.5 h), 4 (0.5 h), 4 (0.5 h),
+3 (0.5 h). So on these records the fixed 3 components lose to the branch on hold-out
+RMSE as on the real record (the plant worse on 5 of 6 records at K = 6, seeds 1-6), but
+the branch's verdicts are weaker: on seeds 101-106 it establishes none (2 "unconfirmed",
+4 "not explained", seed 102 a hold-out RMSE of 30.4 µm) where the plant establishes the
+frame on all 6 with 3 components. Same K = 6, ``--causes sensor_drift,clean``: drift
+4 / 4 both engines, clean no cause on 6 of 6 both; RMSE median 0.149 (branch), 0.139
+(plant) µm.
 """
 from __future__ import annotations
 
