@@ -306,6 +306,29 @@ def _frame(cr, sign: float, seed: int, t, heat, k_um: float, y, thermometers: in
     return y + g * k_um * frame, temps, {"frame_time_constant_h": tau_f, "frame_gain": g}
 
 
+def _check_options(cause: str, thermometers: int, frame_modes) -> None:
+    """ValueError unless ``cause`` and ``frame_modes`` are ones :func:`generate_speed` takes."""
+    if cause not in SPEED_SYNTH_CAUSES:
+        raise ValueError(f"cause must be one of {SPEED_SYNTH_CAUSES}, not {cause!r}")
+    if int(frame_modes) != frame_modes or frame_modes < 2 or \
+            (frame_modes > 2 and thermometers < frame_modes):
+        raise ValueError(f"frame_modes must be an integer >= 2 and, above 2, at most "
+                         f"thermometers ({thermometers}), not {frame_modes!r}")
+
+
+def _ambient(cr, sign: float, t, b: float, y):
+    """An ``ambient_drift`` record's growth [µm] (``y``, the rod's, plus the ambient's
+    AR(1) at rate ``b`` [1/s]), recorded ambient change [K] and truth (module
+    docstring). ``cr`` draws the cause."""
+    g = sign * float(cr.uniform(1.0, 5.0))
+    a1, a2 = cr.uniform(1.0, 3.0), cr.uniform(0.3, 1.0)
+    ph = cr.uniform(0, 2 * np.pi, 2)
+    true_amb = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
+                + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+    y = y + g * ar_first_order(t, true_amb, b, 1.0)
+    return y, true_amb + cr.normal(0.0, 0.02, t.size), {"ambient_gain_um_per_K": g}
+
+
 def generate_speed(cause: str, seed: int, noise_um: float | None = None,
                    duration_h: float = 30.0, step_s: float = 120.0,
                    thermometers: int = 1, heat_law: str = "power",
@@ -331,11 +354,9 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
     heat_law : str
         ``"power"``: heat (n/n_max)^(5/3); ``"per_speed"``: :func:`per_speed_heat`.
     frame_modes : int
-        Independent thermal modes [-] the thermometers observe and a
-        ``frame_expansion`` grows with: 2 (default) the fast and slow response of the
-        records above; K > 2 (needs ``thermometers`` >= K) K modes of their own time
-        constants [h] and speed laws (module docstring), drawn from
-        ``default_rng([seed, 70])`` and ``[seed, 71]`` so that no other draw moves.
+        Independent thermal modes [-] the thermometers observe and a frame grows with:
+        2 the fast and slow responses above; K > 2 (``thermometers`` >= K) K modes of
+        their own τ [h] and speed law (module docstring), new streams: no draw moves.
 
     Returns
     -------
@@ -347,12 +368,7 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
     >>> c.time_s.size, sorted(c.truth)
     (900, ['drift_um_per_h'])
     """
-    if cause not in SPEED_SYNTH_CAUSES:
-        raise ValueError(f"cause must be one of {SPEED_SYNTH_CAUSES}, not {cause!r}")
-    if int(frame_modes) != frame_modes or frame_modes < 2 or \
-            (frame_modes > 2 and thermometers < frame_modes):
-        raise ValueError(f"frame_modes must be an integer >= 2 and, above 2, at most "
-                         f"thermometers ({thermometers}), not {frame_modes!r}")
+    _check_options(cause, thermometers, frame_modes)
     rng = np.random.default_rng(seed)
     t, speed, n_max = _schedule(rng, duration_h, step_s)
     heat = _heat(heat_law, seed, speed, n_max)
@@ -381,21 +397,13 @@ def generate_speed(cause: str, seed: int, noise_um: float | None = None,
             y = y + d * t / 3600.0
             truth = {"drift_um_per_h": d}
         elif cause == "ambient_drift":
-            g = sign * float(cr.uniform(1.0, 5.0))
-            a1, a2 = cr.uniform(1.0, 3.0), cr.uniform(0.3, 1.0)
-            ph = cr.uniform(0, 2 * np.pi, 2)
-            true_amb = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
-                        + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
-            y = y + g * ar_first_order(t, true_amb, b, 1.0)
-            amb = true_amb + cr.normal(0.0, 0.02, t.size)
-            truth = {"ambient_gain_um_per_K": g}
+            y, amb, truth = _ambient(cr, sign, t, b, y)
         else:
             y, temps, truth = _frame(cr, sign, seed, t, heat, k_um, y, thermometers,
                                      int(frame_modes))
-    if thermometers > 1 and not temps and frame_modes > 2:
-        temps = _mode_thermometers(seed, t, heat, thermometers, int(frame_modes), amb)[0]
-    elif thermometers > 1 and not temps:
-        temps = _thermometers(seed, t, heat, thermometers, amb)[0]
+    if thermometers > 1 and not temps:
+        temps = (_mode_thermometers(seed, t, heat, thermometers, int(frame_modes), amb)
+                 if frame_modes > 2 else _thermometers(seed, t, heat, thermometers, amb))[0]
     return SpeedCase(t, speed, y + noise, amb, cause, truth,
                      {"rod_time_constant_h": tau_rod_h, "steady_growth_um": k_um,
                       "noise_sigma_um": sigma, "noise_rho": rho, "n_max_rpm": n_max},
