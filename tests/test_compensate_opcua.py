@@ -115,7 +115,12 @@ def compensate(model, cfg, **kw):
 
 
 def log_lines(d):
-    return [json.loads(x) for x in (d / "live.log").read_text().splitlines()]
+    """The complete lines of the cycle log. The compensator may be writing while this
+    reads, and a read can see a write in progress (a fresh-clone CI run read
+    '{"cycle": 40, ..., "cycle_s": 5.77759' and failed on it), so a last line without its
+    newline is left for the next read; every complete line must parse."""
+    *complete, _in_progress = (d / "live.log").read_text().split("\n")
+    return [json.loads(x) for x in complete]
 
 
 def read_csv(path):
