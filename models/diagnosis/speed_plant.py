@@ -47,6 +47,35 @@ the default hold-out of :func:`arfem.models.diagnosis.holdout.default_holdout`, 
 :func:`~arfem.models.geodiagnosis.engine.diagnose_plant` takes when given none): the
 seen speeds and the fit rows of the choice are those before it.
 
+Causes (the one vocabulary, :func:`arfem.models.plant.cause`), each exact for the model
+it names (the truth of :mod:`arfem.models.diagnosis.synth_speed` is of this family):
+
+* ``sensor_drift:growth_um``: an offset [µm] and a drift [µm/h];
+* ``ambient_drift`` (where an ambient is recorded and varies): the rod's own AR(1) at
+  its rate of the recorded ambient above the reference (the rod's nominal ambient,
+  paper: 20 °C) with unit steady gain, times ``ambient_gain_um_per_K`` [µm/K];
+* ``convection_scale:running`` (where the spindle both runs and rests): the rod's rate
+  1/τ times ``h_scale`` [-] while the spindle turns (b = 2h/(ρcR), paper eq. 13, so a
+  factor on b is one on h): contract ``speed_dependent_convection``, with
+  h_running / h_stopped = h_scale and h_stopped = ρcR/(2τ);
+* ``frame_expansion:<T column>``: the frame grows ``frame_gain_um_per_K`` × the rise of
+  a recorded thermometer (°C above its first reading), no lag;
+* ``frame_lag:<T column>``: the same through a first-order lag of
+  ``frame_time_constant_h`` [h] (nonlinear, 2-200 h), its gain ``frame_gain_um_per_K``;
+* above :data:`PER_THERMOMETER_FRAMES` thermometers, ``frame_expansion:pc1-3`` and
+  ``frame_lag:pc1-3`` in their place: the frame follows the three leading principal
+  components of the standardised thermometers
+  (:func:`arfem.models.diagnosis.speed_frame.frame_components`, the speed branch's),
+  one gain ``frame_gain_pc<j>_um`` [µm per unit component] each, without and with
+  the lag. The components are taken over the whole record: the thermometers are
+  inputs, no growth reading of the hold-out enters them.
+
+Every thermometer is smoothed by a centred mean of ±:data:`THERMOMETER_SMOOTHING_S`
+before it is a regressor (its noise is an error in the variable, which the fitted slow
+noise turns into a gain drawn to zero).
+
+Contract names: :func:`contract_causes`.
+
 What this plant does not do (the rod engine's speed branch does): the choice of the
 frame's structure among numbers of components and lags by forward-chaining validation
 (README.posthoc.md 1.4.2: on FL_THERMAL a fixed three components lose to it), and a
