@@ -24,7 +24,20 @@ from typing import Any, Mapping
 import numpy as np
 
 __all__ = ["NamedCause", "ChannelHoldout", "Holdout", "ChannelEvidence", "Diagnosis",
-           "FrozenDict", "frozen_mapping"]
+           "FrozenDict", "frozen_mapping", "unit_shown"]
+
+#: a channel's unit (the record's ASCII name) as a reader is shown it
+_UNIT_SHOWN = {"um": "µm", "urad": "µrad"}
+
+
+def unit_shown(unit: str) -> str:
+    """A channel's unit as texts show it: ``"um"`` → ``"µm"``, ``"urad"`` → ``"µrad"``,
+    any other (``"K"``) as it is.
+
+    >>> unit_shown("um"), unit_shown("K")
+    ('µm', 'K')
+    """
+    return _UNIT_SHOWN.get(unit, unit)
 
 
 class FrozenDict(dict):

@@ -100,7 +100,7 @@ from arfem.models.geodiagnosis.plant import mesh_plant
 from arfem.models.geodiagnosis.problem import GeoModel, GeoRecord
 from arfem.models.plant import Plant
 from arfem.models.diagnosis.result import (ChannelEvidence, ChannelHoldout, Diagnosis, Holdout,
-                                           NamedCause, frozen_mapping)
+                                           NamedCause, frozen_mapping, unit_shown)
 
 __all__ = ["MeshEvidence", "Ranked", "NAMED_BY_SCREEN", "diagnose_geometry", "diagnose_plant",
            "named_causes", "mlr_holdout", "establishment_failures", "residual_n_eff"]
@@ -1025,7 +1025,7 @@ def _data_baselines(ctx: FitContext, rec: Plant, base: Fit, ext: Fit, train, hol
             if also_raw:
                 scores.append(("hold-out RMSE", rms(data_model[c.column]),
                                table[c.column][1], table[c.column][0],
-                               {"um": "µm"}.get(c.unit, c.unit)))
+                               unit_shown(c.unit)))
             for what, mw, ew, nw, unit in scores:
                 mlr_better |= better(mw, nw)
                 if beat is None and better(mw, ew):

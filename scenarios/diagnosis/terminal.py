@@ -11,10 +11,9 @@ mesh), it gives the raw gain and the whitened one the verdict uses.
 """
 from __future__ import annotations
 
-__all__ = ["diagnosis_terminal_line"]
+from arfem.models.diagnosis.result import unit_shown
 
-#: a channel's unit as the terminal shows it
-_UNIT_SHOWN = {"um": "µm", "urad": "µrad"}
+__all__ = ["diagnosis_terminal_line"]
 
 
 def diagnosis_terminal_line(d) -> str:
@@ -51,7 +50,7 @@ def _holdout_text(d) -> str:
         ext = ("extended model" if d.verdict == "established" else
                "best candidate's extended model" if d.causes else
                "no extended model: the baseline")
-        unit = _UNIT_SHOWN.get(c.unit, c.unit)
+        unit = unit_shown(c.unit)
         text = (f"hold-out (from {h.start_s / 3600:.2f} h, {h.n_samples} rows) RMSE "
                 f"{c.baseline_rmse:.3g} -> {c.extended_rmse:.3g} {unit} ({ext}, gain "
                 f"{h.gain_pct:.1f} %)")
