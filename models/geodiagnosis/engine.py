@@ -1014,22 +1014,24 @@ def _data_baselines(ctx: FitContext, rec: Plant, base: Fit, ext: Fit, train, hol
             return float(np.sqrt(np.mean((rec.data[ok, j] - p[ok]) ** 2))) if ok.any() else np.nan
         m = rms(mlr[c.column]) if c.column in mlr else None
         table[c.column] = (rms(base.prediction[:, j]), rms(ext.prediction[:, j]), m)
-        for label, data_model, also_raw in data_models:
-            if c.column not in data_model:
-                continue
+        covered = [(label, dm[c.column], raw) for label, dm, raw in data_models
+                   if c.column in dm]
+        if not covered:
+            continue
+        # the extended and the nominal model whitened once per channel, for every baseline
+        ew, nw = (_whitened_rms(ctx, ext.prediction, j, ok),
+                  _whitened_rms(ctx, base.prediction, j, ok))
+        for label, pred, also_raw in covered:
             P = base.prediction.copy()
-            P[:, j] = data_model[c.column]
-            scores = [("whitened hold-out RMS", _whitened_rms(ctx, P, j, ok),
-                       _whitened_rms(ctx, ext.prediction, j, ok),
-                       _whitened_rms(ctx, base.prediction, j, ok), "")]
+            P[:, j] = pred
+            scores = [("whitened hold-out RMS", _whitened_rms(ctx, P, j, ok), ew, nw, "")]
             if also_raw:
-                scores.append(("hold-out RMSE", rms(data_model[c.column]),
-                               table[c.column][1], table[c.column][0],
-                               unit_shown(c.unit)))
-            for what, mw, ew, nw, unit in scores:
-                mlr_better |= better(mw, nw)
-                if beat is None and better(mw, ew):
-                    beat = (f"{label} ({what} on {c.column})", mw, ew, unit)
+                scores.append(("hold-out RMSE", rms(pred), table[c.column][1],
+                               table[c.column][0], unit_shown(c.unit)))
+            for what, score, ext_score, nominal_score, unit in scores:
+                mlr_better |= better(score, nominal_score)
+                if beat is None and better(score, ext_score):
+                    beat = (f"{label} ({what} on {c.column})", score, ext_score, unit)
     return table, mlr_better, beat
 
 
