@@ -224,9 +224,10 @@ MODE_TAU_H = (0.3, 12.0)
 MODE_EXPONENTS = (1.0, 3.0)
 
 
-def _room(rng, t):
-    """A room's temperature change [K]: a daily and a 7 h wave of 0.5-2 K."""
-    a1, a2 = rng.uniform(0.5, 2.0, 2)
+def _room(rng, t, daily_K=(0.5, 2.0), seven_h_K=(0.5, 2.0)):
+    """A room's temperature change [K]: a daily and a 7 h wave, their amplitudes drawn
+    from ``daily_K`` and ``seven_h_K`` [K], then their phases."""
+    a1, a2 = rng.uniform((daily_K[0], seven_h_K[0]), (daily_K[1], seven_h_K[1]))
     ph = rng.uniform(0, 2 * np.pi, 2)
     return (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
             + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
@@ -321,10 +322,7 @@ def _ambient(cr, sign: float, t, b: float, y):
     AR(1) at rate ``b`` [1/s]), recorded ambient change [K] and truth (module
     docstring). ``cr`` draws the cause."""
     g = sign * float(cr.uniform(1.0, 5.0))
-    a1, a2 = cr.uniform(1.0, 3.0), cr.uniform(0.3, 1.0)
-    ph = cr.uniform(0, 2 * np.pi, 2)
-    true_amb = (a1 * np.sin(2 * np.pi * t / 86400.0 + ph[0])
-                + a2 * np.sin(2 * np.pi * t / (7 * 3600.0) + ph[1]))
+    true_amb = _room(cr, t, (1.0, 3.0), (0.3, 1.0))
     y = y + g * ar_first_order(t, true_amb, b, 1.0)
     return y, true_amb + cr.normal(0.0, 0.02, t.size), {"ambient_gain_um_per_K": g}
 
