@@ -142,18 +142,33 @@ def _plain_recursion(a: np.ndarray, b: np.ndarray, x0: np.ndarray) -> np.ndarray
     sweeps end. A decay below e^-36 forgets a changed row within rounding, except where
     b = 0 (no input): there the state decays to exactly 0 within ~20 rows, and the
     sweeps after the first touch only those rows."""
-    n = b.shape[0]
     prev = np.empty_like(b)
     prev[0] = x0
     prev[1:] = b[:-1]
     x = a * prev + b
-    rows = np.flatnonzero(np.any(x != b, axis=1)) + 1
+    return _sweep_to_fixed_point(x, np.flatnonzero(np.any(x != b, axis=1)) + 1,
+                                 lambda rows: a[rows] * x[rows - 1] + b[rows])
+
+
+def _sweep_to_fixed_point(x: np.ndarray, rows: np.ndarray, step, first=None) -> np.ndarray:
+    """The sweeps that finish :func:`_plain_recursion` and :func:`_chunk_carry` after
+    their first: x[r] ← ``step(r)`` over the rows ``rows`` (those after a row the first
+    sweep changed), then over the rows after those that changed, until none changes;
+    ``x`` is updated in place and returned. ``step(r)`` computes rows ``r`` from
+    ``x[r - 1]`` (the loop's operations), so a row is final once its predecessor is.
+    ``first`` (bool per row): rows that start a sequence of their own (a column's first
+    chunk), never swept again. A row of a 2-D ``x`` changes where any column does."""
+    n = x.shape[0]
     while True:
         rows = rows[rows < n]
+        if first is not None:
+            rows = rows[~first[rows]]
         if rows.size == 0:
             return x
-        new = a[rows] * x[rows - 1] + b[rows]
-        changed = np.any(new != x[rows], axis=1)
+        new = step(rows)
+        changed = new != x[rows]
+        if changed.ndim > 1:
+            changed = np.any(changed, axis=1)
         x[rows] = new
         rows = rows[changed] + 1
 
@@ -240,15 +255,8 @@ def _chunk_carry(a_first, b_first, last, col, x0) -> np.ndarray:
     new = a_first * prev + b_first
     rows = np.flatnonzero(new != xs) + 1
     xs = new
-    while True:
-        rows = rows[rows < n_chunks]
-        rows = rows[~first[rows]]
-        if rows.size == 0:
-            return xs
-        new = a_first[rows] * carried(rows - 1) + b_first[rows]
-        changed = new != xs[rows]
-        xs[rows] = new
-        rows = rows[changed] + 1
+    return _sweep_to_fixed_point(xs, rows,
+                                 lambda r: a_first[r] * carried(r - 1) + b_first[r], first)
 
 
 def _chunk_carry_loop(a_first, b_first, last, col, x0) -> np.ndarray:
