@@ -30,8 +30,10 @@ from arfem.limits import Limits
 from arfem.models.diagnosis.verdict import units_suspect
 from arfem.params import InputError
 from arfem.scenarios.records.dataset import (DISPLACEMENT_ZERO, RecordColumns, RecordDoc,
-                                     displacement_zero, read_record_columns,
-                                     read_record_doc, record_toml_of)
+                                             ambient_filled_C, check_time_steps_s,
+                                             displacement_zero, drop_missing_rows,
+                                             input_complete, read_record_columns,
+                                             read_record_doc, record_toml_of)
 
 __all__ = ["RecordFiles", "is_mesh_record", "refuse_mesh_record", "refuse_mesh_channels",
            "read_record_files", "record_toml_of", "MeshRecord", "read_mesh_record",
@@ -137,8 +139,6 @@ def read_table(files: RecordFiles, limits: Limits | None = None) -> RecordTable:
     version: rows with an empty ``time_s`` dropped (at most 5 %), ``time_s`` from >= 0
     strictly increasing, each input (``speed_rpm``, ``P_<source>_W``) on every row and
     >= 0, ``ambient_C``'s short gaps filled."""
-    from arfem.scenarios.records.dataset import (ambient_filled_C, check_time_steps_s,
-                                                 drop_missing_rows, input_complete)
     doc = files.doc if files.doc is not None else read_record_doc(files.toml, limits)
     rc: RecordColumns = read_record_columns(doc, limits)
     where = files.csv
