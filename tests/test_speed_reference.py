@@ -114,3 +114,20 @@ def test_a_reference_with_the_lower_hold_out_rmse_beats_the_extended_model(monke
     assert beat is not None and beat[0] == "the reference (hold-out RMSE on growth_um)"
     assert beat[1] == pytest.approx(0.5, rel=0.15) and beat[2] == pytest.approx(1.0)
     assert beat[3] == "µm"
+
+
+def test_every_switch_page_is_what_its_stored_numbers_write():
+    """reports/fl_thermal/switch*.md are written from switch*.json by regenerate.py's
+    ``_switch_text``: each committed page equals that text (switch_posthoc.md had been
+    written before the post hoc pages said what had changed)."""
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "reports" / "fl_thermal"
+    spec = importlib.util.spec_from_file_location("regenerate", root / "regenerate.py")
+    regen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(regen)
+    for name in ("switch", *regen.POSTHOC_SWITCH_RUNS):
+        out = json.loads((root / f"{name}.json").read_text(encoding="utf-8"))
+        assert regen._switch_text(out) == (root / f"{name}.md").read_text(encoding="utf-8"), name

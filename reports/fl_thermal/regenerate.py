@@ -267,7 +267,8 @@ def _commit() -> str:
 
 
 #: the post hoc reruns of the switch's comparison (README.posthoc.md 1.4.1, 1.4.2): file
-#: name -> what the pipeline had changed since the pre-registered run
+#: name -> what the pipeline had changed since the pre-registered run (switch_posthoc.json
+#: was written before runs recorded it: its text is read from here)
 POSTHOC_SWITCH_RUNS = {
     "switch_posthoc": "one gain per speed where BIC on N_eff prefers it (README.posthoc.md "
                       "1.4.1)",
@@ -338,7 +339,7 @@ def _switch_text(out) -> str:
         head = ("# The speed switch's comparison, rerun POST HOC on a later pipeline", "",
                 "**Post hoc**: the pipeline was changed after the pre-registered run "
                 "(switch.md) had been seen; this table decides nothing. Changed: "
-                f"{out.get('changed') or 'one gain per speed where BIC prefers it'}. At")
+                f"{out.get('changed') or POSTHOC_SWITCH_RUNS['switch_posthoc']}. At")
         outcome = ("**Post hoc, the criterion would " + ("hold" if o["passes"] else "fail")
                    + "; the pre-registered outcome (switch.md) stands.**")
     else:
