@@ -246,24 +246,11 @@ def _rmse(d) -> float:
     return float(d.holdout.channels[0].extended_rmse)
 
 
-def _find(doc, key: str):
-    """The first value under ``key`` anywhere in a nested dict/list document."""
-    if isinstance(doc, dict):
-        if key in doc:
-            return doc[key]
-        doc = list(doc.values())
-    if isinstance(doc, (list, tuple)):
-        for v in doc:
-            found = _find(v, key)
-            if found is not None:
-                return found
-    return None
-
-
 def run_rod(ds, h0):
     d = diagnose(ds, h0)
-    fs = _find(getattr(d.evidence, "document", None), "frame_structure")
-    if isinstance(fs, dict):
+    # the speed branch records its chosen frame (records with thermometers) there
+    fs = d.evidence.document.get("selection", {}).get("frame_structure")
+    if fs is not None:
         print(f"  rod branch frame structure: {fs.get('label')}", flush=True)
     return d.verdict, tuple((c.cause, dict(c.parameters), dict(c.ci95))
                             for c in d.causes), _rmse(d)
